@@ -1,0 +1,165 @@
+//! Kinematic backstepping law, eq. (14), its Lyapunov function (15) and the
+//! analytic derivative η̇_c the dynamic loop needs.
+
+use crate::error::ConfigError;
+use crate::math::{cos, sin_cos};
+
+/// Gains of eq. (14) (paper Table 2: k_x = 1.2, k_y = 250, k_th = 5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct KinematicGains {
+    /// k_x \[1/s\].
+    pub k_x: f32,
+    /// k_y \[rad/m²\].
+    pub k_y: f32,
+    /// k_th \[1/s\].
+    pub k_th: f32,
+    /// Include the printed `2·e_y·Δω̂` term in v_c. Off by default: the
+    /// derivation of (16) does not need it and it makes V̇_K sign-indefinite (D7).
+    pub printed_2ey_term: bool,
+}
+
+impl KinematicGains {
+    /// Table 2 values with k_y as printed (250).
+    pub const fn paper() -> Self {
+        Self {
+            k_x: 1.2,
+            k_y: 250.0,
+            k_th: 5.0,
+            printed_2ey_term: false,
+        }
+    }
+
+    /// Validates the gains.
+    pub fn validate(self) -> Result<Self, ConfigError> {
+        let ok = |x: f32| x.is_finite() && x > 0.0;
+        if ok(self.k_x) && ok(self.k_y) && ok(self.k_th) {
+            Ok(self)
+        } else {
+            Err(ConfigError::NonPositiveGain)
+        }
+    }
+
+    /// η_c = \[v_c, ω_c\] of eq. (14):
+    /// v_c = v_s cos e_θ + k_x e_x + Δv̂ (+ 2e_yΔω̂ if enabled),
+    /// ω_c = ω_s + k_y v_s e_y + k_th sin e_θ + Δω̂.
+    #[inline]
+    pub fn eta_c(&self, e: [f32; 3], v_s: f32, omega_s: f32, f_hat: [f32; 2]) -> [f32; 2] {
+        let (se, ce) = sin_cos(e[2]);
+        let mut v = v_s * ce + self.k_x * e[0] + f_hat[0];
+        if self.printed_2ey_term {
+            v += 2.0 * e[1] * f_hat[1];
+        }
+        [
+            v,
+            omega_s + self.k_y * v_s * e[1] + self.k_th * se + f_hat[1],
+        ]
+    }
+
+    /// dη_c/dt by the chain rule, given ė (eq. 11 with the measured η and F̂),
+    /// v̇_s, ω̇_s, treating F̂ as constant over the step (D9).
+    #[inline]
+    pub fn eta_c_dot(
+        &self,
+        e: [f32; 3],
+        e_dot: [f32; 3],
+        v_s: f32,
+        v_s_dot: f32,
+        omega_s_dot: f32,
+        f_hat: [f32; 2],
+    ) -> [f32; 2] {
+        let (se, ce) = sin_cos(e[2]);
+        let mut vd = v_s_dot * ce - v_s * se * e_dot[2] + self.k_x * e_dot[0];
+        if self.printed_2ey_term {
+            vd += 2.0 * e_dot[1] * f_hat[1];
+        }
+        let wd =
+            omega_s_dot + self.k_y * (v_s_dot * e[1] + v_s * e_dot[1]) + self.k_th * ce * e_dot[2];
+        [vd, wd]
+    }
+
+    /// V_K = (1 − cos e_θ)/k_y + (e_x² + e_y²)/2, eq. (15).
+    #[inline]
+    pub fn lyapunov(&self, e: [f32; 3]) -> f32 {
+        (1.0 - cos(e[2])) / self.k_y + 0.5 * (e[0] * e[0] + e[1] * e[1])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tracking::error_rate;
+
+    /// Closed kinematic loop (η = η_c exactly, d = 0, constant fault with a
+    /// perfect estimate): V_K of eq. (15) never increases and e → 0.
+    #[test]
+    fn lyapunov_decreases_in_closed_kinematic_loop() {
+        for k_y in [25.0f32, 250.0] {
+            let g = KinematicGains {
+                k_y,
+                ..KinematicGains::paper()
+            };
+            let fault = [0.1f32, 0.05];
+            let mut e = [1.0f32, -0.8, 0.6];
+            let dt = 1e-4f32;
+            let mut v_prev = g.lyapunov(e);
+            let v0 = v_prev;
+            for k in 0..100_000 {
+                let t = k as f32 * dt;
+                let (vs, ws) = (0.5 + 0.2 * libm::sinf(0.3 * t), 0.2 * libm::cosf(0.5 * t));
+                let eta = g.eta_c(e, vs, ws, fault);
+                let de = error_rate(e, eta, fault, vs, ws, 0.0);
+                for i in 0..3 {
+                    e[i] += de[i] * dt;
+                }
+                let v = g.lyapunov(e);
+                // V̇ <= 0 up to the Euler step's O(dt²) error.
+                assert!(
+                    v <= v_prev + 1e-6,
+                    "k_y {k_y} t {t}: V rose {v_prev} -> {v}"
+                );
+                v_prev = v;
+            }
+            assert!(v_prev < 1e-3 * v0, "k_y {k_y}: V {v_prev} of {v0}");
+        }
+    }
+
+    /// With the printed 2e_yΔω̂ term V_K can increase (why it is off by default).
+    #[test]
+    fn printed_2ey_term_breaks_monotonic_decrease() {
+        let g = KinematicGains {
+            printed_2ey_term: true,
+            ..KinematicGains::paper()
+        };
+        let fault = [0.0f32, 0.5];
+        let e = [-0.01f32, 1.0, 0.0]; // V̇ gains −2·e_x·e_y·Δω > 0 here
+        let (vs, ws) = (0.0, 0.0);
+        let eta = g.eta_c(e, vs, ws, fault);
+        let de = error_rate(e, eta, fault, vs, ws, 0.0);
+        let vdot = e[0] * de[0] + e[1] * de[1] + libm::sinf(e[2]) * de[2] / g.k_y;
+        assert!(vdot > 0.0, "V̇ = {vdot}");
+    }
+
+    #[test]
+    fn eta_c_dot_matches_finite_difference() {
+        let g = KinematicGains {
+            k_y: 25.0,
+            ..KinematicGains::paper()
+        };
+        let e = [0.3f32, -0.2, 0.4];
+        let de = [0.1f32, 0.05, -0.2];
+        let (vs, vsd, ws, wsd) = (0.7f32, 0.3f32, 0.2f32, -0.1f32);
+        let f = [0.05f32, 0.02];
+        let h = 1e-3f32;
+        let step = |s: f32| {
+            let ee = [e[0] + s * de[0], e[1] + s * de[1], e[2] + s * de[2]];
+            g.eta_c(ee, vs + s * vsd, ws + s * wsd, f)
+        };
+        let (a, b) = (step(-h), step(h));
+        let an = g.eta_c_dot(e, de, vs, vsd, wsd, f);
+        for i in 0..2 {
+            let fd = (b[i] - a[i]) / (2.0 * h);
+            assert!((fd - an[i]).abs() < 1e-2, "{i}: {fd} vs {}", an[i]);
+        }
+    }
+}

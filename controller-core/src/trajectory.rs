@@ -1,0 +1,479 @@
+//! Reference trajectories: the virtual vehicle's pose, v_s, ω_s and their
+//! time derivatives (which the analytic η̇_c of the dynamic loop needs).
+
+use crate::error::ConfigError;
+use crate::math::{atan2, sin_cos, sqrt};
+use crate::types::Pose;
+
+/// One sample of the reference (virtual vehicle) at time t.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RefSample {
+    /// Reference pose (x_s, y_s, θ_s).
+    pub pose: Pose,
+    /// Reference linear velocity v_s \[m/s\] (signed: negative drives backwards).
+    pub v_mps: f32,
+    /// Reference angular velocity ω_s \[rad/s\].
+    pub omega_radps: f32,
+    /// dv_s/dt \[m/s²\].
+    pub v_dot_mps2: f32,
+    /// dω_s/dt \[rad/s²\].
+    pub omega_dot_radps2: f32,
+}
+
+impl RefSample {
+    /// True when every field is finite.
+    pub fn is_finite(&self) -> bool {
+        self.pose.is_finite()
+            && self.v_mps.is_finite()
+            && self.omega_radps.is_finite()
+            && self.v_dot_mps2.is_finite()
+            && self.omega_dot_radps2.is_finite()
+    }
+}
+
+/// Anything that yields a reference sample at a time.
+pub trait Trajectory {
+    /// Reference at time `t_s` \[s\].
+    fn sample(&self, t_s: f32) -> RefSample;
+}
+
+/// Reference from a planar curve's derivatives p, ṗ, p̈, p⃛ with the tangent
+/// heading and v_s = |ṗ| >= 0. Undefined where ṗ = 0 (returns ω_s = 0 there).
+pub fn tangent_sample(p: [f32; 2], d1: [f32; 2], d2: [f32; 2], d3: [f32; 2]) -> RefSample {
+    let v2 = d1[0] * d1[0] + d1[1] * d1[1];
+    let v = sqrt(v2);
+    let (omega, v_dot, omega_dot) = if v2 > 1e-12 {
+        let cross = d1[0] * d2[1] - d1[1] * d2[0];
+        let dot = d1[0] * d2[0] + d1[1] * d2[1];
+        let omega = cross / v2;
+        // d/dt (cross / v²) = (ṗ×p⃛)/v² − 2ω(ṗ·p̈)/v²
+        let cross3 = d1[0] * d3[1] - d1[1] * d3[0];
+        (omega, dot / v, (cross3 - 2.0 * omega * dot) / v2)
+    } else {
+        (0.0, sqrt(d2[0] * d2[0] + d2[1] * d2[1]), 0.0)
+    };
+    RefSample {
+        pose: Pose::new(p[0], p[1], atan2(d1[1], d1[0])),
+        v_mps: v,
+        omega_radps: omega,
+        v_dot_mps2: v_dot,
+        omega_dot_radps2: omega_dot,
+    }
+}
+
+/// How the paper's curve gets a heading (NOTES: the printed θ_d = 0.2t does
+/// not follow the curve). See `docs/DECISIONS.md`, D3.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum PaperHeading {
+    /// Default. Smooth heading through the cusps, signed v_s: the virtual
+    /// vehicle faces +x throughout and drives backwards on alternate sweeps.
+    #[default]
+    SignedSmooth,
+    /// Tangent heading with v_s >= 0: heading jumps by π at each cusp
+    /// (t = 0, 5π, 10π s): a U-turn on the spot.
+    Tangent,
+    /// As printed: θ_s = w·t, ω_s = w, v_s = |ṗ| (heading unrelated to the path).
+    Printed,
+}
+
+/// The paper's reference, x_d = a_x·cos(w t), y_d = a_y·cos(3 w t)
+/// (paper: a_x = 4 m, a_y = 3 m, w = 0.2 rad/s).
+///
+/// Because the y frequency is three times the x frequency, y = a_y·T₃(x/a_x)
+/// and the velocity factors as ṗ = −sin(wt)·W(t) with
+/// W = w·\[a_x, 3a_y(1 + 2cos 2wt)\], which never vanishes (W_x = w·a_x > 0):
+/// the heading atan2(W_y, W_x) is smooth and v_s = −sin(wt)·|W| is signed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PaperCurve {
+    /// x amplitude a_x \[m\].
+    pub ax_m: f32,
+    /// y amplitude a_y \[m\].
+    pub ay_m: f32,
+    /// Base angular frequency w \[rad/s\].
+    pub w_radps: f32,
+    /// Heading reading.
+    pub heading: PaperHeading,
+}
+
+impl PaperCurve {
+    /// The paper's curve with the given heading reading.
+    pub const fn paper(heading: PaperHeading) -> Self {
+        Self {
+            ax_m: 4.0,
+            ay_m: 3.0,
+            w_radps: 0.2,
+            heading,
+        }
+    }
+
+    /// Validates the parameters.
+    pub fn validate(self) -> Result<Self, ConfigError> {
+        let ok = |x: f32| x.is_finite() && x > 0.0;
+        if ok(self.ax_m) && ok(self.ay_m) && ok(self.w_radps) {
+            Ok(self)
+        } else {
+            Err(ConfigError::InvalidTrajectory)
+        }
+    }
+
+    fn signed_smooth(&self, t: f32) -> RefSample {
+        let (ax, ay, w) = (self.ax_m, self.ay_m, self.w_radps);
+        let (su, cu) = sin_cos(w * t);
+        let (s2, c2) = sin_cos(2.0 * w * t);
+        let (_, c3) = sin_cos(3.0 * w * t);
+        // W = w·[ax, 3ay(1 + 2cos 2u)], Ẇ = [0, −12 ay w² sin 2u], Ẅ = [0, −24 ay w³ cos 2u]
+        let wx = w * ax;
+        let wy = 3.0 * ay * w * (1.0 + 2.0 * c2);
+        let wy_d = -12.0 * ay * w * w * s2;
+        let wy_dd = -24.0 * ay * w * w * w * c2;
+        let n2 = wx * wx + wy * wy;
+        let n = sqrt(n2);
+        let n_d = wy * wy_d / n;
+        let omega = wx * wy_d / n2;
+        let omega_dot = wx * (wy_dd * n2 - wy_d * 2.0 * wy * wy_d) / (n2 * n2);
+        RefSample {
+            pose: Pose::new(ax * cu, ay * c3, atan2(wy, wx)),
+            v_mps: -su * n,
+            omega_radps: omega,
+            v_dot_mps2: -w * cu * n - su * n_d,
+            omega_dot_radps2: omega_dot,
+        }
+    }
+}
+
+impl Trajectory for PaperCurve {
+    fn sample(&self, t_s: f32) -> RefSample {
+        let smooth = self.signed_smooth(t_s);
+        match self.heading {
+            PaperHeading::SignedSmooth => smooth,
+            PaperHeading::Tangent => {
+                if smooth.v_mps < 0.0 {
+                    let th = smooth.pose.theta_rad;
+                    let flipped = if th > 0.0 {
+                        th - core::f32::consts::PI
+                    } else {
+                        th + core::f32::consts::PI
+                    };
+                    RefSample {
+                        pose: Pose::new(smooth.pose.x_m, smooth.pose.y_m, flipped),
+                        v_mps: -smooth.v_mps,
+                        v_dot_mps2: -smooth.v_dot_mps2,
+                        ..smooth
+                    }
+                } else {
+                    smooth
+                }
+            }
+            PaperHeading::Printed => {
+                let (ax, ay, w) = (self.ax_m, self.ay_m, self.w_radps);
+                let (su, cu) = sin_cos(w * t_s);
+                let (s3, c3) = sin_cos(3.0 * w * t_s);
+                let d1 = [-ax * w * su, -3.0 * ay * w * s3];
+                let d2 = [-ax * w * w * cu, -9.0 * ay * w * w * c3];
+                let v = sqrt(d1[0] * d1[0] + d1[1] * d1[1]);
+                let v_dot = if v > 1e-6 {
+                    (d1[0] * d2[0] + d1[1] * d2[1]) / v
+                } else {
+                    0.0
+                };
+                RefSample {
+                    pose: Pose::new(smooth.pose.x_m, smooth.pose.y_m, w * t_s),
+                    v_mps: v,
+                    omega_radps: w,
+                    v_dot_mps2: v_dot,
+                    omega_dot_radps2: 0.0,
+                }
+            }
+        }
+    }
+}
+
+/// Circle of radius R centred at the origin, driven counter-clockwise at
+/// constant speed, starting at (R, 0) heading +y.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Circle {
+    /// Radius \[m\].
+    pub radius_m: f32,
+    /// Speed \[m/s\].
+    pub speed_mps: f32,
+}
+
+impl Trajectory for Circle {
+    fn sample(&self, t_s: f32) -> RefSample {
+        let w = self.speed_mps / self.radius_m;
+        let (s, c) = sin_cos(w * t_s);
+        let r = self.radius_m;
+        tangent_sample(
+            [r * c, r * s],
+            [-r * w * s, r * w * c],
+            [-r * w * w * c, -r * w * w * s],
+            [r * w * w * w * s, -r * w * w * w * c],
+        )
+    }
+}
+
+/// Figure-eight (lemniscate of Gerono): x = A·sin(wt), y = (A/2)·sin(2wt).
+/// Its speed never vanishes, so the tangent heading is smooth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FigureEight {
+    /// Half-width A \[m\].
+    pub amplitude_m: f32,
+    /// Angular frequency w \[rad/s\] (period 2π/w).
+    pub w_radps: f32,
+}
+
+impl Trajectory for FigureEight {
+    fn sample(&self, t_s: f32) -> RefSample {
+        let (a, w) = (self.amplitude_m, self.w_radps);
+        let (s1, c1) = sin_cos(w * t_s);
+        let (s2, c2) = sin_cos(2.0 * w * t_s);
+        let b = 0.5 * a;
+        tangent_sample(
+            [a * s1, b * s2],
+            [a * w * c1, 2.0 * b * w * c2],
+            [-a * w * w * s1, -4.0 * b * w * w * s2],
+            [-a * w * w * w * c1, -8.0 * b * w * w * w * c2],
+        )
+    }
+}
+
+/// Straight line from a start point at constant speed and heading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Line {
+    /// Start point and heading.
+    pub start: Pose,
+    /// Speed \[m/s\].
+    pub speed_mps: f32,
+}
+
+impl Trajectory for Line {
+    fn sample(&self, t_s: f32) -> RefSample {
+        let (s, c) = sin_cos(self.start.theta_rad);
+        let d = self.speed_mps * t_s;
+        RefSample {
+            pose: Pose::new(
+                self.start.x_m + d * c,
+                self.start.y_m + d * s,
+                self.start.theta_rad,
+            ),
+            v_mps: self.speed_mps,
+            omega_radps: 0.0,
+            v_dot_mps2: 0.0,
+            omega_dot_radps2: 0.0,
+        }
+    }
+}
+
+/// Any of the built-in trajectories, for static dispatch in the firmware.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Reference {
+    /// The paper's curve.
+    Paper(PaperCurve),
+    /// A circle.
+    Circle(Circle),
+    /// A figure-eight.
+    FigureEight(FigureEight),
+    /// A straight line.
+    Line(Line),
+}
+
+impl Reference {
+    /// Checks the parameters of the chosen trajectory.
+    pub fn validate(self) -> Result<Self, ConfigError> {
+        let ok = |x: f32| x.is_finite() && x > 0.0;
+        let valid = match &self {
+            Self::Paper(p) => p.validate().is_ok(),
+            Self::Circle(c) => ok(c.radius_m) && ok(c.speed_mps),
+            Self::FigureEight(f) => ok(f.amplitude_m) && ok(f.w_radps),
+            Self::Line(l) => l.start.is_finite() && l.speed_mps.is_finite(),
+        };
+        if valid {
+            Ok(self)
+        } else {
+            Err(ConfigError::InvalidTrajectory)
+        }
+    }
+}
+
+impl Trajectory for Reference {
+    fn sample(&self, t_s: f32) -> RefSample {
+        match self {
+            Self::Paper(p) => p.sample(t_s),
+            Self::Circle(c) => c.sample(t_s),
+            Self::FigureEight(f) => f.sample(t_s),
+            Self::Line(l) => l.sample(t_s),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::wrap_angle;
+
+    /// Checks a trajectory against central finite differences: position moves
+    /// along the heading at v_s (unless `printed`), θ̇ = ω_s, v̇_s, ω̇_s.
+    fn check_fd<T: Trajectory>(
+        traj: &T,
+        t0: f32,
+        t1: f32,
+        unicycle: bool,
+        skip: impl Fn(f32) -> bool,
+    ) {
+        let h = 1e-3f32;
+        let mut t = t0;
+        let mut checked = 0;
+        while t < t1 {
+            if !skip(t) {
+                let a = traj.sample(t - h);
+                let b = traj.sample(t + h);
+                let m = traj.sample(t);
+                let (s, c) = sin_cos(m.pose.theta_rad);
+                if unicycle {
+                    let vx = (b.pose.x_m - a.pose.x_m) / (2.0 * h);
+                    let vy = (b.pose.y_m - a.pose.y_m) / (2.0 * h);
+                    assert!(
+                        (vx - m.v_mps * c).abs() < 5e-3,
+                        "t={t} vx {vx} vs {}",
+                        m.v_mps * c
+                    );
+                    assert!((vy - m.v_mps * s).abs() < 5e-3, "t={t} vy");
+                }
+                let th = wrap_angle(b.pose.theta_rad - a.pose.theta_rad) / (2.0 * h);
+                assert!(
+                    (th - m.omega_radps).abs() < 5e-3,
+                    "t={t} ω {th} vs {}",
+                    m.omega_radps
+                );
+                let vd = (b.v_mps - a.v_mps) / (2.0 * h);
+                assert!(
+                    (vd - m.v_dot_mps2).abs() < 2e-2,
+                    "t={t} v̇ {vd} vs {}",
+                    m.v_dot_mps2
+                );
+                let wd = (b.omega_radps - a.omega_radps) / (2.0 * h);
+                assert!(
+                    (wd - m.omega_dot_radps2).abs() < 2e-2,
+                    "t={t} ω̇ {wd} vs {}",
+                    m.omega_dot_radps2
+                );
+                checked += 1;
+            }
+            t += 0.0731;
+        }
+        assert!(checked > 100);
+    }
+
+    #[test]
+    fn paper_signed_smooth_matches_finite_differences() {
+        check_fd(
+            &PaperCurve::paper(PaperHeading::SignedSmooth),
+            0.0,
+            40.0,
+            true,
+            |_| false,
+        );
+    }
+
+    #[test]
+    fn paper_signed_smooth_is_the_paper_curve_and_heading_continuous() {
+        let p = PaperCurve::paper(PaperHeading::SignedSmooth);
+        let mut prev = p.sample(0.0).pose.theta_rad;
+        for i in 0..4000 {
+            let t = i as f32 * 0.01;
+            let s = p.sample(t);
+            assert!((s.pose.x_m - 4.0 * libm::cosf(0.2 * t)).abs() < 1e-5);
+            assert!((s.pose.y_m - 3.0 * libm::cosf(0.6 * t)).abs() < 1e-5);
+            // faces +x, no jump.
+            assert!(s.pose.theta_rad.abs() < core::f32::consts::FRAC_PI_2);
+            assert!((s.pose.theta_rad - prev).abs() < 0.05);
+            prev = s.pose.theta_rad;
+        }
+        // Drives backwards on the first sweep (0, 5π) and forwards on the second.
+        assert!(p.sample(5.0).v_mps < 0.0 && p.sample(20.0).v_mps > 0.0);
+    }
+
+    #[test]
+    fn paper_tangent_matches_fd_away_from_cusps_and_flips_at_cusp() {
+        let p = PaperCurve::paper(PaperHeading::Tangent);
+        let cusp = |t: f32| {
+            let k = libm::roundf(t / (5.0 * core::f32::consts::PI));
+            (t - k * 5.0 * core::f32::consts::PI).abs() < 0.3
+        };
+        check_fd(&p, 0.0, 40.0, true, cusp);
+        let c = 5.0 * core::f32::consts::PI;
+        let before = p.sample(c - 0.05).pose.theta_rad;
+        let after = p.sample(c + 0.05).pose.theta_rad;
+        assert!((wrap_angle(after - before).abs() - core::f32::consts::PI).abs() < 0.1);
+        assert!(p.sample(3.0).v_mps >= 0.0 && p.sample(20.0).v_mps >= 0.0);
+    }
+
+    #[test]
+    fn paper_printed_heading_is_linear_in_time() {
+        let p = PaperCurve::paper(PaperHeading::Printed);
+        let cusp = |t: f32| {
+            let k = libm::roundf(t / (5.0 * core::f32::consts::PI));
+            (t - k * 5.0 * core::f32::consts::PI).abs() < 0.3
+        };
+        check_fd(&p, 0.0, 40.0, false, cusp);
+        assert!((p.sample(10.0).pose.theta_rad - 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn circle_figure_eight_line_match_finite_differences() {
+        check_fd(
+            &Circle {
+                radius_m: 2.0,
+                speed_mps: 0.5,
+            },
+            0.0,
+            30.0,
+            true,
+            |_| false,
+        );
+        check_fd(
+            &FigureEight {
+                amplitude_m: 2.0,
+                w_radps: 0.3,
+            },
+            0.0,
+            30.0,
+            true,
+            |_| false,
+        );
+        let l = Line {
+            start: Pose::new(1.0, -1.0, 0.7),
+            speed_mps: 0.4,
+        };
+        check_fd(&l, 0.0, 30.0, true, |_| false);
+        // Circle stays on its radius.
+        let c = Circle {
+            radius_m: 2.0,
+            speed_mps: 0.5,
+        }
+        .sample(7.3)
+        .pose;
+        assert!(((c.x_m * c.x_m + c.y_m * c.y_m).sqrt() - 2.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn invalid_trajectories_rejected() {
+        let bad = Reference::Circle(Circle {
+            radius_m: 0.0,
+            speed_mps: 1.0,
+        });
+        assert_eq!(bad.validate(), Err(ConfigError::InvalidTrajectory));
+        let bad = PaperCurve {
+            w_radps: f32::NAN,
+            ..PaperCurve::paper(PaperHeading::Tangent)
+        };
+        assert_eq!(bad.validate(), Err(ConfigError::InvalidTrajectory));
+    }
+}

@@ -1,0 +1,2 @@
+//! Host-side simulator for controller-core (filled by the hil-sim issue).
+#![deny(missing_docs)]

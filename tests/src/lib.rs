@@ -1,0 +1,2 @@
+//! Closed-loop integration tests live in `tests/tests/`.
+#![deny(missing_docs)]
