@@ -1,2 +1,20 @@
-//! Host-side simulator for controller-core (filled by the hil-sim issue).
+//! # hil-sim
+//!
+//! Host-side simulator for `controller-core`: the paper's plant (kinematics
+//! (3) with slip σ and lateral skid U_D, reduced dynamics (6) with P1 and an
+//! external disturbance τ_d, and the actuator fault (10)) integrated in f64
+//! with RK4, closed through the exact controller code the firmware runs, at
+//! the controller's own period with zero-order hold. Only sensors and
+//! actuators are simulated; no controller code lives here.
 #![deny(missing_docs)]
+
+pub mod metrics;
+pub mod plant;
+pub mod rng;
+pub mod scenario;
+pub mod sim;
+
+pub use metrics::Metrics;
+pub use plant::{Plant, PlantParams, PlantState};
+pub use scenario::Scenario;
+pub use sim::{run, SimOutput, TraceSample};

@@ -1,0 +1,436 @@
+//! The paper's robot, in f64.
+//!
+//! State: q = \[x, y, θ, φ_R, φ_L\] (x, y of the centre of mass G) and the
+//! body velocity ν = η − σ of eq. (6) (η = \[v, ω\] is what the wheels impose
+//! and the encoders see; σ is the slip of eq. 3).
+//!
+//! * Dynamics (6): M1·ν̇ + N1(θ̇)·ν + P1 + Sᵀτ_d = B1·τ, with the plant's own
+//!   (possibly scaled) mass and inertia. M1, N1 as derived in controller-core's
+//!   `model` module; P1 = SᵀM0·U̇_D + SᵀC0·U_D in closed form:
+//!   P1 = \[−m·θ̇·δ + I_w(ϖ̇_R + ϖ̇_L)/r, 2md·δ̇ + I_w·h(ϖ̇_R − ϖ̇_L)/r\]
+//!   (C0·U_D = 0 because U_D has no θ component). Checked against the 5x5
+//!   products in the tests.
+//! * Kinematics (3) with the actuator fault (10): the wheels turn per η
+//!   (φ̇_R = (v + hω)/r, φ̇_L = (v − hω)/r) while the body moves at
+//!   η_b = (1 − ε)·η − σ, i.e. q̇_{x,y,θ} = S(θ)·η_b + U_D.
+
+use controller_core::RobotParams;
+
+/// Plant physical parameters (f64 copy of [`RobotParams`], possibly scaled).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlantParams {
+    /// m \[kg\].
+    pub mass_kg: f64,
+    /// I \[kg·m²\].
+    pub inertia_kgm2: f64,
+    /// I_w \[kg·m²\].
+    pub wheel_inertia_kgm2: f64,
+    /// r \[m\].
+    pub wheel_radius_m: f64,
+    /// h \[m\].
+    pub half_track_m: f64,
+    /// d \[m\].
+    pub com_offset_m: f64,
+}
+
+impl PlantParams {
+    /// The robot of `p` with mass and body inertia scaled (model mismatch).
+    pub fn from_robot(p: &RobotParams, mass_scale: f64, inertia_scale: f64) -> Self {
+        Self {
+            mass_kg: p.mass_kg as f64 * mass_scale,
+            inertia_kgm2: p.inertia_kgm2 as f64 * inertia_scale,
+            wheel_inertia_kgm2: p.wheel_inertia_kgm2 as f64,
+            wheel_radius_m: p.wheel_radius_m as f64,
+            half_track_m: p.half_track_m as f64,
+            com_offset_m: p.com_offset_m as f64,
+        }
+    }
+
+    /// Diagonal of M1.
+    pub fn m1_diag(&self) -> [f64; 2] {
+        let (m, i, iw, r, h, d) = self.unpack();
+        [
+            m + 2.0 * iw / (r * r),
+            i + 3.0 * m * d * d + 2.0 * iw * h * h / (r * r),
+        ]
+    }
+
+    fn unpack(&self) -> (f64, f64, f64, f64, f64, f64) {
+        (
+            self.mass_kg,
+            self.inertia_kgm2,
+            self.wheel_inertia_kgm2,
+            self.wheel_radius_m,
+            self.half_track_m,
+            self.com_offset_m,
+        )
+    }
+}
+
+/// Perturbations acting at one instant (from the scenario).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Perturbation {
+    /// Lateral skid velocity δ_sl \[m/s\] and its time derivative.
+    pub skid_mps: f64,
+    /// dδ_sl/dt \[m/s²\].
+    pub skid_rate_mps2: f64,
+    /// Wheel slip rates ϖ = \[ϖ_R, ϖ_L\] \[rad/s\].
+    pub wheel_slip_radps: [f64; 2],
+    /// dϖ/dt \[rad/s²\].
+    pub wheel_slip_rate_radps2: [f64; 2],
+    /// External disturbance τ_d = \[f_x, f_y, τ_θ, τ_R, τ_L\] (N, N, N·m, N·m, N·m).
+    pub tau_d: [f64; 5],
+    /// Actuator fault ε (body moves at (1 − ε)η), 0 = healthy.
+    pub fault_eps: f64,
+}
+
+/// Plant state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PlantState {
+    /// q = \[x, y, θ, φ_R, φ_L\].
+    pub q: [f64; 5],
+    /// ν = η − σ \[m/s, rad/s\].
+    pub nu: [f64; 2],
+}
+
+/// The simulated robot.
+#[derive(Clone, Copy, Debug)]
+pub struct Plant {
+    /// Physical parameters.
+    pub params: PlantParams,
+}
+
+impl Plant {
+    /// σ = \[σ_v, σ_ω\] of eq. (3) for wheel slip ϖ (with the sign fixed: D15).
+    pub fn sigma(&self, slip: [f64; 2]) -> [f64; 2] {
+        let (r, h) = (self.params.wheel_radius_m, self.params.half_track_m);
+        [
+            0.5 * r * (slip[0] + slip[1]),
+            0.5 * r * (slip[0] - slip[1]) / h,
+        ]
+    }
+
+    /// η = ν + σ: the wheel-imposed velocities the encoders see.
+    pub fn eta(&self, st: &PlantState, p: &Perturbation) -> [f64; 2] {
+        let s = self.sigma(p.wheel_slip_radps);
+        [st.nu[0] + s[0], st.nu[1] + s[1]]
+    }
+
+    /// q̇ (eq. 3 with the fault of eq. 10).
+    pub fn q_dot(&self, st: &PlantState, p: &Perturbation) -> [f64; 5] {
+        let (_, _, _, r, h, d) = self.params.unpack();
+        let eta = self.eta(st, p);
+        let sig = self.sigma(p.wheel_slip_radps);
+        let k = 1.0 - p.fault_eps;
+        let vb = k * eta[0] - sig[0];
+        let wb = k * eta[1] - sig[1];
+        let (s, c) = st.q[2].sin_cos();
+        let dl = p.skid_mps;
+        [
+            vb * c - d * wb * s - s * dl,
+            vb * s + d * wb * c + c * dl,
+            wb,
+            (eta[0] + h * eta[1]) / r,
+            (eta[0] - h * eta[1]) / r,
+        ]
+    }
+
+    /// ν̇ from eq. (6) for wheel torques `[right, left]`.
+    pub fn nu_dot(&self, st: &PlantState, p: &Perturbation, torque_nm: [f64; 2]) -> [f64; 2] {
+        let (m, _, iw, r, h, d) = self.params.unpack();
+        let m1 = self.params.m1_diag();
+        let theta_dot = self.q_dot(st, p)[2];
+        let n1c = 2.0 * m * d * theta_dot;
+        let n1nu = [-n1c * st.nu[1], n1c * st.nu[0]];
+        let sr = p.wheel_slip_rate_radps2;
+        let p1 = [
+            -m * theta_dot * p.skid_mps + iw * (sr[0] + sr[1]) / r,
+            2.0 * m * d * p.skid_rate_mps2 + iw * h * (sr[0] - sr[1]) / r,
+        ];
+        let (s, c) = st.q[2].sin_cos();
+        let t = p.tau_d;
+        let std = [
+            c * t[0] + s * t[1] + (t[3] + t[4]) / r,
+            -d * s * t[0] + d * c * t[1] + t[2] + h * (t[3] - t[4]) / r,
+        ];
+        let b1tau = [
+            (torque_nm[0] + torque_nm[1]) / r,
+            h * (torque_nm[0] - torque_nm[1]) / r,
+        ];
+        [
+            (b1tau[0] - n1nu[0] - p1[0] - std[0]) / m1[0],
+            (b1tau[1] - n1nu[1] - p1[1] - std[1]) / m1[1],
+        ]
+    }
+
+    fn deriv(&self, st: &PlantState, p: &Perturbation, tau: [f64; 2]) -> PlantState {
+        PlantState {
+            q: self.q_dot(st, p),
+            nu: self.nu_dot(st, p, tau),
+        }
+    }
+
+    /// One classical RK4 step of length `h_s`; `perturb(t)` gives the
+    /// perturbations at time t; torque held constant (zero-order hold).
+    pub fn rk4_step(
+        &self,
+        st: &PlantState,
+        t_s: f64,
+        h_s: f64,
+        torque_nm: [f64; 2],
+        perturb: &impl Fn(f64) -> Perturbation,
+    ) -> PlantState {
+        let add = |a: &PlantState, k: &PlantState, f: f64| {
+            let mut o = *a;
+            for i in 0..5 {
+                o.q[i] += f * k.q[i];
+            }
+            for i in 0..2 {
+                o.nu[i] += f * k.nu[i];
+            }
+            o
+        };
+        let p0 = perturb(t_s);
+        let pm = perturb(t_s + 0.5 * h_s);
+        let p1 = perturb(t_s + h_s);
+        let k1 = self.deriv(st, &p0, torque_nm);
+        let k2 = self.deriv(&add(st, &k1, 0.5 * h_s), &pm, torque_nm);
+        let k3 = self.deriv(&add(st, &k2, 0.5 * h_s), &pm, torque_nm);
+        let k4 = self.deriv(&add(st, &k3, h_s), &p1, torque_nm);
+        let mut o = *st;
+        for i in 0..5 {
+            o.q[i] += h_s / 6.0 * (k1.q[i] + 2.0 * k2.q[i] + 2.0 * k3.q[i] + k4.q[i]);
+        }
+        for i in 0..2 {
+            o.nu[i] += h_s / 6.0 * (k1.nu[i] + 2.0 * k2.nu[i] + 2.0 * k3.nu[i] + k4.nu[i]);
+        }
+        o
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn paper_plant() -> Plant {
+        Plant {
+            params: PlantParams::from_robot(&RobotParams::paper(), 1.0, 1.0),
+        }
+    }
+
+    fn perturbed(t: f64) -> Perturbation {
+        Perturbation {
+            skid_mps: 0.1 + 0.04 * t.sin(),
+            skid_rate_mps2: 0.04 * t.cos(),
+            wheel_slip_radps: [0.15 * t.sin(), 0.15 * t.cos()],
+            wheel_slip_rate_radps2: [0.15 * t.cos(), -0.15 * t.sin()],
+            tau_d: [0.0, 0.0, 0.2 * t.sin(), 0.5, -0.3],
+            fault_eps: 0.0,
+        }
+    }
+
+    fn run(
+        plant: &Plant,
+        h: f64,
+        t_end: f64,
+        tau: [f64; 2],
+        pert: &impl Fn(f64) -> Perturbation,
+    ) -> PlantState {
+        let mut st = PlantState {
+            q: [2.5, 0.0, 0.3, 0.0, 0.0],
+            nu: [0.2, 0.1],
+        };
+        let n = (t_end / h).round() as usize;
+        for k in 0..n {
+            st = plant.rk4_step(&st, k as f64 * h, h, tau, pert);
+        }
+        st
+    }
+
+    /// Fourth order: halving the step divides the error by ~16.
+    #[test]
+    fn rk4_converges_at_fourth_order() {
+        let plant = paper_plant();
+        let tau = [0.8, 0.3];
+        let a = run(&plant, 0.04, 4.0, tau, &perturbed);
+        let b = run(&plant, 0.02, 4.0, tau, &perturbed);
+        let c = run(&plant, 0.01, 4.0, tau, &perturbed);
+        let diff = |u: &PlantState, v: &PlantState| {
+            (0..3).map(|i| (u.q[i] - v.q[i]).abs()).fold(0.0, f64::max)
+        };
+        let ratio = diff(&a, &b) / diff(&b, &c);
+        assert!(ratio > 12.0 && ratio < 20.0, "ratio {ratio}");
+    }
+
+    /// No slip, no disturbance, equal torques τ on both wheels from rest:
+    /// ω stays 0 and v̇ = 2τ/(r·M1₁₁), so the distance is a·t²/2 along θ0.
+    #[test]
+    fn constant_torque_straight_line_matches_analytic() {
+        let plant = paper_plant();
+        let tau = 0.5;
+        let mut st = PlantState {
+            q: [1.0, -1.0, 0.4, 0.0, 0.0],
+            nu: [0.0, 0.0],
+        };
+        let h = 1e-3;
+        let t_end = 3.0;
+        for k in 0..3000 {
+            st = plant.rk4_step(&st, k as f64 * h, h, [tau, tau], &|_| {
+                Perturbation::default()
+            });
+        }
+        let a = 2.0 * tau / (plant.params.wheel_radius_m * plant.params.m1_diag()[0]);
+        let dist = 0.5 * a * t_end * t_end;
+        assert!((st.nu[0] - a * t_end).abs() < 1e-9);
+        assert!(st.nu[1].abs() < 1e-12);
+        assert!((st.q[0] - (1.0 + dist * 0.4f64.cos())).abs() < 1e-9);
+        assert!((st.q[1] - (-1.0 + dist * 0.4f64.sin())).abs() < 1e-9);
+        // Wheel angles: φ = distance / r.
+        assert!((st.q[3] - dist / plant.params.wheel_radius_m).abs() < 1e-8);
+    }
+
+    /// Opposite torques from rest: ω̇ = 2hτ/(r·M1₂₂) = α constant (N1 ν has no
+    /// ω component while v = ... small), and the offset d couples a centripetal
+    /// v̇ = 2md·ω²/M1₁₁, so v(t) = 2md·α²t³/(3·M1₁₁) to leading order.
+    #[test]
+    fn opposite_torques_spin_with_analytic_rates() {
+        let plant = paper_plant();
+        let tau = 0.2;
+        let mut st = PlantState::default();
+        let h = 1e-3;
+        for k in 0..1000 {
+            st = plant.rk4_step(&st, k as f64 * h, h, [tau, -tau], &|_| {
+                Perturbation::default()
+            });
+        }
+        let p = plant.params;
+        let m1 = p.m1_diag();
+        let alpha = 2.0 * p.half_track_m * tau / (p.wheel_radius_m * m1[1]);
+        let v_expect = 2.0 * p.mass_kg * p.com_offset_m * alpha * alpha / (3.0 * m1[0]);
+        // ω̇ gets −2md·ω·v/M1₂₂, a relative correction of order 1e-4 here.
+        assert!(
+            (st.nu[1] - alpha).abs() < 1e-3 * alpha,
+            "{} vs {alpha}",
+            st.nu[1]
+        );
+        assert!(
+            (st.nu[0] - v_expect).abs() < 1e-2 * v_expect,
+            "{} vs {v_expect}",
+            st.nu[0]
+        );
+    }
+
+    /// The perturbed constraint (2), A(q)·q̇ = Δ_S, holds along a run with slip,
+    /// skid and disturbance (no fault), with A's printed typos corrected.
+    #[test]
+    fn perturbed_constraint_holds_along_run() {
+        let plant = paper_plant();
+        let p = plant.params;
+        let (r, h, d) = (p.wheel_radius_m, p.half_track_m, p.com_offset_m);
+        let mut st = PlantState {
+            q: [0.0, 0.0, 0.5, 0.0, 0.0],
+            nu: [0.3, 0.2],
+        };
+        let dt = 1e-3;
+        for k in 0..5000 {
+            let t = k as f64 * dt;
+            let pert = perturbed(t);
+            let qd = plant.q_dot(&st, &pert);
+            let (s, c) = st.q[2].sin_cos();
+            let aq = [
+                -s * qd[0] + c * qd[1] - d * qd[2],
+                c * qd[0] + s * qd[1] + h * qd[2] - r * qd[3],
+                c * qd[0] + s * qd[1] - h * qd[2] - r * qd[4],
+            ];
+            let ds = [
+                pert.skid_mps,
+                -r * pert.wheel_slip_radps[0],
+                -r * pert.wheel_slip_radps[1],
+            ];
+            for i in 0..3 {
+                assert!((aq[i] - ds[i]).abs() < 1e-12, "row {i} at t {t}");
+            }
+            st = plant.rk4_step(&st, t, dt, [0.3, 0.1], &perturbed);
+        }
+    }
+
+    /// P1 closed form equals SᵀM0·U̇_D + SᵀC0·U_D from the 5x5 matrices.
+    #[test]
+    fn p1_closed_form_matches_matrices() {
+        let plant = paper_plant();
+        let p = plant.params;
+        let (m, i, iw, r, h, d) = p.unpack();
+        let st = PlantState {
+            q: [0.0, 0.0, 0.9, 0.0, 0.0],
+            nu: [0.4, -0.6],
+        };
+        let pert = Perturbation {
+            tau_d: [0.0; 5],
+            ..perturbed(1.3)
+        };
+        let th = st.q[2];
+        let thd = plant.q_dot(&st, &pert)[2];
+        let (s, c) = th.sin_cos();
+        let dl = pert.skid_mps;
+        let dld = pert.skid_rate_mps2;
+        let ud_dot = [
+            -c * thd * dl - s * dld,
+            -s * thd * dl + c * dld,
+            0.0,
+            pert.wheel_slip_rate_radps2[0],
+            pert.wheel_slip_rate_radps2[1],
+        ];
+        let ud = [
+            -s * dl,
+            c * dl,
+            0.0,
+            pert.wheel_slip_radps[0],
+            pert.wheel_slip_radps[1],
+        ];
+        let mut m0 = [[0.0; 5]; 5];
+        m0[0][0] = m;
+        m0[1][1] = m;
+        m0[0][2] = -m * d * s;
+        m0[2][0] = m0[0][2];
+        m0[1][2] = m * d * c;
+        m0[2][1] = m0[1][2];
+        m0[2][2] = i;
+        m0[3][3] = iw;
+        m0[4][4] = iw;
+        let mut c0 = [[0.0; 5]; 5];
+        c0[0][2] = -m * d * thd * c;
+        c0[1][2] = -m * d * thd * s;
+        let sm = [
+            [c, -d * s],
+            [s, d * c],
+            [0.0, 1.0],
+            [1.0 / r, h / r],
+            [1.0 / r, -h / r],
+        ];
+        let mut p1 = [0.0; 2];
+        for j in 0..2 {
+            for a in 0..5 {
+                let row: f64 = (0..5)
+                    .map(|b| m0[a][b] * ud_dot[b] + c0[a][b] * ud[b])
+                    .sum();
+                p1[j] += sm[a][j] * row;
+            }
+        }
+        // ν̇ with zero torque and no τ_d is −(N1ν + P1)/M1: recover P1 from it.
+        let nud = plant.nu_dot(&st, &pert, [0.0, 0.0]);
+        let m1 = p.m1_diag();
+        let n1c = 2.0 * m * d * thd;
+        let p1_impl = [
+            -nud[0] * m1[0] + n1c * st.nu[1],
+            -nud[1] * m1[1] - n1c * st.nu[0],
+        ];
+        for j in 0..2 {
+            assert!(
+                (p1[j] - p1_impl[j]).abs() < 1e-12,
+                "P1[{j}] {} vs {}",
+                p1[j],
+                p1_impl[j]
+            );
+        }
+    }
+}
