@@ -101,7 +101,7 @@ pub const DEFAULT_K_Y: f32 = 25.0;
 /// Fixed switching gain K of the plain SMC baseline (Table 2 gives none: D13).
 pub const DEFAULT_SMC_GAIN: f32 = 1.0;
 /// Default per-wheel torque limit \[N·m\] (the paper has none: D14).
-pub const DEFAULT_TORQUE_LIMIT_NM: f32 = 10.0;
+pub const DEFAULT_TORQUE_LIMIT_NM: f32 = 5.0;
 
 impl ControllerConfig {
     /// Table 2 gains for `kind` at a 1 kHz period, with the project's
