@@ -28,6 +28,7 @@ pub mod kinematic;
 pub mod math;
 pub mod model;
 pub mod params;
+pub mod runtime;
 pub mod tracking;
 pub mod trajectory;
 pub mod types;

@@ -1,0 +1,289 @@
+//! Quadrature encoder counts: 16-bit wrap-around, per-tick deltas and a
+//! windowed wheel-rate estimate.
+
+use super::{RuntimeConfigError, Wheel};
+
+/// Largest speed-estimation window \[ticks\] ([`EncoderParams::speed_window_ticks`]).
+pub const MAX_SPEED_WINDOW: usize = 32;
+
+/// Signed count change from `prev` to `now` of a free-running 16-bit
+/// counter, assuming it moved less than half a revolution of the counter
+/// (|Δ| < 32768) since the last read.
+///
+/// `0xFFFF -> 0x0002` is `+3`; `0x0002 -> 0xFFFF` is `-3`.
+#[inline]
+pub const fn count_delta(prev: u16, now: u16) -> i16 {
+    now.wrapping_sub(prev) as i16
+}
+
+/// How raw counts relate to wheel rotation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct EncoderParams {
+    /// Counts per wheel revolution \[counts/rev\], after quadrature decoding
+    /// (×4 of the encoder's lines) and through the gearbox when the encoder
+    /// sits on the motor shaft: `lines × 4 × gear_ratio`.
+    pub counts_per_wheel_rev: f32,
+    /// Per wheel `[right, left]`: true when the counter counts down while
+    /// the wheel drives the robot forward (mirrored mounting).
+    pub inverted: [bool; 2],
+    /// Window N \[ticks\] of the rate estimate
+    /// `(count_k − count_{k−N}) / (N·dt)`, in `1..=`[`MAX_SPEED_WINDOW`].
+    /// Larger N: finer speed quantization (one count per N·dt) but a group
+    /// delay of N·dt/2.
+    pub speed_window_ticks: u8,
+}
+
+impl EncoderParams {
+    /// Example: 500-line encoder on the motor shaft, 12:1 gearbox
+    /// (24 000 counts per wheel revolution), left encoder mirrored, 4-tick window.
+    pub const EXAMPLE: Self = Self {
+        counts_per_wheel_rev: 24_000.0,
+        inverted: [false, true],
+        speed_window_ticks: 4,
+    };
+
+    /// Checks the resolution and the window.
+    pub fn validate(self) -> Result<Self, RuntimeConfigError> {
+        if !(self.counts_per_wheel_rev.is_finite() && self.counts_per_wheel_rev > 0.0) {
+            return Err(RuntimeConfigError::NonPositiveEncoderResolution);
+        }
+        let n = self.speed_window_ticks as usize;
+        if n == 0 || n > MAX_SPEED_WINDOW {
+            return Err(RuntimeConfigError::InvalidSpeedWindow);
+        }
+        Ok(self)
+    }
+
+    /// Wheel angle per count \[rad/count\].
+    pub fn rad_per_count(&self) -> f32 {
+        2.0 * core::f32::consts::PI / self.counts_per_wheel_rev
+    }
+}
+
+/// Per-wheel count tracking: previous raw count, accumulated position and
+/// the history window of the rate estimate.
+#[derive(Clone, Debug)]
+pub struct WheelCounts {
+    params: EncoderParams,
+    rad_per_count: f32,
+    prev_raw: [u16; 2],
+    primed: bool,
+    /// Accumulated signed position \[counts\] (wrapping i32).
+    position: [i32; 2],
+    /// Ring buffer of past positions, `history[head]` is the oldest.
+    history: [[i32; 2]; MAX_SPEED_WINDOW],
+    head: usize,
+    filled: usize,
+}
+
+/// One tick's encoder result.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CountSample {
+    /// Signed count change this tick `[right, left]`, forward positive
+    /// (after [`EncoderParams::inverted`]).
+    pub delta: [i32; 2],
+    /// Wheel angle change this tick \[rad\] `[right, left]`.
+    pub dphi_rad: [f32; 2],
+    /// Windowed wheel-rate estimate \[rad/s\] `[right, left]`.
+    pub rate_radps: [f32; 2],
+}
+
+impl WheelCounts {
+    /// Tracker for validated `params`; the first [`Self::update`] only
+    /// primes the previous counts (delta 0).
+    pub fn new(params: EncoderParams) -> Result<Self, RuntimeConfigError> {
+        let params = params.validate()?;
+        Ok(Self {
+            params,
+            rad_per_count: params.rad_per_count(),
+            prev_raw: [0; 2],
+            primed: false,
+            position: [0; 2],
+            history: [[0; 2]; MAX_SPEED_WINDOW],
+            head: 0,
+            filled: 0,
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &EncoderParams {
+        &self.params
+    }
+
+    /// Signed per-tick deltas `[right, left]` of new raw counts, forward
+    /// positive, without changing any state (for plausibility checks before
+    /// [`Self::accept`]).
+    pub fn peek_delta(&self, raw: [u16; 2]) -> [i32; 2] {
+        if !self.primed {
+            return [0; 2];
+        }
+        let mut d = [0i32; 2];
+        for w in Wheel::BOTH {
+            let i = w.index();
+            let x = count_delta(self.prev_raw[i], raw[i]) as i32;
+            d[i] = if self.params.inverted[i] { -x } else { x };
+        }
+        d
+    }
+
+    /// Takes new raw counts as the reference for the next delta without
+    /// integrating the change (used after an implausible jump).
+    pub fn resync(&mut self, raw: [u16; 2]) {
+        self.prev_raw = raw;
+        self.primed = true;
+    }
+
+    /// Accepts new raw counts: integrates the delta and updates the rate
+    /// estimate. `dt_s` is the nominal tick period \[s\] (> 0).
+    pub fn update(&mut self, raw: [u16; 2], dt_s: f32) -> CountSample {
+        let delta = self.peek_delta(raw);
+        self.resync(raw);
+        for (p, d) in self.position.iter_mut().zip(delta) {
+            *p = p.wrapping_add(d);
+        }
+        // Window of positions: push the new one, rate over the oldest kept.
+        let n = self.params.speed_window_ticks as usize;
+        let oldest = if self.filled == 0 {
+            self.position
+        } else {
+            // Element `min(filled, n)` ticks ago.
+            let back = self.filled.min(n);
+            let idx = (self.head + MAX_SPEED_WINDOW - back) % MAX_SPEED_WINDOW;
+            self.history[idx]
+        };
+        let span = self.filled.min(n).max(1) as f32;
+        self.history[self.head] = self.position;
+        self.head = (self.head + 1) % MAX_SPEED_WINDOW;
+        self.filled = (self.filled + 1).min(MAX_SPEED_WINDOW);
+        let mut rate = [0.0f32; 2];
+        let mut dphi = [0.0f32; 2];
+        for i in 0..2 {
+            let counts = self.position[i].wrapping_sub(oldest[i]) as f32;
+            rate[i] = if self.filled > 1 {
+                counts * self.rad_per_count / (span * dt_s)
+            } else {
+                0.0
+            };
+            dphi[i] = delta[i] as f32 * self.rad_per_count;
+        }
+        CountSample {
+            delta,
+            dphi_rad: dphi,
+            rate_radps: rate,
+        }
+    }
+
+    /// Accumulated forward position \[counts\] `[right, left]` since construction.
+    pub fn position_counts(&self) -> [i32; 2] {
+        self.position
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use core::f32::consts::PI;
+
+    #[test]
+    fn delta_wraps_both_ways() {
+        assert_eq!(count_delta(0xFFFF, 0x0002), 3);
+        assert_eq!(count_delta(0x0002, 0xFFFF), -3);
+        assert_eq!(count_delta(100, 100), 0);
+        assert_eq!(count_delta(0x7FF0, 0x8010), 0x20);
+        assert_eq!(count_delta(0, 32767), 32767);
+        assert_eq!(count_delta(0, 32768), -32768);
+    }
+
+    fn params(cpr: f32, window: u8) -> EncoderParams {
+        EncoderParams {
+            counts_per_wheel_rev: cpr,
+            inverted: [false, true],
+            speed_window_ticks: window,
+        }
+    }
+
+    /// A wheel turning at a constant number of counts per tick, across the
+    /// 16-bit wrap, accumulates exactly k·n counts and its rate is
+    /// 2π·n/(cpr·dt) (and the inverted left counter still reads forward).
+    #[test]
+    fn constant_rate_across_wrap() {
+        let cpr = 4000.0;
+        let dt = 1e-3;
+        let mut wc = WheelCounts::new(params(cpr, 8)).unwrap();
+        let per_tick = 37i32;
+        let mut raw_r: u16 = 65_000;
+        let mut raw_l: u16 = 500;
+        wc.update([raw_r, raw_l], dt);
+        let mut last = CountSample::default();
+        for _ in 0..200 {
+            raw_r = raw_r.wrapping_add(per_tick as u16);
+            raw_l = raw_l.wrapping_sub(per_tick as u16); // mirrored: counts down going forward
+            last = wc.update([raw_r, raw_l], dt);
+        }
+        assert_eq!(wc.position_counts(), [200 * per_tick, 200 * per_tick]);
+        let expect = 2.0 * PI * per_tick as f32 / (cpr * dt);
+        for i in 0..2 {
+            assert_eq!(last.delta[i], per_tick);
+            assert!((last.rate_radps[i] - expect).abs() < 1e-3 * expect);
+            assert!((last.dphi_rad[i] - expect * dt).abs() < 1e-6);
+        }
+    }
+
+    /// One count every 4 ticks: a 1-tick window reads 0 or a full count per
+    /// tick, an 8-tick window reads the true average (2 counts per 8 ticks).
+    #[test]
+    fn window_averages_slow_rates() {
+        let dt = 1e-3;
+        let cpr = 1000.0;
+        let mut w1 = WheelCounts::new(params(cpr, 1)).unwrap();
+        let mut w8 = WheelCounts::new(params(cpr, 8)).unwrap();
+        let mut raw = 0u16;
+        let mut s8 = CountSample::default();
+        let mut max1 = 0.0f32;
+        for k in 0..100 {
+            if k % 4 == 0 {
+                raw = raw.wrapping_add(1);
+            }
+            let s1 = w1.update([raw, 0], dt);
+            s8 = w8.update([raw, 0], dt);
+            max1 = max1.max(s1.rate_radps[0]);
+        }
+        let count_rate = 2.0 * PI / cpr / dt; // one count in one tick
+        assert!((max1 - count_rate).abs() < 1e-3);
+        let truth = count_rate / 4.0;
+        assert!((s8.rate_radps[0] - truth).abs() < 1e-3 * truth);
+    }
+
+    #[test]
+    fn peek_does_not_change_state_and_resync_drops_jump() {
+        let mut wc = WheelCounts::new(params(1000.0, 2)).unwrap();
+        wc.update([10, 10], 1e-3);
+        assert_eq!(wc.peek_delta([5010, 10]), [5000, 0]);
+        wc.resync([5010, 10]);
+        let s = wc.update([5012, 10], 1e-3);
+        assert_eq!(s.delta, [2, 0]);
+        assert_eq!(wc.position_counts(), [2, 0]);
+    }
+
+    #[test]
+    fn invalid_params_rejected() {
+        assert_eq!(
+            WheelCounts::new(params(0.0, 2)).err(),
+            Some(RuntimeConfigError::NonPositiveEncoderResolution)
+        );
+        assert_eq!(
+            WheelCounts::new(params(f32::NAN, 2)).err(),
+            Some(RuntimeConfigError::NonPositiveEncoderResolution)
+        );
+        assert_eq!(
+            WheelCounts::new(params(100.0, 0)).err(),
+            Some(RuntimeConfigError::InvalidSpeedWindow)
+        );
+        assert_eq!(
+            WheelCounts::new(params(100.0, 33)).err(),
+            Some(RuntimeConfigError::InvalidSpeedWindow)
+        );
+    }
+}
