@@ -1,0 +1,621 @@
+//! Instructions (QEMU) or cycles (board, feature `dwt`) per control step on
+//! a Cortex-M4F, for the three controllers, the stages of the proposed one,
+//! the reference sampling and the math routines. Prints a Markdown table
+//! over semihosting and exits 0 (1 on a failed sanity check or a panic).
+//!
+//! Run: `cargo run --release` (QEMU mps2-an386, see .cargo/config.toml).
+#![no_std]
+#![no_main]
+
+mod timer;
+
+use core::hint::black_box;
+use core::panic::PanicInfo;
+
+use controller_core::asmc::SlidingState;
+use controller_core::eso::EsoState;
+use controller_core::fault_observer::FaultObserverState;
+use controller_core::math;
+use controller_core::model::ReducedModel;
+use controller_core::tracking::{error_rate, tracking_error};
+use controller_core::trajectory::{PaperCurve, PaperHeading, Trajectory};
+use controller_core::{
+    Controller, ControllerConfig, ControllerKind, Pose, RefSample, StepInput, StepOutput, Vel2,
+};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hprintln};
+use timer::Counter;
+
+/// Control steps per controller: the paper's 40 s at 1 kHz.
+const STEPS: u32 = 40_000;
+/// Calls per math routine.
+const MATH_CALLS: u32 = 2_000;
+
+/// Accumulated counts of one timed item.
+#[derive(Clone, Copy, Default)]
+struct Stat {
+    sum: u64,
+    n: u32,
+    max: u32,
+}
+
+impl Stat {
+    #[inline(always)]
+    fn add(&mut self, counts: u32) {
+        self.sum += counts as u64;
+        self.n += 1;
+        self.max = self.max.max(counts);
+    }
+    fn mean(&self) -> f32 {
+        self.sum as f32 / self.n.max(1) as f32
+    }
+}
+
+/// Times one call of `f` (inputs must be black_boxed inside `f`).
+#[inline(always)]
+fn time<C: Counter, R>(c: &C, st: &mut Stat, f: impl FnOnce() -> R) -> R {
+    let t0 = c.now();
+    let r = black_box(f());
+    let t1 = c.now();
+    st.add(c.elapsed(t0, t1));
+    r
+}
+
+/// Converts counts to the reported unit (instructions under QEMU, cycles with DWT).
+struct Scale {
+    per_count: f32,
+    overhead: f32,
+}
+
+impl Scale {
+    fn mean(&self, s: &Stat) -> f32 {
+        (s.mean() - self.overhead) * self.per_count
+    }
+    fn max(&self, s: &Stat) -> f32 {
+        (s.max as f32 - self.overhead) * self.per_count
+    }
+}
+
+/// Simulated robot (semi-implicit Euler at the control period): reduced
+/// dynamics (eq. 7) with a wheel-torque disturbance, and the kinematics of
+/// the tracked point G with a multiplicative actuator fault: the body moves
+/// with (1 − ε)·η while the encoders report η. Case-2-like: both act in the
+/// window [10 s, 35 s), like the simulator's default scenario window.
+struct Plant {
+    model: ReducedModel,
+    pose: Pose,
+    eta: [f32; 2],
+}
+
+impl Plant {
+    fn new(model: ReducedModel) -> Self {
+        Self {
+            model,
+            // The simulator's default start; the reference starts at (4, 3).
+            pose: Pose::new(2.5, 0.0, 0.0),
+            eta: [0.0, 0.0],
+        }
+    }
+
+    fn advance(&mut self, torque: [f32; 2], t: f32, dt: f32) {
+        let window = (10.0..35.0).contains(&t);
+        let (dist_nm, eps) = if window {
+            let (s, _) = math::sin_cos(2.0 * t);
+            ([0.5 * s, -0.5 * s], 0.2)
+        } else {
+            ([0.0, 0.0], 0.0)
+        };
+        let m = self.model.m_eta(self.eta);
+        let n = self
+            .model
+            .n_tau([torque[0] + dist_nm[0], torque[1] + dist_nm[1]]);
+        for i in 0..2 {
+            self.eta[i] += (m[i] + n[i]) * dt;
+        }
+        let (v, w) = ((1.0 - eps) * self.eta[0], (1.0 - eps) * self.eta[1]);
+        let (s, c) = math::sin_cos(self.pose.theta_rad);
+        let dm = self.model.params.com_offset_m;
+        self.pose.x_m += (v * c - dm * w * s) * dt;
+        self.pose.y_m += (v * s + dm * w * c) * dt;
+        self.pose.theta_rad += w * dt;
+    }
+
+    fn input(&self, reference: RefSample) -> StepInput {
+        StepInput {
+            reference,
+            pose: self.pose,
+            eta: Vel2::from_array(self.eta),
+        }
+    }
+}
+
+/// The proposed step split into the stages of `Controller::step`, with the
+/// same public building blocks, so each stage can be timed.
+struct Staged {
+    cfg: ControllerConfig,
+    model: ReducedModel,
+    fo: FaultObserverState,
+    eso: EsoState,
+    sl: SlidingState,
+}
+
+#[derive(Default)]
+struct StageStats {
+    observer: Stat,
+    kinematic: Stat,
+    asmc: Stat,
+    eso: Stat,
+}
+
+impl Staged {
+    fn new(cfg: ControllerConfig) -> Self {
+        let rho = cfg.sliding.rho_initial();
+        Self {
+            model: ReducedModel::new(&cfg.robot).unwrap_or_else(|_| fail("model")),
+            cfg,
+            fo: FaultObserverState::default(),
+            eso: EsoState::default(),
+            sl: SlidingState {
+                integral: [0.0; 2],
+                rho_hat: [rho; 2],
+            },
+        }
+    }
+
+    #[inline(never)]
+    fn step<C: Counter>(&mut self, c: &C, st: &mut StageStats, input: &StepInput) -> [f32; 2] {
+        let cfg = &self.cfg;
+        let dt = cfg.period_s;
+        let r = input.reference;
+        let eta = input.eta.as_array();
+        // Tracking error (8) + fault observer (13).
+        let (e, f_hat) = time(c, &mut st.observer, || {
+            let inp = black_box(input);
+            let e = tracking_error(&inp.pose, &inp.reference.pose);
+            let f = cfg.fault_observer.update(
+                &mut self.fo,
+                e,
+                inp.eta.as_array(),
+                inp.reference.v_mps,
+                inp.reference.omega_radps,
+                dt,
+            );
+            (e, f)
+        });
+        // Kinematic law (14), ė (11), η̇_c.
+        let (eta_c, eta_c_dot) = time(c, &mut st.kinematic, || {
+            let (e, f_hat, r, eta) = black_box((e, f_hat, r, eta));
+            let kin = &cfg.kinematic;
+            let eta_c = kin.eta_c(e, r.v_mps, r.omega_radps, f_hat);
+            let e_dot = error_rate(
+                e,
+                eta,
+                f_hat,
+                r.v_mps,
+                r.omega_radps,
+                cfg.robot.com_offset_m,
+            );
+            let eta_c_dot =
+                kin.eta_c_dot(e, e_dot, r.v_mps, r.v_dot_mps2, r.omega_dot_radps2, f_hat);
+            (eta_c, eta_c_dot)
+        });
+        // Sliding surface (20), torque law (24), N⁻¹, saturation, adaptation.
+        let (m_eta, torque) = time(c, &mut st.asmc, || {
+            let (eta_c, eta_c_dot, eta) = black_box((eta_c, eta_c_dot, eta));
+            let sl = &cfg.sliding;
+            let e_eta = [eta_c[0] - eta[0], eta_c[1] - eta[1]];
+            let s = sl.surface(&self.sl, e_eta);
+            let m_eta = self.model.m_eta(eta);
+            let accel = sl.accel_request(&self.sl, eta_c_dot, m_eta, self.eso.x3, e_eta, s);
+            let request = self.model.n_inv_mul(accel);
+            let limit = cfg.torque_limit_nm;
+            let peak = request[0].abs().max(request[1].abs());
+            let saturated = !(peak <= limit);
+            let torque = if saturated && peak.is_finite() {
+                let k = limit / peak;
+                [request[0] * k, request[1] * k]
+            } else if saturated {
+                [0.0; 2]
+            } else {
+                request
+            };
+            sl.advance(&mut self.sl, e_eta, s, saturated, dt);
+            (m_eta, torque)
+        });
+        // fal-ESO (18)-(19) with the applied torque.
+        time(c, &mut st.eso, || {
+            let (m_eta, torque, eta) = black_box((m_eta, torque, eta));
+            let n_tau = self.model.n_tau(torque);
+            let known = [m_eta[0] + n_tau[0], m_eta[1] + n_tau[1]];
+            cfg.eso.update(&mut self.eso, eta, known, dt);
+        });
+        torque
+    }
+}
+
+fn fail(what: &str) -> ! {
+    hprintln!("FAIL: {}", what);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
+struct RunResult {
+    reference: Stat,
+    step: Stat,
+    stages: StageStats,
+    final_error: [f32; 3],
+    max_pos_error_after_10s: f32,
+}
+
+#[inline(never)]
+fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
+    let cfg = ControllerConfig::paper(kind);
+    let mut ctrl = Controller::new(cfg).unwrap_or_else(|_| fail("config"));
+    let mut staged = Staged::new(cfg);
+    let traj = PaperCurve::paper(PaperHeading::SignedSmooth);
+    let mut plant = Plant::new(*ctrl.model());
+    let mut res = RunResult {
+        reference: Stat::default(),
+        step: Stat::default(),
+        stages: StageStats::default(),
+        final_error: [0.0; 3],
+        max_pos_error_after_10s: 0.0,
+    };
+    let dt = cfg.period_s;
+    for k in 0..STEPS {
+        let t = k as f32 * dt;
+        let r = time(c, &mut res.reference, || traj.sample(black_box(t)));
+        let input = plant.input(r);
+        let out: StepOutput = time(c, &mut res.step, || ctrl.step(black_box(&input)));
+        if out.diag.fault.is_some() {
+            fail("controller rejected a step");
+        }
+        if kind == ControllerKind::Proposed {
+            // The staged replica must produce the controller's torque.
+            let tq = staged.step(c, &mut res.stages, &input);
+            for i in 0..2 {
+                if (tq[i] - out.torque_nm[i]).abs() > 1e-4 * (1.0 + out.torque_nm[i].abs()) {
+                    fail("staged replica diverged from Controller::step");
+                }
+            }
+        }
+        let e = out.diag.error;
+        if t >= 10.0 {
+            let pe = math::sqrt(e[0] * e[0] + e[1] * e[1]);
+            res.max_pos_error_after_10s = res.max_pos_error_after_10s.max(pe);
+        }
+        res.final_error = e;
+        plant.advance(out.torque_nm, t, dt);
+    }
+    res
+}
+
+/// Mean counts per call of `f` over `n` inputs spread over [lo, hi].
+#[inline(never)]
+fn bench1<C: Counter>(c: &C, lo: f32, hi: f32, f: impl Fn(f32) -> f32) -> u32 {
+    let step = (hi - lo) / MATH_CALLS as f32;
+    let t0 = c.now();
+    let mut x = lo;
+    for _ in 0..MATH_CALLS {
+        black_box(f(black_box(x)));
+        x += step;
+    }
+    let t1 = c.now();
+    c.elapsed(t0, t1)
+}
+
+#[inline(never)]
+fn bench_sc<C: Counter>(c: &C, lo: f32, hi: f32, f: impl Fn(f32) -> (f32, f32)) -> u32 {
+    let step = (hi - lo) / MATH_CALLS as f32;
+    let t0 = c.now();
+    let mut x = lo;
+    for _ in 0..MATH_CALLS {
+        black_box(f(black_box(x)));
+        x += step;
+    }
+    let t1 = c.now();
+    c.elapsed(t0, t1)
+}
+
+/// Max |f − g| over the same inputs as [`bench1`].
+fn err1(lo: f32, hi: f32, f: impl Fn(f32) -> f32, g: impl Fn(f32) -> f32) -> f32 {
+    let step = (hi - lo) / MATH_CALLS as f32;
+    let mut x = lo;
+    let mut e = 0.0f32;
+    for _ in 0..MATH_CALLS {
+        e = e.max((f(x) - g(x)).abs());
+        x += step;
+    }
+    e
+}
+
+struct MathRow {
+    name: &'static str,
+    range: &'static str,
+    libm: (u32, f32),
+    micromath: Option<(u32, f32)>,
+    fast: (u32, f32),
+}
+
+#[inline(never)]
+fn math_rows<C: Counter>(c: &C) -> [MathRow; 9] {
+    use controller_core::math::fast;
+    use micromath::F32;
+    let pi = core::f32::consts::PI;
+    macro_rules! row {
+        ($name:expr, $range:expr, $lo:expr, $hi:expr, $libm:expr, $mm:expr, $fast:expr) => {{
+            let (lo, hi) = ($lo, $hi);
+            MathRow {
+                name: $name,
+                range: $range,
+                libm: (bench1(c, lo, hi, $libm), 0.0),
+                micromath: {
+                    let mm: Option<fn(f32) -> f32> = $mm;
+                    mm.map(|m| (bench1(c, lo, hi, m), err1(lo, hi, m, $libm)))
+                },
+                fast: (bench1(c, lo, hi, $fast), err1(lo, hi, $fast, $libm)),
+            }
+        }};
+    }
+    let none: Option<fn(f32) -> f32> = None;
+    let sc_err = |f: fn(f32) -> (f32, f32)| {
+        err1(-pi, pi, |x| f(x).0, libm::sinf).max(err1(-pi, pi, |x| f(x).1, libm::cosf))
+    };
+    let mm_sc: fn(f32) -> (f32, f32) = |x| {
+        let (s, c) = F32(x).sin_cos();
+        (s.0, c.0)
+    };
+    let atan2_of = |x: f32| (x, 0.5 - 0.7 * x); // crosses quadrants for x in [-2, 2]
+    [
+        row!(
+            "sin",
+            "[-π, π]",
+            -pi,
+            pi,
+            libm::sinf,
+            Some(|x| F32(x).sin().0),
+            fast::sin
+        ),
+        row!(
+            "cos",
+            "[-π, π]",
+            -pi,
+            pi,
+            libm::cosf,
+            Some(|x| F32(x).cos().0),
+            fast::cos
+        ),
+        MathRow {
+            name: "sin_cos",
+            range: "[-π, π]",
+            libm: (bench_sc(c, -pi, pi, libm::sincosf), 0.0),
+            micromath: Some((bench_sc(c, -pi, pi, mm_sc), sc_err(mm_sc))),
+            fast: (bench_sc(c, -pi, pi, fast::sin_cos), sc_err(fast::sin_cos)),
+        },
+        row!(
+            "sin (large arg)",
+            "[-100, 100]",
+            -100.0,
+            100.0,
+            libm::sinf,
+            Some(|x| F32(x).sin().0),
+            fast::sin
+        ),
+        row!(
+            "atan2",
+            "y∈[-2,2], x=0.5−0.7y",
+            -2.0,
+            2.0,
+            |v| {
+                let (y, x) = atan2_of(v);
+                libm::atan2f(y, x)
+            },
+            Some(|v| {
+                let (y, x) = (v, 0.5 - 0.7 * v);
+                F32(y).atan2(F32(x)).0
+            }),
+            |v| {
+                let (y, x) = atan2_of(v);
+                fast::atan2(y, x)
+            }
+        ),
+        row!("tanh", "[-3, 3]", -3.0, 3.0, libm::tanhf, none, fast::tanh),
+        row!(
+            "sqrt",
+            "[0.01, 10]",
+            0.01,
+            10.0,
+            libm::sqrtf,
+            Some(|x| F32(x).sqrt().0),
+            fast::sqrt
+        ),
+        row!(
+            "powf(x, 0.01)",
+            "[0.1, 2]",
+            0.1,
+            2.0,
+            |x| libm::powf(x, 0.01),
+            Some(|x| F32(x).powf(F32(0.01)).0),
+            |x| fast::powf(x, 0.01)
+        ),
+        row!(
+            "floor",
+            "[-10, 10]",
+            -10.0,
+            10.0,
+            libm::floorf,
+            Some(|x| F32(x).floor().0),
+            fast::floor
+        ),
+    ]
+}
+
+#[cfg(not(feature = "dwt"))]
+fn counter() -> timer::SysTickCounter {
+    let p = cortex_m::Peripherals::take().unwrap_or_else(|| fail("peripherals"));
+    timer::SysTickCounter::start(p.SYST)
+}
+
+#[cfg(feature = "dwt")]
+fn counter() -> timer::DwtCounter {
+    let p = cortex_m::Peripherals::take().unwrap_or_else(|| fail("peripherals"));
+    timer::DwtCounter::start(p.DCB, p.DWT)
+}
+
+#[entry]
+fn main() -> ! {
+    let c = counter();
+    // Calibration: 2·N instructions.
+    const CAL: u32 = 1_000_000;
+    let cal = timer::calibrate(&c, CAL);
+    let per_count = if cfg!(feature = "dwt") {
+        1.0
+    } else {
+        2.0 * CAL as f32 / cal as f32
+    };
+    // Overhead of `time` around nothing.
+    let mut ovh = Stat::default();
+    for _ in 0..10_000 {
+        time(&c, &mut ovh, || black_box(0u32));
+    }
+    let scale = Scale {
+        per_count,
+        overhead: ovh.mean(),
+    };
+    let unit = if cfg!(feature = "dwt") {
+        "cycles"
+    } else {
+        "instructions"
+    };
+    hprintln!("# bench-m4: {} per call on a Cortex-M4F", unit);
+    hprintln!(
+        "counter: {}; calibration: {} counts for {} two-instruction loop iterations -> {} {} per count; timing overhead {} counts subtracted",
+        <timer::SysTickCounter as Counter>::UNIT,
+        cal,
+        CAL,
+        per_count,
+        unit,
+        ovh.mean()
+    );
+    hprintln!(
+        "math: {}",
+        match math::selected() {
+            math::MathImpl::Fast => "fast (controller-core default)",
+            math::MathImpl::Accurate => "accurate (libm, feature accurate-math)",
+        }
+    );
+    hprintln!("");
+    hprintln!("| item | calls | mean {} | max {} |", unit, unit);
+    hprintln!("|---|---:|---:|---:|");
+    let mut proposed_mean = 0.0;
+    let mut proposed_max = 0.0;
+    for kind in ControllerKind::ALL {
+        let r = run_controller(&c, kind);
+        if !(r.max_pos_error_after_10s < 0.5) {
+            hprintln!(
+                "{}: max position error after 10 s {} m",
+                kind.name(),
+                r.max_pos_error_after_10s
+            );
+            fail("closed loop did not track");
+        }
+        let row = |name: &str, s: &Stat| {
+            hprintln!(
+                "| {} | {} | {:.0} | {:.0} |",
+                name,
+                s.n,
+                scale.mean(s),
+                scale.max(s)
+            );
+        };
+        if kind == ControllerKind::Smc {
+            row("reference sample (PaperCurve SignedSmooth)", &r.reference);
+        }
+        match kind {
+            ControllerKind::Smc => row("SMC step", &r.step),
+            ControllerKind::Asmc => row("ASMC step", &r.step),
+            ControllerKind::Proposed => {
+                row("**Proposed step**", &r.step);
+                row(
+                    "  stage: tracking error + fault observer",
+                    &r.stages.observer,
+                );
+                row("  stage: kinematic law (η_c, ė, η̇_c)", &r.stages.kinematic);
+                row(
+                    "  stage: ASMC (s, torque law, N⁻¹, saturation, ρ̂)",
+                    &r.stages.asmc,
+                );
+                row("  stage: fal-ESO", &r.stages.eso);
+                let sum = scale.mean(&r.stages.observer)
+                    + scale.mean(&r.stages.kinematic)
+                    + scale.mean(&r.stages.asmc)
+                    + scale.mean(&r.stages.eso);
+                hprintln!("|  stages sum | | {:.0} | |", sum);
+                proposed_mean = scale.mean(&r.step);
+                proposed_max = scale.max(&r.step);
+            }
+        }
+        hprintln!(
+            "<!-- {}: final error [{}, {}, {}], max |e_xy| after 10 s {} m -->",
+            kind.name(),
+            r.final_error[0],
+            r.final_error[1],
+            r.final_error[2],
+            r.max_pos_error_after_10s
+        );
+    }
+    hprintln!("");
+    hprintln!(
+        "| math routine | inputs | libm {} | micromath {} (max err vs libm) | fast {} (max err vs libm) |",
+        unit,
+        unit,
+        unit
+    );
+    hprintln!("|---|---|---:|---:|---:|");
+    let base = bench1(&c, 0.0, 1.0, |x| x) as f32;
+    let per_call = |counts: u32| (counts as f32 - base) * per_count / MATH_CALLS as f32;
+    for r in math_rows(&c) {
+        match r.micromath {
+            Some((mc, me)) => hprintln!(
+                "| {} | {} | {:.0} | {:.0} ({:.1e}) | {:.0} ({:.1e}) |",
+                r.name,
+                r.range,
+                per_call(r.libm.0),
+                per_call(mc),
+                me,
+                per_call(r.fast.0),
+                r.fast.1
+            ),
+            None => hprintln!(
+                "| {} | {} | {:.0} | — | {:.0} ({:.1e}) |",
+                r.name,
+                r.range,
+                per_call(r.libm.0),
+                per_call(r.fast.0),
+                r.fast.1
+            ),
+        }
+    }
+    hprintln!("");
+    hprintln!(
+        "RESULT proposed_step_mean={:.0} proposed_step_max={:.0} unit={}",
+        proposed_mean,
+        proposed_max,
+        unit
+    );
+    debug::exit(debug::EXIT_SUCCESS);
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::nop();
+    }
+}
