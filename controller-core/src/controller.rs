@@ -17,6 +17,7 @@ use crate::error::{ConfigError, InputFault};
 use crate::eso::{EsoParams, EsoState};
 use crate::fault_observer::{FaultObserverGains, FaultObserverState};
 use crate::kinematic::KinematicGains;
+use crate::math::clamp_abs;
 use crate::model::ReducedModel;
 use crate::params::RobotParams;
 use crate::tracking::{error_rate, tracking_error};
@@ -101,7 +102,7 @@ pub const DEFAULT_K_Y: f32 = 25.0;
 /// Fixed switching gain K of the plain SMC baseline (Table 2 gives none: D13).
 pub const DEFAULT_SMC_GAIN: f32 = 1.0;
 /// Default per-wheel torque limit \[N·m\] (the paper has none: D14).
-pub const DEFAULT_TORQUE_LIMIT_NM: f32 = 5.0;
+pub const DEFAULT_TORQUE_LIMIT_NM: f32 = 10.0;
 
 impl ControllerConfig {
     /// Table 2 gains for `kind` at a 1 kHz period, with the project's
@@ -355,8 +356,12 @@ impl Controller {
         let peak = request[0].abs().max(request[1].abs());
         let saturated = !(peak <= limit);
         let torque = if saturated && peak.is_finite() {
+            // limit/peak·request can exceed the limit by an ulp: clamp as well.
             let k = limit / peak;
-            [request[0] * k, request[1] * k]
+            [
+                clamp_abs(request[0] * k, limit),
+                clamp_abs(request[1] * k, limit),
+            ]
         } else if saturated {
             [0.0; 2]
         } else {

@@ -213,3 +213,27 @@ fn integral_and_gain_frozen_while_saturated() {
         }
     }
 }
+
+/// Regression (found by `outputs_finite_and_limited`): limit/peak·request
+/// exceeded the limit by one ulp for this input.
+#[test]
+fn saturated_output_never_exceeds_limit_by_rounding() {
+    let cfg = ControllerConfig::paper(ControllerKind::Proposed);
+    let mut c = Controller::new(cfg).unwrap();
+    let reference = RefSample {
+        pose: Pose::new(3.342_146_4, -0.520_157_75, 1.327_749_4),
+        v_mps: -1.826_417_3,
+        omega_radps: -0.112_361_84,
+        v_dot_mps2: 0.139_943_02,
+        omega_dot_radps2: -0.090_426_49,
+    };
+    let out = c.step(&StepInput {
+        reference,
+        pose: Pose::new(0.0, 0.0, 7.945_395_5),
+        eta: Vel2::default(),
+    });
+    assert!(out.diag.saturated);
+    for t in out.torque_nm {
+        assert!(t.abs() <= cfg.torque_limit_nm);
+    }
+}

@@ -27,6 +27,11 @@ fn row(
 }
 
 fn main() {
+    let c2 = Scenario::paper_case(2, 1, None, None);
+    println!(
+        "Case 2 seed 1: beta = {:.4} rad/s, eps = {:.4}",
+        c2.beta, c2.eps
+    );
     println!("== k_y (Case 2, seed 1) ==");
     for k_y in [250.0, 100.0, 50.0, 25.0, 10.0] {
         let scn = Scenario {
@@ -36,6 +41,20 @@ fn main() {
         for kind in ControllerKind::ALL {
             row(&format!("k_y = {k_y}"), &scn, kind, |_| {});
         }
+    }
+    println!("== k_y at a 5 N·m torque limit (Case 2, seed 1) ==");
+    for k_y in [50.0, 25.0, 10.0] {
+        let scn = Scenario {
+            k_y: Some(k_y),
+            torque_limit_nm: 5.0,
+            ..Scenario::paper_case(2, 1, None, None)
+        };
+        row(
+            &format!("k_y = {k_y}, 5 N·m"),
+            &scn,
+            ControllerKind::Proposed,
+            |_| {},
+        );
     }
     println!("== heading reading (Case 2, seed 1) ==");
     for tr in [

@@ -161,3 +161,19 @@ fn proposed_and_asmc_agree_on_nominal_plant() {
 fn p_ks(scn: &Scenario) -> f32 {
     controller_config(scn, ControllerKind::Proposed).sliding.k_s
 }
+
+/// D8: with the printed k_y = 250 the proposed controller loses the reference
+/// while it reverses faster than k_th/(d·k_y) = 0.4 m/s (linearised lateral
+/// loop: trace −d·k_y·v_s − k_th > 0), while the default k_y = 25 tracks.
+#[test]
+fn printed_k_y_is_unstable_on_the_reversing_reference() {
+    let base = Scenario::paper_case(2, 1, None, None);
+    let printed = Scenario {
+        k_y: Some(250.0),
+        ..base.clone()
+    };
+    let bad = window_rms(&printed, ControllerKind::Proposed);
+    let good = window_rms(&base, ControllerKind::Proposed);
+    assert!(bad > 1.0, "k_y = 250: window RMS {bad:.3} m");
+    assert!(good < 0.1, "k_y = 25: window RMS {good:.3} m");
+}
