@@ -35,7 +35,6 @@ impl SysTickCounter {
         syst.set_reload(0x00FF_FFFF);
         syst.clear_current();
         syst.enable_counter();
-        core::mem::forget(syst);
         Self
     }
 }
@@ -61,7 +60,6 @@ impl DwtCounter {
     pub fn start(mut dcb: cortex_m::peripheral::DCB, mut dwt: cortex_m::peripheral::DWT) -> Self {
         dcb.enable_trace();
         dwt.enable_cycle_counter();
-        core::mem::forget((dcb, dwt));
         Self
     }
 }

@@ -21,13 +21,23 @@
 use crate::error::ConfigError;
 use crate::math::{clamp_abs, powf};
 
+/// ζ^(α−1) for Table 2's ζ = 0.1, α = 0.01 (f32 values; ≈ 10^0.99),
+/// precomputed: the linear zone is the usual case and a powf costs about
+/// 110 instructions on the M4F (BENCHMARKS.md).
+const TABLE2_FAL_SLOPE: f32 = 9.772_372;
+
 /// fal(e, ζ, α), eq. (19): linear with slope ζ^(α−1) inside |e| <= ζ,
 /// |e|^α·sign(e) outside. Continuous at ±ζ.
 #[inline]
 pub fn fal(e: f32, zeta: f32, alpha: f32) -> f32 {
     let a = e.abs();
     if a <= zeta {
-        e * powf(zeta, alpha - 1.0)
+        let slope = if zeta == 0.1 && alpha == 0.01 {
+            TABLE2_FAL_SLOPE
+        } else {
+            powf(zeta, alpha - 1.0)
+        };
+        e * slope
     } else {
         let y = powf(a, alpha);
         if e > 0.0 {
