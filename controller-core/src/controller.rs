@@ -354,7 +354,8 @@ impl Controller {
         // of v to ω (the steering) is kept (D14).
         let limit = cfg.torque_limit_nm;
         let peak = request[0].abs().max(request[1].abs());
-        let saturated = !(peak <= limit);
+        // NaN peak counts as saturated (handled below).
+        let saturated = peak.is_nan() || peak > limit;
         let torque = if saturated && peak.is_finite() {
             // limit/peak·request can exceed the limit by an ulp: clamp as well.
             let k = limit / peak;

@@ -17,6 +17,7 @@
 //! Wheel-indexed arrays are `[right, left]`; velocity arrays are `[v, ω]`.
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
+#![cfg_attr(test, allow(clippy::needless_range_loop))]
 #![forbid(unsafe_code)]
 
 pub mod asmc;

@@ -7,6 +7,7 @@
 //! the controller's own period with zero-order hold. Only sensors and
 //! actuators are simulated; no controller code lives here.
 #![deny(missing_docs)]
+#![cfg_attr(test, allow(clippy::needless_range_loop))]
 
 pub mod metrics;
 pub mod plant;

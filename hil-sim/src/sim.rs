@@ -115,11 +115,7 @@ pub fn run_with(
     };
     let mut phi_prev = [count(st.q[3]), count(st.q[4])];
     let mut acc = MetricsAcc::new(cfg.kind == ControllerKind::Proposed);
-    let mut trace = Vec::with_capacity(if trace_every > 0 {
-        n / trace_every + 1
-    } else {
-        0
-    });
+    let mut trace = Vec::with_capacity(n.checked_div(trace_every).map_or(0, |q| q + 1));
     let perturb = |t: f64| scn.perturbation(t);
     let r = plant.params.wheel_radius_m;
     let hh = plant.params.half_track_m;
