@@ -731,4 +731,23 @@ mod tests {
             assert_eq!(sin(1.0), accurate::sin(1.0));
         }
     }
+
+    /// With `runtime-math-select` the top-level functions follow [`select`].
+    /// (Tests share the switch: only this test flips it, and it restores it.)
+    #[cfg(all(feature = "runtime-math-select", not(feature = "accurate-math")))]
+    #[test]
+    fn runtime_selection_switches_implementation() {
+        // An argument where the two differ in the last bits.
+        let x = (1..1000)
+            .map(|i| i as f32 * 0.0137)
+            .find(|&x| fast::sin(x) != accurate::sin(x))
+            .expect("fast and libm sin agree everywhere?");
+        assert_eq!(selected(), MathImpl::Fast);
+        assert_eq!(sin(x), fast::sin(x));
+        assert!(select(MathImpl::Accurate));
+        assert_eq!(selected(), MathImpl::Accurate);
+        assert_eq!(sin(x), accurate::sin(x));
+        assert!(select(MathImpl::Fast));
+        assert_eq!(sin(x), fast::sin(x));
+    }
 }
