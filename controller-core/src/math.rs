@@ -417,7 +417,9 @@ pub mod fast {
 
     /// xʸ for x > 0 as exp(y·ln x): relative error about (1 + |y·ln x|)·1e-7.
     /// x = 0 → 0 (y > 0), 1 (y = 0), ∞ (y < 0); x < 0 or NaN → NaN.
-    #[inline]
+    /// Not inlined: fal's usual path (the linear zone) skips it, and inlining
+    /// its ~100 instructions into the ESO made that path slower (bench-m4).
+    #[inline(never)]
     pub fn powf(x: f32, y: f32) -> f32 {
         if x == 0.0 {
             return if y > 0.0 {
