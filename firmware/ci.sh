@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# Firmware build check: builds the release image for every supported chip,
+# prints flash and static RAM use, and fails when the default chip
+# (STM32F411CE) exceeds the budget: 64 KiB flash, 16 KiB static RAM.
+#
+#   flash      = .vector_table + .text + .rodata + .data (the .data init image
+#                is stored in flash too)
+#   static RAM = .data + .bss + .uninit (the defmt RTT buffer lives in .uninit;
+#                the stack is not static and not counted)
+#
+# Override the budgets to see the check fail: FW_FLASH_BUDGET=1000 ./ci.sh
+set -euo pipefail
+cd "$(dirname "$0")"
+
+FLASH_BUDGET=${FW_FLASH_BUDGET:-65536}
+RAM_BUDGET=${FW_RAM_BUDGET:-16384}
+DEFAULT_CHIP=stm32f411ce
+CHIPS=(stm32f411ce stm32f446re)
+TARGET=thumbv7em-none-eabihf
+
+# Tools this script uses.
+if ! rustup target list --installed | grep -qx "$TARGET"; then
+    rustup target add "$TARGET"
+fi
+if ! rustup component list --installed | grep -q '^llvm-tools'; then
+    rustup component add llvm-tools
+fi
+if ! command -v flip-link >/dev/null 2>&1; then
+    cargo install flip-link --locked
+fi
+HOST=$(rustc -vV | sed -n 's/^host: //p')
+SIZE="$(rustc --print sysroot)/lib/rustlib/$HOST/bin/llvm-size"
+[ -x "$SIZE" ] || { echo "llvm-size not found at $SIZE" >&2; exit 1; }
+
+status=0
+for chip in "${CHIPS[@]}"; do
+    echo "==> building firmware for $chip"
+    # One target dir per chip: switching the chip feature would otherwise
+    # rebuild embassy-stm32 on every run.
+    cargo build --release --locked --no-default-features --features "$chip" \
+        --target "$TARGET" --target-dir "target/ci-$chip"
+    elf="target/ci-$chip/$TARGET/release/firmware"
+    read -r flash ram < <("$SIZE" -A "$elf" | awk '
+        $1 == ".vector_table" || $1 == ".text" || $1 == ".rodata" { f += $2 }
+        $1 == ".data" { f += $2; r += $2 }
+        $1 == ".bss" || $1 == ".uninit" { r += $2 }
+        END { print f + 0, r + 0 }')
+    "$SIZE" -A "$elf" | awk '$1 ~ /^\.(vector_table|text|rodata|data|bss|uninit)$/ { printf "    %-14s %7d\n", $1, $2 }'
+    awk -v c="$chip" -v f="$flash" -v r="$ram" \
+        'BEGIN { printf "    %s: flash %d B (%.1f KiB), static RAM %d B (%.1f KiB)\n", c, f, f / 1024, r, r / 1024 }'
+    if [ "$chip" = "$DEFAULT_CHIP" ]; then
+        if [ "$flash" -gt "$FLASH_BUDGET" ]; then
+            echo "FAIL: $chip flash $flash B exceeds budget $FLASH_BUDGET B" >&2
+            status=1
+        fi
+        if [ "$ram" -gt "$RAM_BUDGET" ]; then
+            echo "FAIL: $chip static RAM $ram B exceeds budget $RAM_BUDGET B" >&2
+            status=1
+        fi
+        if [ "$status" -eq 0 ]; then
+            echo "    budget OK (flash <= $FLASH_BUDGET B, static RAM <= $RAM_BUDGET B)"
+        fi
+    fi
+done
+exit "$status"
