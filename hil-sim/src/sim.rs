@@ -11,7 +11,9 @@ use crate::plant::{Plant, PlantParams, PlantState};
 use crate::rng::Rng;
 use crate::scenario::Scenario;
 use controller_core::trajectory::Trajectory;
-use controller_core::{Controller, ControllerConfig, ControllerKind, Pose, StepInput, Vel2};
+use controller_core::{
+    Controller, ControllerConfig, ControllerKind, Diagnostics, Pose, StepInput, Vel2,
+};
 use serde::Serialize;
 
 /// One logged sample (decimated) for plots and CSV.
@@ -74,6 +76,132 @@ pub fn controller_config(scn: &Scenario, kind: ControllerKind) -> ControllerConf
     cfg
 }
 
+/// What the controller side commands for one control period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Actuation {
+    /// Wheel torques `[right, left]` \[N·m\] held over the period.
+    Torque([f64; 2]),
+    /// A motor model driven at fixed duty: torque depends on the wheel rate,
+    /// re-evaluated at every RK4 sub-step (see [`crate::hil`]).
+    Motor(crate::hil::MotorActuation),
+}
+
+impl Actuation {
+    /// Wheel torques at the given wheel rates \[rad/s\] `[right, left]`.
+    pub fn torque_nm(&self, wheel_rates_radps: [f64; 2]) -> [f64; 2] {
+        match self {
+            Self::Torque(t) => *t,
+            Self::Motor(m) => m.torque_nm(wheel_rates_radps),
+        }
+    }
+}
+
+/// What the simulated sensors give the controller side at one step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sensed {
+    /// Pose of G with measurement noise.
+    pub pose: Pose,
+    /// True wheel angles φ `[right, left]` \[rad\] (for encoders).
+    pub wheel_angle_rad: [f64; 2],
+}
+
+/// The controller side of the loop: the bare `Controller` ([`DirectSide`]) or
+/// the firmware's runtime with simulated encoders and PWM ([`crate::hil::RuntimeSide`]).
+pub trait ControlSide {
+    /// The controller kind (for the fault-estimate metric).
+    fn kind(&self) -> ControllerKind;
+    /// One control period at step `k`, time `t_s`: returns the actuation, the
+    /// η the controller used, and its diagnostics.
+    fn step(&mut self, k: usize, t_s: f64, sensed: &Sensed) -> (Actuation, [f64; 2], Diagnostics);
+    /// Steps the controller rejected or the runtime stopped on.
+    fn rejected_steps(&self) -> u32;
+}
+
+impl<C: ControlSide> ControlSide for &mut C {
+    fn kind(&self) -> ControllerKind {
+        (**self).kind()
+    }
+    fn step(&mut self, k: usize, t_s: f64, sensed: &Sensed) -> (Actuation, [f64; 2], Diagnostics) {
+        (**self).step(k, t_s, sensed)
+    }
+    fn rejected_steps(&self) -> u32 {
+        (**self).rejected_steps()
+    }
+}
+
+/// The bare controller: η from the wheel-angle change over the last period
+/// (optionally quantised to encoder counts), torque optionally quantised to
+/// PWM levels and clipped to the drive's limit.
+pub struct DirectSide<'a> {
+    scn: &'a Scenario,
+    ctrl: Controller,
+    reference: controller_core::trajectory::Reference,
+    wheel_radius_m: f64,
+    half_track_m: f64,
+    phi_prev: Option<[f64; 2]>,
+}
+
+impl<'a> DirectSide<'a> {
+    /// Builds the controller for `scn`.
+    pub fn new(scn: &'a Scenario, cfg: ControllerConfig) -> Result<Self, String> {
+        Ok(Self {
+            scn,
+            ctrl: Controller::new(cfg).map_err(|e| format!("controller config: {e}"))?,
+            reference: scn.trajectory.reference(),
+            wheel_radius_m: cfg.robot.wheel_radius_m as f64,
+            half_track_m: cfg.robot.half_track_m as f64,
+            phi_prev: None,
+        })
+    }
+
+    fn count(&self, phi: f64) -> f64 {
+        let cpr = self.scn.encoder_cpr as f64;
+        if cpr > 0.0 {
+            let q = 2.0 * std::f64::consts::PI / cpr;
+            (phi / q).floor() * q
+        } else {
+            phi
+        }
+    }
+}
+
+impl ControlSide for DirectSide<'_> {
+    fn kind(&self) -> ControllerKind {
+        self.ctrl.config().kind
+    }
+
+    fn step(&mut self, _k: usize, t: f64, sensed: &Sensed) -> (Actuation, [f64; 2], Diagnostics) {
+        let dt = self.scn.control_period_s;
+        let phi = sensed.wheel_angle_rad.map(|p| self.count(p));
+        let w = match self.phi_prev {
+            Some(prev) => [(phi[0] - prev[0]) / dt, (phi[1] - prev[1]) / dt],
+            None => [0.0, 0.0],
+        };
+        self.phi_prev = Some(phi);
+        let (r, h) = (self.wheel_radius_m, self.half_track_m);
+        let eta = [0.5 * r * (w[0] + w[1]), 0.5 * r * (w[0] - w[1]) / h];
+        let out = self.ctrl.step(&StepInput {
+            reference: self.reference.sample(t as f32),
+            pose: sensed.pose,
+            eta: Vel2::new(eta[0] as f32, eta[1] as f32),
+        });
+        let limit = self.scn.torque_limit_nm;
+        let tau = out.torque_nm.map(|x| {
+            let mut x = x as f64;
+            if self.scn.pwm_levels > 0 {
+                let q = limit / self.scn.pwm_levels as f64;
+                x = (x / q).round() * q;
+            }
+            x.clamp(-limit, limit)
+        });
+        (Actuation::Torque(tau), eta, out.diag)
+    }
+
+    fn rejected_steps(&self) -> u32 {
+        self.ctrl.rejected_steps()
+    }
+}
+
 /// Runs `scn` with the given controller configuration; logs every
 /// `trace_every`-th step (0 = no trace).
 pub fn run_with(
@@ -82,9 +210,21 @@ pub fn run_with(
     trace_every: usize,
 ) -> Result<SimOutput, String> {
     scn.validate()?;
-    let mut ctrl = Controller::new(cfg).map_err(|e| format!("controller config: {e}"))?;
+    let side = DirectSide::new(scn, cfg)?;
+    run_loop(scn, &cfg.robot, side, trace_every)
+}
+
+/// The closed loop: simulated sensors, `side`, the plant; metrics at every
+/// step, a trace every `trace_every` steps (0 = none).
+pub fn run_loop(
+    scn: &Scenario,
+    robot: &controller_core::RobotParams,
+    mut side: impl ControlSide,
+    trace_every: usize,
+) -> Result<SimOutput, String> {
+    scn.validate()?;
     let plant = Plant {
-        params: PlantParams::from_robot(&cfg.robot, scn.mass_scale, scn.inertia_scale),
+        params: PlantParams::from_robot(robot, scn.mass_scale, scn.inertia_scale),
     };
     let reference = scn.trajectory.reference();
     let dt = scn.control_period_s;
@@ -105,53 +245,29 @@ pub fn run_with(
         ],
         nu: [0.0, 0.0],
     };
-    let cpr = scn.encoder_cpr as f64;
-    let count = |phi: f64| {
-        if cpr > 0.0 {
-            (phi * cpr / (2.0 * std::f64::consts::PI)).floor() * 2.0 * std::f64::consts::PI / cpr
-        } else {
-            phi
-        }
-    };
-    let mut phi_prev = [count(st.q[3]), count(st.q[4])];
-    let mut acc = MetricsAcc::new(cfg.kind == ControllerKind::Proposed);
+    let kind = side.kind();
+    let mut acc = MetricsAcc::new(kind == ControllerKind::Proposed);
     let mut trace = Vec::with_capacity(n.checked_div(trace_every).map_or(0, |q| q + 1));
     let perturb = |t: f64| scn.perturbation(t);
-    let r = plant.params.wheel_radius_m;
-    let hh = plant.params.half_track_m;
-    let limit = scn.torque_limit_nm;
+    let (r, hh) = (plant.params.wheel_radius_m, plant.params.half_track_m);
+    let wheel_rates = |st: &PlantState, t: f64| {
+        let eta = plant.eta(st, &perturb(t));
+        [(eta[0] + hh * eta[1]) / r, (eta[0] - hh * eta[1]) / r]
+    };
 
     for k in 0..n {
         let t = k as f64 * dt;
-        // Sensors.
-        let pose = Pose::new(
-            (st.q[0] + scn.pose_noise_m * rng.normal()) as f32,
-            (st.q[1] + scn.pose_noise_m * rng.normal()) as f32,
-            (st.q[2] + scn.heading_noise_rad * rng.normal()) as f32,
-        );
-        let phi = [count(st.q[3]), count(st.q[4])];
-        let eta_meas = if k == 0 {
-            plant.eta(&st, &perturb(t))
-        } else {
-            let w = [(phi[0] - phi_prev[0]) / dt, (phi[1] - phi_prev[1]) / dt];
-            [0.5 * r * (w[0] + w[1]), 0.5 * r * (w[0] - w[1]) / hh]
+        let sensed = Sensed {
+            pose: Pose::new(
+                (st.q[0] + scn.pose_noise_m * rng.normal()) as f32,
+                (st.q[1] + scn.pose_noise_m * rng.normal()) as f32,
+                (st.q[2] + scn.heading_noise_rad * rng.normal()) as f32,
+            ),
+            wheel_angle_rad: [st.q[3], st.q[4]],
         };
-        phi_prev = phi;
         let rs = reference.sample(t as f32);
-        let out = ctrl.step(&StepInput {
-            reference: rs,
-            pose,
-            eta: Vel2::new(eta_meas[0] as f32, eta_meas[1] as f32),
-        });
-        // Actuators: PWM quantisation and the hard limit of the drive.
-        let mut tau = [out.torque_nm[0] as f64, out.torque_nm[1] as f64];
-        for x in &mut tau {
-            if scn.pwm_levels > 0 {
-                let q = limit / scn.pwm_levels as f64;
-                *x = (*x / q).round() * q;
-            }
-            *x = x.clamp(-limit, limit);
-        }
+        let (act, eta_meas, d) = side.step(k, t, &sensed);
+        let tau = act.torque_nm(wheel_rates(&st, t));
 
         let p_now = perturb(t);
         let eta_true = plant.eta(&st, &p_now);
@@ -159,7 +275,6 @@ pub fn run_with(
         let ex = rs.pose.x_m as f64 - st.q[0];
         let ey = rs.pose.y_m as f64 - st.q[1];
         let pos_err = ex.hypot(ey);
-        let d = out.diag;
         let fe = (d.f_hat[0] as f64 - f_true[0]).hypot(d.f_hat[1] as f64 - f_true[1]);
         acc.push(
             t,
@@ -194,19 +309,21 @@ pub fn run_with(
                 saturated: d.saturated,
             });
         }
-        // Plant over [t, t + dt] with the torque held.
+        // Plant over [t, t + dt]: actuation held (zero-order hold).
         for j in 0..scn.substeps {
-            st = plant.rk4_step(&st, t + j as f64 * h, h, tau, &perturb);
+            let tj = t + j as f64 * h;
+            let tau_j = act.torque_nm(wheel_rates(&st, tj));
+            st = plant.rk4_step(&st, tj, h, tau_j, &perturb);
         }
         if !(st.q.iter().chain(&st.nu).all(|x| x.is_finite())) {
             return Err(format!("plant state diverged at t = {t:.3} s"));
         }
     }
     Ok(SimOutput {
-        kind: cfg.kind,
+        kind,
         trace,
         metrics: acc.finish(scn.duration_s, dt),
-        rejected_steps: ctrl.rejected_steps(),
+        rejected_steps: side.rejected_steps(),
     })
 }
 
