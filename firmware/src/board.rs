@@ -20,9 +20,9 @@ use controller_core::runtime::{DutyCommand, Encoder, MotorDriver};
 use embassy_stm32::gpio::{Input, Level, Output, OutputType, Pull, Speed};
 use embassy_stm32::peripherals::{IWDG, TIM1, TIM3, TIM4};
 use embassy_stm32::time::{khz, Hertz};
+use embassy_stm32::timer::low_level::CountingMode;
 use embassy_stm32::timer::qei::{self, Qei};
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm, SimplePwmChannel};
-use embassy_stm32::timer::low_level::CountingMode;
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{pac, rcc, Config};
 

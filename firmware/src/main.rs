@@ -34,7 +34,10 @@ async fn main(spawner: Spawner) {
         0 // rejected by the configuration check below
     };
     let cfg = config::runtime_config(full_scale);
-    info!("==== trajectory-tracking firmware {} ====", env!("CARGO_PKG_VERSION"));
+    info!(
+        "==== trajectory-tracking firmware {} ====",
+        env!("CARGO_PKG_VERSION")
+    );
     info!("chip: {}", board::CHIP);
     info!(
         "loop {=u64} Hz, PWM {=u32} Hz full scale {=u16} counts, watchdog {=u32} us, telemetry every {=u32} ticks",
@@ -102,7 +105,12 @@ async fn control_task(mut b: board::Board, mut cl: ControlLoop) {
         last_start = Some(start);
 
         let c0 = DWT::cycle_count();
-        let rep = cl.tick(&mut b.encoders, &mut b.motors, &mut WheelOdometryOnly, loop_us);
+        let rep = cl.tick(
+            &mut b.encoders,
+            &mut b.motors,
+            &mut WheelOdometryOnly,
+            loop_us,
+        );
         cycles.record(DWT::cycle_count().wrapping_sub(c0));
         b.watchdog.pet();
 
