@@ -136,6 +136,8 @@ impl Plant {
 struct Staged {
     cfg: ControllerConfig,
     model: ReducedModel,
+    /// ζ^(α−1), precomputed as `Controller::new` does.
+    fal_slope: f32,
     fo: FaultObserverState,
     eso: EsoState,
     sl: SlidingState,
@@ -154,6 +156,7 @@ impl Staged {
         let rho = cfg.sliding.rho_initial();
         Self {
             model: ReducedModel::new(&cfg.robot).unwrap_or_else(|_| fail("model")),
+            fal_slope: cfg.eso.fal_slope(),
             cfg,
             fo: FaultObserverState::default(),
             eso: EsoState::default(),
@@ -229,7 +232,8 @@ impl Staged {
             let (m_eta, torque, eta) = black_box((m_eta, torque, eta));
             let n_tau = self.model.n_tau(torque);
             let known = [m_eta[0] + n_tau[0], m_eta[1] + n_tau[1]];
-            cfg.eso.update(&mut self.eso, eta, known, dt);
+            cfg.eso
+                .update_with_slope(&mut self.eso, eta, known, dt, self.fal_slope);
         });
         torque
     }

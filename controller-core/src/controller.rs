@@ -214,6 +214,8 @@ struct State {
 pub struct Controller {
     cfg: ControllerConfig,
     model: ReducedModel,
+    /// ζ^(α−1) of the ESO's fal, computed once.
+    fal_slope: f32,
     state: State,
     rejected_steps: u32,
 }
@@ -226,6 +228,7 @@ impl Controller {
         let mut c = Self {
             cfg,
             model,
+            fal_slope: cfg.eso.fal_slope(),
             state: State::default(),
             rejected_steps: 0,
         };
@@ -375,7 +378,8 @@ impl Controller {
         if proposed {
             let n_tau = self.model.n_tau(torque);
             let known = [m_eta[0] + n_tau[0], m_eta[1] + n_tau[1]];
-            cfg.eso.update(&mut self.state.eso, eta, known, dt);
+            cfg.eso
+                .update_with_slope(&mut self.state.eso, eta, known, dt, self.fal_slope);
         }
 
         let diag = Diagnostics {

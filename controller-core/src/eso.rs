@@ -21,22 +21,19 @@
 use crate::error::ConfigError;
 use crate::math::{clamp_abs, powf};
 
-/// ζ^(α−1) for Table 2's ζ = 0.1, α = 0.01 (f32 values; ≈ 10^0.99),
-/// precomputed: the linear zone is the usual case and a powf costs about
-/// 110 instructions on the M4F (BENCHMARKS.md).
-const TABLE2_FAL_SLOPE: f32 = 9.772_372;
-
 /// fal(e, ζ, α), eq. (19): linear with slope ζ^(α−1) inside |e| <= ζ,
 /// |e|^α·sign(e) outside. Continuous at ±ζ.
 #[inline]
 pub fn fal(e: f32, zeta: f32, alpha: f32) -> f32 {
+    fal_with_slope(e, zeta, alpha, powf(zeta, alpha - 1.0))
+}
+
+/// [`fal`] with the linear-zone slope ζ^(α−1) given (precomputed once by
+/// [`EsoParams::fal_slope`]: a powf costs about 110 instructions on the M4F).
+#[inline]
+pub fn fal_with_slope(e: f32, zeta: f32, alpha: f32, slope: f32) -> f32 {
     let a = e.abs();
     if a <= zeta {
-        let slope = if zeta == 0.1 && alpha == 0.01 {
-            TABLE2_FAL_SLOPE
-        } else {
-            powf(zeta, alpha - 1.0)
-        };
         e * slope
     } else {
         let y = powf(a, alpha);
@@ -108,8 +105,21 @@ pub struct EsoState {
 
 impl EsoParams {
     /// One Euler step of length `dt_s` with the measured η held over the step
-    /// and `known_accel` = Mη + Nτ_applied.
+    /// and `known_accel` = Mη + Nτ_applied (computes the fal slope; the
+    /// controller uses [`Self::update_with_slope`] with it precomputed).
     pub fn update(&self, st: &mut EsoState, eta: [f32; 2], known_accel: [f32; 2], dt_s: f32) {
+        self.update_with_slope(st, eta, known_accel, dt_s, self.fal_slope());
+    }
+
+    /// [`Self::update`] with the fal slope ζ^(α−1) given.
+    pub fn update_with_slope(
+        &self,
+        st: &mut EsoState,
+        eta: [f32; 2],
+        known_accel: [f32; 2],
+        dt_s: f32,
+        fal_slope: f32,
+    ) {
         if !st.primed {
             *st = EsoState {
                 x2: eta,
@@ -120,7 +130,7 @@ impl EsoParams {
         let [l1, l2, l3] = self.lambda;
         for i in 0..2 {
             let e = st.e1[i];
-            let fe = fal(e, self.zeta, self.alpha);
+            let fe = fal_with_slope(e, self.zeta, self.alpha, fal_slope);
             let de = eta[i] - st.x2[i] - l1 * e;
             let dx2 = known_accel[i] + st.x3[i] + l2 * fe;
             let dx3 = l3 * fe;
