@@ -183,3 +183,6 @@ impl core::fmt::Display for RuntimeConfigError {
         f.write_str(s)
     }
 }
+
+#[cfg(test)]
+mod closed_loop_tests;
