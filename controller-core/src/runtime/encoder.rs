@@ -114,7 +114,7 @@ impl WheelCounts {
 
     /// Signed per-tick deltas `[right, left]` of new raw counts, forward
     /// positive, without changing any state (for plausibility checks before
-    /// [`Self::accept`]).
+    /// [`Self::update`]).
     pub fn peek_delta(&self, raw: [u16; 2]) -> [i32; 2] {
         if !self.primed {
             return [0; 2];
