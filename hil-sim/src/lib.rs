@@ -9,10 +9,17 @@
 #![deny(missing_docs)]
 #![cfg_attr(test, allow(clippy::needless_range_loop))]
 
+pub mod bench;
+pub mod cli;
+pub mod hil;
 pub mod metrics;
+pub mod montecarlo;
 pub mod plant;
+pub mod plot;
+pub mod report;
 pub mod rng;
 pub mod scenario;
+pub mod scenario_file;
 pub mod sim;
 
 pub use metrics::Metrics;

@@ -1,0 +1,688 @@
+//! The `hil-sim` command line (clap derive): `compare`, `run`, `montecarlo`,
+//! `bench`. The binary is a thin wrapper around [`main_entry`]; everything
+//! here is library code so tests can drive it.
+
+use crate::bench::{run_bench, BenchConfig};
+use crate::montecarlo::{run_montecarlo, stats_table, McConfig};
+use crate::report::{human_summary, metrics_table, write_trace_csv, RunReport};
+use crate::scenario::{Scenario, TrajectoryKind};
+use crate::scenario_file::load_scenario;
+use crate::sim::{controller_config, run_with, SimOutput};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use controller_core::ControllerKind;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Host simulator: the controller-core controllers against the paper's
+/// differential-drive robot with slip, skid, disturbance and actuator fault.
+#[derive(Debug, Parser)]
+#[command(name = "hil-sim", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Both paper cases x the three controllers: metrics table, plots, metrics.json.
+    Compare(CompareArgs),
+    /// One scenario with one controller.
+    Run(Box<RunArgs>),
+    /// N random paper scenarios per controller, in parallel: mean/p95/max of every metric.
+    Montecarlo(McArgs),
+    /// Time per 40 s paper scenario and Monte-Carlo throughput on this machine.
+    Bench(BenchArgs),
+}
+
+/// The controller to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ControllerArg {
+    /// SMC without observer (fixed switching gain).
+    Smc,
+    /// Adaptive SMC without observer.
+    Asmc,
+    /// Fault observer + fal-ESO + adaptive SMC (the paper's).
+    Proposed,
+}
+
+impl From<ControllerArg> for ControllerKind {
+    fn from(c: ControllerArg) -> Self {
+        match c {
+            ControllerArg::Smc => ControllerKind::Smc,
+            ControllerArg::Asmc => ControllerKind::Asmc,
+            ControllerArg::Proposed => ControllerKind::Proposed,
+        }
+    }
+}
+
+/// Reference trajectory (see docs/scenario.md).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TrajectoryArg {
+    /// The paper's curve, smooth signed-velocity heading.
+    Paper,
+    /// The paper's curve, tangent heading.
+    PaperTangent,
+    /// The paper's curve, printed θ_d = 0.2t heading.
+    PaperPrinted,
+    /// Circle, radius 2 m at 0.5 m/s.
+    Circle,
+    /// Figure-eight, half-width 3 m.
+    Figure8,
+    /// Straight line along +x at 0.5 m/s.
+    Line,
+}
+
+impl From<TrajectoryArg> for TrajectoryKind {
+    fn from(t: TrajectoryArg) -> Self {
+        match t {
+            TrajectoryArg::Paper => TrajectoryKind::Paper,
+            TrajectoryArg::PaperTangent => TrajectoryKind::PaperTangent,
+            TrajectoryArg::PaperPrinted => TrajectoryKind::PaperPrinted,
+            TrajectoryArg::Circle => TrajectoryKind::Circle,
+            TrajectoryArg::Figure8 => TrajectoryKind::Figure8,
+            TrajectoryArg::Line => TrajectoryKind::Line,
+        }
+    }
+}
+
+/// `compare` options.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    /// Seed for β, ε (and noise).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output directory for the plots and metrics.json.
+    #[arg(long, default_value = "out")]
+    pub out: PathBuf,
+    /// Wheel slip amplitude β [rad/s] (default: drawn from the seed in (0, 0.2)).
+    #[arg(long)]
+    pub beta: Option<f64>,
+    /// Actuator fault ε of Case 2 (default: drawn from the seed in (0.125, 0.25)).
+    #[arg(long)]
+    pub eps: Option<f64>,
+    /// Print the rows as one JSON array instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Skip the plots (table and metrics.json only).
+    #[arg(long)]
+    pub no_plots: bool,
+}
+
+/// Scenario selection and overrides shared by `run`.
+#[derive(Debug, Args, Default, Clone)]
+pub struct ScenarioArgs {
+    /// Paper preset: 1 = disturbance + slip, 2 = + actuator fault [default: 2].
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=2), conflicts_with = "scenario")]
+    pub case: Option<u8>,
+    /// Scenario TOML file (schema: docs/scenario.md); the flags below override it.
+    #[arg(long, value_name = "FILE.toml")]
+    pub scenario: Option<PathBuf>,
+    /// Seed: draws β, ε of the preset, and the measurement noise.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Wheel slip amplitude β [rad/s].
+    #[arg(long)]
+    pub beta: Option<f64>,
+    /// Actuator fault ε in [0, 1) (body moves at (1 − ε)·η in the window).
+    #[arg(long)]
+    pub eps: Option<f64>,
+    /// Scale of the lateral skid δ_sl (1 = as printed in the paper).
+    #[arg(long)]
+    pub skid_scale: Option<f64>,
+    /// Disturbance amplitude A [N·m].
+    #[arg(long, value_name = "N·m")]
+    pub disturbance: Option<f64>,
+    /// Per-wheel torque limit [N·m].
+    #[arg(long, value_name = "N·m")]
+    pub torque_limit: Option<f64>,
+    /// Plant mass / controller model mass.
+    #[arg(long)]
+    pub mass_scale: Option<f64>,
+    /// Plant inertia / controller model inertia.
+    #[arg(long)]
+    pub inertia_scale: Option<f64>,
+    /// Reference trajectory.
+    #[arg(long, value_enum)]
+    pub trajectory: Option<TrajectoryArg>,
+    /// Run length [s].
+    #[arg(long, value_name = "s")]
+    pub duration: Option<f64>,
+    /// Encoder counts per wheel revolution (0 = ideal).
+    #[arg(long)]
+    pub encoder_cpr: Option<u32>,
+    /// PWM levels per polarity over the torque limit (0 = ideal).
+    #[arg(long)]
+    pub pwm_levels: Option<u32>,
+    /// Std. dev. of the position measurement noise [m].
+    #[arg(long, value_name = "m")]
+    pub pose_noise: Option<f64>,
+    /// Std. dev. of the heading measurement noise [rad].
+    #[arg(long, value_name = "rad")]
+    pub heading_noise: Option<f64>,
+    /// Kinematic gain k_y override.
+    #[arg(long)]
+    pub k_y: Option<f64>,
+    /// Controller period [s].
+    #[arg(long, value_name = "s")]
+    pub control_period: Option<f64>,
+    /// RK4 sub-steps per control period.
+    #[arg(long)]
+    pub substeps: Option<u32>,
+}
+
+impl ScenarioArgs {
+    /// The scenario: the file or the paper preset, then the flags on top;
+    /// validated.
+    pub fn build(&self) -> Result<Scenario, String> {
+        let mut scn = match &self.scenario {
+            Some(path) => {
+                let mut s = load_scenario(path)?;
+                if let Some(seed) = self.seed {
+                    s.seed = seed;
+                }
+                s
+            }
+            None => {
+                Scenario::paper_case(self.case.unwrap_or(2), self.seed.unwrap_or(1), None, None)
+            }
+        };
+        macro_rules! set {
+            ($($flag:ident => $field:ident),* $(,)?) => {
+                $( if let Some(v) = self.$flag { scn.$field = v.into(); } )*
+            };
+        }
+        set!(
+            beta => beta,
+            eps => eps,
+            skid_scale => skid_scale,
+            disturbance => disturbance_nm,
+            torque_limit => torque_limit_nm,
+            mass_scale => mass_scale,
+            inertia_scale => inertia_scale,
+            trajectory => trajectory,
+            duration => duration_s,
+            encoder_cpr => encoder_cpr,
+            pwm_levels => pwm_levels,
+            pose_noise => pose_noise_m,
+            heading_noise => heading_noise_rad,
+            control_period => control_period_s,
+            substeps => substeps,
+        );
+        if let Some(k) = self.k_y {
+            scn.k_y = Some(k);
+        }
+        scn.validate()?;
+        Ok(scn)
+    }
+}
+
+/// `run` options.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Controller.
+    #[arg(long, value_enum, default_value = "proposed")]
+    pub controller: ControllerArg,
+    /// Scenario.
+    #[command(flatten)]
+    pub scenario: ScenarioArgs,
+    /// Write the trace (every TraceSample field, with a header) to this CSV file.
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Trace decimation for --csv: one row every N control steps [default: 10 ms worth].
+    #[arg(long, value_name = "N")]
+    pub csv_every: Option<usize>,
+    /// Print exactly one JSON object (the metrics plus "controller", "scenario", "rejected_steps").
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `montecarlo` options.
+#[derive(Debug, Args)]
+pub struct McArgs {
+    /// Runs per controller.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    pub runs: u64,
+    /// Paper case.
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
+    pub case: u8,
+    /// Base seed; run i uses a seed derived from (seed, i).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Also draw the plant mass scale in [0.8, 1.2].
+    #[arg(long)]
+    pub vary_mass: bool,
+    /// Print the statistics as JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `bench` options.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// Repetitions per controller (the median is reported).
+    #[arg(long, default_value_t = 9, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    pub reps: u64,
+    /// Monte-Carlo runs per controller for the throughput figure.
+    #[arg(long, default_value_t = 40, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    pub mc_runs: u64,
+}
+
+/// One row of `compare`: a paper case with one controller.
+#[derive(Debug, Serialize)]
+pub struct CompareRow {
+    /// Paper case (1 or 2).
+    pub case: u8,
+    /// The run.
+    #[serde(flatten)]
+    pub report: RunReport,
+}
+
+/// Runs both paper cases with the three controllers in parallel (traced).
+pub fn compare_runs(
+    seed: u64,
+    beta: Option<f64>,
+    eps: Option<f64>,
+) -> Result<Vec<(u8, Scenario, Vec<SimOutput>)>, String> {
+    let cases: Vec<(u8, Scenario)> = [1u8, 2]
+        .iter()
+        .map(|&c| (c, Scenario::paper_case(c, seed, beta, eps)))
+        .collect();
+    for (_, s) in &cases {
+        s.validate()?;
+    }
+    let jobs: Vec<(usize, ControllerKind)> = (0..cases.len())
+        .flat_map(|i| ControllerKind::ALL.map(|k| (i, k)))
+        .collect();
+    let outs: Vec<Result<SimOutput, String>> = jobs
+        .par_iter()
+        .map(|&(i, k)| crate::sim::run(&cases[i].1, k))
+        .collect();
+    let mut outs = outs.into_iter();
+    let mut res = Vec::new();
+    for (c, s) in cases {
+        let runs = outs
+            .by_ref()
+            .take(ControllerKind::ALL.len())
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| format!("case {c}: {e}"))?;
+        res.push((c, s, runs));
+    }
+    Ok(res)
+}
+
+fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
+    let t0 = std::time::Instant::now();
+    let results = compare_runs(a.seed, a.beta, a.eps)?;
+    let t_sim = t0.elapsed();
+    let rows: Vec<CompareRow> = results
+        .iter()
+        .flat_map(|(c, s, runs)| {
+            runs.iter().map(move |o| CompareRow {
+                case: *c,
+                report: RunReport::new(o.kind, s, o),
+            })
+        })
+        .collect();
+    std::fs::create_dir_all(&a.out)
+        .map_err(|e| format!("cannot create {}: {e}", a.out.display()))?;
+    let json = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
+    let mpath = a.out.join("metrics.json");
+    std::fs::write(&mpath, format!("{json}\n"))
+        .map_err(|e| format!("cannot write {}: {e}", mpath.display()))?;
+    let plots: Result<Vec<Vec<PathBuf>>, String> = if a.no_plots {
+        Ok(Vec::new())
+    } else {
+        results
+            .par_iter()
+            .map(|(c, s, runs)| {
+                let title = format!(
+                    "Case {c} (β = {:.3} rad/s{})",
+                    s.beta,
+                    if s.eps > 0.0 {
+                        format!(", ε = {:.3}", s.eps)
+                    } else {
+                        String::new()
+                    }
+                );
+                crate::plot::write_case_plots(&a.out, &format!("case{c}"), &title, s, runs)
+            })
+            .collect()
+    };
+    let w = |out: &mut dyn Write, s: &str| out.write_all(s.as_bytes()).map_err(|e| e.to_string());
+    if a.json {
+        w(out, &format!("{json}\n"))?;
+    } else {
+        let mut text = String::new();
+        for (c, s, _) in &results {
+            text += &format!(
+                "case {c}: beta = {:.4} rad/s, eps = {:.4}, skid x{}, disturbance {} N·m, torque limit {} N·m, seed {}\n",
+                s.beta, s.eps, s.skid_scale, s.disturbance_nm, s.torque_limit_nm, s.seed
+            );
+        }
+        text.push('\n');
+        let table_rows: Vec<(Vec<String>, crate::Metrics)> = rows
+            .iter()
+            .map(|r| {
+                (
+                    vec![r.case.to_string(), r.report.controller.to_string()],
+                    r.report.metrics.clone(),
+                )
+            })
+            .collect();
+        text += &metrics_table(&["case", "controller"], &table_rows);
+        text += "\nrms: whole run; rms_win/max_win: perturbation window 10-35 s; rms_t>5: t >= 5 s; \
+settle: error stays < 0.1 m until the window;\nsat: steps at the torque limit; F_rmse: RMS |F̂ − F| over the window (proposed only)\n";
+        text += &format!(
+            "\n6 simulations in {:.0} ms ({} threads); metrics written to {}\n",
+            t_sim.as_secs_f64() * 1e3,
+            rayon::current_num_threads(),
+            mpath.display()
+        );
+        if let Ok(p) = &plots {
+            if !p.is_empty() {
+                text += &format!(
+                    "{} plot files written to {} (case<N>_{{xy,errors,velocities,torques,faults}}.{{png,svg}})\n",
+                    p.iter().map(Vec::len).sum::<usize>(),
+                    a.out.display()
+                );
+            }
+        }
+        w(out, &text)?;
+    }
+    plots.map(|_| ())
+}
+
+fn run_cmd(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
+    let scn = a.scenario.build()?;
+    if a.scenario.case == Some(1) && a.scenario.eps.is_some_and(|e| e > 0.0) {
+        eprintln!("note: --eps with --case 1 injects the actuator fault of Case 2");
+    }
+    let kind: ControllerKind = a.controller.into();
+    let every = match (a.csv.is_some(), a.csv_every) {
+        (false, _) => 0,
+        (true, Some(n)) => n.max(1),
+        (true, None) => ((0.01 / scn.control_period_s).round() as usize).max(1),
+    };
+    let res = run_with(&scn, controller_config(&scn, kind), every)?;
+    if let Some(path) = &a.csv {
+        let f = std::fs::File::create(path)
+            .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+        write_trace_csv(std::io::BufWriter::new(f), &res.trace)
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    }
+    let text = if a.json {
+        RunReport::new(kind, &scn, &res).to_json() + "\n"
+    } else {
+        let mut t = human_summary(kind, &scn, &res);
+        if let Some(p) = &a.csv {
+            t += &format!(
+                "  trace: {} rows written to {}\n",
+                res.trace.len(),
+                p.display()
+            );
+        }
+        t
+    };
+    out.write_all(text.as_bytes()).map_err(|e| e.to_string())
+}
+
+fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
+    let cfg = McConfig {
+        runs: a.runs as usize,
+        case: a.case,
+        seed: a.seed,
+        vary_mass: a.vary_mass,
+    };
+    let total = cfg.runs as u64 * ControllerKind::ALL.len() as u64;
+    let pb = if a.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        let pb = indicatif::ProgressBar::with_draw_target(
+            Some(total),
+            indicatif::ProgressDrawTarget::stderr(),
+        );
+        pb.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:40}] {pos}/{len} simulations, {per_sec}, eta {eta}",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        pb
+    };
+    let res = run_montecarlo(&cfg, &|| pb.inc(1));
+    pb.finish_and_clear();
+    let text = if a.json {
+        serde_json::to_string_pretty(&res).map_err(|e| e.to_string())? + "\n"
+    } else {
+        format!(
+            "Monte-Carlo: case {}, {} runs per controller, beta in (0, 0.2) rad/s{}{}, base seed {}\n\n{}\n\
+             {} simulations in {:.2} s on {} threads: {:.1} runs/s\n",
+            cfg.case,
+            cfg.runs,
+            if cfg.case >= 2 { ", eps in (0.125, 0.25)" } else { "" },
+            if cfg.vary_mass { ", mass scale in [0.8, 1.2]" } else { "" },
+            cfg.seed,
+            stats_table(&res),
+            res.simulations,
+            res.elapsed_s,
+            res.threads,
+            res.runs_per_s
+        )
+    };
+    out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
+    let failed: usize = res.stats.iter().map(|s| s.failed).sum();
+    if failed > 0 {
+        return Err(format!("{failed} simulations failed (see above)"));
+    }
+    Ok(())
+}
+
+/// Executes a parsed command line, writing results to `out`.
+pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
+    match &cli.command {
+        Command::Compare(a) => compare(a, out),
+        Command::Run(a) => run_cmd(a, out),
+        Command::Montecarlo(a) => montecarlo(a, out),
+        Command::Bench(a) => {
+            let r = run_bench(&BenchConfig {
+                reps: a.reps as usize,
+                mc_runs: a.mc_runs as usize,
+            });
+            out.write_all(r.to_string().as_bytes())
+                .map_err(|e| e.to_string())
+        }
+    }
+}
+
+/// The binary: parse (clap prints usage errors and exits 2), execute, print
+/// any error to stderr and return the exit code (0 or 1).
+pub fn main_entry() -> i32 {
+    let cli = Cli::parse();
+    let stdout = std::io::stdout();
+    let mut lock = stdout.lock();
+    match execute(&cli, &mut lock) {
+        Ok(()) => 0,
+        Err(e) => {
+            let _ = lock.flush();
+            eprintln!("error: {e}");
+            1
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> Result<Cli, clap::Error> {
+        Cli::try_parse_from(std::iter::once("hil-sim").chain(args.iter().copied()))
+    }
+
+    fn run_to_string(args: &[&str]) -> Result<String, String> {
+        let cli = parse(args).map_err(|e| e.to_string())?;
+        let mut buf = Vec::new();
+        execute(&cli, &mut buf)?;
+        Ok(String::from_utf8(buf).unwrap())
+    }
+
+    #[test]
+    fn argument_errors_are_rejected_by_the_parser() {
+        for bad in [
+            &["run", "--controller", "pid"][..],
+            &["run", "--case", "3"],
+            &["run", "--trajectory", "spiral"],
+            &["run", "--beta", "abc"],
+            &["run", "--case", "1", "--scenario", "x.toml"],
+            &["montecarlo"],
+            &["montecarlo", "--runs", "0"],
+            &["frobnicate"],
+        ] {
+            assert!(parse(bad).is_err(), "{bad:?} should not parse");
+        }
+        let e = parse(&["run", "--controller", "pid"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("smc") && e.contains("proposed"), "{e}");
+    }
+
+    #[test]
+    fn invalid_values_give_errors_not_panics() {
+        let e = run_to_string(&["run", "--eps", "1.5", "--json"]).unwrap_err();
+        assert!(e.contains("eps must be"), "{e}");
+        let e = run_to_string(&["run", "--duration=-1"]).unwrap_err();
+        assert!(e.contains("duration"), "{e}");
+        let e = run_to_string(&["run", "--torque-limit", "NaN"]).unwrap_err();
+        assert!(e.contains("torque"), "{e}");
+        let e = run_to_string(&["run", "--scenario", "/nonexistent/x.toml"]).unwrap_err();
+        assert!(e.contains("cannot read"), "{e}");
+    }
+
+    #[test]
+    fn flags_override_the_preset_and_the_file() {
+        let cli = parse(&[
+            "run",
+            "--case",
+            "1",
+            "--seed",
+            "4",
+            "--beta",
+            "0.15",
+            "--mass-scale",
+            "1.1",
+            "--trajectory",
+            "figure8",
+            "--k-y",
+            "10",
+            "--encoder-cpr",
+            "1024",
+        ])
+        .unwrap();
+        let Command::Run(a) = cli.command else {
+            panic!()
+        };
+        let s = a.scenario.build().unwrap();
+        assert_eq!(s.name, "case1");
+        assert_eq!((s.beta, s.eps, s.seed), (0.15, 0.0, 4));
+        assert_eq!(s.mass_scale, 1.1);
+        assert_eq!(s.trajectory, TrajectoryKind::Figure8);
+        assert_eq!(s.k_y, Some(10.0));
+        assert_eq!(s.encoder_cpr, 1024);
+
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("s.toml");
+        std::fs::write(&f, "name = \"file\"\nbeta = 0.01\npwm_levels = 255\n").unwrap();
+        let a = ScenarioArgs {
+            scenario: Some(f),
+            beta: Some(0.02),
+            ..Default::default()
+        };
+        let s = a.build().unwrap();
+        assert_eq!((s.name.as_str(), s.beta, s.pwm_levels), ("file", 0.02, 255));
+    }
+
+    #[test]
+    fn run_json_is_one_object_with_every_metric_key() {
+        let text =
+            run_to_string(&["run", "--duration", "2", "--json", "--controller", "asmc"]).unwrap();
+        assert_eq!(text.trim_end().lines().count(), 1);
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let o = v.as_object().unwrap();
+        for k in [
+            "rms_pos_err_m",
+            "rms_pos_err_window_m",
+            "max_pos_err_window_m",
+            "rms_pos_err_after5_m",
+            "final_pos_err_m",
+            "settling_time_s",
+            "torque_rms_nm",
+            "max_abs_torque_nm",
+            "chatter",
+            "saturated_fraction",
+            "fault_est_rmse",
+            "controller",
+            "scenario",
+        ] {
+            assert!(o.contains_key(k), "missing {k}");
+        }
+        assert!(o["fault_est_rmse"].is_null());
+        assert_eq!(o["controller"], "asmc");
+        let text = run_to_string(&["run", "--duration", "2", "--json"]).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert!(v["fault_est_rmse"].is_number());
+    }
+
+    #[test]
+    fn run_csv_has_header_and_one_row_per_10ms() {
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("t.csv");
+        let text =
+            run_to_string(&["run", "--duration", "1.5", "--csv", f.to_str().unwrap()]).unwrap();
+        assert!(text.contains("150 rows"), "{text}");
+        let csv = std::fs::read_to_string(&f).unwrap();
+        let lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(lines[0], crate::report::CSV_HEADER);
+        assert_eq!(lines.len(), 151);
+        let t_last: f64 = lines[150].split(',').next().unwrap().parse().unwrap();
+        assert!((t_last - 1.49).abs() < 1e-9);
+        run_to_string(&[
+            "run",
+            "--duration",
+            "1",
+            "--csv",
+            f.to_str().unwrap(),
+            "--csv-every",
+            "1",
+        ])
+        .unwrap();
+        assert_eq!(std::fs::read_to_string(&f).unwrap().lines().count(), 1001);
+    }
+
+    #[test]
+    fn compare_without_plots_writes_metrics_json() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().to_str().unwrap();
+        let text = run_to_string(&["compare", "--out", out, "--no-plots"]).unwrap();
+        assert_eq!(
+            text.lines()
+                .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()) && l.contains("proposed"))
+                .count(),
+            2,
+            "{text}"
+        );
+        let v: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("metrics.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(v.as_array().unwrap().len(), 6);
+        assert_eq!(v[5]["case"], 2);
+        assert_eq!(v[5]["controller"], "proposed");
+    }
+}

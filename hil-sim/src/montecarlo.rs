@@ -1,0 +1,321 @@
+//! Monte-Carlo over the paper's random parameters: β ∈ (0, 0.2) rad/s and
+//! ε ∈ (0.125, 0.25) drawn per run by [`Scenario::paper_case`] from a seed
+//! derived from the base seed and the run index, optionally the plant's mass
+//! scale ∈ \[0.8, 1.2\]. Every controller sees the same N scenarios (paired
+//! comparison). Runs go in parallel on rayon's pool.
+
+use crate::metrics::Metrics;
+use crate::rng::Rng;
+use crate::scenario::Scenario;
+use crate::sim::{controller_config, run_with};
+use controller_core::ControllerKind;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Range of the plant mass scale with `--vary-mass`.
+pub const MASS_SCALE_RANGE: (f64, f64) = (0.8, 1.2);
+
+/// Seed of run `i` derived from the base seed (SplitMix64 of both).
+pub fn run_seed(base: u64, i: u64) -> u64 {
+    Rng::new(base ^ i.wrapping_mul(0xD1B5_4A32_D192_ED03)).next_u64()
+}
+
+/// The scenario of run `i`.
+pub fn sample_scenario(case: u8, base_seed: u64, i: u64, vary_mass: bool) -> Scenario {
+    let seed = run_seed(base_seed, i);
+    let mut scn = Scenario::paper_case(case, seed, None, None);
+    scn.name = format!("case{case}-mc{i}");
+    if vary_mass {
+        let mut r = Rng::new(seed ^ 0x6D61_7373); // independent of β, ε
+        let u = r.uniform();
+        scn.mass_scale = MASS_SCALE_RANGE.0 + (MASS_SCALE_RANGE.1 - MASS_SCALE_RANGE.0) * u;
+    }
+    scn
+}
+
+/// mean / p95 / max of one metric over the runs that define it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Summary {
+    /// Arithmetic mean.
+    pub mean: f64,
+    /// 95th percentile, nearest-rank: the ⌈0.95·n⌉-th smallest value.
+    pub p95: f64,
+    /// Maximum.
+    pub max: f64,
+    /// Number of values (runs where the metric is defined).
+    pub n: usize,
+}
+
+/// Summary of `values` (NaN-free); None when empty.
+pub fn summarize(values: &[f64]) -> Option<Summary> {
+    if values.is_empty() {
+        return None;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n);
+    Some(Summary {
+        mean: v.iter().sum::<f64>() / n as f64,
+        p95: v[rank - 1],
+        max: v[n - 1],
+        n,
+    })
+}
+
+/// A metric's accessor (None = undefined in that run).
+pub type MetricFn = fn(&Metrics) -> Option<f64>;
+
+/// Names and accessors of the summarised metrics.
+pub const METRICS: [(&str, MetricFn); 11] = [
+    ("rms_pos_err_m", |m| Some(m.rms_pos_err_m)),
+    ("rms_pos_err_window_m", |m| Some(m.rms_pos_err_window_m)),
+    ("max_pos_err_window_m", |m| Some(m.max_pos_err_window_m)),
+    ("rms_pos_err_after5_m", |m| Some(m.rms_pos_err_after5_m)),
+    ("final_pos_err_m", |m| Some(m.final_pos_err_m)),
+    ("settling_time_s", |m| m.settling_time_s),
+    ("torque_rms_nm", |m| Some(m.torque_rms_nm)),
+    ("max_abs_torque_nm", |m| Some(m.max_abs_torque_nm)),
+    ("chatter", |m| Some(m.chatter)),
+    ("saturated_fraction", |m| Some(m.saturated_fraction)),
+    ("fault_est_rmse", |m| m.fault_est_rmse),
+];
+
+/// Statistics of one controller over the Monte-Carlo sample.
+#[derive(Clone, Debug, Serialize)]
+pub struct ControllerStats {
+    /// Controller name.
+    pub controller: &'static str,
+    /// Runs attempted.
+    pub runs: usize,
+    /// Runs that failed (plant diverged); their messages are in `errors`.
+    pub failed: usize,
+    /// The first few failure messages.
+    pub errors: Vec<String>,
+    /// Per metric (in [`METRICS`] order): its summary, None if undefined in every run.
+    pub metrics: Vec<(&'static str, Option<Summary>)>,
+}
+
+/// Statistics of one controller's results.
+pub fn controller_stats(
+    kind: ControllerKind,
+    results: &[Result<Metrics, String>],
+) -> ControllerStats {
+    let ok: Vec<&Metrics> = results.iter().filter_map(|r| r.as_ref().ok()).collect();
+    let errors: Vec<String> = results
+        .iter()
+        .filter_map(|r| r.as_ref().err().cloned())
+        .collect();
+    ControllerStats {
+        controller: kind.name(),
+        runs: results.len(),
+        failed: errors.len(),
+        errors: errors.into_iter().take(5).collect(),
+        metrics: METRICS
+            .iter()
+            .map(|(name, f)| {
+                let v: Vec<f64> = ok.iter().filter_map(|m| f(m)).collect();
+                (*name, summarize(&v))
+            })
+            .collect(),
+    }
+}
+
+/// Monte-Carlo settings.
+#[derive(Clone, Copy, Debug)]
+pub struct McConfig {
+    /// Runs per controller.
+    pub runs: usize,
+    /// Paper case 1 or 2.
+    pub case: u8,
+    /// Base seed.
+    pub seed: u64,
+    /// Draw the plant mass scale too.
+    pub vary_mass: bool,
+}
+
+/// Result of [`run_montecarlo`].
+#[derive(Clone, Debug, Serialize)]
+pub struct McResult {
+    /// Statistics per controller, in the paper's order.
+    pub stats: Vec<ControllerStats>,
+    /// Simulations run (runs × 3).
+    pub simulations: usize,
+    /// Wall-clock time \[s\].
+    pub elapsed_s: f64,
+    /// Simulations per second.
+    pub runs_per_s: f64,
+    /// Worker threads used.
+    pub threads: usize,
+}
+
+/// Runs `cfg.runs` scenarios × the three controllers in parallel (no trace);
+/// `tick` is called once per finished simulation (progress bar).
+pub fn run_montecarlo(cfg: &McConfig, tick: &(dyn Fn() + Sync)) -> McResult {
+    let jobs: Vec<(usize, ControllerKind)> = (0..cfg.runs)
+        .flat_map(|i| ControllerKind::ALL.map(|k| (i, k)))
+        .collect();
+    let t0 = std::time::Instant::now();
+    let results: Vec<(ControllerKind, Result<Metrics, String>)> = jobs
+        .par_iter()
+        .map(|&(i, kind)| {
+            let scn = sample_scenario(cfg.case, cfg.seed, i as u64, cfg.vary_mass);
+            let r = run_with(&scn, controller_config(&scn, kind), 0)
+                .map(|o| o.metrics)
+                .map_err(|e| format!("run {i} (seed {}): {e}", scn.seed));
+            tick();
+            (kind, r)
+        })
+        .collect();
+    let elapsed_s = t0.elapsed().as_secs_f64();
+    let stats = ControllerKind::ALL
+        .iter()
+        .map(|&k| {
+            let rs: Vec<Result<Metrics, String>> = results
+                .iter()
+                .filter(|(kk, _)| *kk == k)
+                .map(|(_, r)| r.clone())
+                .collect();
+            controller_stats(k, &rs)
+        })
+        .collect();
+    McResult {
+        stats,
+        simulations: jobs.len(),
+        elapsed_s,
+        runs_per_s: jobs.len() as f64 / elapsed_s.max(1e-9),
+        threads: rayon::current_num_threads(),
+    }
+}
+
+/// The statistics as a table: one row per controller × statistic.
+pub fn stats_table(res: &McResult) -> String {
+    use std::fmt::Write as _;
+    let short = [
+        "rms", "rms_win", "max_win", "rms_t>5", "final", "settle", "tau_rms", "tau_max", "chatter",
+        "sat", "F_rmse",
+    ];
+    let units = [
+        "m", "m", "m", "m", "m", "s", "N·m", "N·m", "N·m/s", "frac", "",
+    ];
+    let mut s = String::new();
+    let _ = write!(s, "{:<10} {:<5}", "controller", "stat");
+    for h in short {
+        let _ = write!(s, " {h:>9}");
+    }
+    s.push('\n');
+    let _ = write!(s, "{:<10} {:<5}", "", "");
+    for u in units {
+        let u = if u.is_empty() {
+            String::new()
+        } else {
+            format!("[{u}]")
+        };
+        let _ = write!(s, " {u:>9}");
+    }
+    s.push('\n');
+    for st in &res.stats {
+        for (row, pick) in [
+            ("mean", (|x: &Summary| x.mean) as fn(&Summary) -> f64),
+            ("p95", |x| x.p95),
+            ("max", |x| x.max),
+        ] {
+            let _ = write!(s, "{:<10} {:<5}", st.controller, row);
+            for (_, sum) in &st.metrics {
+                match sum {
+                    Some(x) => {
+                        let _ = write!(s, " {:>9.4}", pick(x));
+                    }
+                    None => {
+                        let _ = write!(s, " {:>9}", "-");
+                    }
+                }
+            }
+            s.push('\n');
+        }
+        let settle = &st.metrics[5].1;
+        let never = st.runs - st.failed - settle.map_or(0, |x| x.n);
+        let _ = writeln!(
+            s,
+            "{:<10} runs {}, failed {}, never settled {}",
+            "", st.runs, st.failed, never
+        );
+        for e in &st.errors {
+            let _ = writeln!(s, "{:<10}   {e}", "");
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn p95_mean_max_of_1_to_100() {
+        let v: Vec<f64> = (1..=100).rev().map(f64::from).collect();
+        let s = summarize(&v).unwrap();
+        assert_eq!(s.p95, 95.0);
+        assert_eq!(s.max, 100.0);
+        assert_eq!(s.mean, 50.5);
+        assert_eq!(s.n, 100);
+    }
+
+    #[test]
+    fn p95_small_samples() {
+        assert_eq!(summarize(&[]), None);
+        let one = summarize(&[3.0]).unwrap();
+        assert_eq!((one.mean, one.p95, one.max), (3.0, 3.0, 3.0));
+        // n = 10: ⌈9.5⌉ = 10th smallest = max.
+        let ten: Vec<f64> = (1..=10).map(f64::from).collect();
+        assert_eq!(summarize(&ten).unwrap().p95, 10.0);
+        // n = 20: ⌈19⌉ = 19th smallest.
+        let twenty: Vec<f64> = (1..=20).map(f64::from).collect();
+        assert_eq!(summarize(&twenty).unwrap().p95, 19.0);
+    }
+
+    #[test]
+    fn samples_in_paper_ranges_distinct_and_reproducible() {
+        let mut betas = Vec::new();
+        for i in 0..100 {
+            let s = sample_scenario(2, 42, i, true);
+            assert!(s.beta > 0.0 && s.beta < 0.2);
+            assert!(s.eps > 0.125 && s.eps < 0.25);
+            assert!((0.8..=1.2).contains(&s.mass_scale));
+            assert_eq!(s, sample_scenario(2, 42, i, true));
+            betas.push(s.beta);
+        }
+        betas.sort_by(f64::total_cmp);
+        betas.dedup();
+        assert_eq!(betas.len(), 100);
+        assert_eq!(sample_scenario(1, 42, 3, false).mass_scale, 1.0);
+        assert_eq!(sample_scenario(1, 42, 3, false).eps, 0.0);
+    }
+
+    #[test]
+    fn stats_split_undefined_and_failed_runs() {
+        let m = |x: f64, settle: Option<f64>| Metrics {
+            rms_pos_err_m: x,
+            rms_pos_err_window_m: x,
+            max_pos_err_window_m: x,
+            rms_pos_err_after5_m: x,
+            final_pos_err_m: x,
+            settling_time_s: settle,
+            torque_rms_nm: x,
+            max_abs_torque_nm: x,
+            chatter: x,
+            saturated_fraction: 0.0,
+            fault_est_rmse: None,
+        };
+        let rs = vec![
+            Ok(m(1.0, Some(2.0))),
+            Ok(m(3.0, None)),
+            Err("diverged".to_string()),
+        ];
+        let st = controller_stats(ControllerKind::Smc, &rs);
+        assert_eq!((st.runs, st.failed), (3, 1));
+        assert_eq!(st.metrics[0].1.unwrap().mean, 2.0);
+        assert_eq!(st.metrics[5].1.unwrap().n, 1);
+        assert_eq!(st.metrics[10].1, None);
+    }
+}

@@ -1,0 +1,269 @@
+//! Human and machine output of runs: the metrics table, the JSON objects of
+//! `run --json` / `compare --json` / `metrics.json`, and the trace CSV.
+
+use crate::metrics::Metrics;
+use crate::scenario::Scenario;
+use crate::sim::TraceSample;
+use controller_core::ControllerKind;
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::io::{self, Write};
+
+/// One run as printed by `run --json` and stored in `metrics.json`: the
+/// [`Metrics`] keys at the top level plus `controller` and `scenario`.
+#[derive(Clone, Debug, Serialize)]
+pub struct RunReport {
+    /// `smc`, `asmc` or `proposed`.
+    pub controller: &'static str,
+    /// Every knob of the run.
+    pub scenario: Scenario,
+    /// Control steps the controller rejected (bad input); 0 in a healthy run.
+    pub rejected_steps: u32,
+    /// The metrics (flattened into the object).
+    #[serde(flatten)]
+    pub metrics: Metrics,
+}
+
+impl RunReport {
+    /// Report of one run.
+    pub fn new(kind: ControllerKind, scenario: &Scenario, out: &crate::SimOutput) -> Self {
+        Self {
+            controller: kind.name(),
+            scenario: scenario.clone(),
+            rejected_steps: out.rejected_steps,
+            metrics: out.metrics.clone(),
+        }
+    }
+
+    /// Compact one-line JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("RunReport serialises")
+    }
+}
+
+/// The metric columns of [`metrics_table`]: header, unit, value.
+type Column = (&'static str, &'static str, fn(&Metrics) -> String);
+
+fn opt(x: Option<f64>, prec: usize) -> String {
+    x.map_or_else(|| "-".into(), |v| format!("{v:.prec$}"))
+}
+
+const COLUMNS: [Column; 11] = [
+    ("rms", "m", |m| format!("{:.4}", m.rms_pos_err_m)),
+    ("rms_win", "m", |m| format!("{:.4}", m.rms_pos_err_window_m)),
+    ("max_win", "m", |m| format!("{:.4}", m.max_pos_err_window_m)),
+    ("rms_t>5", "m", |m| format!("{:.4}", m.rms_pos_err_after5_m)),
+    ("final", "m", |m| format!("{:.4}", m.final_pos_err_m)),
+    ("settle", "s", |m| opt(m.settling_time_s, 2)),
+    ("tau_rms", "N·m", |m| format!("{:.3}", m.torque_rms_nm)),
+    ("tau_max", "N·m", |m| format!("{:.2}", m.max_abs_torque_nm)),
+    ("chatter", "N·m/s", |m| format!("{:.2}", m.chatter)),
+    ("sat", "%", |m| {
+        format!("{:.1}", 100.0 * m.saturated_fraction)
+    }),
+    ("F_rmse", "", |m| opt(m.fault_est_rmse, 4)),
+];
+
+/// A fixed-width table, one row per `(label columns…, metrics)`; `labels`
+/// names the leading label columns (e.g. `["case", "controller"]`).
+pub fn metrics_table(labels: &[&str], rows: &[(Vec<String>, Metrics)]) -> String {
+    let mut header: Vec<String> = labels.iter().map(|s| s.to_string()).collect();
+    let mut units: Vec<String> = labels.iter().map(|_| String::new()).collect();
+    for (h, u, _) in COLUMNS {
+        header.push(h.into());
+        units.push(if u.is_empty() {
+            String::new()
+        } else {
+            format!("[{u}]")
+        });
+    }
+    let body: Vec<Vec<String>> = rows
+        .iter()
+        .map(|(l, m)| {
+            let mut r = l.clone();
+            r.extend(COLUMNS.iter().map(|(_, _, f)| f(m)));
+            r
+        })
+        .collect();
+    let ncol = header.len();
+    let width = |c: usize| {
+        std::iter::once(&header[c])
+            .chain(std::iter::once(&units[c]))
+            .chain(body.iter().map(|r| &r[c]))
+            .map(|s| s.chars().count())
+            .max()
+            .unwrap_or(0)
+    };
+    let widths: Vec<usize> = (0..ncol).map(width).collect();
+    let mut out = String::new();
+    let line = |out: &mut String, cells: &[String]| {
+        for (c, cell) in cells.iter().enumerate() {
+            let pad = widths[c] - cell.chars().count();
+            if c < labels.len() {
+                let _ = write!(out, "{cell}{}  ", " ".repeat(pad));
+            } else {
+                let _ = write!(out, "{}{cell}  ", " ".repeat(pad));
+            }
+        }
+        let trimmed = out.trim_end().len();
+        out.truncate(trimmed);
+        out.push('\n');
+    };
+    line(&mut out, &header);
+    line(&mut out, &units);
+    let rule: Vec<String> = widths.iter().map(|w| "-".repeat(*w)).collect();
+    line(&mut out, &rule);
+    for r in &body {
+        line(&mut out, r);
+    }
+    out
+}
+
+/// A human summary of one run (what `run` prints without `--json`).
+pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutput) -> String {
+    let m = &out.metrics;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "scenario '{}' ({:?}, {} s), controller {}",
+        scn.name,
+        scn.trajectory,
+        scn.duration_s,
+        kind.name()
+    );
+    let _ = writeln!(
+        s,
+        "  beta {:.4} rad/s, eps {:.4}, skid x{}, disturbance {} N·m, mass x{}, torque limit {} N·m, seed {}",
+        scn.beta, scn.eps, scn.skid_scale, scn.disturbance_nm, scn.mass_scale, scn.torque_limit_nm, scn.seed
+    );
+    let _ = writeln!(
+        s,
+        "  position error: rms {:.4} m, window rms {:.4} m / max {:.4} m, rms after 5 s {:.4} m, final {:.4} m",
+        m.rms_pos_err_m,
+        m.rms_pos_err_window_m,
+        m.max_pos_err_window_m,
+        m.rms_pos_err_after5_m,
+        m.final_pos_err_m
+    );
+    let _ = writeln!(
+        s,
+        "  settling time (< 0.1 m): {}",
+        m.settling_time_s
+            .map_or_else(|| "never".into(), |t| format!("{t:.3} s"))
+    );
+    let _ = writeln!(
+        s,
+        "  torque: rms {:.3} N·m, max |tau| {:.3} N·m, chatter {:.2} N·m/s, saturated {:.1} % of steps",
+        m.torque_rms_nm,
+        m.max_abs_torque_nm,
+        m.chatter,
+        100.0 * m.saturated_fraction
+    );
+    if let Some(f) = m.fault_est_rmse {
+        let _ = writeln!(s, "  fault estimate rmse over the window: {f:.4}");
+    }
+    if out.rejected_steps > 0 {
+        let _ = writeln!(
+            s,
+            "  WARNING: {} rejected controller steps",
+            out.rejected_steps
+        );
+    }
+    s
+}
+
+/// CSV header of [`write_trace_csv`], one name per [`TraceSample`] scalar.
+pub const CSV_HEADER: &str = "t_s,ref_x_m,ref_y_m,ref_theta_rad,x_m,y_m,theta_rad,pos_err_m,\
+err_x_m,err_y_m,e_x,e_y,e_theta,v_mps,omega_radps,v_c_mps,omega_c_radps,tau_r_nm,tau_l_nm,\
+s_v,s_omega,rho_hat_v,rho_hat_omega,d_hat_v,d_hat_omega,f_hat_v,f_hat_omega,f_true_v,f_true_omega,saturated";
+
+/// Writes the header and one row per sample.
+pub fn write_trace_csv(mut w: impl Write, trace: &[TraceSample]) -> io::Result<()> {
+    writeln!(w, "{CSV_HEADER}")?;
+    for s in trace {
+        let vals = [
+            s.t_s,
+            s.ref_pose[0],
+            s.ref_pose[1],
+            s.ref_pose[2],
+            s.pose[0],
+            s.pose[1],
+            s.pose[2],
+            s.pos_err_m,
+            s.err_xy_m[0],
+            s.err_xy_m[1],
+            s.e[0],
+            s.e[1],
+            s.e[2],
+            s.eta[0],
+            s.eta[1],
+            s.eta_c[0],
+            s.eta_c[1],
+            s.torque_nm[0],
+            s.torque_nm[1],
+            s.s[0],
+            s.s[1],
+            s.rho_hat[0],
+            s.rho_hat[1],
+            s.d_hat[0],
+            s.d_hat[1],
+            s.f_hat[0],
+            s.f_hat[1],
+            s.f_true[0],
+            s.f_true[1],
+        ];
+        let mut line = String::with_capacity(400);
+        for v in vals {
+            let _ = write!(line, "{v},");
+        }
+        let _ = write!(line, "{}", u8::from(s.saturated));
+        writeln!(w, "{line}")?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_header_matches_row_width_and_count() {
+        let trace = vec![TraceSample::default(); 7];
+        let mut buf = Vec::new();
+        write_trace_csv(&mut buf, &trace).unwrap();
+        let text = String::from_utf8(buf).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 8);
+        assert_eq!(lines[0], CSV_HEADER);
+        let n = CSV_HEADER.split(',').count();
+        assert_eq!(n, 30);
+        assert!(lines[1..].iter().all(|l| l.split(',').count() == n));
+    }
+
+    #[test]
+    fn table_has_one_row_per_entry_and_aligned_columns() {
+        let m = Metrics {
+            rms_pos_err_m: 0.5,
+            rms_pos_err_window_m: 0.1,
+            max_pos_err_window_m: 0.2,
+            rms_pos_err_after5_m: 0.05,
+            final_pos_err_m: 0.01,
+            settling_time_s: None,
+            torque_rms_nm: 1.0,
+            max_abs_torque_nm: 5.0,
+            chatter: 3.0,
+            saturated_fraction: 0.25,
+            fault_est_rmse: Some(0.03),
+        };
+        let rows = vec![
+            (vec!["1".into(), "smc".into()], m.clone()),
+            (vec!["2".into(), "proposed".into()], m),
+        ];
+        let t = metrics_table(&["case", "controller"], &rows);
+        let lines: Vec<&str> = t.lines().collect();
+        assert_eq!(lines.len(), 5);
+        assert!(lines[0].starts_with("case  controller"));
+        assert!(lines[4].contains("proposed") && lines[4].contains("25.0"));
+        assert!(lines[3].contains(" - "), "None shows as '-': {}", lines[3]);
+    }
+}
