@@ -165,7 +165,14 @@ impl SlidingParams {
                 let drive = (s[i].abs() - a.dead_zone).max(0.0);
                 let r =
                     st.rho_hat[i] + (a.gamma * drive - a.leakage * (st.rho_hat[i] - a.rho0)) * dt_s;
-                st.rho_hat[i] = r.clamp(a.rho_min, a.rho_max);
+                // Not f32::clamp: its panic message links float formatting (~14 KiB).
+                st.rho_hat[i] = if r > a.rho_max {
+                    a.rho_max
+                } else if r < a.rho_min {
+                    a.rho_min
+                } else {
+                    r
+                };
             }
         }
     }
