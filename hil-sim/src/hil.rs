@@ -86,16 +86,12 @@ struct SimEncoders {
 
 impl WheelEncoders for SimEncoders {
     fn counts(&mut self) -> [u16; 2] {
-        let mut raw = [0u16; 2];
-        for i in 0..2 {
+        std::array::from_fn(|i| {
             let c = (self.angle_rad[i] * self.counts_per_rad).floor() as i64;
             let c = if self.inverted[i] { -c } else { c };
-            raw[i] = c as u16; // two's complement wrap, like a 16-bit timer
-            if let Some(f) = self.frozen[i] {
-                raw[i] = f;
-            }
-        }
-        raw
+            // Two's complement wrap, like a 16-bit timer; a dead encoder is frozen.
+            self.frozen[i].unwrap_or(c as u16)
+        })
     }
 }
 

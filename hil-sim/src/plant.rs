@@ -118,13 +118,18 @@ impl Plant {
 
     /// q̇ (eq. 3 with the fault of eq. 10).
     pub fn q_dot(&self, st: &PlantState, p: &Perturbation) -> [f64; 5] {
+        let (s, c) = st.q[2].sin_cos();
+        self.q_dot_sc(st, p, s, c)
+    }
+
+    /// [`Self::q_dot`] with (sin θ, cos θ) given.
+    fn q_dot_sc(&self, st: &PlantState, p: &Perturbation, s: f64, c: f64) -> [f64; 5] {
         let (_, _, _, r, h, d) = self.params.unpack();
         let eta = self.eta(st, p);
         let sig = self.sigma(p.wheel_slip_radps);
         let k = 1.0 - p.fault_eps;
         let vb = k * eta[0] - sig[0];
         let wb = k * eta[1] - sig[1];
-        let (s, c) = st.q[2].sin_cos();
         let dl = p.skid_mps;
         [
             vb * c - d * wb * s - s * dl,
@@ -137,9 +142,23 @@ impl Plant {
 
     /// ν̇ from eq. (6) for wheel torques `[right, left]`.
     pub fn nu_dot(&self, st: &PlantState, p: &Perturbation, torque_nm: [f64; 2]) -> [f64; 2] {
+        let (s, c) = st.q[2].sin_cos();
+        let theta_dot = self.q_dot_sc(st, p, s, c)[2];
+        self.nu_dot_sc(st, p, torque_nm, theta_dot, s, c)
+    }
+
+    /// [`Self::nu_dot`] with θ̇ and (sin θ, cos θ) given.
+    fn nu_dot_sc(
+        &self,
+        st: &PlantState,
+        p: &Perturbation,
+        torque_nm: [f64; 2],
+        theta_dot: f64,
+        s: f64,
+        c: f64,
+    ) -> [f64; 2] {
         let (m, _, iw, r, h, d) = self.params.unpack();
         let m1 = self.params.m1_diag();
-        let theta_dot = self.q_dot(st, p)[2];
         let n1c = 2.0 * m * d * theta_dot;
         let n1nu = [-n1c * st.nu[1], n1c * st.nu[0]];
         let sr = p.wheel_slip_rate_radps2;
@@ -147,7 +166,6 @@ impl Plant {
             -m * theta_dot * p.skid_mps + iw * (sr[0] + sr[1]) / r,
             2.0 * m * d * p.skid_rate_mps2 + iw * h * (sr[0] - sr[1]) / r,
         ];
-        let (s, c) = st.q[2].sin_cos();
         let t = p.tau_d;
         let std = [
             c * t[0] + s * t[1] + (t[3] + t[4]) / r,
@@ -163,11 +181,12 @@ impl Plant {
         ]
     }
 
+    /// (q̇, ν̇) with one sin/cos of θ (bit-identical to `q_dot` and `nu_dot`).
     fn deriv(&self, st: &PlantState, p: &Perturbation, tau: [f64; 2]) -> PlantState {
-        PlantState {
-            q: self.q_dot(st, p),
-            nu: self.nu_dot(st, p, tau),
-        }
+        let (s, c) = st.q[2].sin_cos();
+        let q = self.q_dot_sc(st, p, s, c);
+        let nu = self.nu_dot_sc(st, p, tau, q[2], s, c);
+        PlantState { q, nu }
     }
 
     /// One classical RK4 step of length `h_s`; `perturb(t)` gives the

@@ -248,7 +248,20 @@ pub fn run_loop(
     let kind = side.kind();
     let mut acc = MetricsAcc::new(kind == ControllerKind::Proposed);
     let mut trace = Vec::with_capacity(n.checked_div(trace_every).map_or(0, |q| q + 1));
-    let perturb = |t: f64| scn.perturbation(t);
+    // The loop asks for the perturbation at the same instant several times
+    // per step (sensing, metrics, the ZOH sub-step starts, RK4's end and the
+    // next start): remember the last one (exact time match, so bit-identical).
+    let last_perturb = std::cell::Cell::new((f64::NAN, crate::plant::Perturbation::default()));
+    let perturb = |t: f64| {
+        let (lt, lp) = last_perturb.get();
+        if lt.to_bits() == t.to_bits() {
+            return lp;
+        }
+        let p = scn.perturbation(t);
+        last_perturb.set((t, p));
+        p
+    };
+    let noisy = scn.pose_noise_m != 0.0 || scn.heading_noise_rad != 0.0;
     let (r, hh) = (plant.params.wheel_radius_m, plant.params.half_track_m);
     let wheel_rates = |st: &PlantState, t: f64| {
         let eta = plant.eta(st, &perturb(t));
@@ -257,11 +270,21 @@ pub fn run_loop(
 
     for k in 0..n {
         let t = k as f64 * dt;
+        // Without noise, skip the draws (x + 0·n = x: same result, no log/cos).
+        let noise = if noisy {
+            [
+                scn.pose_noise_m * rng.normal(),
+                scn.pose_noise_m * rng.normal(),
+                scn.heading_noise_rad * rng.normal(),
+            ]
+        } else {
+            [0.0; 3]
+        };
         let sensed = Sensed {
             pose: Pose::new(
-                (st.q[0] + scn.pose_noise_m * rng.normal()) as f32,
-                (st.q[1] + scn.pose_noise_m * rng.normal()) as f32,
-                (st.q[2] + scn.heading_noise_rad * rng.normal()) as f32,
+                (st.q[0] + noise[0]) as f32,
+                (st.q[1] + noise[1]) as f32,
+                (st.q[2] + noise[2]) as f32,
             ),
             wheel_angle_rad: [st.q[3], st.q[4]],
         };
