@@ -450,7 +450,7 @@ fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
         );
         pb.set_style(
             indicatif::ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:40}] {pos}/{len} simulations, {per_sec}, eta {eta}",
+                "{elapsed_precise} [{bar:40}] {pos}/{len} simulations, eta {eta}",
             )
             .expect("valid template")
             .progress_chars("=> "),

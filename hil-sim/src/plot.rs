@@ -664,3 +664,44 @@ pub fn write_case_plots(
     }
     Ok(written)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tick_labels_fit_the_span_and_have_no_negative_zero() {
+        assert_eq!(tick(-0.0001, 0.3), "0.00");
+        assert_eq!(tick(0.15, 0.3), "0.15");
+        assert_eq!(tick(10.0, 40.0), "10");
+        assert_eq!(tick(-5.0, 20.0), "-5");
+        assert_eq!(tick(1.5, 3.5), "1.5");
+    }
+
+    /// Every figure is written as PNG and SVG (skipped when the machine has
+    /// no TrueType font at all; CI installs fonts-dejavu-core).
+    #[test]
+    fn writes_every_figure() {
+        if let Err(e) = init_fonts() {
+            eprintln!("skipped: {e}");
+            return;
+        }
+        let scn = Scenario {
+            duration_s: 3.0,
+            window_s: [1.0, 2.0],
+            ..Scenario::paper_case(2, 1, None, None)
+        };
+        let runs: Vec<SimOutput> = ControllerKind::ALL
+            .iter()
+            .map(|&k| crate::sim::run(&scn, k).unwrap())
+            .collect();
+        let dir = tempfile::tempdir().unwrap();
+        let files = write_case_plots(dir.path(), "case2", "Case 2", &scn, &runs).unwrap();
+        assert_eq!(files.len(), 2 * FIGURES.len());
+        for f in &files {
+            let len = std::fs::metadata(f).unwrap().len();
+            assert!(len > 5_000, "{} is only {len} bytes", f.display());
+        }
+        assert!(dir.path().join("case2_faults.svg").is_file());
+    }
+}
