@@ -92,8 +92,17 @@ pub struct ControllerStats {
     pub failed: usize,
     /// The first few failure messages.
     pub errors: Vec<String>,
-    /// Per metric (in [`METRICS`] order): its summary, None if undefined in every run.
+    /// Per metric (in [`METRICS`] order): its summary, None if undefined in
+    /// every run. Serialised as a JSON object keyed by the metric name.
+    #[serde(serialize_with = "as_map")]
     pub metrics: Vec<(&'static str, Option<Summary>)>,
+}
+
+fn as_map<S: serde::Serializer>(
+    v: &[(&'static str, Option<Summary>)],
+    s: S,
+) -> Result<S::Ok, S::Error> {
+    s.collect_map(v.iter().map(|(k, x)| (k, x)))
 }
 
 /// Statistics of one controller's results.
@@ -317,5 +326,8 @@ mod tests {
         assert_eq!(st.metrics[0].1.unwrap().mean, 2.0);
         assert_eq!(st.metrics[5].1.unwrap().n, 1);
         assert_eq!(st.metrics[10].1, None);
+        let v = serde_json::to_value(&st).unwrap();
+        assert_eq!(v["metrics"]["rms_pos_err_m"]["mean"], 2.0);
+        assert!(v["metrics"]["fault_est_rmse"].is_null());
     }
 }

@@ -560,8 +560,13 @@ fn fig_faults<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, d: &CaseData) ->
     let root = title_area(
         &root,
         &format!(
-            "{}: actuator fault F = ε·η and its estimate (paper Fig. 6)",
-            d.case_title
+            "{}: actuator fault F = ε·η and its estimate (paper Fig. 6){}",
+            d.case_title,
+            if d.scn.eps == 0.0 {
+                ", no fault injected"
+            } else {
+                ""
+            }
         ),
     )?;
     let Some(p) = d.runs.iter().find(|o| o.kind == ControllerKind::Proposed) else {
