@@ -100,7 +100,7 @@ fn dead_encoder_latches_a_safe_stop() {
         ),
         "{reason:?}"
     );
-    assert!(t_stop >= 12.0 && t_stop < 12.0 + 1.0, "stopped at {t_stop}");
+    assert!((12.0..13.0).contains(&t_stop), "stopped at {t_stop}");
     assert!(out
         .sim
         .trace
