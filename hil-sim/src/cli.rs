@@ -59,36 +59,6 @@ impl From<ControllerArg> for ControllerKind {
     }
 }
 
-/// Reference trajectory (see docs/scenario.md).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum TrajectoryArg {
-    /// The paper's curve, smooth signed-velocity heading.
-    Paper,
-    /// The paper's curve, tangent heading.
-    PaperTangent,
-    /// The paper's curve, printed θ_d = 0.2t heading.
-    PaperPrinted,
-    /// Circle, radius 2 m at 0.5 m/s.
-    Circle,
-    /// Figure-eight, half-width 3 m.
-    Figure8,
-    /// Straight line along +x at 0.5 m/s.
-    Line,
-}
-
-impl From<TrajectoryArg> for TrajectoryKind {
-    fn from(t: TrajectoryArg) -> Self {
-        match t {
-            TrajectoryArg::Paper => TrajectoryKind::Paper,
-            TrajectoryArg::PaperTangent => TrajectoryKind::PaperTangent,
-            TrajectoryArg::PaperPrinted => TrajectoryKind::PaperPrinted,
-            TrajectoryArg::Circle => TrajectoryKind::Circle,
-            TrajectoryArg::Figure8 => TrajectoryKind::Figure8,
-            TrajectoryArg::Line => TrajectoryKind::Line,
-        }
-    }
-}
-
 /// `compare` options.
 #[derive(Debug, Args)]
 pub struct CompareArgs {
@@ -147,7 +117,7 @@ pub struct ScenarioArgs {
     pub inertia_scale: Option<f64>,
     /// Reference trajectory.
     #[arg(long, value_enum)]
-    pub trajectory: Option<TrajectoryArg>,
+    pub trajectory: Option<TrajectoryKind>,
     /// Run length [s].
     #[arg(long, value_name = "s")]
     pub duration: Option<f64>,

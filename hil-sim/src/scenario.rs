@@ -15,7 +15,7 @@ use crate::rng::Rng;
 use serde::{Deserialize, Serialize};
 
 /// Which reference trajectory.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum TrajectoryKind {
     /// The paper's curve with the smooth signed-v_s heading (default).
