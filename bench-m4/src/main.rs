@@ -179,7 +179,7 @@ impl Staged {
             let e = tracking_error(&inp.pose, &inp.reference.pose);
             let f = cfg.fault_observer.update(
                 &mut self.fo,
-                e,
+                e.e,
                 inp.eta.as_array(),
                 inp.reference.v_mps,
                 inp.reference.omega_radps,
@@ -191,9 +191,9 @@ impl Staged {
         let (eta_c, eta_c_dot) = time(c, &mut st.kinematic, || {
             let (e, f_hat, r, eta) = black_box((e, f_hat, r, eta));
             let kin = &cfg.kinematic;
-            let eta_c = kin.eta_c(e, r.v_mps, r.omega_radps, f_hat);
+            let eta_c = kin.eta_c(&e, r.v_mps, r.omega_radps, f_hat);
             let e_dot = error_rate(
-                e,
+                &e,
                 eta,
                 f_hat,
                 r.v_mps,
@@ -201,7 +201,7 @@ impl Staged {
                 cfg.robot.com_offset_m,
             );
             let eta_c_dot =
-                kin.eta_c_dot(e, e_dot, r.v_mps, r.v_dot_mps2, r.omega_dot_radps2, f_hat);
+                kin.eta_c_dot(&e, e_dot, r.v_mps, r.v_dot_mps2, r.omega_dot_radps2, f_hat);
             (eta_c, eta_c_dot)
         });
         // Sliding surface (20), torque law (24), N⁻¹, saturation, adaptation.

@@ -313,7 +313,8 @@ impl Controller {
         let proposed = cfg.kind == ControllerKind::Proposed;
 
         // Eq. (8).
-        let e = tracking_error(&input.pose, &r.pose);
+        let te = tracking_error(&input.pose, &r.pose);
+        let e = te.e;
         // Eq. (13).
         let f_hat = if proposed {
             cfg.fault_observer.update(
@@ -329,16 +330,16 @@ impl Controller {
         };
         // Eq. (14) and its analytic derivative through eq. (11).
         let kin = &cfg.kinematic;
-        let eta_c = kin.eta_c(e, r.v_mps, r.omega_radps, f_hat);
+        let eta_c = kin.eta_c(&te, r.v_mps, r.omega_radps, f_hat);
         let e_dot = error_rate(
-            e,
+            &te,
             eta,
             f_hat,
             r.v_mps,
             r.omega_radps,
             cfg.robot.com_offset_m,
         );
-        let eta_c_dot = kin.eta_c_dot(e, e_dot, r.v_mps, r.v_dot_mps2, r.omega_dot_radps2, f_hat);
+        let eta_c_dot = kin.eta_c_dot(&te, e_dot, r.v_mps, r.v_dot_mps2, r.omega_dot_radps2, f_hat);
 
         // Eqs. (20), (24).
         let e_eta = [eta_c[0] - eta[0], eta_c[1] - eta[1]];
@@ -384,7 +385,7 @@ impl Controller {
 
         let diag = Diagnostics {
             error: e,
-            lyapunov_kinematic: kin.lyapunov(e),
+            lyapunov_kinematic: kin.lyapunov(&te),
             eta_c,
             eta_c_dot,
             s,

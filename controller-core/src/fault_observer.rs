@@ -134,7 +134,7 @@ mod tests {
             let (vs, ws) = (0.5 + 0.1 * c, 0.2);
             g.update(&mut st, e, eta, vs, ws, dt);
             // d = 0: eq. (11) as the observer models it.
-            let de = error_rate(e, eta, fault, vs, ws, 0.0);
+            let de = error_rate(&e.into(), eta, fault, vs, ws, 0.0);
             for i in 0..3 {
                 e[i] += de[i] * dt;
             }
@@ -159,7 +159,7 @@ mod tests {
         for _ in 0..2000 {
             let eta = [0.5, 0.1];
             g.update(&mut st, e, eta, 0.4, 0.0, dt);
-            let de = error_rate(e, eta, [0.0, 0.0], 0.4, 0.0, 0.0);
+            let de = error_rate(&e.into(), eta, [0.0, 0.0], 0.4, 0.0, 0.0);
             for i in 0..3 {
                 e[i] += de[i] * dt;
             }

@@ -2,7 +2,7 @@
 //! analytic derivative η̇_c the dynamic loop needs.
 
 use crate::error::ConfigError;
-use crate::math::{cos, sin_cos};
+use crate::tracking::TrackingError;
 
 /// Gains of eq. (14) (paper Table 2: k_x = 1.2, k_y = 250, k_th = 5).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -44,8 +44,8 @@ impl KinematicGains {
     /// v_c = v_s cos e_θ + k_x e_x + Δv̂ (+ 2e_yΔω̂ if enabled),
     /// ω_c = ω_s + k_y v_s e_y + k_th sin e_θ + Δω̂.
     #[inline]
-    pub fn eta_c(&self, e: [f32; 3], v_s: f32, omega_s: f32, f_hat: [f32; 2]) -> [f32; 2] {
-        let (se, ce) = sin_cos(e[2]);
+    pub fn eta_c(&self, te: &TrackingError, v_s: f32, omega_s: f32, f_hat: [f32; 2]) -> [f32; 2] {
+        let (e, se, ce) = (te.e, te.sin_eth, te.cos_eth);
         let mut v = v_s * ce + self.k_x * e[0] + f_hat[0];
         if self.printed_2ey_term {
             v += 2.0 * e[1] * f_hat[1];
@@ -61,14 +61,14 @@ impl KinematicGains {
     #[inline]
     pub fn eta_c_dot(
         &self,
-        e: [f32; 3],
+        te: &TrackingError,
         e_dot: [f32; 3],
         v_s: f32,
         v_s_dot: f32,
         omega_s_dot: f32,
         f_hat: [f32; 2],
     ) -> [f32; 2] {
-        let (se, ce) = sin_cos(e[2]);
+        let (e, se, ce) = (te.e, te.sin_eth, te.cos_eth);
         let mut vd = v_s_dot * ce - v_s * se * e_dot[2] + self.k_x * e_dot[0];
         if self.printed_2ey_term {
             vd += 2.0 * e_dot[1] * f_hat[1];
@@ -80,8 +80,9 @@ impl KinematicGains {
 
     /// V_K = (1 − cos e_θ)/k_y + (e_x² + e_y²)/2, eq. (15).
     #[inline]
-    pub fn lyapunov(&self, e: [f32; 3]) -> f32 {
-        (1.0 - cos(e[2])) / self.k_y + 0.5 * (e[0] * e[0] + e[1] * e[1])
+    pub fn lyapunov(&self, te: &TrackingError) -> f32 {
+        let e = te.e;
+        (1.0 - te.cos_eth) / self.k_y + 0.5 * (e[0] * e[0] + e[1] * e[1])
     }
 }
 
@@ -102,17 +103,18 @@ mod tests {
             let fault = [0.1f32, 0.05];
             let mut e = [1.0f32, -0.8, 0.6];
             let dt = 1e-4f32;
-            let mut v_prev = g.lyapunov(e);
+            let mut v_prev = g.lyapunov(&e.into());
             let v0 = v_prev;
             for k in 0..100_000 {
                 let t = k as f32 * dt;
                 let (vs, ws) = (0.5 + 0.2 * libm::sinf(0.3 * t), 0.2 * libm::cosf(0.5 * t));
-                let eta = g.eta_c(e, vs, ws, fault);
-                let de = error_rate(e, eta, fault, vs, ws, 0.0);
+                let te = TrackingError::from(e);
+                let eta = g.eta_c(&te, vs, ws, fault);
+                let de = error_rate(&te, eta, fault, vs, ws, 0.0);
                 for i in 0..3 {
                     e[i] += de[i] * dt;
                 }
-                let v = g.lyapunov(e);
+                let v = g.lyapunov(&e.into());
                 // V̇ <= 0 up to the Euler step's O(dt²) error.
                 assert!(
                     v <= v_prev + 1e-6,
@@ -134,8 +136,9 @@ mod tests {
         let fault = [0.0f32, 0.5];
         let e = [-0.01f32, 1.0, 0.0]; // V̇ gains −2·e_x·e_y·Δω > 0 here
         let (vs, ws) = (0.0, 0.0);
-        let eta = g.eta_c(e, vs, ws, fault);
-        let de = error_rate(e, eta, fault, vs, ws, 0.0);
+        let te = TrackingError::from(e);
+        let eta = g.eta_c(&te, vs, ws, fault);
+        let de = error_rate(&te, eta, fault, vs, ws, 0.0);
         let vdot = e[0] * de[0] + e[1] * de[1] + libm::sinf(e[2]) * de[2] / g.k_y;
         assert!(vdot > 0.0, "V̇ = {vdot}");
     }
@@ -153,10 +156,10 @@ mod tests {
         let h = 1e-3f32;
         let step = |s: f32| {
             let ee = [e[0] + s * de[0], e[1] + s * de[1], e[2] + s * de[2]];
-            g.eta_c(ee, vs + s * vsd, ws + s * wsd, f)
+            g.eta_c(&ee.into(), vs + s * vsd, ws + s * wsd, f)
         };
         let (a, b) = (step(-h), step(h));
-        let an = g.eta_c_dot(e, de, vs, vsd, wsd, f);
+        let an = g.eta_c_dot(&e.into(), de, vs, vsd, wsd, f);
         for i in 0..2 {
             let fd = (b[i] - a[i]) / (2.0 * h);
             assert!((fd - an[i]).abs() < 1e-2, "{i}: {fd} vs {}", an[i]);

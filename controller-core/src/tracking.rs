@@ -3,19 +3,44 @@
 use crate::math::{sin_cos, wrap_angle};
 use crate::types::Pose;
 
-/// Tracking error e = \[e_x, e_y, e_θ\] in the robot frame, eq. (8):
-/// the world-frame error \[x_s − x, y_s − y, θ_s − θ\] rotated by −θ, with e_θ
-/// wrapped to (−π, π]. (The printed eq. (8) repeats `x_s − x` three times: D2.)
+/// Tracking error e = \[e_x, e_y, e_θ\] with sin e_θ and cos e_θ, which the
+/// laws use several times per step and so are computed once, here.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TrackingError {
+    /// \[e_x \[m\], e_y \[m\], e_θ \[rad\]\].
+    pub e: [f32; 3],
+    /// sin e_θ.
+    pub sin_eth: f32,
+    /// cos e_θ.
+    pub cos_eth: f32,
+}
+
+impl From<[f32; 3]> for TrackingError {
+    #[inline]
+    fn from(e: [f32; 3]) -> Self {
+        let (sin_eth, cos_eth) = sin_cos(e[2]);
+        Self {
+            e,
+            sin_eth,
+            cos_eth,
+        }
+    }
+}
+
+/// Tracking error of eq. (8): the world-frame error \[x_s − x, y_s − y, θ_s − θ\]
+/// rotated by −θ, with e_θ wrapped to (−π, π]. (The printed eq. (8) repeats
+/// `x_s − x` three times: D2.)
 #[inline]
-pub fn tracking_error(pose: &Pose, reference: &Pose) -> [f32; 3] {
+pub fn tracking_error(pose: &Pose, reference: &Pose) -> TrackingError {
     let (s, c) = sin_cos(pose.theta_rad);
     let dx = reference.x_m - pose.x_m;
     let dy = reference.y_m - pose.y_m;
-    [
+    TrackingError::from([
         c * dx + s * dy,
         -s * dx + c * dy,
         wrap_angle(reference.theta_rad - pose.theta_rad),
-    ]
+    ])
 }
 
 /// Error dynamics ė of eq. (11) with the actual body velocities
@@ -27,14 +52,14 @@ pub fn tracking_error(pose: &Pose, reference: &Pose) -> [f32; 3] {
 /// * ė_θ = ω_s − ω_r
 #[inline]
 pub fn error_rate(
-    e: [f32; 3],
+    te: &TrackingError,
     eta: [f32; 2],
     fault: [f32; 2],
     v_s: f32,
     omega_s: f32,
     d_m: f32,
 ) -> [f32; 3] {
-    let (se, ce) = sin_cos(e[2]);
+    let (e, se, ce) = (te.e, te.sin_eth, te.cos_eth);
     let v_r = eta[0] - fault[0];
     let w_r = eta[1] - fault[1];
     [
@@ -82,7 +107,8 @@ mod tests {
         );
         let e1 = tracking_error(&p, &r);
         let e2 = tracking_error(&p2, &r2);
-        let rate = error_rate(e1, [v, w], fault, vs, ws, d);
+        let rate = error_rate(&e1, [v, w], fault, vs, ws, d);
+        let (e1, e2) = (e1.e, e2.e);
         for i in 0..3 {
             let fd = (e2[i] - e1[i]) / h;
             assert!(
@@ -96,9 +122,12 @@ mod tests {
     #[test]
     fn error_is_zero_on_reference_and_rotation_invariant_norm() {
         let p = Pose::new(1.0, 2.0, 0.5);
-        assert_eq!(tracking_error(&p, &p), [0.0, 0.0, 0.0]);
+        assert_eq!(tracking_error(&p, &p).e, [0.0, 0.0, 0.0]);
         let r = Pose::new(4.0, -2.0, 0.0);
-        let e = tracking_error(&p, &r);
+        let te = tracking_error(&p, &r);
+        let (s, c) = sin_cos(te.e[2]);
+        assert!(te.sin_eth == s && te.cos_eth == c);
+        let e = te.e;
         let n = (e[0] * e[0] + e[1] * e[1]).sqrt();
         assert!((n - 5.0).abs() < 1e-5);
     }
