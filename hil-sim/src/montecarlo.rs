@@ -204,9 +204,7 @@ pub fn stats_table(res: &McResult) -> String {
         "rms", "rms_win", "max_win", "rms_t>5", "final", "settle", "tau_rms", "tau_max", "chatter",
         "sat", "F_rmse",
     ];
-    let units = [
-        "m", "m", "m", "m", "m", "s", "N·m", "N·m", "N·m/s", "frac", "",
-    ];
+    let units = ["m", "m", "m", "m", "m", "s", "N·m", "N·m", "N·m/s", "%", ""];
     let mut s = String::new();
     let _ = write!(s, "{:<10} {:<5}", "controller", "stat");
     for h in short {
@@ -230,8 +228,13 @@ pub fn stats_table(res: &McResult) -> String {
             ("max", |x| x.max),
         ] {
             let _ = write!(s, "{:<10} {:<5}", st.controller, row);
-            for (_, sum) in &st.metrics {
+            for (name, sum) in &st.metrics {
                 match sum {
+                    // The saturated fraction in percent, 3 decimals: at 4
+                    // decimals of a fraction, equal values round apart.
+                    Some(x) if *name == "saturated_fraction" => {
+                        let _ = write!(s, " {:>9.3}", 100.0 * pick(x));
+                    }
                     Some(x) => {
                         let _ = write!(s, " {:>9.4}", pick(x));
                     }
