@@ -300,20 +300,7 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
 
 /// Mean counts per call of `f` over `n` inputs spread over [lo, hi].
 #[inline(never)]
-fn bench1<C: Counter>(c: &C, lo: f32, hi: f32, f: impl Fn(f32) -> f32) -> u32 {
-    let step = (hi - lo) / MATH_CALLS as f32;
-    let t0 = c.now();
-    let mut x = lo;
-    for _ in 0..MATH_CALLS {
-        black_box(f(black_box(x)));
-        x += step;
-    }
-    let t1 = c.now();
-    c.elapsed(t0, t1)
-}
-
-#[inline(never)]
-fn bench_sc<C: Counter>(c: &C, lo: f32, hi: f32, f: impl Fn(f32) -> (f32, f32)) -> u32 {
+fn bench1<C: Counter, R>(c: &C, lo: f32, hi: f32, f: impl Fn(f32) -> R) -> u32 {
     let step = (hi - lo) / MATH_CALLS as f32;
     let t0 = c.now();
     let mut x = lo;
@@ -396,9 +383,9 @@ fn math_rows<C: Counter>(c: &C) -> [MathRow; 9] {
         MathRow {
             name: "sin_cos",
             range: "[-π, π]",
-            libm: (bench_sc(c, -pi, pi, libm::sincosf), 0.0),
-            micromath: Some((bench_sc(c, -pi, pi, mm_sc), sc_err(mm_sc))),
-            fast: (bench_sc(c, -pi, pi, fast::sin_cos), sc_err(fast::sin_cos)),
+            libm: (bench1(c, -pi, pi, libm::sincosf), 0.0),
+            micromath: Some((bench1(c, -pi, pi, mm_sc), sc_err(mm_sc))),
+            fast: (bench1(c, -pi, pi, fast::sin_cos), sc_err(fast::sin_cos)),
         },
         row!(
             "sin (large arg)",

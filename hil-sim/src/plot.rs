@@ -27,6 +27,22 @@ use std::sync::OnceLock;
 
 type Res = Result<(), String>;
 
+/// The legend box, styled the same on every figure.
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    pos: SeriesLabelPosition,
+    font_px: u32,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .position(pos)
+        .label_font(("sans-serif", font_px))
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(160, 160, 160))
+        .draw()
+        .map_err(err)
+}
+
 fn err<E: std::fmt::Display>(e: E) -> String {
     format!("plot: {e}")
 }
@@ -265,14 +281,7 @@ fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, p: &Panel) -> R
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(w)));
     }
     if p.legend {
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font(("sans-serif", fs))
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(160, 160, 160))
-            .draw()
-            .map_err(err)?;
+        draw_legend(&mut chart, SeriesLabelPosition::UpperRight, fs)?;
     }
     Ok(())
 }
@@ -414,15 +423,8 @@ fn fig_xy<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, d: &CaseData) -> Res
         .map_err(err)?
         .label(format!("start q0 = ({qx}, {qy})"))
         .legend(|(x, y)| Circle::new((x + 10, y), 5, BLACK.filled()));
-    chart
-        .configure_series_labels()
-        // The paper curve leaves the top and bottom middle empty.
-        .position(SeriesLabelPosition::UpperMiddle)
-        .label_font(("sans-serif", fs))
-        .background_style(WHITE.mix(0.85))
-        .border_style(RGBColor(160, 160, 160))
-        .draw()
-        .map_err(err)?;
+    // The paper curve leaves the top and bottom middle empty.
+    draw_legend(&mut chart, SeriesLabelPosition::UpperMiddle, fs)?;
     Ok(())
 }
 
