@@ -179,7 +179,7 @@ impl Staged {
             let e = tracking_error(&inp.pose, &inp.reference.pose);
             let f = cfg.fault_observer.update(
                 &mut self.fo,
-                e.e,
+                &e,
                 inp.eta.as_array(),
                 inp.reference.v_mps,
                 inp.reference.omega_radps,

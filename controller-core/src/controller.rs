@@ -319,7 +319,7 @@ impl Controller {
         let f_hat = if proposed {
             cfg.fault_observer.update(
                 &mut self.state.fault_obs,
-                e,
+                &te,
                 eta,
                 r.v_mps,
                 r.omega_radps,

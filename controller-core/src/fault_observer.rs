@@ -19,7 +19,8 @@
 //! with u = \[v − v_s cos e_θ, ω_s − ω\] (eq. 12, g1 row 1 sign corrected: D6).
 
 use crate::error::ConfigError;
-use crate::math::{clamp_abs, cos, wrap_angle};
+use crate::math::{clamp_abs, wrap_angle};
+use crate::tracking::TrackingError;
 
 /// Observer gains and bounds.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -62,34 +63,34 @@ impl FaultObserverGains {
 pub struct FaultObserverState {
     /// F̂ = \[Δv̂ \[m/s\], Δω̂ \[rad/s\]\].
     pub f_hat: [f32; 2],
-    /// Tracking error at the previous update.
-    pub e_prev: [f32; 3],
+    /// Tracking error at the previous update (with its cos e_θ, reused).
+    pub e_prev: TrackingError,
     /// False until the first update has stored `e_prev`.
     pub primed: bool,
 }
 
 impl FaultObserverGains {
-    /// One observer step over `dt_s`, from the previous error to `e`, with the
+    /// One observer step over `dt_s`, from the previous error to `te`, with the
     /// measured wheel-derived η held over the step and the reference v_s, ω_s.
     /// Returns the new F̂.
     pub fn update(
         &self,
         st: &mut FaultObserverState,
-        e: [f32; 3],
+        te: &TrackingError,
         eta: [f32; 2],
         v_s: f32,
         omega_s: f32,
         dt_s: f32,
     ) -> [f32; 2] {
         if !st.primed {
-            st.e_prev = e;
+            st.e_prev = *te;
             st.primed = true;
             return st.f_hat;
         }
-        let ep = st.e_prev;
+        let (e, ep) = (te.e, st.e_prev.e);
         let f = st.f_hat;
         // u from eq. (12), evaluated at the start of the step.
-        let u1 = eta[0] - v_s * cos(ep[2]);
+        let u1 = eta[0] - v_s * st.e_prev.cos_eth;
         let u2 = omega_s - eta[1];
         // ż (eq. 13) with the chosen L.
         let zv = -self.l_v * (f[0] - ep[1] * f[1] + omega_s * ep[1] - u1 - ep[1] * u2);
@@ -101,7 +102,7 @@ impl FaultObserverGains {
             clamp_abs(f[0] + zv * dt_s + self.l_v * dex, self.max_estimate[0]),
             clamp_abs(f[1] + zw * dt_s + self.l_omega * deth, self.max_estimate[1]),
         ];
-        st.e_prev = e;
+        st.e_prev = *te;
         st.f_hat
     }
 }
@@ -132,7 +133,7 @@ mod tests {
             let (s, c) = sin_cos(0.7 * t);
             let eta = [0.6 + 0.2 * s, 0.3 * c];
             let (vs, ws) = (0.5 + 0.1 * c, 0.2);
-            g.update(&mut st, e, eta, vs, ws, dt);
+            g.update(&mut st, &e.into(), eta, vs, ws, dt);
             // d = 0: eq. (11) as the observer models it.
             let de = error_rate(&e.into(), eta, fault, vs, ws, 0.0);
             for i in 0..3 {
@@ -158,7 +159,7 @@ mod tests {
         let dt = 1e-3;
         for _ in 0..2000 {
             let eta = [0.5, 0.1];
-            g.update(&mut st, e, eta, 0.4, 0.0, dt);
+            g.update(&mut st, &e.into(), eta, 0.4, 0.0, dt);
             let de = error_rate(&e.into(), eta, [0.0, 0.0], 0.4, 0.0, 0.0);
             for i in 0..3 {
                 e[i] += de[i] * dt;
