@@ -5,7 +5,7 @@
 use crate::bench::{run_bench, BenchConfig};
 use crate::montecarlo::{run_montecarlo, stats_table, McConfig};
 use crate::report::{human_summary, metrics_table, write_trace_csv, RunReport};
-use crate::scenario::{Scenario, TrajectoryKind};
+use crate::scenario::{Scenario, Sensing, TrajectoryKind};
 use crate::scenario_file::load_scenario;
 use crate::sim::{controller_config, run_with, SimOutput};
 use clap::{Args, Parser, Subcommand, ValueEnum};
@@ -121,10 +121,17 @@ pub struct ScenarioArgs {
     /// Run length [s].
     #[arg(long, value_name = "s")]
     pub duration: Option<f64>,
-    /// Encoder counts per wheel revolution (0 = ideal).
+    /// Between plant and controller: the paper's ideal measurements, or the
+    /// firmware runtime behind simulated encoders and PWM.
+    #[arg(long, value_enum)]
+    pub sensing: Option<Sensing>,
+    /// Firmware sensing: encoder counts per wheel revolution (0 = example's 24000).
     #[arg(long)]
     pub encoder_cpr: Option<u32>,
-    /// PWM levels per polarity over the torque limit (0 = ideal).
+    /// Firmware sensing: speed-estimate window [ticks] (0 = example's 4).
+    #[arg(long, value_name = "TICKS")]
+    pub speed_window: Option<u8>,
+    /// Firmware sensing: PWM counts at full duty (0 = example's 4800).
     #[arg(long)]
     pub pwm_levels: Option<u32>,
     /// Std. dev. of the position measurement noise [m].
@@ -175,7 +182,9 @@ impl ScenarioArgs {
             inertia_scale => inertia_scale,
             trajectory => trajectory,
             duration => duration_s,
+            sensing => sensing,
             encoder_cpr => encoder_cpr,
+            speed_window => speed_window_ticks,
             pwm_levels => pwm_levels,
             pose_noise => pose_noise_m,
             heading_noise => heading_noise_rad,
@@ -551,6 +560,8 @@ mod tests {
             "figure8",
             "--k-y",
             "10",
+            "--sensing",
+            "odometry",
             "--encoder-cpr",
             "1024",
         ])
@@ -568,7 +579,11 @@ mod tests {
 
         let dir = tempfile::tempdir().unwrap();
         let f = dir.path().join("s.toml");
-        std::fs::write(&f, "name = \"file\"\nbeta = 0.01\npwm_levels = 255\n").unwrap();
+        std::fs::write(
+            &f,
+            "name = \"file\"\nbeta = 0.01\nsensing = \"external-pose\"\npwm_levels = 255\n",
+        )
+        .unwrap();
         let a = ScenarioArgs {
             scenario: Some(f),
             beta: Some(0.02),

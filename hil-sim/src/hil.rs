@@ -1,34 +1,27 @@
 //! Hardware-in-the-loop on the host: the firmware's runtime
-//! ([`controller_core::runtime::ControlLoop`]) closed through simulated
-//! quadrature encoders (integer 16-bit counts at the encoder's resolution,
-//! wrapping, mirrored mounting) and a simulated H-bridge (integer duty at the
-//! PWM resolution) driving the runtime's own DC-motor model, whose torque
-//! depends on the wheel speed through the back-EMF.
+//! ([`controller_core::runtime::ControlLoop`]) closed through the simulated
+//! robot's hardware ([`sim_robot::hardware`]): 16-bit quadrature counters at
+//! the scenario's resolution (wrapping, mirrored mounting) and an H-bridge
+//! taking integer duty at the scenario's PWM resolution into the runtime's own
+//! DC-motor model, whose torque depends on the wheel speed (back-EMF).
 //!
 //! Only sensors and actuators are simulated: encoder decoding, speed
 //! estimation, odometry, the controller, torque-to-duty mapping and the
 //! safety supervisor are the code the firmware runs.
 
-use crate::scenario::Scenario;
-use crate::sim::{run_loop, Actuation, ControlSide, Sensed, SimOutput};
+use crate::control_side::{Actuation, ControlOutput, ControlSide, Sensed};
+use crate::scenario::{Scenario, Sensing};
+use crate::sim::{run_loop, trace_every, SimOutput};
 use controller_core::runtime::{
-    ControlLoop, DutyCommand, EncoderParams, MotorDriver, MotorModel, MotorParams, PoseSource,
-    RuntimeConfig, SafetyLimits, StopReason, WheelEncoders,
+    ControlLoop, PoseSource, RuntimeConfig, SafetyLimits, StopReason, MIRRORED_LEFT,
 };
-use controller_core::{ControllerKind, Diagnostics, Pose};
+use controller_core::{ControllerConfig, ControllerKind, Pose};
+use sim_robot::{MotorDrive, SimDriver, SimEncoders};
 
-/// Options of a HIL run.
+/// Options of a HIL run beyond the scenario: safety thresholds and fault
+/// injection. Resolution, sensing and motors come from the [`Scenario`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HilOptions {
-    /// Encoder resolution, mounting and speed window.
-    pub encoder: EncoderParams,
-    /// Motor, gearbox, supply and PWM constants.
-    pub motor: MotorParams,
-    /// Per wheel: the motor is mounted mirrored (direction output flipped).
-    pub motor_inverted: [bool; 2],
-    /// Feed the (noisy) true pose as an external measurement every tick;
-    /// false = wheel odometry only (blind to slip and to the actuator fault).
-    pub external_pose: bool,
     /// Safety thresholds.
     pub safety: SafetyLimits,
     /// Fault injection: from this time \[s\] on, the encoder of wheel
@@ -39,80 +32,13 @@ pub struct HilOptions {
 impl Default for HilOptions {
     fn default() -> Self {
         Self {
-            encoder: EncoderParams::EXAMPLE,
-            motor: MotorParams::EXAMPLE,
-            motor_inverted: [false, true],
-            external_pose: true,
             safety: SafetyLimits::EXAMPLE,
             dead_encoder: None,
         }
     }
 }
 
-/// A duty command applied to the motor model (the plant side of the bridge).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MotorActuation {
-    model: MotorModel,
-    duty: [DutyCommand; 2],
-    inverted: [bool; 2],
-    enabled: bool,
-}
-
-impl MotorActuation {
-    /// Wheel torques at the given wheel rates (back-EMF at that speed).
-    pub fn torque_nm(&self, wheel_rates_radps: [f64; 2]) -> [f64; 2] {
-        if !self.enabled {
-            return [0.0; 2];
-        }
-        let mut out = [0.0; 2];
-        for i in 0..2 {
-            // A mirrored motor turns opposite to its wheel.
-            let sign = if self.inverted[i] { -1.0 } else { 1.0 };
-            let motor_rate = (sign * wheel_rates_radps[i]) as f32;
-            out[i] = sign * self.model.torque_for_duty(self.duty[i], motor_rate) as f64;
-        }
-        out
-    }
-}
-
-/// Simulated encoders: the true wheel angles quantised to counts, as u16.
-struct SimEncoders {
-    counts_per_rad: f64,
-    inverted: [bool; 2],
-    angle_rad: [f64; 2],
-    /// Per wheel: frozen raw count (dead encoder).
-    frozen: [Option<u16>; 2],
-}
-
-impl WheelEncoders for SimEncoders {
-    fn counts(&mut self) -> [u16; 2] {
-        std::array::from_fn(|i| {
-            let c = (self.angle_rad[i] * self.counts_per_rad).floor() as i64;
-            let c = if self.inverted[i] { -c } else { c };
-            // Two's complement wrap, like a 16-bit timer; a dead encoder is frozen.
-            self.frozen[i].unwrap_or(c as u16)
-        })
-    }
-}
-
-/// Simulated H-bridge: remembers what the runtime wrote.
-#[derive(Default)]
-struct SimDriver {
-    duty: [DutyCommand; 2],
-    enabled: bool,
-}
-
-impl MotorDriver for SimDriver {
-    fn set(&mut self, cmd: [DutyCommand; 2]) {
-        self.duty = cmd;
-        self.enabled = true;
-    }
-    fn disable(&mut self) {
-        self.duty = [DutyCommand::ZERO; 2];
-        self.enabled = false;
-    }
-}
-
+/// The pose measurement of one tick, taken once.
 struct ExternalPose(Option<Pose>);
 
 impl PoseSource for ExternalPose {
@@ -123,46 +49,86 @@ impl PoseSource for ExternalPose {
 
 /// The runtime as the controller side of [`run_loop`].
 pub struct RuntimeSide {
-    lp: ControlLoop,
-    enc: SimEncoders,
-    drv: SimDriver,
+    control: ControlLoop,
+    encoders: SimEncoders,
+    bridge: SimDriver,
+    external_pose: bool,
     opts: HilOptions,
     /// First safe stop latched, with the step it happened at.
     pub stop: Option<(usize, StopReason)>,
 }
 
+impl RuntimeSide {
+    /// The runtime for `scn` (firmware sensing) with `controller`, armed.
+    pub fn new(
+        scn: &Scenario,
+        controller: ControllerConfig,
+        opts: HilOptions,
+    ) -> Result<Self, String> {
+        let external_pose = match scn.sensing {
+            Sensing::Ideal => {
+                return Err("the firmware runtime needs sensing = odometry or external-pose".into())
+            }
+            Sensing::Odometry => false,
+            Sensing::ExternalPose => true,
+        };
+        let p0 = scn.initial_pose;
+        let cfg = RuntimeConfig {
+            controller,
+            reference: scn.trajectory.reference(),
+            initial_pose: Pose::new(p0[0] as f32, p0[1] as f32, p0[2] as f32),
+            encoder: scn.encoder(),
+            motor: scn.motor(),
+            motor_inverted: MIRRORED_LEFT,
+            safety: opts.safety,
+        };
+        let mut control = ControlLoop::new(cfg).map_err(|e| format!("runtime config: {e}"))?;
+        control.arm().map_err(|e| format!("arm: {e:?}"))?;
+        Ok(Self {
+            control,
+            encoders: SimEncoders::new(&cfg.encoder),
+            bridge: SimDriver::default(),
+            external_pose,
+            opts,
+            stop: None,
+        })
+    }
+}
+
 impl ControlSide for RuntimeSide {
     fn kind(&self) -> ControllerKind {
-        self.lp.config().controller.kind
+        self.control.config().controller.kind
     }
 
-    fn step(&mut self, k: usize, t_s: f64, sensed: &Sensed) -> (Actuation, [f64; 2], Diagnostics) {
-        self.enc.angle_rad = sensed.wheel_angle_rad;
+    fn step(&mut self, sensed: &Sensed) -> ControlOutput {
+        self.encoders.set_angles(sensed.wheel_angle_rad);
         if let Some((wheel, t_dead)) = self.opts.dead_encoder {
-            if t_s >= t_dead && self.enc.frozen[wheel].is_none() {
-                self.enc.frozen[wheel] = Some(self.enc.counts()[wheel]);
+            if sensed.t_s >= t_dead {
+                self.encoders.kill(wheel);
             }
         }
-        let mut pose = ExternalPose(self.opts.external_pose.then_some(sensed.pose));
-        let period_us = (self.lp.config().controller.period_s * 1e6) as u32;
+        let mut pose = ExternalPose(self.external_pose.then_some(sensed.pose));
+        let period_us = (self.control.config().controller.period_s * 1e6) as u32;
         let rep = self
-            .lp
-            .tick(&mut self.enc, &mut self.drv, &mut pose, period_us);
+            .control
+            .tick(&mut self.encoders, &mut self.bridge, &mut pose, period_us);
         if let (Some(reason), None) = (rep.stopped, self.stop) {
-            self.stop = Some((k, reason));
+            self.stop = Some((sensed.step, reason));
         }
-        let act = Actuation::Motor(MotorActuation {
-            model: *self.lp.motor_model(),
-            duty: self.drv.duty,
-            inverted: self.opts.motor_inverted,
-            enabled: self.drv.enabled,
-        });
-        let eta = [rep.eta.v_mps as f64, rep.eta.omega_radps as f64];
-        (act, eta, rep.diag)
+        let cfg = self.control.config();
+        ControlOutput {
+            actuation: Actuation::Motor(MotorDrive {
+                model: *self.control.motor_model(),
+                bridge: self.bridge,
+                inverted: cfg.motor_inverted,
+            }),
+            eta_measured: [rep.eta.v_mps as f64, rep.eta.omega_radps as f64],
+            diag: rep.diag,
+        }
     }
 
     fn rejected_steps(&self) -> u32 {
-        self.lp.status().input_faults + self.lp.status().stops
+        self.control.status().input_faults + self.control.status().stops
     }
 }
 
@@ -175,44 +141,30 @@ pub struct HilOutput {
     pub stop: Option<(usize, StopReason)>,
 }
 
-/// Runs `scn` with `kind` through the firmware runtime with simulated
-/// encoders and PWM. The scenario's torque limit and k_y apply; its
-/// `encoder_cpr`/`pwm_levels` are replaced by `opts`.
+/// Runs `scn` (firmware sensing) with `controller` through the firmware
+/// runtime; a trace every `trace_every` steps (0 = none).
+pub fn run_runtime(
+    scn: &Scenario,
+    controller: ControllerConfig,
+    opts: HilOptions,
+    trace_every: usize,
+) -> Result<HilOutput, String> {
+    scn.validate()?;
+    let mut side = RuntimeSide::new(scn, controller, opts)?;
+    let sim = run_loop(scn, &controller.robot, &mut side, trace_every)?;
+    Ok(HilOutput {
+        sim,
+        stop: side.stop,
+    })
+}
+
+/// Runs `scn` (firmware sensing) with `kind` at the scenario's gains through
+/// the firmware runtime; trace every [`crate::sim::TRACE_PERIOD_S`].
 pub fn run_hil(
     scn: &Scenario,
     kind: ControllerKind,
     opts: HilOptions,
 ) -> Result<HilOutput, String> {
-    scn.validate()?;
     let controller = crate::sim::controller_config(scn, kind);
-    let p0 = scn.initial_pose;
-    let cfg = RuntimeConfig {
-        controller,
-        reference: scn.trajectory.reference(),
-        initial_pose: Pose::new(p0[0] as f32, p0[1] as f32, p0[2] as f32),
-        encoder: opts.encoder,
-        motor: opts.motor,
-        motor_inverted: opts.motor_inverted,
-        safety: opts.safety,
-    };
-    let mut lp = ControlLoop::new(cfg).map_err(|e| format!("runtime config: {e}"))?;
-    lp.arm().map_err(|e| format!("arm: {e:?}"))?;
-    let mut side = RuntimeSide {
-        lp,
-        enc: SimEncoders {
-            counts_per_rad: opts.encoder.counts_per_wheel_rev as f64 / (2.0 * std::f64::consts::PI),
-            inverted: opts.encoder.inverted,
-            angle_rad: [0.0; 2],
-            frozen: [None; 2],
-        },
-        drv: SimDriver::default(),
-        opts,
-        stop: None,
-    };
-    let every = ((0.01 / scn.control_period_s).round() as usize).max(1);
-    let sim = run_loop(scn, &controller.robot, &mut side, every)?;
-    Ok(HilOutput {
-        sim,
-        stop: side.stop,
-    })
+    run_runtime(scn, controller, opts, trace_every(scn))
 }

@@ -11,10 +11,10 @@
 
 pub mod bench;
 pub mod cli;
+pub mod control_side;
 pub mod hil;
 pub mod metrics;
 pub mod montecarlo;
-pub mod plant;
 pub mod plot;
 pub mod report;
 pub mod rng;
@@ -23,6 +23,6 @@ pub mod scenario_file;
 pub mod sim;
 
 pub use metrics::Metrics;
-pub use plant::{Plant, PlantParams, PlantState};
 pub use scenario::Scenario;
 pub use sim::{run, SimOutput, TraceSample};
+pub use sim_robot::{Plant, PlantParams, PlantState};

@@ -1,18 +1,17 @@
 //! Scenarios: every knob of a run, the paper's Case 1 and Case 2 presets.
 //!
 //! Perturbations act inside the window `[window_s[0], window_s[1])` only
-//! (paper: 10-35 s):
+//! (paper: 10-35 s); their formulas are in `sim_robot::perturbation` (skid
+//! δ_sl, wheel slip ϖ, disturbance τ_d, actuator fault ε).
 //!
-//! * lateral skid δ_sl = skid_scale·(2 + 0.8 sin t) \[m/s\] (paper: skid_scale = 1,
-//!   which no nonholonomic robot can track; default 0.05: D16),
-//! * wheel slip ϖ_R = β sin t, ϖ_L = β cos t \[rad/s\], β ∈ (0, 0.2),
-//! * external disturbance τ_d (not given by the paper: D17), amplitude A \[N·m\]:
-//!   τ_θ = 0.5A·sin(0.9t), τ_dR = A(0.6 + 0.4 sin 2t), τ_dL = A(−0.3 + 0.5 cos 1.7t),
-//! * actuator fault (Case 2): the body moves at (1 − ε)·η, ε ∈ (0.125, 0.25).
+//! [`Sensing`] chooses what sits between the plant and the controller: the
+//! paper's ideal measurements, or the firmware's runtime behind simulated
+//! encoders and an H-bridge.
 
-use crate::plant::Perturbation;
 use crate::rng::Rng;
+use controller_core::runtime::{EncoderParams, MotorParams};
 use serde::{Deserialize, Serialize};
+use sim_robot::{Perturbation, PerturbationProfile};
 
 /// Which reference trajectory.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
@@ -57,6 +56,26 @@ impl TrajectoryKind {
     }
 }
 
+/// What the controller gets from the simulated robot, and how it drives it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sensing {
+    /// The paper's setting: the bare controller gets the true pose of G
+    /// every tick (plus `pose_noise_m`/`heading_noise_rad`) and η from the
+    /// exact wheel-angle change over the last period; its torque is applied
+    /// exactly (an ideal torque source).
+    #[default]
+    Ideal,
+    /// The firmware's runtime behind simulated 16-bit encoders
+    /// (`encoder_cpr`, `speed_window_ticks`) and an H-bridge with integer duty
+    /// (`pwm_levels`) into the DC-motor model; pose from wheel odometry only
+    /// (blind to slip and to the actuator fault).
+    Odometry,
+    /// As `odometry`, plus the (noisy) true pose as an external measurement
+    /// every tick.
+    ExternalPose,
+}
+
 /// A complete description of one simulated run (except the controller kind).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -89,9 +108,16 @@ pub struct Scenario {
     pub inertia_scale: f64,
     /// Per-wheel torque limit \[N·m\] (controller saturation and actuator limit).
     pub torque_limit_nm: f64,
-    /// Encoder counts per wheel revolution (0 = ideal, unquantised).
+    /// Measurements and actuation between plant and controller.
+    pub sensing: Sensing,
+    /// Encoder counts per wheel revolution after ×4 decoding (firmware
+    /// sensing only; 0 = the example encoder's).
     pub encoder_cpr: u32,
-    /// PWM levels per polarity over the torque limit (0 = ideal).
+    /// Speed-estimate window \[ticks\] (firmware sensing only; 0 = the
+    /// example encoder's).
+    pub speed_window_ticks: u8,
+    /// PWM counts at 100 % duty (firmware sensing only; 0 = the example
+    /// motor's).
     pub pwm_levels: u32,
     /// Std. dev. of the position measurement noise \[m\].
     pub pose_noise_m: f64,
@@ -120,7 +146,9 @@ impl Default for Scenario {
             mass_scale: 1.0,
             inertia_scale: 1.0,
             torque_limit_nm: controller_core::controller::DEFAULT_TORQUE_LIMIT_NM as f64,
+            sensing: Sensing::Ideal,
             encoder_cpr: 0,
+            speed_window_ticks: 0,
             pwm_levels: 0,
             pose_noise_m: 0.0,
             heading_noise_rad: 0.0,
@@ -155,7 +183,8 @@ impl Scenario {
     pub fn validate(&self) -> Result<(), String> {
         let pos = |x: f64| x.is_finite() && x > 0.0;
         let nonneg = |x: f64| x.is_finite() && x >= 0.0;
-        let checks: [(bool, &str); 12] = [
+        let ideal = self.sensing == Sensing::Ideal;
+        let checks: [(bool, &str); 14] = [
             (pos(self.duration_s), "duration_s must be > 0"),
             (
                 pos(self.control_period_s) && self.control_period_s <= 0.1,
@@ -186,6 +215,14 @@ impl Scenario {
                 "noise must be >= 0",
             ),
             (self.k_y.is_none_or(pos), "k_y must be > 0"),
+            (
+                !ideal || (self.encoder_cpr == 0 && self.pwm_levels == 0 && self.speed_window_ticks == 0),
+                "encoder_cpr, pwm_levels and speed_window_ticks need sensing = odometry or external-pose (ideal sensing has no encoders or PWM)",
+            ),
+            (
+                self.pwm_levels <= u16::MAX as u32,
+                "pwm_levels must be <= 65535 (a 16-bit timer)",
+            ),
         ];
         match checks.iter().find(|(ok, _)| !ok) {
             Some((_, msg)) => Err(format!("scenario '{}': {msg}", self.name)),
@@ -193,31 +230,54 @@ impl Scenario {
         }
     }
 
+    /// The section-4 perturbations of this scenario.
+    pub fn perturbations(&self) -> PerturbationProfile {
+        PerturbationProfile {
+            window_s: self.window_s,
+            beta_radps: self.beta,
+            fault_eps: self.eps,
+            skid_scale: self.skid_scale,
+            disturbance_nm: self.disturbance_nm,
+        }
+    }
+
     /// True inside the perturbation window.
     pub fn in_window(&self, t_s: f64) -> bool {
-        t_s >= self.window_s[0] && t_s < self.window_s[1]
+        self.perturbations().in_window(t_s)
     }
 
     /// Perturbations at time t (zero outside the window).
-    pub fn perturbation(&self, t: f64) -> Perturbation {
-        if !self.in_window(t) {
-            return Perturbation::default();
+    pub fn perturbation(&self, t_s: f64) -> Perturbation {
+        self.perturbations().at(t_s)
+    }
+
+    /// The simulated encoders (firmware sensing): `encoder_cpr` and
+    /// `speed_window_ticks`, the example encoder's where 0, left mirrored.
+    pub fn encoder(&self) -> EncoderParams {
+        let ex = EncoderParams::EXAMPLE;
+        EncoderParams {
+            counts_per_wheel_rev: match self.encoder_cpr {
+                0 => ex.counts_per_wheel_rev,
+                n => n as f32,
+            },
+            speed_window_ticks: match self.speed_window_ticks {
+                0 => ex.speed_window_ticks,
+                n => n,
+            },
+            ..ex
         }
-        let (s, c) = t.sin_cos();
-        let a = self.disturbance_nm;
-        Perturbation {
-            skid_mps: self.skid_scale * (2.0 + 0.8 * s),
-            skid_rate_mps2: self.skid_scale * 0.8 * c,
-            wheel_slip_radps: [self.beta * s, self.beta * c],
-            wheel_slip_rate_radps2: [self.beta * c, -self.beta * s],
-            tau_d: [
-                0.0,
-                0.0,
-                0.5 * a * (0.9 * t).sin(),
-                a * (0.6 + 0.4 * (2.0 * t).sin()),
-                a * (-0.3 + 0.5 * (1.7 * t).cos()),
-            ],
-            fault_eps: self.eps,
+    }
+
+    /// The simulated motors (firmware sensing): the example motor with
+    /// `pwm_levels` counts at full duty (the example's where 0).
+    pub fn motor(&self) -> MotorParams {
+        let ex = MotorParams::EXAMPLE;
+        MotorParams {
+            duty_full_scale: match self.pwm_levels {
+                0 => ex.duty_full_scale,
+                n => n as u16,
+            },
+            ..ex
         }
     }
 }

@@ -45,7 +45,7 @@ mod tests {
     #[test]
     fn keys_override_defaults() {
         let s = parse_scenario(
-            "name = \"q\"\ntrajectory = \"figure8\"\nbeta = 0.05\nencoder_cpr = 2048\nk_y = 10.0\nwindow_s = [5.0, 20.0]\n",
+            "name = \"q\"\ntrajectory = \"figure8\"\nbeta = 0.05\nsensing = \"odometry\"\nencoder_cpr = 2048\nk_y = 10.0\nwindow_s = [5.0, 20.0]\n",
             "t",
         )
         .unwrap();

@@ -1,20 +1,29 @@
-//! Closed-loop runner: controller-core's `Controller` against the [`Plant`].
+//! Closed-loop runner: a [`ControlSide`] against the simulated robot.
 //!
-//! Per control period k (t = k·Δt): measure (pose of G with optional noise;
-//! η from the wheel-angle change over the last period, optionally quantised
-//! to encoder counts), sample the reference, one `Controller::step`, quantise
-//! the torque to the PWM resolution, then integrate the plant over the period
-//! with the torque held (zero-order hold) in `substeps` RK4 steps.
+//! Per control period k (t = k·Δt): measure (pose of G with optional noise,
+//! the wheels' angles and rates), sample the reference once, one step of the
+//! controller side, then integrate the plant over the period with the
+//! actuation held (zero-order hold of torque or of PWM duty) in `substeps`
+//! RK4 steps. The scenario's [`Sensing`] chooses the controller side: the
+//! bare `Controller` with ideal measurements ([`IdealSide`]) or the firmware
+//! runtime ([`crate::hil::RuntimeSide`]).
 
+use crate::control_side::{Actuation, ControlOutput, ControlSide, Sensed};
 use crate::metrics::{Metrics, MetricsAcc};
-use crate::plant::{Plant, PlantParams, PlantState};
 use crate::rng::Rng;
-use crate::scenario::Scenario;
+use crate::scenario::{Scenario, Sensing};
 use controller_core::trajectory::Trajectory;
-use controller_core::{
-    Controller, ControllerConfig, ControllerKind, Diagnostics, Pose, StepInput, Vel2,
-};
+use controller_core::{Controller, ControllerConfig, ControllerKind, Pose, RobotParams, StepInput};
 use serde::Serialize;
+use sim_robot::{Plant, PlantParams, PlantState};
+
+/// Period of the logged trace \[s\] (every control step goes into the metrics).
+pub const TRACE_PERIOD_S: f64 = 0.01;
+
+/// Control steps per trace sample for `scn` (at least 1).
+pub fn trace_every(scn: &Scenario) -> usize {
+    ((TRACE_PERIOD_S / scn.control_period_s).round() as usize).max(1)
+}
 
 /// One logged sample (decimated) for plots and CSV.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -76,125 +85,52 @@ pub fn controller_config(scn: &Scenario, kind: ControllerKind) -> ControllerConf
     cfg
 }
 
-/// What the controller side commands for one control period.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Actuation {
-    /// Wheel torques `[right, left]` \[N·m\] held over the period.
-    Torque([f64; 2]),
-    /// A motor model driven at fixed duty: torque depends on the wheel rate,
-    /// re-evaluated at every RK4 sub-step (see [`crate::hil`]).
-    Motor(crate::hil::MotorActuation),
-}
-
-impl Actuation {
-    /// Wheel torques at the given wheel rates \[rad/s\] `[right, left]`.
-    pub fn torque_nm(&self, wheel_rates_radps: [f64; 2]) -> [f64; 2] {
-        match self {
-            Self::Torque(t) => *t,
-            Self::Motor(m) => m.torque_nm(wheel_rates_radps),
-        }
-    }
-}
-
-/// What the simulated sensors give the controller side at one step.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Sensed {
-    /// Pose of G with measurement noise.
-    pub pose: Pose,
-    /// True wheel angles φ `[right, left]` \[rad\] (for encoders).
-    pub wheel_angle_rad: [f64; 2],
-}
-
-/// The controller side of the loop: the bare `Controller` ([`DirectSide`]) or
-/// the firmware's runtime with simulated encoders and PWM ([`crate::hil::RuntimeSide`]).
-pub trait ControlSide {
-    /// The controller kind (for the fault-estimate metric).
-    fn kind(&self) -> ControllerKind;
-    /// One control period at step `k`, time `t_s`: returns the actuation, the
-    /// η the controller used, and its diagnostics.
-    fn step(&mut self, k: usize, t_s: f64, sensed: &Sensed) -> (Actuation, [f64; 2], Diagnostics);
-    /// Steps the controller rejected or the runtime stopped on.
-    fn rejected_steps(&self) -> u32;
-}
-
-impl<C: ControlSide> ControlSide for &mut C {
-    fn kind(&self) -> ControllerKind {
-        (**self).kind()
-    }
-    fn step(&mut self, k: usize, t_s: f64, sensed: &Sensed) -> (Actuation, [f64; 2], Diagnostics) {
-        (**self).step(k, t_s, sensed)
-    }
-    fn rejected_steps(&self) -> u32 {
-        (**self).rejected_steps()
-    }
-}
-
-/// The bare controller: η from the wheel-angle change over the last period
-/// (optionally quantised to encoder counts), torque optionally quantised to
-/// PWM levels and clipped to the drive's limit.
-pub struct DirectSide<'a> {
-    scn: &'a Scenario,
+/// The bare controller with ideal measurements ([`Sensing::Ideal`], the
+/// paper's setting): the measured pose, η from the exact wheel-angle change
+/// over the last period through eq. (3)
+/// ([`RobotParams::eta_from_wheel_rates`]), torque applied exactly.
+pub struct IdealSide {
     ctrl: Controller,
-    reference: controller_core::trajectory::Reference,
-    wheel_radius_m: f64,
-    half_track_m: f64,
-    phi_prev: Option<[f64; 2]>,
+    period_s: f64,
+    wheel_angle_prev_rad: Option<[f64; 2]>,
 }
 
-impl<'a> DirectSide<'a> {
-    /// Builds the controller for `scn`.
-    pub fn new(scn: &'a Scenario, cfg: ControllerConfig) -> Result<Self, String> {
+impl IdealSide {
+    /// The controller of `cfg` at `cfg.period_s`.
+    pub fn new(cfg: ControllerConfig) -> Result<Self, String> {
         Ok(Self {
-            scn,
             ctrl: Controller::new(cfg).map_err(|e| format!("controller config: {e}"))?,
-            reference: scn.trajectory.reference(),
-            wheel_radius_m: cfg.robot.wheel_radius_m as f64,
-            half_track_m: cfg.robot.half_track_m as f64,
-            phi_prev: None,
+            period_s: cfg.period_s as f64,
+            wheel_angle_prev_rad: None,
         })
     }
-
-    fn count(&self, phi: f64) -> f64 {
-        let cpr = self.scn.encoder_cpr as f64;
-        if cpr > 0.0 {
-            let q = 2.0 * std::f64::consts::PI / cpr;
-            (phi / q).floor() * q
-        } else {
-            phi
-        }
-    }
 }
 
-impl ControlSide for DirectSide<'_> {
+impl ControlSide for IdealSide {
     fn kind(&self) -> ControllerKind {
         self.ctrl.config().kind
     }
 
-    fn step(&mut self, _k: usize, t: f64, sensed: &Sensed) -> (Actuation, [f64; 2], Diagnostics) {
-        let dt = self.scn.control_period_s;
-        let phi = sensed.wheel_angle_rad.map(|p| self.count(p));
-        let w = match self.phi_prev {
-            Some(prev) => [(phi[0] - prev[0]) / dt, (phi[1] - prev[1]) / dt],
-            None => [0.0, 0.0],
+    fn step(&mut self, sensed: &Sensed) -> ControlOutput {
+        let phi = sensed.wheel_angle_rad;
+        let rates = match self.wheel_angle_prev_rad.replace(phi) {
+            Some(prev) => [
+                ((phi[0] - prev[0]) / self.period_s) as f32,
+                ((phi[1] - prev[1]) / self.period_s) as f32,
+            ],
+            None => [0.0; 2],
         };
-        self.phi_prev = Some(phi);
-        let (r, h) = (self.wheel_radius_m, self.half_track_m);
-        let eta = [0.5 * r * (w[0] + w[1]), 0.5 * r * (w[0] - w[1]) / h];
+        let eta = self.ctrl.config().robot.eta_from_wheel_rates(rates);
         let out = self.ctrl.step(&StepInput {
-            reference: self.reference.sample(t as f32),
+            reference: sensed.reference,
             pose: sensed.pose,
-            eta: Vel2::new(eta[0] as f32, eta[1] as f32),
+            eta,
         });
-        let limit = self.scn.torque_limit_nm;
-        let tau = out.torque_nm.map(|x| {
-            let mut x = x as f64;
-            if self.scn.pwm_levels > 0 {
-                let q = limit / self.scn.pwm_levels as f64;
-                x = (x / q).round() * q;
-            }
-            x.clamp(-limit, limit)
-        });
-        (Actuation::Torque(tau), eta, out.diag)
+        ControlOutput {
+            actuation: Actuation::Torque(out.torque_nm.map(f64::from)),
+            eta_measured: [eta.v_mps as f64, eta.omega_radps as f64],
+            diag: out.diag,
+        }
     }
 
     fn rejected_steps(&self) -> u32 {
@@ -202,34 +138,42 @@ impl ControlSide for DirectSide<'_> {
     }
 }
 
-/// Runs `scn` with the given controller configuration; logs every
-/// `trace_every`-th step (0 = no trace).
+/// Runs `scn` with the given controller configuration, on the controller
+/// side its [`Sensing`] names; logs every `trace_every`-th step (0 = no trace).
 pub fn run_with(
     scn: &Scenario,
     cfg: ControllerConfig,
     trace_every: usize,
 ) -> Result<SimOutput, String> {
     scn.validate()?;
-    let side = DirectSide::new(scn, cfg)?;
-    run_loop(scn, &cfg.robot, side, trace_every)
+    match scn.sensing {
+        Sensing::Ideal => run_loop(scn, &cfg.robot, IdealSide::new(cfg)?, trace_every),
+        Sensing::Odometry | Sensing::ExternalPose => {
+            let opts = crate::hil::HilOptions::default();
+            crate::hil::run_runtime(scn, cfg, opts, trace_every).map(|o| o.sim)
+        }
+    }
 }
 
 /// The closed loop: simulated sensors, `side`, the plant; metrics at every
 /// step, a trace every `trace_every` steps (0 = none).
 pub fn run_loop(
     scn: &Scenario,
-    robot: &controller_core::RobotParams,
+    robot: &RobotParams,
     mut side: impl ControlSide,
     trace_every: usize,
 ) -> Result<SimOutput, String> {
     scn.validate()?;
-    let plant = Plant {
-        params: PlantParams::from_robot(robot, scn.mass_scale, scn.inertia_scale),
-    };
+    let plant = Plant::new(PlantParams::from_robot(
+        robot,
+        scn.mass_scale,
+        scn.inertia_scale,
+    ));
     let reference = scn.trajectory.reference();
+    let perturbations = scn.perturbations();
     let dt = scn.control_period_s;
     let n = (scn.duration_s / dt).round() as usize;
-    let h = dt / scn.substeps as f64;
+    let substep_s = dt / scn.substeps as f64;
     let mut rng = Rng::new(
         scn.seed
             .wrapping_mul(0x2545_F491_4F6C_DD1D)
@@ -248,25 +192,20 @@ pub fn run_loop(
     let kind = side.kind();
     let mut acc = MetricsAcc::new(kind == ControllerKind::Proposed);
     let mut trace = Vec::with_capacity(n.checked_div(trace_every).map_or(0, |q| q + 1));
-    // The loop asks for the perturbation at the same instant several times
-    // per step (sensing, metrics, the ZOH sub-step starts, RK4's end and the
-    // next start): remember the last one (exact time match, so bit-identical).
-    let last_perturb = std::cell::Cell::new((f64::NAN, crate::plant::Perturbation::default()));
+    // RK4 asks for the perturbation at the end of one step and again at the
+    // start of the next, and the loop asks at the period's start: remember
+    // the last one (exact time match, so bit-identical).
+    let last_perturb = std::cell::Cell::new((f64::NAN, sim_robot::Perturbation::default()));
     let perturb = |t: f64| {
         let (lt, lp) = last_perturb.get();
         if lt.to_bits() == t.to_bits() {
             return lp;
         }
-        let p = scn.perturbation(t);
+        let p = perturbations.at(t);
         last_perturb.set((t, p));
         p
     };
     let noisy = scn.pose_noise_m != 0.0 || scn.heading_noise_rad != 0.0;
-    let (r, hh) = (plant.params.wheel_radius_m, plant.params.half_track_m);
-    let wheel_rates = |st: &PlantState, t: f64| {
-        let eta = plant.eta(st, &perturb(t));
-        [(eta[0] + hh * eta[1]) / r, (eta[0] - hh * eta[1]) / r]
-    };
 
     for k in 0..n {
         let t = k as f64 * dt;
@@ -280,19 +219,27 @@ pub fn run_loop(
         } else {
             [0.0; 3]
         };
+        let p_now = perturb(t);
+        let rs = reference.sample(t as f32);
         let sensed = Sensed {
+            step: k,
+            t_s: t,
             pose: Pose::new(
                 (st.q[0] + noise[0]) as f32,
                 (st.q[1] + noise[1]) as f32,
                 (st.q[2] + noise[2]) as f32,
             ),
             wheel_angle_rad: [st.q[3], st.q[4]],
+            wheel_rate_radps: plant.wheel_rates_radps(&st, &p_now),
+            reference: rs,
         };
-        let rs = reference.sample(t as f32);
-        let (act, eta_meas, d) = side.step(k, t, &sensed);
-        let tau = act.torque_nm(wheel_rates(&st, t));
+        let ControlOutput {
+            actuation,
+            eta_measured,
+            diag: d,
+        } = side.step(&sensed);
+        let tau = sim_robot::Drive::torque_nm(&actuation, sensed.wheel_rate_radps);
 
-        let p_now = perturb(t);
         let eta_true = plant.eta(&st, &p_now);
         let f_true = [p_now.fault_eps * eta_true[0], p_now.fault_eps * eta_true[1]];
         let ex = rs.pose.x_m as f64 - st.q[0];
@@ -302,7 +249,7 @@ pub fn run_loop(
         acc.push(
             t,
             pos_err,
-            scn.in_window(t),
+            perturbations.in_window(t),
             t < scn.window_s[0] || scn.window_s[0] >= scn.window_s[1],
             tau,
             d.saturated,
@@ -321,7 +268,7 @@ pub fn run_loop(
                 pos_err_m: pos_err,
                 err_xy_m: [ex, ey],
                 e: [d.error[0] as f64, d.error[1] as f64, d.error[2] as f64],
-                eta: eta_meas,
+                eta: eta_measured,
                 eta_c: f2(d.eta_c),
                 torque_nm: tau,
                 s: f2(d.s),
@@ -334,11 +281,15 @@ pub fn run_loop(
         }
         // Plant over [t, t + dt]: actuation held (zero-order hold).
         for j in 0..scn.substeps {
-            let tj = t + j as f64 * h;
-            let tau_j = act.torque_nm(wheel_rates(&st, tj));
-            st = plant.rk4_step(&st, tj, h, tau_j, &perturb);
+            st = plant.rk4_step(
+                &st,
+                t + j as f64 * substep_s,
+                substep_s,
+                &actuation,
+                &perturb,
+            );
         }
-        if !(st.q.iter().chain(&st.nu).all(|x| x.is_finite())) {
+        if !Plant::state_is_finite(&st) {
             return Err(format!("plant state diverged at t = {t:.3} s"));
         }
     }
@@ -350,8 +301,7 @@ pub fn run_loop(
     })
 }
 
-/// Runs `scn` with `kind` at the paper's gains; trace every 10 ms.
+/// Runs `scn` with `kind` at the paper's gains; trace every [`TRACE_PERIOD_S`].
 pub fn run(scn: &Scenario, kind: ControllerKind) -> Result<SimOutput, String> {
-    let every = ((0.01 / scn.control_period_s).round() as usize).max(1);
-    run_with(scn, controller_config(scn, kind), every)
+    run_with(scn, controller_config(scn, kind), trace_every(scn))
 }

@@ -5,6 +5,7 @@
 use controller_core::runtime::StopReason;
 use controller_core::ControllerKind;
 use hil_sim::hil::{run_hil, HilOptions};
+use hil_sim::scenario::Sensing;
 use hil_sim::{run, Scenario};
 
 /// The quantised loop (24 000 counts/rev, 4-tick speed window, 4 800 duty
@@ -12,11 +13,15 @@ use hil_sim::{run, Scenario};
 /// stop, window RMS below 10 cm and within 1.5x of the ideal-sensor run.
 #[test]
 fn quantised_loop_tracks_case1() {
-    let scn = Scenario::paper_case(1, 1, None, None);
+    let ideal_scn = Scenario::paper_case(1, 1, None, None);
+    let scn = Scenario {
+        sensing: Sensing::ExternalPose,
+        ..ideal_scn.clone()
+    };
     for kind in ControllerKind::ALL {
         let hil = run_hil(&scn, kind, HilOptions::default()).unwrap();
         assert_eq!(hil.stop, None, "{kind:?}");
-        let ideal = run(&scn, kind).unwrap().metrics;
+        let ideal = run(&ideal_scn, kind).unwrap().metrics;
         let m = &hil.sim.metrics;
         assert!(m.rms_pos_err_window_m < 0.1, "{kind:?}: {m:?}");
         assert!(
@@ -39,17 +44,16 @@ fn quantised_loop_tracks_case1() {
 /// Case 2 is much larger than with an external pose measurement.
 #[test]
 fn odometry_cannot_see_the_actuator_fault() {
-    let scn = Scenario::paper_case(2, 1, None, None);
+    let scn = Scenario {
+        sensing: Sensing::ExternalPose,
+        ..Scenario::paper_case(2, 1, None, None)
+    };
     let ext = run_hil(&scn, ControllerKind::Proposed, HilOptions::default()).unwrap();
-    let odo = run_hil(
-        &scn,
-        ControllerKind::Proposed,
-        HilOptions {
-            external_pose: false,
-            ..HilOptions::default()
-        },
-    )
-    .unwrap();
+    let odo_scn = Scenario {
+        sensing: Sensing::Odometry,
+        ..scn.clone()
+    };
+    let odo = run_hil(&odo_scn, ControllerKind::Proposed, HilOptions::default()).unwrap();
     assert_eq!(ext.stop, None);
     assert_eq!(odo.stop, None);
     let (e, o) = (
@@ -85,7 +89,10 @@ fn odometry_cannot_see_the_actuator_fault() {
 /// then on.
 #[test]
 fn dead_encoder_latches_a_safe_stop() {
-    let scn = Scenario::paper_case(1, 1, None, None);
+    let scn = Scenario {
+        sensing: Sensing::ExternalPose,
+        ..Scenario::paper_case(1, 1, None, None)
+    };
     let opts = HilOptions {
         dead_encoder: Some((1, 12.0)),
         ..HilOptions::default()

@@ -39,7 +39,7 @@ impl EncoderParams {
     /// (24 000 counts per wheel revolution), left encoder mirrored, 4-tick window.
     pub const EXAMPLE: Self = Self {
         counts_per_wheel_rev: 24_000.0,
-        inverted: [false, true],
+        inverted: super::MIRRORED_LEFT,
         speed_window_ticks: 4,
     };
 

@@ -27,22 +27,31 @@
 //! measured loop time \[µs\], the control period is the controller's
 //! `period_s`.
 
+mod config;
+mod control_loop;
 mod encoder;
+mod error;
+mod hardware;
 mod motor;
 mod odometry;
+mod state;
 mod stats;
-mod supervisor;
 
+pub use config::{RuntimeConfig, SafetyLimits};
+pub use control_loop::ControlLoop;
 pub use encoder::{count_delta, CountSample, EncoderParams, WheelCounts, MAX_SPEED_WINDOW};
+pub use error::RuntimeConfigError;
+pub use hardware::{Encoder, MotorDriver, PoseSource, WheelEncoders, WheelOdometryOnly};
 pub use motor::{DutyCommand, DutyRequest, MotorModel, MotorParams};
 pub use odometry::Odometry;
+pub use state::{ArmError, RunState, Status, StopReason, TickReport};
 pub use stats::CycleStats;
-pub use supervisor::{
-    ArmError, ControlLoop, RunState, RuntimeConfig, SafetyLimits, Status, StopReason, TickReport,
-};
 
-use crate::error::ConfigError;
-use crate::types::Pose;
+/// Per wheel `[right, left]`: the usual mounting of a differential drive,
+/// the left motor and encoder mirrored (they turn backwards when the robot
+/// drives forward). The default of [`EncoderParams::EXAMPLE`] and
+/// [`RuntimeConfig::example`].
+pub const MIRRORED_LEFT: [bool; 2] = [false, true];
 
 /// A wheel, for fault reports and indexing `[right, left]` arrays.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,123 +75,3 @@ impl Wheel {
         }
     }
 }
-
-/// One quadrature encoder: the raw free-running 16-bit hardware count
-/// (e.g. a timer in encoder mode, or a simulated counter).
-pub trait Encoder {
-    /// Current raw count (wraps at 2¹⁶).
-    fn count(&mut self) -> u16;
-}
-
-/// Both wheel encoders, read together once per tick.
-///
-/// Implemented for a `(right, left)` tuple and a `[right, left]` array of
-/// [`Encoder`]s.
-pub trait WheelEncoders {
-    /// Raw counts `[right, left]`.
-    fn counts(&mut self) -> [u16; 2];
-}
-
-impl<R: Encoder, L: Encoder> WheelEncoders for (R, L) {
-    fn counts(&mut self) -> [u16; 2] {
-        [self.0.count(), self.1.count()]
-    }
-}
-
-impl<E: Encoder> WheelEncoders for [E; 2] {
-    fn counts(&mut self) -> [u16; 2] {
-        let [r, l] = self;
-        [r.count(), l.count()]
-    }
-}
-
-/// The motor driver (H-bridge) of both wheels. Implementations must start
-/// disabled (outputs off) and stay disabled until the first [`Self::set`].
-pub trait MotorDriver {
-    /// Enables the bridge (if disabled) and applies `[right, left]` duty and
-    /// direction. Duty is in counts of [`MotorParams::duty_full_scale`].
-    fn set(&mut self, cmd: [DutyCommand; 2]);
-    /// Zero duty and bridge disabled (motors coast). Called on every tick
-    /// while not running, so it must be idempotent and cheap.
-    fn disable(&mut self);
-}
-
-/// An optional external measurement of the pose of G (motion capture, a
-/// camera, a lidar localiser...). Wheel odometry cannot see wheel slip or an
-/// actuator fault that changes the body's motion, so the fault observer
-/// only works with such a measurement.
-pub trait PoseSource {
-    /// A new measurement taken since the last call, or `None` (then the
-    /// runtime uses wheel odometry).
-    fn pose(&mut self) -> Option<Pose>;
-}
-
-/// The default [`PoseSource`]: never has a measurement (wheel odometry only).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct WheelOdometryOnly;
-
-impl PoseSource for WheelOdometryOnly {
-    fn pose(&mut self) -> Option<Pose> {
-        None
-    }
-}
-
-/// A runtime parameter rejected at construction.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[non_exhaustive]
-pub enum RuntimeConfigError {
-    /// The controller configuration or the reference trajectory is invalid.
-    Core(ConfigError),
-    /// Encoder counts per wheel revolution must be finite and > 0.
-    NonPositiveEncoderResolution,
-    /// Speed window must be in `1..=MAX_SPEED_WINDOW` ticks.
-    InvalidSpeedWindow,
-    /// Motor torque constant must be finite and > 0.
-    NonPositiveTorqueConstant,
-    /// Winding resistance must be finite and > 0.
-    NonPositiveResistance,
-    /// Gear ratio must be finite and > 0.
-    NonPositiveGearRatio,
-    /// Gear efficiency must be in (0, 1].
-    InvalidGearEfficiency,
-    /// Supply voltage must be finite and > 0.
-    NonPositiveSupplyVoltage,
-    /// Max duty fraction must be in (0, 1].
-    InvalidMaxDuty,
-    /// Duty full scale must be > 0 counts.
-    ZeroDutyResolution,
-    /// A safety limit is zero, non-finite or out of range.
-    InvalidSafetyLimit,
-    /// The initial pose is not finite.
-    NonFiniteInitialPose,
-}
-
-impl From<ConfigError> for RuntimeConfigError {
-    fn from(e: ConfigError) -> Self {
-        Self::Core(e)
-    }
-}
-
-impl core::fmt::Display for RuntimeConfigError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        let s = match self {
-            Self::Core(e) => return write!(f, "controller: {e}"),
-            Self::NonPositiveEncoderResolution => "encoder counts per wheel rev must be > 0",
-            Self::InvalidSpeedWindow => "speed window must be 1..=32 ticks",
-            Self::NonPositiveTorqueConstant => "motor torque constant must be > 0",
-            Self::NonPositiveResistance => "winding resistance must be > 0",
-            Self::NonPositiveGearRatio => "gear ratio must be > 0",
-            Self::InvalidGearEfficiency => "gear efficiency must be in (0, 1]",
-            Self::NonPositiveSupplyVoltage => "supply voltage must be > 0",
-            Self::InvalidMaxDuty => "max duty fraction must be in (0, 1]",
-            Self::ZeroDutyResolution => "duty full scale must be > 0",
-            Self::InvalidSafetyLimit => "invalid safety limit",
-            Self::NonFiniteInitialPose => "initial pose must be finite",
-        };
-        f.write_str(s)
-    }
-}
-
-#[cfg(test)]
-mod closed_loop_tests;

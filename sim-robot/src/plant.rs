@@ -13,7 +13,16 @@
 //! * Kinematics (3) with the actuator fault (10): the wheels turn per η
 //!   (φ̇_R = (v + hω)/r, φ̇_L = (v − hω)/r) while the body moves at
 //!   η_b = (1 − ε)·η − σ, i.e. q̇_{x,y,θ} = S(θ)·η_b + U_D.
+//!
+//! Integration: classical RK4. The wheel torques come from a [`Drive`]
+//! evaluated at each stage's wheel rates (a torque source holds them; a DC
+//! motor at fixed duty feels its back-EMF continuously). One sin/cos of θ
+//! per step: the stages' headings differ from the step's start by a small
+//! angle δ, and sin/cos(θ + δ) follow from the angle-sum identities with
+//! series for sin δ and cos δ (exact to rounding for |δ| ≤ [`SMALL_ANGLE_RAD`];
+//! larger δ falls back to sin/cos).
 
+use crate::math::sin_cos;
 use controller_core::RobotParams;
 
 /// Plant physical parameters (f64 copy of [`RobotParams`], possibly scaled).
@@ -93,6 +102,39 @@ pub struct PlantState {
     pub nu: [f64; 2],
 }
 
+/// Where the wheel torques come from, evaluated at every integration
+/// stage from the wheel rates φ̇ = \[φ̇_R, φ̇_L\] \[rad/s\].
+pub trait Drive {
+    /// Wheel torques `[right, left]` \[N·m\] at these wheel rates.
+    fn torque_nm(&self, wheel_rates_radps: [f64; 2]) -> [f64; 2];
+}
+
+/// Torques held over the step (an ideal torque source, zero-order hold).
+impl Drive for [f64; 2] {
+    fn torque_nm(&self, _wheel_rates_radps: [f64; 2]) -> [f64; 2] {
+        *self
+    }
+}
+
+/// |δ| \[rad\] up to which sin/cos(θ + δ) are formed from sin/cos θ and
+/// series in δ to δ⁷: the first omitted terms, δ⁸/8! and δ⁹/9!, stay below
+/// 10⁻¹⁷ (under a tenth of an f64 ulp of 1). Beyond it: sin/cos.
+pub const SMALL_ANGLE_RAD: f64 = 0.02;
+
+/// sin/cos of θ0 + δ from (sin θ0, cos θ0): angle sums with Taylor series
+/// of sin δ, cos δ for small |δ|, sin/cos otherwise.
+#[inline]
+fn sin_cos_offset(theta0: f64, sc0: (f64, f64), delta: f64) -> (f64, f64) {
+    if delta.abs() > SMALL_ANGLE_RAD {
+        return sin_cos(theta0 + delta);
+    }
+    let d2 = delta * delta;
+    let sd = delta * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)));
+    let cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0));
+    let (s0, c0) = sc0;
+    (s0 * cd + c0 * sd, c0 * cd - s0 * sd)
+}
+
 /// The simulated robot.
 #[derive(Clone, Copy, Debug)]
 pub struct Plant {
@@ -101,6 +143,11 @@ pub struct Plant {
 }
 
 impl Plant {
+    /// The plant with these parameters.
+    pub const fn new(params: PlantParams) -> Self {
+        Self { params }
+    }
+
     /// σ = \[σ_v, σ_ω\] of eq. (3) for wheel slip ϖ (with the sign fixed: D15).
     pub fn sigma(&self, slip: [f64; 2]) -> [f64; 2] {
         let (r, h) = (self.params.wheel_radius_m, self.params.half_track_m);
@@ -116,14 +163,20 @@ impl Plant {
         [st.nu[0] + s[0], st.nu[1] + s[1]]
     }
 
+    /// Wheel rates φ̇ = \[(v + hω)/r, (v − hω)/r\] \[rad/s\] (eq. 3, rows 4-5).
+    pub fn wheel_rates_radps(&self, st: &PlantState, p: &Perturbation) -> [f64; 2] {
+        let (r, h) = (self.params.wheel_radius_m, self.params.half_track_m);
+        let eta = self.eta(st, p);
+        [(eta[0] + h * eta[1]) / r, (eta[0] - h * eta[1]) / r]
+    }
+
     /// q̇ (eq. 3 with the fault of eq. 10).
     pub fn q_dot(&self, st: &PlantState, p: &Perturbation) -> [f64; 5] {
-        let (s, c) = st.q[2].sin_cos();
-        self.q_dot_sc(st, p, s, c)
+        self.q_dot_sc(st, p, sin_cos(st.q[2]))
     }
 
     /// [`Self::q_dot`] with (sin θ, cos θ) given.
-    fn q_dot_sc(&self, st: &PlantState, p: &Perturbation, s: f64, c: f64) -> [f64; 5] {
+    fn q_dot_sc(&self, st: &PlantState, p: &Perturbation, (s, c): (f64, f64)) -> [f64; 5] {
         let (_, _, _, r, h, d) = self.params.unpack();
         let eta = self.eta(st, p);
         let sig = self.sigma(p.wheel_slip_radps);
@@ -142,9 +195,9 @@ impl Plant {
 
     /// ν̇ from eq. (6) for wheel torques `[right, left]`.
     pub fn nu_dot(&self, st: &PlantState, p: &Perturbation, torque_nm: [f64; 2]) -> [f64; 2] {
-        let (s, c) = st.q[2].sin_cos();
-        let theta_dot = self.q_dot_sc(st, p, s, c)[2];
-        self.nu_dot_sc(st, p, torque_nm, theta_dot, s, c)
+        let sc = sin_cos(st.q[2]);
+        let theta_dot = self.q_dot_sc(st, p, sc)[2];
+        self.nu_dot_sc(st, p, torque_nm, theta_dot, sc)
     }
 
     /// [`Self::nu_dot`] with θ̇ and (sin θ, cos θ) given.
@@ -154,8 +207,7 @@ impl Plant {
         p: &Perturbation,
         torque_nm: [f64; 2],
         theta_dot: f64,
-        s: f64,
-        c: f64,
+        (s, c): (f64, f64),
     ) -> [f64; 2] {
         let (m, _, iw, r, h, d) = self.params.unpack();
         let m1 = self.params.m1_diag();
@@ -181,22 +233,29 @@ impl Plant {
         ]
     }
 
-    /// (q̇, ν̇) with one sin/cos of θ (bit-identical to `q_dot` and `nu_dot`).
-    fn deriv(&self, st: &PlantState, p: &Perturbation, tau: [f64; 2]) -> PlantState {
-        let (s, c) = st.q[2].sin_cos();
-        let q = self.q_dot_sc(st, p, s, c);
-        let nu = self.nu_dot_sc(st, p, tau, q[2], s, c);
+    /// (q̇, ν̇) at (sin θ, cos θ) = `sc`, the drive's torque taken at the
+    /// state's wheel rates (q̇ rows 4-5).
+    fn deriv(
+        &self,
+        st: &PlantState,
+        p: &Perturbation,
+        drive: &impl Drive,
+        sc: (f64, f64),
+    ) -> PlantState {
+        let q = self.q_dot_sc(st, p, sc);
+        let tau = drive.torque_nm([q[3], q[4]]);
+        let nu = self.nu_dot_sc(st, p, tau, q[2], sc);
         PlantState { q, nu }
     }
 
-    /// One classical RK4 step of length `h_s`; `perturb(t)` gives the
-    /// perturbations at time t; torque held constant (zero-order hold).
+    /// One classical RK4 step of length `h_s` from `t_s`; `perturb(t)` gives
+    /// the perturbations at time t, `drive` the wheel torques at each stage.
     pub fn rk4_step(
         &self,
         st: &PlantState,
         t_s: f64,
         h_s: f64,
-        torque_nm: [f64; 2],
+        drive: &impl Drive,
         perturb: &impl Fn(f64) -> Perturbation,
     ) -> PlantState {
         let add = |a: &PlantState, k: &PlantState, f: f64| {
@@ -209,13 +268,18 @@ impl Plant {
             }
             o
         };
+        let th0 = st.q[2];
+        let sc0 = sin_cos(th0);
         let p0 = perturb(t_s);
         let pm = perturb(t_s + 0.5 * h_s);
         let p1 = perturb(t_s + h_s);
-        let k1 = self.deriv(st, &p0, torque_nm);
-        let k2 = self.deriv(&add(st, &k1, 0.5 * h_s), &pm, torque_nm);
-        let k3 = self.deriv(&add(st, &k2, 0.5 * h_s), &pm, torque_nm);
-        let k4 = self.deriv(&add(st, &k3, h_s), &p1, torque_nm);
+        let k1 = self.deriv(st, &p0, drive, sc0);
+        let s2 = add(st, &k1, 0.5 * h_s);
+        let k2 = self.deriv(&s2, &pm, drive, sin_cos_offset(th0, sc0, s2.q[2] - th0));
+        let s3 = add(st, &k2, 0.5 * h_s);
+        let k3 = self.deriv(&s3, &pm, drive, sin_cos_offset(th0, sc0, s3.q[2] - th0));
+        let s4 = add(st, &k3, h_s);
+        let k4 = self.deriv(&s4, &p1, drive, sin_cos_offset(th0, sc0, s4.q[2] - th0));
         let mut o = *st;
         for i in 0..5 {
             o.q[i] += h_s / 6.0 * (k1.q[i] + 2.0 * k2.q[i] + 2.0 * k3.q[i] + k4.q[i]);
@@ -225,11 +289,17 @@ impl Plant {
         }
         o
     }
+
+    /// True when every state component is finite.
+    pub fn state_is_finite(st: &PlantState) -> bool {
+        st.q.iter().chain(&st.nu).all(|x| x.is_finite())
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use controller_core::RobotParams;
 
     fn paper_plant() -> Plant {
         Plant {
@@ -261,9 +331,24 @@ mod tests {
         };
         let n = (t_end / h).round() as usize;
         for k in 0..n {
-            st = plant.rk4_step(&st, k as f64 * h, h, tau, pert);
+            st = plant.rk4_step(&st, k as f64 * h, h, &tau, pert);
         }
         st
+    }
+
+    /// The angle-sum shortcut equals sin/cos(θ + δ) to rounding, on both
+    /// sides of the series threshold.
+    #[test]
+    fn small_angle_sin_cos_matches_direct() {
+        for i in 0..2000 {
+            let th = -7.0 + 0.007 * i as f64;
+            let delta = -0.03 + 0.00003 * i as f64;
+            let (s, c) = sin_cos_offset(th, sin_cos(th), delta);
+            let (s_ref, c_ref) = (th + delta).sin_cos();
+            let err = (s - s_ref).abs().max((c - c_ref).abs());
+            // θ + δ itself rounds by up to half an ulp of 8 (8.9e-16).
+            assert!(err < 1.5e-15, "{th} {delta}: {err:e}");
+        }
     }
 
     /// Fourth order: halving the step divides the error by ~16.
@@ -294,7 +379,7 @@ mod tests {
         let h = 1e-3;
         let t_end = 3.0;
         for k in 0..3000 {
-            st = plant.rk4_step(&st, k as f64 * h, h, [tau, tau], &|_| {
+            st = plant.rk4_step(&st, k as f64 * h, h, &[tau, tau], &|_| {
                 Perturbation::default()
             });
         }
@@ -318,7 +403,7 @@ mod tests {
         let mut st = PlantState::default();
         let h = 1e-3;
         for k in 0..1000 {
-            st = plant.rk4_step(&st, k as f64 * h, h, [tau, -tau], &|_| {
+            st = plant.rk4_step(&st, k as f64 * h, h, &[tau, -tau], &|_| {
                 Perturbation::default()
             });
         }
@@ -369,7 +454,7 @@ mod tests {
             for i in 0..3 {
                 assert!((aq[i] - ds[i]).abs() < 1e-12, "row {i} at t {t}");
             }
-            st = plant.rk4_step(&st, t, dt, [0.3, 0.1], &perturbed);
+            st = plant.rk4_step(&st, t, dt, &[0.3, 0.1], &perturbed);
         }
     }
 

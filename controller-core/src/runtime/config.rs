@@ -1,0 +1,103 @@
+//! What the runtime is configured with: the controller, the reference, the
+//! hardware constants and the safety thresholds, validated by
+//! [`ControlLoop::new`](super::ControlLoop::new).
+
+use super::encoder::EncoderParams;
+use super::error::RuntimeConfigError;
+use super::motor::MotorParams;
+use super::MIRRORED_LEFT;
+use crate::controller::{ControllerConfig, ControllerKind};
+use crate::trajectory::{PaperCurve, PaperHeading, Reference, Trajectory};
+use crate::types::Pose;
+
+/// Thresholds of the safety supervisor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SafetyLimits {
+    /// Largest plausible |count change| of one wheel in one tick \[counts\]
+    /// (1..=32767); beyond it the reading is a glitch ([`StopReason::EncoderJump`]).
+    /// Set it to about twice the no-load wheel speed in counts per tick.
+    pub max_counts_per_tick: u16,
+    /// |Commanded wheel torque| \[N·m\] at or above which a wheel must move.
+    pub stall_torque_nm: f32,
+    /// Consecutive ticks at or above `stall_torque_nm` with no count change
+    /// that mean a stalled wheel or a dead encoder ([`StopReason::EncoderStalled`]).
+    pub stall_ticks: u16,
+    /// Measured loop time \[µs\] above which a tick counts as an overrun.
+    pub overrun_limit_us: u32,
+    /// Consecutive overruns that latch [`StopReason::LoopOverrun`] (>= 1).
+    pub max_consecutive_overruns: u16,
+    /// Consecutive controller input faults that latch
+    /// [`StopReason::ControllerInput`] (>= 1; 1 latches on the first).
+    pub max_consecutive_input_faults: u16,
+}
+
+impl SafetyLimits {
+    /// Example limits for a 1 kHz loop with [`EncoderParams::EXAMPLE`] and
+    /// [`MotorParams::EXAMPLE`] (no-load wheel speed 40 rad/s = 153 counts/ms):
+    /// jump > 400 counts/tick, stall at >= 2 N·m for 250 ms, overrun above
+    /// 1.5 ms with 5 in a row latching, the first NaN/implausible input latching.
+    pub const EXAMPLE: Self = Self {
+        max_counts_per_tick: 400,
+        stall_torque_nm: 2.0,
+        stall_ticks: 250,
+        overrun_limit_us: 1500,
+        max_consecutive_overruns: 5,
+        max_consecutive_input_faults: 1,
+    };
+
+    /// Checks every field.
+    pub fn validate(self) -> Result<Self, RuntimeConfigError> {
+        let ok = self.max_counts_per_tick > 0
+            && self.max_counts_per_tick <= i16::MAX as u16
+            && self.stall_torque_nm.is_finite()
+            && self.stall_torque_nm > 0.0
+            && self.stall_ticks > 0
+            && self.overrun_limit_us > 0
+            && self.max_consecutive_overruns > 0
+            && self.max_consecutive_input_faults > 0;
+        if ok {
+            Ok(self)
+        } else {
+            Err(RuntimeConfigError::InvalidSafetyLimit)
+        }
+    }
+}
+
+/// Everything the runtime needs, validated by [`ControlLoop::new`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RuntimeConfig {
+    /// The controller (kind, robot parameters, gains, torque limit, period).
+    pub controller: ControllerConfig,
+    /// The reference trajectory, sampled at t = ticks since arming × period.
+    pub reference: Reference,
+    /// Pose of G where wheel odometry starts.
+    pub initial_pose: Pose,
+    /// Encoder resolution, mounting and speed window.
+    pub encoder: EncoderParams,
+    /// Motor, gearbox, supply and PWM constants.
+    pub motor: MotorParams,
+    /// Per wheel `[right, left]`: flip the direction output (mirrored motor).
+    pub motor_inverted: [bool; 2],
+    /// Safety thresholds.
+    pub safety: SafetyLimits,
+}
+
+impl RuntimeConfig {
+    /// Example: `kind` with the paper's gains, the paper's curve
+    /// ([`PaperHeading::SignedSmooth`]), odometry starting on the reference's
+    /// initial pose, and the `EXAMPLE` encoder, motor and safety constants.
+    pub fn example(kind: ControllerKind) -> Self {
+        let reference = Reference::Paper(PaperCurve::paper(PaperHeading::SignedSmooth));
+        Self {
+            controller: ControllerConfig::paper(kind),
+            reference,
+            initial_pose: reference.sample(0.0).pose,
+            encoder: EncoderParams::EXAMPLE,
+            motor: MotorParams::EXAMPLE,
+            motor_inverted: MIRRORED_LEFT,
+            safety: SafetyLimits::EXAMPLE,
+        }
+    }
+}

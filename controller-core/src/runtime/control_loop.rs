@@ -1,0 +1,320 @@
+//! The control loop and its safety supervisor: one [`ControlLoop::tick`] per
+//! control period, from raw encoder counts to motor duty.
+
+use super::config::RuntimeConfig;
+use super::encoder::{CountSample, WheelCounts};
+use super::error::RuntimeConfigError;
+use super::hardware::{MotorDriver, PoseSource, WheelEncoders};
+use super::motor::{DutyCommand, MotorModel};
+use super::odometry::Odometry;
+use super::state::{ArmError, RunState, Status, StopReason, TickReport};
+use super::Wheel;
+use crate::controller::{Controller, Diagnostics, StepInput};
+use crate::trajectory::Trajectory;
+use crate::types::Pose;
+
+/// The runtime: encoders, odometry, controller, motor model and supervisor.
+#[derive(Clone, Debug)]
+pub struct ControlLoop {
+    cfg: RuntimeConfig,
+    controller: Controller,
+    motor: MotorModel,
+    counts: WheelCounts,
+    odometry: Odometry,
+    status: Status,
+    stall_ticks: [u16; 2],
+    consecutive_input_faults: u16,
+    last_torque_nm: [f32; 2],
+}
+
+impl ControlLoop {
+    /// Validates `cfg` and builds a disarmed loop.
+    pub fn new(cfg: RuntimeConfig) -> Result<Self, RuntimeConfigError> {
+        let controller = Controller::new(cfg.controller)?;
+        cfg.reference.validate()?;
+        if !cfg.initial_pose.is_finite() {
+            return Err(RuntimeConfigError::NonFiniteInitialPose);
+        }
+        let motor = MotorModel::new(cfg.motor)?;
+        let counts = WheelCounts::new(cfg.encoder)?;
+        cfg.safety.validate()?;
+        let odometry = Odometry::new(cfg.controller.robot, cfg.initial_pose);
+        Ok(Self {
+            cfg,
+            controller,
+            motor,
+            counts,
+            odometry,
+            status: Status {
+                state: RunState::Disarmed,
+                ticks: 0,
+                run_ticks: 0,
+                overruns: 0,
+                consecutive_overruns: 0,
+                max_loop_time_us: 0,
+                encoder_jumps: 0,
+                input_faults: 0,
+                torque_saturated: 0,
+                duty_saturated: 0,
+                external_poses: 0,
+                stops: 0,
+            },
+            stall_ticks: [0; 2],
+            consecutive_input_faults: 0,
+            last_torque_nm: [0.0; 2],
+        })
+    }
+
+    /// The validated configuration.
+    pub fn config(&self) -> &RuntimeConfig {
+        &self.cfg
+    }
+
+    /// The motor model (its forward model is the simulator's actuator).
+    pub fn motor_model(&self) -> &MotorModel {
+        &self.motor
+    }
+
+    /// The controller (for its configuration and model).
+    pub fn controller(&self) -> &Controller {
+        &self.controller
+    }
+
+    /// Status counters.
+    pub fn status(&self) -> &Status {
+        &self.status
+    }
+
+    /// Current state.
+    pub fn state(&self) -> RunState {
+        self.status.state
+    }
+
+    /// Current wheel-odometry pose of G.
+    pub fn odometry(&self) -> Pose {
+        self.odometry.pose()
+    }
+
+    /// Re-anchors the odometry at `pose` (ignored when not finite).
+    pub fn set_odometry(&mut self, pose: Pose) {
+        self.odometry.set_pose(pose);
+    }
+
+    /// Starts the controller: from [`RunState::Disarmed`], resets the
+    /// controller's integrators and the reference time to 0. No-op when
+    /// already running; refused while a stop is latched.
+    pub fn arm(&mut self) -> Result<(), ArmError> {
+        match self.status.state {
+            RunState::Running => Ok(()),
+            RunState::Stopped(r) => Err(ArmError::Latched(r)),
+            RunState::Disarmed => {
+                self.controller.reset();
+                self.status.run_ticks = 0;
+                self.stall_ticks = [0; 2];
+                self.consecutive_input_faults = 0;
+                self.status.consecutive_overruns = 0;
+                self.last_torque_nm = [0.0; 2];
+                self.status.state = RunState::Running;
+                Ok(())
+            }
+        }
+    }
+
+    /// Stops driving and disables `motors` (not latched: [`Self::arm`] may
+    /// restart). A latched stop stays latched.
+    pub fn disarm(&mut self, motors: &mut impl MotorDriver) {
+        if self.status.state == RunState::Running {
+            self.status.state = RunState::Disarmed;
+        }
+        self.last_torque_nm = [0.0; 2];
+        motors.disable();
+    }
+
+    /// Latches [`StopReason::Commanded`] (unless a stop is already latched)
+    /// and disables `motors`.
+    pub fn stop(&mut self, motors: &mut impl MotorDriver) {
+        if !matches!(self.status.state, RunState::Stopped(_)) {
+            self.latch(StopReason::Commanded);
+        }
+        motors.disable();
+    }
+
+    /// Clears a latched stop (back to [`RunState::Disarmed`]; motors stay
+    /// disabled until [`Self::arm`]). Lifetime counters are kept.
+    pub fn reset(&mut self) {
+        if matches!(self.status.state, RunState::Stopped(_)) {
+            self.status.state = RunState::Disarmed;
+        }
+        self.stall_ticks = [0; 2];
+        self.consecutive_input_faults = 0;
+        self.status.consecutive_overruns = 0;
+    }
+
+    fn latch(&mut self, reason: StopReason) {
+        self.status.state = RunState::Stopped(reason);
+        self.status.stops = self.status.stops.saturating_add(1);
+        self.last_torque_nm = [0.0; 2];
+    }
+
+    fn running(&self) -> bool {
+        self.status.state == RunState::Running
+    }
+
+    /// One control period. `loop_time_us` is the measured time since the
+    /// previous tick started \[µs\] (0 when unknown, e.g. on the first tick).
+    ///
+    /// Never panics; on any safety violation while running it latches a
+    /// stop, disables `motors` and reports the reason in
+    /// [`TickReport::stopped`].
+    pub fn tick(
+        &mut self,
+        encoders: &mut impl WheelEncoders,
+        motors: &mut impl MotorDriver,
+        pose_source: &mut impl PoseSource,
+        loop_time_us: u32,
+    ) -> TickReport {
+        let safety = self.cfg.safety;
+        let dt = self.cfg.controller.period_s;
+        let st = &mut self.status;
+        st.ticks = st.ticks.wrapping_add(1);
+        let mut stop: Option<StopReason> = None;
+
+        // 1. Loop timing.
+        st.max_loop_time_us = st.max_loop_time_us.max(loop_time_us);
+        if loop_time_us > safety.overrun_limit_us {
+            st.overruns = st.overruns.saturating_add(1);
+            st.consecutive_overruns = st.consecutive_overruns.saturating_add(1);
+            if st.state == RunState::Running
+                && st.consecutive_overruns >= safety.max_consecutive_overruns
+            {
+                stop = Some(StopReason::LoopOverrun { loop_time_us });
+            }
+        } else {
+            st.consecutive_overruns = 0;
+        }
+
+        // 2. Encoders: plausibility, deltas, rates, η.
+        let raw = encoders.counts();
+        let delta = self.counts.peek_delta(raw);
+        let limit = safety.max_counts_per_tick as i32;
+        let jump = Wheel::BOTH
+            .into_iter()
+            .find(|w| delta[w.index()].abs() > limit);
+        let sample = match jump {
+            Some(wheel) => {
+                self.status.encoder_jumps = self.status.encoder_jumps.saturating_add(1);
+                self.counts.resync(raw);
+                if stop.is_none() && self.running() {
+                    stop = Some(StopReason::EncoderJump {
+                        wheel,
+                        delta: delta[wheel.index()],
+                    });
+                }
+                CountSample::default()
+            }
+            None => self.counts.update(raw, dt),
+        };
+        let robot = &self.cfg.controller.robot;
+        let eta = robot.eta_from_wheel_rates(sample.rate_radps);
+
+        // 3. Pose.
+        self.odometry.update(sample.dphi_rad);
+        let (pose, external_pose) = match pose_source.pose() {
+            Some(p) => {
+                self.status.external_poses = self.status.external_poses.saturating_add(1);
+                self.odometry.set_pose(p);
+                (p, true)
+            }
+            None => (self.odometry.pose(), false),
+        };
+
+        // 4. Reference and controller.
+        let t_s = self.status.run_ticks as f32 * dt;
+        let reference = self.cfg.reference.sample(t_s);
+        let mut diag = Diagnostics::default();
+        let mut torque = [0.0f32; 2];
+        let mut duty = [DutyCommand::ZERO; 2];
+        let mut enabled = false;
+        if self.running() && stop.is_none() {
+            let out = self.controller.step(&StepInput {
+                reference,
+                pose,
+                eta,
+            });
+            diag = out.diag;
+            if let Some(f) = diag.fault {
+                self.status.input_faults = self.status.input_faults.saturating_add(1);
+                self.consecutive_input_faults = self.consecutive_input_faults.saturating_add(1);
+                if self.consecutive_input_faults >= safety.max_consecutive_input_faults {
+                    stop = Some(StopReason::ControllerInput(f));
+                }
+            } else {
+                self.consecutive_input_faults = 0;
+            }
+            if diag.saturated {
+                self.status.torque_saturated = self.status.torque_saturated.saturating_add(1);
+            }
+            // Stall: the torque applied during the elapsed tick moved nothing.
+            for w in Wheel::BOTH {
+                let i = w.index();
+                let n = &mut self.stall_ticks[i];
+                if self.last_torque_nm[i].abs() >= safety.stall_torque_nm && sample.delta[i] == 0 {
+                    *n = n.saturating_add(1);
+                } else {
+                    *n = 0;
+                }
+                if *n >= safety.stall_ticks && stop.is_none() {
+                    stop = Some(StopReason::EncoderStalled { wheel: w });
+                }
+            }
+            if stop.is_none() {
+                // 5. Torque -> duty at each wheel's measured rate.
+                torque = out.torque_nm;
+                for i in 0..2 {
+                    let req = self.motor.duty_for_torque(torque[i], sample.rate_radps[i]);
+                    if req.saturated {
+                        self.status.duty_saturated = self.status.duty_saturated.saturating_add(1);
+                    }
+                    let mut cmd = req.command;
+                    if self.cfg.motor_inverted[i] && cmd.duty > 0 {
+                        cmd.reverse = !cmd.reverse;
+                    }
+                    duty[i] = cmd;
+                }
+                motors.set(duty);
+                enabled = true;
+                self.last_torque_nm = torque;
+                self.status.run_ticks = self.status.run_ticks.saturating_add(1);
+            }
+        }
+
+        // 6. Safe stop.
+        if let Some(r) = stop {
+            self.latch(r);
+        }
+        if !enabled {
+            self.last_torque_nm = [0.0; 2];
+            motors.disable();
+        }
+
+        TickReport {
+            state: self.status.state,
+            stopped: stop,
+            t_s,
+            pose,
+            odometry: self.odometry.pose(),
+            external_pose,
+            counts: sample,
+            eta,
+            reference,
+            torque_nm: torque,
+            duty,
+            motors_enabled: enabled,
+            diag,
+        }
+    }
+}
+
+#[cfg(test)]
+#[path = "control_loop_tests.rs"]
+mod tests;

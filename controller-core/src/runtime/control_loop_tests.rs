@@ -1,0 +1,372 @@
+//! Host tests of the control loop and its supervisor, with scripted encoders,
+//! a recording driver and a scripted pose source.
+
+use super::*;
+use crate::controller::ControllerKind;
+use crate::error::InputFault;
+use crate::runtime::{Encoder, RuntimeConfigError, WheelOdometryOnly};
+use crate::trajectory::{Line, Reference};
+
+#[derive(Clone, Copy, Default)]
+struct Enc(u16);
+impl Encoder for Enc {
+    fn count(&mut self) -> u16 {
+        self.0
+    }
+}
+
+#[derive(Default)]
+struct Driver {
+    enabled: bool,
+    duty: [DutyCommand; 2],
+    sets: u32,
+    disables: u32,
+}
+impl MotorDriver for Driver {
+    fn set(&mut self, cmd: [DutyCommand; 2]) {
+        self.enabled = true;
+        self.duty = cmd;
+        self.sets += 1;
+    }
+    fn disable(&mut self) {
+        self.enabled = false;
+        self.duty = [DutyCommand::ZERO; 2];
+        self.disables += 1;
+    }
+}
+
+struct Ext(Option<Pose>);
+impl PoseSource for Ext {
+    fn pose(&mut self) -> Option<Pose> {
+        self.0
+    }
+}
+
+/// A straight line from the origin along +x at `speed`.
+fn line_cfg(speed: f32) -> RuntimeConfig {
+    let start = Pose::new(0.0, 0.0, 0.0);
+    RuntimeConfig {
+        reference: Reference::Line(Line {
+            start,
+            speed_mps: speed,
+        }),
+        initial_pose: start,
+        ..RuntimeConfig::example(ControllerKind::Proposed)
+    }
+}
+
+struct Rig {
+    cl: ControlLoop,
+    enc: [Enc; 2],
+    drv: Driver,
+}
+
+impl Rig {
+    fn new(cfg: RuntimeConfig) -> Self {
+        Self {
+            cl: ControlLoop::new(cfg).unwrap(),
+            enc: [Enc(0); 2],
+            drv: Driver::default(),
+        }
+    }
+    fn tick(&mut self) -> TickReport {
+        self.cl
+            .tick(&mut self.enc, &mut self.drv, &mut WheelOdometryOnly, 1000)
+    }
+}
+
+#[test]
+fn motors_disabled_until_armed() {
+    let mut r = Rig::new(line_cfg(0.5));
+    assert_eq!(r.cl.state(), RunState::Disarmed);
+    for _ in 0..50 {
+        let rep = r.tick();
+        assert!(!rep.motors_enabled);
+        assert_eq!(rep.torque_nm, [0.0; 2]);
+    }
+    assert_eq!(r.drv.sets, 0);
+    assert_eq!(r.drv.disables, 50);
+    assert_eq!(r.cl.status().run_ticks, 0);
+    r.cl.arm().unwrap();
+    let rep = r.tick();
+    assert!(rep.motors_enabled && r.drv.enabled && r.drv.sets == 1);
+    assert_eq!(rep.state, RunState::Running);
+    // The reference lies ahead of the robot: it must push forward on both wheels.
+    assert!(rep.torque_nm[0] > 0.0 && rep.torque_nm[1] > 0.0, "{rep:?}");
+    // Left motor mirrored (motor_inverted = [false, true]): forward torque
+    // at rest drives the left direction output in reverse.
+    assert!(!r.drv.duty[0].reverse && r.drv.duty[1].reverse);
+    assert!(r.drv.duty[0].duty > 0);
+    // Disarm turns the outputs off and stops stepping.
+    r.cl.disarm(&mut r.drv);
+    assert!(!r.drv.enabled);
+    assert!(!r.tick().motors_enabled);
+}
+
+/// Reference time is ticks since arming × period.
+#[test]
+fn reference_time_counts_from_arming() {
+    let mut r = Rig::new(line_cfg(0.5));
+    for _ in 0..10 {
+        r.tick();
+    }
+    r.cl.arm().unwrap();
+    let mut last = r.tick();
+    assert_eq!(last.t_s, 0.0);
+    for _ in 0..99 {
+        last = r.tick();
+    }
+    assert!((last.t_s - 0.099).abs() < 1e-6);
+    assert!((last.reference.pose.x_m - 0.5 * 0.099).abs() < 1e-5);
+}
+
+fn assert_latched(r: &mut Rig, reason: StopReason) {
+    assert_eq!(r.cl.state(), RunState::Stopped(reason));
+    assert!(!r.drv.enabled);
+    let sets = r.drv.sets;
+    for _ in 0..20 {
+        let rep = r.tick();
+        assert!(!rep.motors_enabled && rep.torque_nm == [0.0; 2]);
+        assert_eq!(rep.state, RunState::Stopped(reason));
+    }
+    assert_eq!(r.drv.sets, sets, "driver written after the stop");
+    assert_eq!(r.cl.arm(), Err(ArmError::Latched(reason)));
+    r.cl.reset();
+    assert_eq!(r.cl.state(), RunState::Disarmed);
+    assert_eq!(r.cl.arm(), Ok(()));
+}
+
+#[test]
+fn nan_pose_latches_safe_stop() {
+    let mut r = Rig::new(line_cfg(0.5));
+    r.cl.arm().unwrap();
+    for _ in 0..5 {
+        r.tick();
+    }
+    let mut ext = Ext(Some(Pose::new(f32::NAN, 0.0, 0.0)));
+    let rep = r.cl.tick(&mut r.enc, &mut r.drv, &mut ext, 1000);
+    let reason = StopReason::ControllerInput(InputFault::NonFinitePose);
+    assert_eq!(rep.stopped, Some(reason));
+    assert!(!rep.motors_enabled);
+    assert_eq!(r.cl.status().input_faults, 1);
+    assert_eq!(r.cl.status().stops, 1);
+    // The NaN did not poison the odometry.
+    assert!(r.cl.odometry().is_finite());
+    assert_latched(&mut r, reason);
+}
+
+#[test]
+fn isolated_input_faults_tolerated_when_configured() {
+    let mut cfg = line_cfg(0.5);
+    cfg.safety.max_consecutive_input_faults = 3;
+    let mut r = Rig::new(cfg);
+    r.cl.arm().unwrap();
+    let mut bad = Ext(Some(Pose::new(0.0, f32::INFINITY, 0.0)));
+    let mut good = Ext(Some(Pose::new(0.0, 0.0, 0.0)));
+    for _ in 0..4 {
+        for _ in 0..2 {
+            let rep = r.cl.tick(&mut r.enc, &mut r.drv, &mut bad, 1000);
+            assert!(rep.stopped.is_none());
+            assert_eq!(rep.torque_nm, [0.0; 2]);
+        }
+        r.cl.tick(&mut r.enc, &mut r.drv, &mut good, 1000);
+    }
+    assert_eq!(r.cl.state(), RunState::Running);
+    assert_eq!(r.cl.status().input_faults, 8);
+    for k in 0..3 {
+        let rep = r.cl.tick(&mut r.enc, &mut r.drv, &mut bad, 1000);
+        assert_eq!(rep.stopped.is_some(), k == 2);
+    }
+    assert_latched(
+        &mut r,
+        StopReason::ControllerInput(InputFault::NonFinitePose),
+    );
+}
+
+#[test]
+fn encoder_jump_latches_but_wrap_does_not() {
+    let mut r = Rig::new(line_cfg(0.0));
+    r.enc = [Enc(65_500), Enc(30)];
+    r.cl.arm().unwrap();
+    r.tick();
+    // Right: 65500 -> 100 is +136 counts (wrap), left (mirrored): 30 -> 0 is +30.
+    r.enc = [Enc(100), Enc(0)];
+    let rep = r.tick();
+    assert_eq!(rep.counts.delta, [136, 30]);
+    assert!(rep.stopped.is_none());
+    // 401 counts in one tick on the left wheel: beyond the 400 limit.
+    r.enc[1].0 = r.enc[1].0.wrapping_sub(401);
+    let rep = r.tick();
+    let reason = StopReason::EncoderJump {
+        wheel: Wheel::Left,
+        delta: 401,
+    };
+    assert_eq!(rep.stopped, Some(reason));
+    assert_eq!(r.cl.status().encoder_jumps, 1);
+    assert_latched(&mut r, reason);
+}
+
+#[test]
+fn jump_while_disarmed_is_counted_not_latched_nor_integrated() {
+    let mut r = Rig::new(line_cfg(0.0));
+    r.tick();
+    r.enc[0].0 = 20_000;
+    let rep = r.tick();
+    assert!(rep.stopped.is_none());
+    assert_eq!(r.cl.state(), RunState::Disarmed);
+    assert_eq!(r.cl.status().encoder_jumps, 1);
+    assert_eq!(r.cl.odometry(), Pose::new(0.0, 0.0, 0.0));
+}
+
+/// Encoders frozen while the controller pushes hard: the stop latches
+/// exactly `stall_ticks` ticks after the first tick commanding at least
+/// the stall torque (each later tick sees that torque produce no count).
+#[test]
+fn stalled_encoder_latches() {
+    let mut cfg = line_cfg(1.0);
+    cfg.safety.stall_torque_nm = 0.5;
+    cfg.safety.stall_ticks = 40;
+    let mut r = Rig::new(cfg);
+    r.cl.arm().unwrap();
+    let mut first_high: Option<u32> = None;
+    let mut stopped_at = None;
+    for k in 0..2000u32 {
+        let rep = r.tick();
+        if let Some(reason) = rep.stopped {
+            assert_eq!(
+                reason,
+                StopReason::EncoderStalled {
+                    wheel: Wheel::Right
+                }
+            );
+            stopped_at = Some(k);
+            break;
+        }
+        if rep.torque_nm[0].abs() >= 0.5 {
+            first_high.get_or_insert(k);
+        } else {
+            assert!(first_high.is_none(), "torque dropped below the threshold");
+        }
+    }
+    let first = first_high.expect("controller never pushed");
+    assert_eq!(stopped_at, Some(first + 40));
+    assert_latched(
+        &mut r,
+        StopReason::EncoderStalled {
+            wheel: Wheel::Right,
+        },
+    );
+}
+
+/// The same push with wheels that turn (one count per tick) never stalls.
+#[test]
+fn moving_wheels_do_not_stall() {
+    let mut cfg = line_cfg(1.0);
+    cfg.safety.stall_torque_nm = 0.5;
+    cfg.safety.stall_ticks = 40;
+    let mut r = Rig::new(cfg);
+    r.cl.arm().unwrap();
+    for _ in 0..500 {
+        r.enc[0].0 = r.enc[0].0.wrapping_add(1);
+        r.enc[1].0 = r.enc[1].0.wrapping_sub(1);
+        let rep = r.tick();
+        assert!(rep.stopped.is_none());
+    }
+    assert_eq!(r.cl.state(), RunState::Running);
+}
+
+#[test]
+fn overruns_counted_and_latched_when_consecutive() {
+    let mut r = Rig::new(line_cfg(0.0));
+    r.cl.arm().unwrap();
+    let t = |r: &mut Rig, us| {
+        r.cl.tick(&mut r.enc, &mut r.drv, &mut WheelOdometryOnly, us)
+    };
+    // 4 overruns (limit 1500 µs, 5 in a row latch), then a normal tick.
+    for _ in 0..4 {
+        assert!(t(&mut r, 1501).stopped.is_none());
+    }
+    assert!(t(&mut r, 1500).stopped.is_none());
+    assert_eq!(r.cl.status().overruns, 4);
+    assert_eq!(r.cl.status().consecutive_overruns, 0);
+    for k in 0..5 {
+        let rep = t(&mut r, 3000);
+        assert_eq!(rep.stopped.is_some(), k == 4);
+    }
+    assert_eq!(r.cl.status().overruns, 9);
+    assert_eq!(r.cl.status().max_loop_time_us, 3000);
+    assert_latched(&mut r, StopReason::LoopOverrun { loop_time_us: 3000 });
+}
+
+#[test]
+fn commanded_stop_latches() {
+    let mut r = Rig::new(line_cfg(0.5));
+    r.cl.arm().unwrap();
+    r.tick();
+    assert!(r.drv.enabled);
+    r.cl.stop(&mut r.drv);
+    assert!(!r.drv.enabled);
+    assert_latched(&mut r, StopReason::Commanded);
+}
+
+/// Both encoders advance n counts per tick (left counter mirrored):
+/// v = r·2π·n/(cpr·dt), ω = 0, and G advances by v·t along the heading.
+#[test]
+fn encoder_ticks_give_analytic_speed_and_odometry() {
+    let mut r = Rig::new(line_cfg(0.0));
+    let n = 10u16;
+    let ticks = 1000;
+    let mut rep = r.tick();
+    for _ in 0..ticks {
+        r.enc[0].0 = r.enc[0].0.wrapping_add(n);
+        r.enc[1].0 = r.enc[1].0.wrapping_sub(n);
+        rep = r.tick();
+    }
+    let v = 0.1 * 2.0 * core::f32::consts::PI * n as f32 / (24_000.0 * 1e-3);
+    assert!((rep.eta.v_mps - v).abs() < 1e-4 * v, "{:?}", rep.eta);
+    assert!(rep.eta.omega_radps.abs() < 1e-6);
+    let p = r.cl.odometry();
+    assert!((p.x_m - v * ticks as f32 * 1e-3).abs() < 1e-4, "{p:?}");
+    assert!(p.y_m.abs() < 1e-6 && p.theta_rad.abs() < 1e-6);
+}
+
+#[test]
+fn external_pose_used_and_reanchors_odometry() {
+    let mut r = Rig::new(line_cfg(0.5));
+    r.cl.arm().unwrap();
+    let p = Pose::new(0.3, -0.2, 0.1);
+    let rep = r.cl.tick(&mut r.enc, &mut r.drv, &mut Ext(Some(p)), 1000);
+    assert!(rep.external_pose);
+    assert_eq!(rep.pose, p);
+    let o = r.cl.odometry();
+    assert!((o.x_m - p.x_m).abs() < 1e-6 && (o.y_m - p.y_m).abs() < 1e-6);
+    assert_eq!(r.cl.status().external_poses, 1);
+}
+
+#[test]
+fn invalid_config_rejected() {
+    let mut cfg = line_cfg(0.5);
+    cfg.safety.stall_ticks = 0;
+    assert_eq!(
+        ControlLoop::new(cfg).err(),
+        Some(RuntimeConfigError::InvalidSafetyLimit)
+    );
+    let mut cfg = line_cfg(0.5);
+    cfg.initial_pose.x_m = f32::NAN;
+    assert_eq!(
+        ControlLoop::new(cfg).err(),
+        Some(RuntimeConfigError::NonFiniteInitialPose)
+    );
+    let mut cfg = line_cfg(0.5);
+    cfg.controller.period_s = 0.0;
+    assert_eq!(
+        ControlLoop::new(cfg).err(),
+        Some(RuntimeConfigError::Core(crate::ConfigError::InvalidPeriod))
+    );
+    let mut cfg = line_cfg(0.5);
+    cfg.motor.gear_efficiency = 0.0;
+    assert_eq!(
+        ControlLoop::new(cfg).err(),
+        Some(RuntimeConfigError::InvalidGearEfficiency)
+    );
+}

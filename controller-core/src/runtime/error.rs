@@ -1,0 +1,60 @@
+//! Configuration errors of the runtime.
+
+use crate::error::ConfigError;
+
+/// A runtime parameter rejected at construction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum RuntimeConfigError {
+    /// The controller configuration or the reference trajectory is invalid.
+    Core(ConfigError),
+    /// Encoder counts per wheel revolution must be finite and > 0.
+    NonPositiveEncoderResolution,
+    /// Speed window must be in `1..=MAX_SPEED_WINDOW` ticks.
+    InvalidSpeedWindow,
+    /// Motor torque constant must be finite and > 0.
+    NonPositiveTorqueConstant,
+    /// Winding resistance must be finite and > 0.
+    NonPositiveResistance,
+    /// Gear ratio must be finite and > 0.
+    NonPositiveGearRatio,
+    /// Gear efficiency must be in (0, 1].
+    InvalidGearEfficiency,
+    /// Supply voltage must be finite and > 0.
+    NonPositiveSupplyVoltage,
+    /// Max duty fraction must be in (0, 1].
+    InvalidMaxDuty,
+    /// Duty full scale must be > 0 counts.
+    ZeroDutyResolution,
+    /// A safety limit is zero, non-finite or out of range.
+    InvalidSafetyLimit,
+    /// The initial pose is not finite.
+    NonFiniteInitialPose,
+}
+
+impl From<ConfigError> for RuntimeConfigError {
+    fn from(e: ConfigError) -> Self {
+        Self::Core(e)
+    }
+}
+
+impl core::fmt::Display for RuntimeConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let s = match self {
+            Self::Core(e) => return write!(f, "controller: {e}"),
+            Self::NonPositiveEncoderResolution => "encoder counts per wheel rev must be > 0",
+            Self::InvalidSpeedWindow => "speed window must be 1..=32 ticks",
+            Self::NonPositiveTorqueConstant => "motor torque constant must be > 0",
+            Self::NonPositiveResistance => "winding resistance must be > 0",
+            Self::NonPositiveGearRatio => "gear ratio must be > 0",
+            Self::InvalidGearEfficiency => "gear efficiency must be in (0, 1]",
+            Self::NonPositiveSupplyVoltage => "supply voltage must be > 0",
+            Self::InvalidMaxDuty => "max duty fraction must be in (0, 1]",
+            Self::ZeroDutyResolution => "duty full scale must be > 0",
+            Self::InvalidSafetyLimit => "invalid safety limit",
+            Self::NonFiniteInitialPose => "initial pose must be finite",
+        };
+        f.write_str(s)
+    }
+}

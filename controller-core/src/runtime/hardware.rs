@@ -1,0 +1,65 @@
+//! The hardware the runtime drives, as traits: a board (or a simulator)
+//! implements them with its registers (or models).
+
+use super::motor::DutyCommand;
+use crate::types::Pose;
+
+/// One quadrature encoder: the raw free-running 16-bit hardware count
+/// (e.g. a timer in encoder mode, or a simulated counter).
+pub trait Encoder {
+    /// Current raw count (wraps at 2¹⁶).
+    fn count(&mut self) -> u16;
+}
+
+/// Both wheel encoders, read together once per tick.
+///
+/// Implemented for a `(right, left)` tuple and a `[right, left]` array of
+/// [`Encoder`]s.
+pub trait WheelEncoders {
+    /// Raw counts `[right, left]`.
+    fn counts(&mut self) -> [u16; 2];
+}
+
+impl<R: Encoder, L: Encoder> WheelEncoders for (R, L) {
+    fn counts(&mut self) -> [u16; 2] {
+        [self.0.count(), self.1.count()]
+    }
+}
+
+impl<E: Encoder> WheelEncoders for [E; 2] {
+    fn counts(&mut self) -> [u16; 2] {
+        let [r, l] = self;
+        [r.count(), l.count()]
+    }
+}
+
+/// The motor driver (H-bridge) of both wheels. Implementations must start
+/// disabled (outputs off) and stay disabled until the first [`Self::set`].
+pub trait MotorDriver {
+    /// Enables the bridge (if disabled) and applies `[right, left]` duty and
+    /// direction. Duty is in counts of [`MotorParams::duty_full_scale`](super::MotorParams::duty_full_scale).
+    fn set(&mut self, cmd: [DutyCommand; 2]);
+    /// Zero duty and bridge disabled (motors coast). Called on every tick
+    /// while not running, so it must be idempotent and cheap.
+    fn disable(&mut self);
+}
+
+/// An optional external measurement of the pose of G (motion capture, a
+/// camera, a lidar localiser...). Wheel odometry cannot see wheel slip or an
+/// actuator fault that changes the body's motion, so the fault observer
+/// only works with such a measurement.
+pub trait PoseSource {
+    /// A new measurement taken since the last call, or `None` (then the
+    /// runtime uses wheel odometry).
+    fn pose(&mut self) -> Option<Pose>;
+}
+
+/// The default [`PoseSource`]: never has a measurement (wheel odometry only).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct WheelOdometryOnly;
+
+impl PoseSource for WheelOdometryOnly {
+    fn pose(&mut self) -> Option<Pose> {
+        None
+    }
+}

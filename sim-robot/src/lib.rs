@@ -1,0 +1,28 @@
+//! # sim-robot
+//!
+//! The one simulated differential-drive robot of the project, `no_std`
+//! (f64 through `libm`; the `std` feature uses the platform's faster
+//! trigonometry): the paper's plant ([`Plant`]: kinematics (3) with slip and
+//! skid, reduced dynamics (6), the actuator fault (10)), the section-4
+//! perturbations ([`PerturbationProfile`]), and the simulated hardware in raw
+//! units ([`SimEncoders`], [`SimDriver`], [`MotorDrive`]).
+//!
+//! The host simulator (`hil-sim`), the closed-loop tests, the Cortex-M4F
+//! benchmark and an emulated board drive this same plant. Only sensors and
+//! actuators are simulated here; no controller code lives in this crate.
+#![cfg_attr(not(test), no_std)]
+#![deny(missing_docs)]
+#![forbid(unsafe_code)]
+#![cfg_attr(test, allow(clippy::needless_range_loop))]
+
+#[cfg(feature = "std")]
+extern crate std;
+
+pub mod hardware;
+pub mod math;
+pub mod perturbation;
+pub mod plant;
+
+pub use hardware::{MotorDrive, SimDriver, SimEncoders};
+pub use perturbation::PerturbationProfile;
+pub use plant::{Drive, Perturbation, Plant, PlantParams, PlantState};
