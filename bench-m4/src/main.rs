@@ -3,6 +3,10 @@
 //! the reference sampling and the math routines. Prints a Markdown table
 //! over semihosting and exits 0 (1 on a failed sanity check or a panic).
 //!
+//! The stages are the public `ControlLaw` functions that `Controller::step`
+//! is made of, called here one at a time on a second state and checked bit
+//! for bit against `Controller::step` at every step (see [`staged_step`]).
+//!
 //! Run: `cargo run --release` (QEMU mps2-an386, see .cargo/config.toml).
 #![no_std]
 #![no_main]
@@ -14,15 +18,13 @@ mod timer;
 use core::hint::black_box;
 use core::panic::PanicInfo;
 
-use controller_core::asmc::SlidingState;
-use controller_core::eso::EsoState;
-use controller_core::fault_observer::FaultObserverState;
+use controller_core::controller::{saturate, ControlLaw, ControllerState};
 use controller_core::math;
 use controller_core::model::ReducedModel;
-use controller_core::tracking::{error_rate, tracking_error};
 use controller_core::trajectory::{PaperCurve, PaperHeading, Trajectory};
 use controller_core::{
-    Controller, ControllerConfig, ControllerKind, Pose, RefSample, StepInput, StepOutput, Vel2,
+    Controller, ControllerConfig, ControllerKind, Diagnostics, Pose, RefSample, StepInput,
+    StepOutput, Vel2,
 };
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
@@ -78,6 +80,10 @@ impl Scale {
     }
 }
 
+// TEMPORARY, bench-local plant (issue 13, "One plant"): to be replaced by
+// the project's one shared simulation plant once that is usable from no_std.
+// Not the simulator's plant: f32, Euler, no wheel slip; it only closes the
+// loop so that the controller sees realistic inputs.
 /// Simulated robot (semi-implicit Euler at the control period): reduced
 /// dynamics (eq. 7) with a wheel-torque disturbance, and the kinematics of
 /// the tracked point G with a multiplicative actuator fault: the body moves
@@ -131,111 +137,73 @@ impl Plant {
     }
 }
 
-/// The proposed step split into the stages of `Controller::step`, with the
-/// same public building blocks, so each stage can be timed.
-struct Staged {
-    cfg: ControllerConfig,
-    model: ReducedModel,
-    /// ζ^(α−1), precomputed as `Controller::new` does.
-    fal_slope: f32,
-    fo: FaultObserverState,
-    eso: EsoState,
-    sl: SlidingState,
-}
-
+/// Per-stage counts of the proposed controller's step.
 #[derive(Default)]
 struct StageStats {
-    observer: Stat,
+    check_input: Stat,
     kinematic: Stat,
-    asmc: Stat,
-    eso: Stat,
+    dynamic: Stat,
+    saturate: Stat,
+    advance: Stat,
+    output: Stat,
 }
 
-impl Staged {
-    fn new(cfg: ControllerConfig) -> Self {
-        let rho = cfg.sliding.rho_initial();
-        Self {
-            model: ReducedModel::new(&cfg.robot).unwrap_or_else(|_| fail("model")),
-            fal_slope: cfg.eso.fal_slope(),
-            cfg,
-            fo: FaultObserverState::default(),
-            eso: EsoState::default(),
-            sl: SlidingState {
-                integral: [0.0; 2],
-                rho_hat: [rho; 2],
-            },
-        }
-    }
+/// What [`staged_step`] computed, to compare bit for bit with `Controller::step`.
+struct StagedOutput {
+    torque_nm: [f32; 2],
+    diag: Diagnostics,
+    state_is_finite: bool,
+}
 
-    #[inline(never)]
-    fn step<C: Counter>(&mut self, c: &C, st: &mut StageStats, input: &StepInput) -> [f32; 2] {
-        let cfg = &self.cfg;
-        let dt = cfg.period_s;
-        let r = input.reference;
-        let eta = input.eta.as_array();
-        // Tracking error (8) + fault observer (13).
-        let (e, f_hat) = time(c, &mut st.observer, || {
-            let inp = black_box(input);
-            let e = tracking_error(&inp.pose, &inp.reference.pose);
-            let f = cfg.fault_observer.update(
-                &mut self.fo,
-                &e,
-                inp.eta.as_array(),
-                inp.reference.v_mps,
-                inp.reference.omega_radps,
-                dt,
-            );
-            (e, f)
-        });
-        // Kinematic law (14), ė (11), η̇_c.
-        let (eta_c, eta_c_dot) = time(c, &mut st.kinematic, || {
-            let (e, f_hat, r, eta) = black_box((e, f_hat, r, eta));
-            let kin = &cfg.kinematic;
-            let eta_c = kin.eta_c(&e, r.v_mps, r.omega_radps, f_hat);
-            let e_dot = error_rate(
-                &e,
-                eta,
-                f_hat,
-                r.v_mps,
-                r.omega_radps,
-                cfg.robot.com_offset_m,
-            );
-            let eta_c_dot =
-                kin.eta_c_dot(&e, e_dot, r.v_mps, r.v_dot_mps2, r.omega_dot_radps2, f_hat);
-            (eta_c, eta_c_dot)
-        });
-        // Sliding surface (20), torque law (24), N⁻¹, saturation, adaptation.
-        let (m_eta, torque) = time(c, &mut st.asmc, || {
-            let (eta_c, eta_c_dot, eta) = black_box((eta_c, eta_c_dot, eta));
-            let sl = &cfg.sliding;
-            let e_eta = [eta_c[0] - eta[0], eta_c[1] - eta[1]];
-            let s = sl.surface(&self.sl, e_eta);
-            let m_eta = self.model.m_eta(eta);
-            let accel = sl.accel_request(&self.sl, eta_c_dot, m_eta, self.eso.x3, e_eta, s);
-            let request = self.model.n_inv_mul(accel);
-            let limit = cfg.torque_limit_nm;
-            let peak = request[0].abs().max(request[1].abs());
-            let saturated = !(peak <= limit);
-            let torque = if saturated && peak.is_finite() {
-                let k = limit / peak;
-                [request[0] * k, request[1] * k]
-            } else if saturated {
-                [0.0; 2]
-            } else {
-                request
-            };
-            sl.advance(&mut self.sl, e_eta, s, saturated, dt);
-            (m_eta, torque)
-        });
-        // fal-ESO (18)-(19) with the applied torque.
-        time(c, &mut st.eso, || {
-            let (m_eta, torque, eta) = black_box((m_eta, torque, eta));
-            let n_tau = self.model.n_tau(torque);
-            let known = [m_eta[0] + n_tau[0], m_eta[1] + n_tau[1]];
-            cfg.eso
-                .update_with_slope(&mut self.eso, eta, known, dt, self.fal_slope);
-        });
-        torque
+/// One control period made of the public [`ControlLaw`] stages, in the order
+/// `Controller::step` calls them, each timed on its own (inputs black-boxed
+/// inside the timed region, outputs black-boxed by `time`). This is the code
+/// the step runs, not a copy of it: `run_controller` fails unless the torque,
+/// the diagnostics and the state equal `Controller::step`'s bit for bit.
+#[inline(never)]
+fn staged_step<C: Counter>(
+    c: &C,
+    st: &mut StageStats,
+    law: &ControlLaw,
+    state: &mut ControllerState,
+    input: &StepInput,
+) -> StagedOutput {
+    let checked = time(c, &mut st.check_input, || law.check_input(black_box(input)));
+    if checked.is_err() {
+        fail("staged: input rejected");
+    }
+    let kin = time(c, &mut st.kinematic, || {
+        law.kinematic(black_box(&mut state.fault_observer), black_box(input))
+    });
+    let dynamic = time(c, &mut st.dynamic, || {
+        law.dynamic(black_box(&*state), black_box(input.eta), black_box(&kin))
+    });
+    let limit_nm = law.config().torque_limit_nm;
+    let applied = time(c, &mut st.saturate, || {
+        saturate(black_box(dynamic.torque_request_nm), black_box(limit_nm))
+    });
+    time(c, &mut st.advance, || {
+        law.advance(
+            black_box(&mut *state),
+            black_box(input.eta),
+            black_box(&dynamic),
+            black_box(&applied),
+        )
+    });
+    let (diag, state_is_finite) = time(c, &mut st.output, || {
+        let state = black_box(&*state);
+        let diag = law.diagnostics(
+            state,
+            black_box(&kin),
+            black_box(&dynamic),
+            black_box(&applied),
+        );
+        (diag, state.is_finite())
+    });
+    StagedOutput {
+        torque_nm: applied.torque_nm,
+        diag,
+        state_is_finite,
     }
 }
 
@@ -259,7 +227,9 @@ struct RunResult {
 fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
     let cfg = ControllerConfig::paper(kind);
     let mut ctrl = Controller::new(cfg).unwrap_or_else(|_| fail("config"));
-    let mut staged = Staged::new(cfg);
+    // The stages run on their own copy of the parameters and state.
+    let law = ctrl.law().clone();
+    let mut staged_state = law.initial_state();
     let traj = PaperCurve::paper(PaperHeading::SignedSmooth);
     let mut plant = Plant::new(*ctrl.model());
     let mut res = RunResult {
@@ -279,12 +249,15 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
             fail("controller rejected a step");
         }
         if kind == ControllerKind::Proposed {
-            // The staged replica must produce the controller's torque.
-            let tq = staged.step(c, &mut res.stages, &input);
-            for (a, b) in tq.iter().zip(out.torque_nm) {
-                if (a - b).abs() > 1e-4 * (1.0 + b.abs()) {
-                    fail("staged replica diverged from Controller::step");
-                }
+            // The stages, run one by one, must give exactly what the step gave.
+            let so = staged_step(c, &mut res.stages, &law, &mut staged_state, &input);
+            let bits = |a: [f32; 2]| a.map(f32::to_bits);
+            if bits(so.torque_nm) != bits(out.torque_nm)
+                || so.diag != out.diag
+                || !so.state_is_finite
+                || staged_state != *ctrl.state()
+            {
+                fail("the stages run one by one differ from Controller::step");
             }
         }
         let e = out.diag.error;
@@ -531,20 +504,31 @@ fn main() -> ! {
             ControllerKind::Asmc => row("ASMC step", &r.step),
             ControllerKind::Proposed => {
                 row("**Proposed step**", &r.step);
-                row(
-                    "  stage: tracking error + fault observer",
-                    &r.stages.observer,
-                );
-                row("  stage: kinematic law (η_c, ė, η̇_c)", &r.stages.kinematic);
-                row(
-                    "  stage: ASMC (s, torque law, N⁻¹, saturation, ρ̂)",
-                    &r.stages.asmc,
-                );
-                row("  stage: fal-ESO", &r.stages.eso);
-                let sum = scale.mean(&r.stages.observer)
-                    + scale.mean(&r.stages.kinematic)
-                    + scale.mean(&r.stages.asmc)
-                    + scale.mean(&r.stages.eso);
+                let stages = [
+                    ("  stage 1: `check_input`", &r.stages.check_input),
+                    (
+                        "  stage 2: `kinematic` (e, F̂, η_c, η̇_c: eqs. 8, 13, 14)",
+                        &r.stages.kinematic,
+                    ),
+                    (
+                        "  stage 3: `dynamic` (s, τ request: eqs. 20, 24)",
+                        &r.stages.dynamic,
+                    ),
+                    ("  stage 4: `saturate` (D14)", &r.stages.saturate),
+                    (
+                        "  stage 5: `advance` (∫e_η, ρ̂, fal-ESO: eqs. 18-19)",
+                        &r.stages.advance,
+                    ),
+                    (
+                        "  stage 6: `diagnostics` + `ControllerState::is_finite`",
+                        &r.stages.output,
+                    ),
+                ];
+                let mut sum = 0.0;
+                for (name, s) in stages {
+                    row(name, s);
+                    sum += scale.mean(s);
+                }
                 hprintln!("|  stages sum | | {:.0} | |", sum);
                 proposed_mean = scale.mean(&r.step);
                 proposed_max = scale.max(&r.step);

@@ -162,7 +162,10 @@ impl SlidingParams {
         for i in 0..2 {
             st.integral[i] += e_eta[i] * dt_s;
             if let Switching::Adaptive(a) = self.switching {
-                let drive = (s[i].abs() - a.dead_zone).max(0.0);
+                // max(|s| − δ, 0) without `f32::max`, which is a call to
+                // fmaxf on the M4F (no VMAXNM); a NaN gives 0 as with `max`.
+                let excess = s[i].abs() - a.dead_zone;
+                let drive = if excess > 0.0 { excess } else { 0.0 };
                 let r =
                     st.rho_hat[i] + (a.gamma * drive - a.leakage * (st.rho_hat[i] - a.rho0)) * dt_s;
                 // Not f32::clamp: its panic message links float formatting (~14 KiB).

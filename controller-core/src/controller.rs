@@ -6,11 +6,16 @@
 //! | [`ControllerKind::Asmc`] | eq. (14), F̂ = 0 | eq. (24) with adaptive ρ̂, no ESO |
 //! | [`ControllerKind::Proposed`] | eq. (14) + fault observer (13) | eq. (24), adaptive ρ̂, fal-ESO (18) |
 //!
-//! One [`Controller::step`] per control period. Inputs are validated first:
-//! a NaN, infinite or implausible measurement or reference yields zero torque
-//! and [`Diagnostics::fault`]; the controller's state is left untouched, so it
-//! recovers on the next valid sample (the firmware's supervisor decides when
-//! to latch a safe stop).
+//! One [`Controller::step`] per control period. The step is the sequence of
+//! public stages of [`ControlLaw`] (input check, kinematic loop, dynamic loop,
+//! [`saturate`], state advance, diagnostics), each taking the parameters as
+//! `&self` and the [`ControllerState`] it reads or advances as an argument, so
+//! a benchmark or a test can run and time the very code the step runs.
+//!
+//! Inputs are validated first: a NaN, infinite or implausible measurement or
+//! reference yields zero torque and [`Diagnostics::fault`]; the controller's
+//! state is left untouched, so it recovers on the next valid sample (the
+//! firmware's supervisor decides when to latch a safe stop).
 
 use crate::asmc::{AdaptiveGain, SlidingParams, SlidingState, Switching};
 use crate::error::{ConfigError, InputFault};
@@ -20,7 +25,7 @@ use crate::kinematic::KinematicGains;
 use crate::math::clamp_abs;
 use crate::model::ReducedModel;
 use crate::params::RobotParams;
-use crate::tracking::{error_rate, tracking_error};
+use crate::tracking::{error_rate, tracking_error, TrackingError};
 use crate::trajectory::RefSample;
 use crate::types::{Pose, Vel2};
 
@@ -201,39 +206,150 @@ pub struct StepOutput {
     pub diag: Diagnostics,
 }
 
-/// Internal state of all loops.
+/// State of all loops: what [`Controller::reset`] clears and the
+/// [`ControlLaw`] stages advance. The parameters live apart, in [`ControlLaw`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct State {
-    fault_obs: FaultObserverState,
-    eso: EsoState,
-    sliding: SlidingState,
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ControllerState {
+    /// Fault observer, eq. (13) (advanced by `Proposed` only).
+    pub fault_observer: FaultObserverState,
+    /// fal-ESO, eq. (18) (advanced by `Proposed` only).
+    pub eso: EsoState,
+    /// ∫e_η and ρ̂ of the sliding loop, eqs. (20)-(24).
+    pub sliding: SlidingState,
 }
 
-/// One of the paper's controllers with its state.
+impl ControllerState {
+    /// True when every integrator and estimate is finite.
+    #[inline]
+    pub fn is_finite(&self) -> bool {
+        self.fault_observer.f_hat.iter().all(|x| x.is_finite())
+            && self
+                .eso
+                .e1
+                .iter()
+                .chain(&self.eso.x2)
+                .chain(&self.eso.x3)
+                .all(|x| x.is_finite())
+            && self
+                .sliding
+                .integral
+                .iter()
+                .chain(&self.sliding.rho_hat)
+                .all(|x| x.is_finite())
+    }
+}
+
+/// What the kinematic stage ([`ControlLaw::kinematic`]) hands to the dynamic one.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct KinematicOutput {
+    /// Tracking error (eq. 8) with its sin e_θ and cos e_θ.
+    pub error: TrackingError,
+    /// Fault estimate F̂ = \[Δv̂, Δω̂\] (eq. 13; zero without fault observer).
+    pub f_hat: [f32; 2],
+    /// η_c = \[v_c, ω_c\] (eq. 14).
+    pub eta_c: [f32; 2],
+    /// dη_c/dt (eq. 14 differentiated through eq. 11).
+    pub eta_c_dot: [f32; 2],
+}
+
+/// What the dynamic stage ([`ControlLaw::dynamic`]) computes: the torque
+/// request and the quantities the state advance needs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DynamicOutput {
+    /// Velocity error e_η = η_c − η \[m/s, rad/s\].
+    pub e_eta: [f32; 2],
+    /// Sliding variable s (eq. 20).
+    pub s: [f32; 2],
+    /// Disturbance estimate D̂ = x̂3 the law used (zero without ESO).
+    pub d_hat: [f32; 2],
+    /// Mη at the measured η (eq. 7).
+    pub m_eta: [f32; 2],
+    /// Torque of eq. (24) before saturation \[N·m\], `[right, left]`.
+    pub torque_request_nm: [f32; 2],
+}
+
+/// Result of [`saturate`]: the torque to apply and whether it was limited.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SaturatedTorque {
+    /// Wheel torques `[right, left]` \[N·m\], within the limit (zero for a
+    /// non-finite request).
+    pub torque_nm: [f32; 2],
+    /// True when the request exceeded the limit or was not finite.
+    pub saturated: bool,
+}
+
+/// Per-wheel torque limit that scales both wheels by the same factor, so the
+/// ratio of v to ω (the steering) is kept (D14). `limit_nm` must be positive.
+///
+/// An infinite or all-NaN request gives zero torque and counts as saturated.
+/// `f32::max` ignores a NaN, so a request with one NaN wheel whose other
+/// wheel is within the limit passes through unchanged: [`Controller::step`]
+/// catches that afterwards (non-finite torque: zero output and a reset,
+/// [`InputFault::InternalStateReset`]).
+#[inline]
+pub fn saturate(request_nm: [f32; 2], limit_nm: f32) -> SaturatedTorque {
+    // f32::max without the libcall (the M4F has no VMAXNM: `max` calls
+    // fmaxf, ~20 instructions); the same value, a NaN ignored as by `max`.
+    let (a, b) = (request_nm[0].abs(), request_nm[1].abs());
+    let peak = if b > a || a.is_nan() { b } else { a };
+    // NaN peak counts as saturated (handled below).
+    let saturated = peak.is_nan() || peak > limit_nm;
+    let torque_nm = if saturated && peak.is_finite() {
+        // limit/peak·request can exceed the limit by an ulp: clamp as well.
+        let k = limit_nm / peak;
+        [
+            clamp_abs(request_nm[0] * k, limit_nm),
+            clamp_abs(request_nm[1] * k, limit_nm),
+        ]
+    } else if saturated {
+        [0.0; 2]
+    } else {
+        request_nm
+    };
+    SaturatedTorque {
+        torque_nm,
+        saturated,
+    }
+}
+
+/// The validated parameters of one controller, and the stages that
+/// [`Controller::step`] runs in this order (each parameter-only `&self`, with
+/// the state passed in):
+///
+/// 1. [`Self::check_input`]: plausibility of the measurement and reference;
+/// 2. [`Self::kinematic`]: tracking error (eq. 8), fault observer (eq. 13),
+///    η_c and η̇_c (eq. 14);
+/// 3. [`Self::dynamic`]: sliding surface and torque request (eqs. 20, 24);
+/// 4. [`saturate`] with [`ControllerConfig::torque_limit_nm`] (D14);
+/// 5. [`Self::advance`]: ∫e_η and ρ̂ with anti-windup, fal-ESO (eqs. 18-19),
+///    given the torque actually applied;
+/// 6. [`Self::diagnostics`] and [`ControllerState::is_finite`].
+///
+/// Calling them yourself on a [`ControllerState`] from
+/// [`Self::initial_state`] gives bit for bit what [`Controller::step`]
+/// gives (the Cortex-M4F benchmark times them this way).
 #[derive(Clone, Debug)]
-pub struct Controller {
+pub struct ControlLaw {
     cfg: ControllerConfig,
     model: ReducedModel,
     /// ζ^(α−1) of the ESO's fal, computed once.
     fal_slope: f32,
-    state: State,
-    rejected_steps: u32,
 }
 
-impl Controller {
-    /// Builds a controller; rejects invalid configurations.
+impl ControlLaw {
+    /// Validates `cfg` and derives the model and constants.
     pub fn new(cfg: ControllerConfig) -> Result<Self, ConfigError> {
         let cfg = cfg.validate()?;
         let model = ReducedModel::new(&cfg.robot)?;
-        let mut c = Self {
+        Ok(Self {
             cfg,
             model,
             fal_slope: cfg.eso.fal_slope(),
-            state: State::default(),
-            rejected_steps: 0,
-        };
-        c.reset();
-        Ok(c)
+        })
     }
 
     /// The validated configuration.
@@ -246,25 +362,22 @@ impl Controller {
         &self.model
     }
 
-    /// Number of steps rejected for bad input since construction or reset.
-    pub fn rejected_steps(&self) -> u32 {
-        self.rejected_steps
-    }
-
-    /// Clears every integrator and estimate.
-    pub fn reset(&mut self) {
+    /// The state at start and after a reset: integrators and estimates zero,
+    /// ρ̂ at its initial value (or K for the SMC).
+    pub fn initial_state(&self) -> ControllerState {
         let rho = self.cfg.sliding.rho_initial();
-        self.state = State {
+        ControllerState {
             sliding: SlidingState {
                 integral: [0.0; 2],
                 rho_hat: [rho; 2],
             },
-            ..State::default()
-        };
-        self.rejected_steps = 0;
+            ..ControllerState::default()
+        }
     }
 
-    fn check_input(&self, input: &StepInput) -> Result<(), InputFault> {
+    /// Stage 1: rejects non-finite or implausible input.
+    #[inline]
+    pub fn check_input(&self, input: &StepInput) -> Result<(), InputFault> {
         let l = &self.cfg.input_limits;
         if !input.pose.is_finite() {
             return Err(InputFault::NonFinitePose);
@@ -287,44 +400,24 @@ impl Controller {
         Ok(())
     }
 
-    fn safe_output(&mut self, fault: InputFault) -> StepOutput {
-        self.rejected_steps = self.rejected_steps.saturating_add(1);
-        StepOutput {
-            torque_nm: [0.0; 2],
-            diag: Diagnostics {
-                fault: Some(fault),
-                rho_hat: self.state.sliding.rho_hat,
-                d_hat: self.state.eso.x3,
-                f_hat: self.state.fault_obs.f_hat,
-                ..Diagnostics::default()
-            },
-        }
-    }
-
-    /// One control period: measured pose and η in, wheel torques out.
-    pub fn step(&mut self, input: &StepInput) -> StepOutput {
-        if let Err(f) = self.check_input(input) {
-            return self.safe_output(f);
-        }
+    /// Stage 2, the kinematic loop: tracking error (eq. 8), the fault
+    /// observer (eq. 13, `Proposed` only: it advances `observer`), η_c
+    /// (eq. 14) and its analytic derivative through eq. (11).
+    #[inline]
+    pub fn kinematic(
+        &self,
+        observer: &mut FaultObserverState,
+        input: &StepInput,
+    ) -> KinematicOutput {
         let cfg = &self.cfg;
-        let dt = cfg.period_s;
         let r = &input.reference;
         let eta = input.eta.as_array();
-        let proposed = cfg.kind == ControllerKind::Proposed;
-
         // Eq. (8).
         let te = tracking_error(&input.pose, &r.pose);
-        let e = te.e;
         // Eq. (13).
-        let f_hat = if proposed {
-            cfg.fault_observer.update(
-                &mut self.state.fault_obs,
-                &te,
-                eta,
-                r.v_mps,
-                r.omega_radps,
-                dt,
-            )
+        let f_hat = if cfg.kind == ControllerKind::Proposed {
+            cfg.fault_observer
+                .update(observer, &te, eta, r.v_mps, r.omega_radps, cfg.period_s)
         } else {
             [0.0; 2]
         };
@@ -340,63 +433,180 @@ impl Controller {
             cfg.robot.com_offset_m,
         );
         let eta_c_dot = kin.eta_c_dot(&te, e_dot, r.v_mps, r.v_dot_mps2, r.omega_dot_radps2, f_hat);
+        KinematicOutput {
+            error: te,
+            f_hat,
+            eta_c,
+            eta_c_dot,
+        }
+    }
 
-        // Eqs. (20), (24).
+    /// Stage 3, the dynamic loop: sliding surface (eq. 20) and the torque
+    /// request of eq. (24) with D̂ = x̂3 (`Proposed` only), from the measured
+    /// η and the kinematic stage. Reads the state, changes nothing.
+    #[inline]
+    pub fn dynamic(
+        &self,
+        state: &ControllerState,
+        eta: Vel2,
+        kin: &KinematicOutput,
+    ) -> DynamicOutput {
+        let eta = eta.as_array();
+        let eta_c = kin.eta_c;
         let e_eta = [eta_c[0] - eta[0], eta_c[1] - eta[1]];
-        let sl = &cfg.sliding;
-        let s = sl.surface(&self.state.sliding, e_eta);
-        let d_hat = if proposed {
-            self.state.eso.x3
+        let sl = &self.cfg.sliding;
+        let s = sl.surface(&state.sliding, e_eta);
+        let d_hat = if self.cfg.kind == ControllerKind::Proposed {
+            state.eso.x3
         } else {
             [0.0; 2]
         };
         let m_eta = self.model.m_eta(eta);
-        let accel = sl.accel_request(&self.state.sliding, eta_c_dot, m_eta, d_hat, e_eta, s);
-        let request = self.model.n_inv_mul(accel);
+        let accel = sl.accel_request(&state.sliding, kin.eta_c_dot, m_eta, d_hat, e_eta, s);
+        DynamicOutput {
+            e_eta,
+            s,
+            d_hat,
+            m_eta,
+            torque_request_nm: self.model.n_inv_mul(accel),
+        }
+    }
 
-        // Per-wheel limit, scaling both wheels by the same factor so the ratio
-        // of v to ω (the steering) is kept (D14).
-        let limit = cfg.torque_limit_nm;
-        let peak = request[0].abs().max(request[1].abs());
-        // NaN peak counts as saturated (handled below).
-        let saturated = peak.is_nan() || peak > limit;
-        let torque = if saturated && peak.is_finite() {
-            // limit/peak·request can exceed the limit by an ulp: clamp as well.
-            let k = limit / peak;
-            [
-                clamp_abs(request[0] * k, limit),
-                clamp_abs(request[1] * k, limit),
-            ]
-        } else if saturated {
-            [0.0; 2]
-        } else {
-            request
-        };
-
-        // Anti-windup: ∫e_η and ρ̂ frozen while saturated; the ESO sees the
-        // applied torque.
-        sl.advance(&mut self.state.sliding, e_eta, s, saturated, dt);
-        if proposed {
-            let n_tau = self.model.n_tau(torque);
+    /// Stage 5, the state advance over one period, given the torque actually
+    /// applied: ∫e_η and ρ̂ are frozen while `applied.saturated`
+    /// (anti-windup), and the fal-ESO (eqs. 18-19, `Proposed` only) sees
+    /// `applied.torque_nm`.
+    #[inline]
+    pub fn advance(
+        &self,
+        state: &mut ControllerState,
+        eta: Vel2,
+        dynamic: &DynamicOutput,
+        applied: &SaturatedTorque,
+    ) {
+        let cfg = &self.cfg;
+        let dt = cfg.period_s;
+        cfg.sliding.advance(
+            &mut state.sliding,
+            dynamic.e_eta,
+            dynamic.s,
+            applied.saturated,
+            dt,
+        );
+        if cfg.kind == ControllerKind::Proposed {
+            let m_eta = dynamic.m_eta;
+            let n_tau = self.model.n_tau(applied.torque_nm);
             let known = [m_eta[0] + n_tau[0], m_eta[1] + n_tau[1]];
             cfg.eso
-                .update_with_slope(&mut self.state.eso, eta, known, dt, self.fal_slope);
+                .update_with_slope(&mut state.eso, eta.as_array(), known, dt, self.fal_slope);
         }
+    }
 
-        let diag = Diagnostics {
-            error: e,
-            lyapunov_kinematic: kin.lyapunov(&te),
-            eta_c,
-            eta_c_dot,
-            s,
-            rho_hat: self.state.sliding.rho_hat,
-            d_hat,
-            f_hat,
-            torque_request_nm: request,
-            saturated,
+    /// Stage 6: the step's [`Diagnostics`] (ρ̂ from `state` after
+    /// [`Self::advance`]; V_K of eq. 15 computed here).
+    #[inline]
+    pub fn diagnostics(
+        &self,
+        state: &ControllerState,
+        kin: &KinematicOutput,
+        dynamic: &DynamicOutput,
+        applied: &SaturatedTorque,
+    ) -> Diagnostics {
+        Diagnostics {
+            error: kin.error.e,
+            lyapunov_kinematic: self.cfg.kinematic.lyapunov(&kin.error),
+            eta_c: kin.eta_c,
+            eta_c_dot: kin.eta_c_dot,
+            s: dynamic.s,
+            rho_hat: state.sliding.rho_hat,
+            d_hat: dynamic.d_hat,
+            f_hat: kin.f_hat,
+            torque_request_nm: dynamic.torque_request_nm,
+            saturated: applied.saturated,
             fault: None,
-        };
-        if !(torque[0].is_finite() && torque[1].is_finite() && self.state_is_finite()) {
+        }
+    }
+}
+
+/// One of the paper's controllers with its state.
+#[derive(Clone, Debug)]
+pub struct Controller {
+    law: ControlLaw,
+    state: ControllerState,
+    rejected_steps: u32,
+}
+
+impl Controller {
+    /// Builds a controller; rejects invalid configurations.
+    pub fn new(cfg: ControllerConfig) -> Result<Self, ConfigError> {
+        let law = ControlLaw::new(cfg)?;
+        Ok(Self {
+            state: law.initial_state(),
+            law,
+            rejected_steps: 0,
+        })
+    }
+
+    /// The validated configuration.
+    pub fn config(&self) -> &ControllerConfig {
+        self.law.config()
+    }
+
+    /// The reduced model derived from the configuration.
+    pub fn model(&self) -> &ReducedModel {
+        self.law.model()
+    }
+
+    /// The parameters and stages [`Self::step`] runs.
+    pub fn law(&self) -> &ControlLaw {
+        &self.law
+    }
+
+    /// The loops' current state.
+    pub fn state(&self) -> &ControllerState {
+        &self.state
+    }
+
+    /// Number of steps rejected for bad input since construction or reset.
+    pub fn rejected_steps(&self) -> u32 {
+        self.rejected_steps
+    }
+
+    /// Clears every integrator and estimate.
+    pub fn reset(&mut self) {
+        self.state = self.law.initial_state();
+        self.rejected_steps = 0;
+    }
+
+    fn safe_output(&mut self, fault: InputFault) -> StepOutput {
+        self.rejected_steps = self.rejected_steps.saturating_add(1);
+        StepOutput {
+            torque_nm: [0.0; 2],
+            diag: Diagnostics {
+                fault: Some(fault),
+                rho_hat: self.state.sliding.rho_hat,
+                d_hat: self.state.eso.x3,
+                f_hat: self.state.fault_observer.f_hat,
+                ..Diagnostics::default()
+            },
+        }
+    }
+
+    /// One control period: measured pose and η in, wheel torques out. The
+    /// stages of [`ControlLaw`] in order; a non-finite result resets the state.
+    pub fn step(&mut self, input: &StepInput) -> StepOutput {
+        let law = &self.law;
+        if let Err(f) = law.check_input(input) {
+            return self.safe_output(f);
+        }
+        let state = &mut self.state;
+        let kin = law.kinematic(&mut state.fault_observer, input);
+        let dynamic = law.dynamic(state, input.eta, &kin);
+        let applied = saturate(dynamic.torque_request_nm, law.cfg.torque_limit_nm);
+        law.advance(state, input.eta, &dynamic, &applied);
+        let diag = law.diagnostics(state, &kin, &dynamic, &applied);
+        let torque = applied.torque_nm;
+        if !(torque[0].is_finite() && torque[1].is_finite() && state.is_finite()) {
             self.reset();
             return self.safe_output(InputFault::InternalStateReset);
         }
@@ -405,20 +615,115 @@ impl Controller {
             diag,
         }
     }
+}
 
-    fn state_is_finite(&self) -> bool {
-        let s = &self.state;
-        s.fault_obs.f_hat.iter().all(|x| x.is_finite())
-            && s.eso
-                .e1
-                .iter()
-                .chain(&s.eso.x2)
-                .chain(&s.eso.x3)
-                .all(|x| x.is_finite())
-            && s.sliding
-                .integral
-                .iter()
-                .chain(&s.sliding.rho_hat)
-                .all(|x| x.is_finite())
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Some request/limit pairs make limit/peak·peak round above the limit;
+    /// the saturated torque must still be within it.
+    #[test]
+    fn saturate_never_exceeds_the_limit_by_an_ulp() {
+        let (peak, limit) = (151.993f32, 10.0f32);
+        assert!(peak * (limit / peak) > limit, "not an ulp case");
+        let out = saturate([peak, -20.0], limit);
+        assert!(out.saturated);
+        assert_eq!(out.torque_nm[0], limit);
+        assert!(out.torque_nm[1].abs() <= limit);
+    }
+
+    #[test]
+    fn saturate_infinite_or_nan_request_gives_zero() {
+        for bad in [
+            [f32::NAN; 2],
+            [f32::INFINITY, 1.0],
+            [-1.0, f32::NEG_INFINITY],
+        ] {
+            let out = saturate(bad, 10.0);
+            assert!(out.saturated);
+            assert_eq!(out.torque_nm, [0.0; 2]);
+        }
+    }
+
+    proptest! {
+        /// Within the limit the request passes unchanged; beyond it the larger
+        /// wheel gets the limit and the ratio between the wheels is kept (D14).
+        #[test]
+        fn saturate_limits_and_keeps_the_ratio(
+            r0 in -1e4f32..1e4,
+            r1 in -1e4f32..1e4,
+            limit in 0.01f32..100.0,
+        ) {
+            let out = saturate([r0, r1], limit);
+            let peak = r0.abs().max(r1.abs());
+            prop_assert!(out.torque_nm.iter().all(|t| t.abs() <= limit));
+            if peak <= limit {
+                prop_assert!(!out.saturated);
+                prop_assert_eq!(out.torque_nm, [r0, r1]);
+            } else {
+                prop_assert!(out.saturated);
+                let t_peak = out.torque_nm[0].abs().max(out.torque_nm[1].abs());
+                prop_assert!((t_peak - limit).abs() <= 2.0 * f32::EPSILON * limit);
+                // Same ratio: t0·r1 = t1·r0 up to rounding.
+                let cross = (out.torque_nm[0] * r1 - out.torque_nm[1] * r0).abs();
+                prop_assert!(cross <= 4.0 * f32::EPSILON * limit * peak);
+            }
+        }
+    }
+
+    /// The stages run by hand on a separate state, in the documented order,
+    /// give bit for bit the output and the state of `Controller::step`, for
+    /// every kind, through saturated and unsaturated steps.
+    #[test]
+    fn stages_in_order_equal_step() {
+        for kind in ControllerKind::ALL {
+            let mut ctrl = Controller::new(ControllerConfig::paper(kind)).unwrap();
+            let law = ctrl.law().clone();
+            let mut state = law.initial_state();
+            assert_eq!(&state, ctrl.state());
+            let mut saturated_steps = 0;
+            for k in 0..3000 {
+                let t = k as f32 * 1e-3;
+                // A robot near a circle of radius 2 m, knocked backwards for
+                // 50 ms (which saturates the torque of every kind).
+                let (s, c) = crate::math::sin_cos(0.5 * t);
+                let heading = 0.5 * t + core::f32::consts::FRAC_PI_2;
+                let kick = if (1000..1050).contains(&k) { 6.0 } else { 0.0 };
+                let input = StepInput {
+                    reference: RefSample {
+                        pose: Pose::new(2.0 * c, 2.0 * s, heading),
+                        v_mps: 1.0,
+                        omega_radps: 0.5,
+                        v_dot_mps2: 0.0,
+                        omega_dot_radps2: 0.0,
+                    },
+                    pose: Pose::new(2.0 * c + 0.02, 2.0 * s - 0.01, heading + 0.02),
+                    eta: Vel2::new(1.0 + 0.05 * s - kick, 0.5 + 0.05 * c),
+                };
+                let out = ctrl.step(&input);
+                law.check_input(&input).unwrap();
+                let kin = law.kinematic(&mut state.fault_observer, &input);
+                let dynamic = law.dynamic(&state, input.eta, &kin);
+                let applied = saturate(dynamic.torque_request_nm, law.config().torque_limit_nm);
+                law.advance(&mut state, input.eta, &dynamic, &applied);
+                let diag = law.diagnostics(&state, &kin, &dynamic, &applied);
+                assert!(state.is_finite());
+                let bits = |a: [f32; 2]| a.map(f32::to_bits);
+                assert_eq!(
+                    bits(out.torque_nm),
+                    bits(applied.torque_nm),
+                    "{kind:?} step {k}"
+                );
+                assert_eq!(out.diag, diag, "{kind:?} step {k}");
+                assert_eq!(ctrl.state(), &state, "{kind:?} step {k}");
+                saturated_steps += applied.saturated as u32;
+            }
+            assert!(
+                saturated_steps > 0 && saturated_steps < 3000,
+                "{kind:?}: {saturated_steps} saturated steps"
+            );
+        }
     }
 }
