@@ -13,7 +13,7 @@ use controller_core::ControllerKind;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Host simulator: the controller-core controllers against the paper's
 /// differential-drive robot with slip, skid, disturbance and actuator fault.
@@ -259,7 +259,7 @@ pub fn compare_runs(
     seed: u64,
     beta: Option<f64>,
     eps: Option<f64>,
-) -> Result<Vec<(u8, Scenario, Vec<SimOutput>)>, String> {
+) -> Result<Vec<CaseRuns>, String> {
     let cases: Vec<(u8, Scenario)> = [1u8, 2]
         .iter()
         .map(|&c| (c, Scenario::paper_case(c, seed, beta, eps)))
@@ -287,11 +287,13 @@ pub fn compare_runs(
     Ok(res)
 }
 
-fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
-    let t0 = std::time::Instant::now();
-    let results = compare_runs(a.seed, a.beta, a.eps)?;
-    let t_sim = t0.elapsed();
-    let rows: Vec<CompareRow> = results
+/// A case's simulations: the paper case number, its scenario and one output
+/// per controller (in [`ControllerKind::ALL`] order).
+pub type CaseRuns = (u8, Scenario, Vec<SimOutput>);
+
+/// One [`CompareRow`] per case × controller, in the order of `results`.
+pub fn compare_rows(results: &[CaseRuns]) -> Vec<CompareRow> {
+    results
         .iter()
         .flat_map(|(c, s, runs)| {
             runs.iter().map(move |o| CompareRow {
@@ -299,73 +301,121 @@ fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
                 report: RunReport::new(o.kind, s, o),
             })
         })
+        .collect()
+}
+
+/// The rows as pretty JSON (the content of `metrics.json` and of `compare --json`).
+pub fn compare_json(rows: &[CompareRow]) -> Result<String, String> {
+    serde_json::to_string_pretty(rows).map_err(|e| e.to_string())
+}
+
+/// Writes `json` to `dir/metrics.json` (creating `dir`); returns the path.
+pub fn write_metrics_json(dir: &Path, json: &str) -> Result<PathBuf, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let path = dir.join("metrics.json");
+    std::fs::write(&path, format!("{json}\n"))
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    Ok(path)
+}
+
+/// Title of a case's figures, e.g. `Case 2 (β = 0.183 rad/s, ε = 0.152)`.
+fn case_plot_title(case: u8, scn: &Scenario) -> String {
+    format!(
+        "Case {case} (β = {:.3} rad/s{})",
+        scn.beta,
+        if scn.eps > 0.0 {
+            format!(", ε = {:.3}", scn.eps)
+        } else {
+            String::new()
+        }
+    )
+}
+
+/// Draws every case's figures into `dir` (cases in parallel); the files
+/// written, per case.
+pub fn draw_compare_plots(dir: &Path, results: &[CaseRuns]) -> Result<Vec<Vec<PathBuf>>, String> {
+    results
+        .par_iter()
+        .map(|(c, s, runs)| {
+            crate::plot::write_case_plots(
+                dir,
+                &format!("case{c}"),
+                &case_plot_title(*c, s),
+                s,
+                runs,
+            )
+        })
+        .collect()
+}
+
+/// The text `compare` prints without `--json`: the scenarios, the metrics
+/// table with its legend, the timing and where the files went.
+fn compare_text(
+    results: &[CaseRuns],
+    rows: &[CompareRow],
+    sim_time: std::time::Duration,
+    metrics_path: &Path,
+    plot_files: Option<(&[Vec<PathBuf>], &Path)>,
+) -> String {
+    let mut text = String::new();
+    for (c, s, _) in results {
+        text += &format!(
+            "case {c}: beta = {:.4} rad/s, eps = {:.4}, skid x{}, disturbance {} N·m, torque limit {} N·m, seed {}\n",
+            s.beta, s.eps, s.skid_scale, s.disturbance_nm, s.torque_limit_nm, s.seed
+        );
+    }
+    text.push('\n');
+    let table_rows: Vec<(Vec<String>, crate::Metrics)> = rows
+        .iter()
+        .map(|r| {
+            (
+                vec![r.case.to_string(), r.report.controller.to_string()],
+                r.report.metrics.clone(),
+            )
+        })
         .collect();
-    std::fs::create_dir_all(&a.out)
-        .map_err(|e| format!("cannot create {}: {e}", a.out.display()))?;
-    let json = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
-    let mpath = a.out.join("metrics.json");
-    std::fs::write(&mpath, format!("{json}\n"))
-        .map_err(|e| format!("cannot write {}: {e}", mpath.display()))?;
-    let plots: Result<Vec<Vec<PathBuf>>, String> = if a.no_plots {
-        Ok(Vec::new())
-    } else {
-        results
-            .par_iter()
-            .map(|(c, s, runs)| {
-                let title = format!(
-                    "Case {c} (β = {:.3} rad/s{})",
-                    s.beta,
-                    if s.eps > 0.0 {
-                        format!(", ε = {:.3}", s.eps)
-                    } else {
-                        String::new()
-                    }
-                );
-                crate::plot::write_case_plots(&a.out, &format!("case{c}"), &title, s, runs)
-            })
-            .collect()
-    };
-    let w = |out: &mut dyn Write, s: &str| out.write_all(s.as_bytes()).map_err(|e| e.to_string());
-    if a.json {
-        w(out, &format!("{json}\n"))?;
-    } else {
-        let mut text = String::new();
-        for (c, s, _) in &results {
+    text += &metrics_table(&["case", "controller"], &table_rows);
+    text += "\nrms: whole run; rms_win/max_win: perturbation window 10-35 s; rms_t>5: t >= 5 s; \
+settle: error stays < 0.1 m until the window;\nsat: steps at the torque limit; F_rmse: RMS |F̂ − F| over the window (proposed only)\n";
+    text += &format!(
+        "\n6 simulations in {:.0} ms ({} threads); metrics written to {}\n",
+        sim_time.as_secs_f64() * 1e3,
+        rayon::current_num_threads(),
+        metrics_path.display()
+    );
+    if let Some((files, dir)) = plot_files {
+        if !files.is_empty() {
             text += &format!(
-                "case {c}: beta = {:.4} rad/s, eps = {:.4}, skid x{}, disturbance {} N·m, torque limit {} N·m, seed {}\n",
-                s.beta, s.eps, s.skid_scale, s.disturbance_nm, s.torque_limit_nm, s.seed
+                "{} plot files written to {} (case<N>_{{xy,errors,velocities,torques,faults}}.{{png,svg}})\n",
+                files.iter().map(Vec::len).sum::<usize>(),
+                dir.display()
             );
         }
-        text.push('\n');
-        let table_rows: Vec<(Vec<String>, crate::Metrics)> = rows
-            .iter()
-            .map(|r| {
-                (
-                    vec![r.case.to_string(), r.report.controller.to_string()],
-                    r.report.metrics.clone(),
-                )
-            })
-            .collect();
-        text += &metrics_table(&["case", "controller"], &table_rows);
-        text += "\nrms: whole run; rms_win/max_win: perturbation window 10-35 s; rms_t>5: t >= 5 s; \
-settle: error stays < 0.1 m until the window;\nsat: steps at the torque limit; F_rmse: RMS |F̂ − F| over the window (proposed only)\n";
-        text += &format!(
-            "\n6 simulations in {:.0} ms ({} threads); metrics written to {}\n",
-            t_sim.as_secs_f64() * 1e3,
-            rayon::current_num_threads(),
-            mpath.display()
-        );
-        if let Ok(p) = &plots {
-            if !p.is_empty() {
-                text += &format!(
-                    "{} plot files written to {} (case<N>_{{xy,errors,velocities,torques,faults}}.{{png,svg}})\n",
-                    p.iter().map(Vec::len).sum::<usize>(),
-                    a.out.display()
-                );
-            }
-        }
-        w(out, &text)?;
     }
+    text
+}
+
+/// `compare`: run, write metrics.json, draw the plots, print; a plot error
+/// is returned after the table has been printed.
+fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
+    let t0 = std::time::Instant::now();
+    let results = compare_runs(a.seed, a.beta, a.eps)?;
+    let sim_time = t0.elapsed();
+    let rows = compare_rows(&results);
+    let json = compare_json(&rows)?;
+    let metrics_path = write_metrics_json(&a.out, &json)?;
+    let plots = if a.no_plots {
+        Ok(Vec::new())
+    } else {
+        draw_compare_plots(&a.out, &results)
+    };
+    let text = if a.json {
+        format!("{json}\n")
+    } else {
+        let plot_files = plots.as_ref().ok().map(|p| (p.as_slice(), a.out.as_path()));
+        compare_text(&results, &rows, sim_time, &metrics_path, plot_files)
+    };
+    out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
     plots.map(|_| ())
 }
 
