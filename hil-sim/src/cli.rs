@@ -4,7 +4,7 @@
 
 use crate::bench::{run_bench, BenchConfig};
 use crate::montecarlo::{run_montecarlo, stats_table, McConfig};
-use crate::report::{human_summary, metrics_table, write_trace_csv, RunReport};
+use crate::report::{human_summary, metrics_table, scenario_summary, write_trace_csv, RunReport};
 use crate::scenario::{Scenario, TrajectoryKind};
 use crate::scenario_file::load_scenario;
 use crate::sim::{controller_config, run_with, SimOutput};
@@ -359,10 +359,7 @@ fn compare_text(
 ) -> String {
     let mut text = String::new();
     for (c, s, _) in results {
-        text += &format!(
-            "case {c}: beta = {:.4} rad/s, eps = {:.4}, skid x{}, disturbance {} N·m, torque limit {} N·m, seed {}\n",
-            s.beta, s.eps, s.skid_scale, s.disturbance_nm, s.torque_limit_nm, s.seed
-        );
+        text += &format!("case {c}: {}\n", scenario_summary(s));
     }
     text.push('\n');
     let table_rows: Vec<(Vec<String>, crate::Metrics)> = rows
