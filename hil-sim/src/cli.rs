@@ -1,12 +1,13 @@
 //! The `hil-sim` command line (clap derive): `compare`, `run`, `montecarlo`,
-//! `bench`. The binary is a thin wrapper around [`main_entry`]; everything
+//! `merge`, `bench`. The binary is a thin wrapper around [`main_entry`]; everything
 //! here is library code so tests can drive it.
 
 use crate::bench::{run_bench, BenchConfig};
-use crate::montecarlo::{run_montecarlo, stats_table, McConfig};
+use crate::montecarlo::{run_records, stats_table, ControllerStats, McConfig, McResult, Outcome};
 use crate::report::{human_summary, metrics_table, scenario_summary, write_trace_csv, RunReport};
 use crate::scenario::{Scenario, TrajectoryKind};
 use crate::scenario_file::load_scenario;
+use crate::shard::{default_shard_path, merge_shards, write_shard, Shard, ShardHeader};
 use crate::sim::{controller_config, run_with, SimOutput};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use controller_core::ControllerKind;
@@ -32,8 +33,11 @@ pub enum Command {
     Compare(CompareArgs),
     /// One scenario with one controller.
     Run(Box<RunArgs>),
-    /// N random paper scenarios per controller, in parallel: mean/p95/max of every metric.
+    /// N random paper scenarios per controller, in parallel: mean/p95/max of every metric
+    /// (or, with --shard, one slice of the runs written to a file for `merge`).
     Montecarlo(McArgs),
+    /// Combines shard files of `montecarlo --shard` into the statistics of one run.
+    Merge(MergeArgs),
     /// Time per 40 s paper scenario and Monte-Carlo throughput on this machine.
     Bench(BenchArgs),
 }
@@ -225,12 +229,35 @@ pub struct McArgs {
     /// Also draw the plant mass scale in [0.8, 1.2].
     #[arg(long)]
     pub vary_mass: bool,
+    /// Run length [s] [default: the paper's 40 s].
+    #[arg(long, value_name = "s")]
+    pub duration: Option<f64>,
+    /// Run only shard I of N (0-based: 0/N … N-1/N), a contiguous block of the run
+    /// indices with the same seeds as the unsharded run; write its raw results to
+    /// --out (default mc-case<C>-seed<S>-runs<R>-shard<I>of<N>.jsonl) for `merge`.
+    #[arg(long, value_name = "I/N", value_parser = Shard::parse)]
+    pub shard: Option<Shard>,
+    /// Write the raw per-run results (JSON Lines, the shard file format) to FILE.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
     /// Print the statistics as JSON instead of the table.
     #[arg(long)]
     pub json: bool,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// `merge` options.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// Shard files written by `montecarlo --shard I/N` (any order; together they must
+    /// hold every run index of one sweep exactly once).
+    #[arg(required = true, value_name = "FILE")]
+    pub files: Vec<PathBuf>,
+    /// Print the statistics as JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `bench` options.
@@ -450,56 +477,133 @@ fn run_cmd(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())
 }
 
+/// A progress bar on stderr for `total` simulations (hidden with `quiet`).
+fn progress_bar(total: u64, quiet: bool) -> indicatif::ProgressBar {
+    if quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    let pb = indicatif::ProgressBar::with_draw_target(
+        Some(total),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} simulations, eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    pb
+}
+
+/// The error of a sweep with failed simulations (after its output).
+fn failed_error(failed: usize) -> Result<(), String> {
+    if failed > 0 {
+        return Err(format!("{failed} simulations failed (see above)"));
+    }
+    Ok(())
+}
+
+/// The sweep's description and statistics table, as both `montecarlo` and
+/// `merge` print them (followed by one line on timing or shard files).
+fn mc_text(sweep: &McConfig, stats: &[ControllerStats]) -> String {
+    format!("{}\n\n{}\n", sweep.describe(), stats_table(stats))
+}
+
 fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
     let cfg = McConfig {
         runs: a.runs as usize,
         case: a.case,
         seed: a.seed,
         vary_mass: a.vary_mass,
+        duration_s: a.duration,
     };
-    let total = cfg.runs as u64 * ControllerKind::ALL.len() as u64;
-    let pb = if a.quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        let pb = indicatif::ProgressBar::with_draw_target(
-            Some(total),
-            indicatif::ProgressDrawTarget::stderr(),
-        );
-        pb.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:40}] {pos}/{len} simulations, eta {eta}",
-            )
-            .expect("valid template")
-            .progress_chars("=> "),
-        );
-        pb
-    };
-    let res = run_montecarlo(&cfg, &|| pb.inc(1));
+    cfg.validate()?;
+    let shard = a.shard.unwrap_or(Shard::WHOLE);
+    let runs = shard.runs(a.runs);
+    let pb = progress_bar(
+        (runs.end - runs.start) * ControllerKind::ALL.len() as u64,
+        a.quiet,
+    );
+    let rec = run_records(&cfg, runs.clone(), &|| pb.inc(1));
     pb.finish_and_clear();
-    let text = if a.json {
-        serde_json::to_string_pretty(&res).map_err(|e| e.to_string())? + "\n"
-    } else {
-        format!(
-            "Monte-Carlo: case {}, {} runs per controller, beta in (0, 0.2) rad/s{}{}, base seed {}\n\n{}\n\
-             {} simulations in {:.2} s on {} threads: {:.1} runs/s\n",
-            cfg.case,
-            cfg.runs,
-            if cfg.case >= 2 { ", eps in (0.125, 0.25)" } else { "" },
-            if cfg.vary_mass { ", mass scale in [0.8, 1.2]" } else { "" },
-            cfg.seed,
-            stats_table(&res),
-            res.simulations,
-            res.elapsed_s,
-            res.threads,
-            res.runs_per_s
-        )
+    let file = match (&a.out, a.shard) {
+        (Some(p), _) => Some(p.clone()),
+        (None, Some(s)) => Some(default_shard_path(&cfg, s)),
+        (None, None) => None,
+    };
+    if let Some(path) = &file {
+        let header = ShardHeader::new(&cfg, shard, rec.elapsed_s, rec.threads);
+        write_shard(path, &header, &rec.records)?;
+    }
+    let text = match (a.shard, &file) {
+        (Some(s), Some(path)) if a.json => {
+            let v = serde_json::json!({
+                "file": path.display().to_string(),
+                "shard": s,
+                "runs": [runs.start, runs.end],
+                "simulations": rec.records.len(),
+                "elapsed_s": rec.elapsed_s,
+                "runs_per_s": rec.sims_per_s(),
+                "threads": rec.threads,
+            });
+            serde_json::to_string_pretty(&v).map_err(|e| e.to_string())? + "\n"
+        }
+        (Some(s), Some(path)) => format!(
+            "{}\nshard {}/{}: runs {}..{}, {} simulations in {:.2} s on {} threads: {:.1} runs/s\n\
+             raw results written to {} (combine with `hil-sim merge FILE...`)\n",
+            cfg.describe(),
+            s.index,
+            s.count,
+            runs.start,
+            runs.end,
+            rec.records.len(),
+            rec.elapsed_s,
+            rec.threads,
+            rec.sims_per_s(),
+            path.display()
+        ),
+        _ => {
+            let res = McResult::from_records(&rec);
+            let mut t = if a.json {
+                serde_json::to_string_pretty(&res).map_err(|e| e.to_string())? + "\n"
+            } else {
+                mc_text(&cfg, &res.stats)
+                    + &format!(
+                        "{} simulations in {:.2} s on {} threads: {:.1} runs/s\n",
+                        res.simulations, res.elapsed_s, res.threads, res.runs_per_s
+                    )
+            };
+            if let (Some(path), false) = (&file, a.json) {
+                t += &format!("raw results written to {}\n", path.display());
+            }
+            t
+        }
     };
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
-    let failed: usize = res.stats.iter().map(|s| s.failed).sum();
-    if failed > 0 {
-        return Err(format!("{failed} simulations failed (see above)"));
-    }
-    Ok(())
+    let failed = rec
+        .records
+        .iter()
+        .filter(|r| matches!(r.outcome, Outcome::Error(_)))
+        .count();
+    failed_error(failed)
+}
+
+fn merge(a: &MergeArgs, out: &mut dyn Write) -> Result<(), String> {
+    let m = merge_shards(&a.files)?;
+    let text = if a.json {
+        serde_json::to_string_pretty(&m).map_err(|e| e.to_string())? + "\n"
+    } else {
+        mc_text(&m.sweep, &m.stats)
+            + &format!(
+                "{} simulations merged from {} shard files (the shards ran {:.2} s in total)\n",
+                m.simulations,
+                m.shard_files.len(),
+                m.shards_elapsed_s
+            )
+    };
+    out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
+    failed_error(m.stats.iter().map(|s| s.failed).sum())
 }
 
 /// Executes a parsed command line, writing results to `out`.
@@ -508,6 +612,7 @@ pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
         Command::Compare(a) => compare(a, out),
         Command::Run(a) => run_cmd(a, out),
         Command::Montecarlo(a) => montecarlo(a, out),
+        Command::Merge(a) => merge(a, out),
         Command::Bench(a) => {
             let r = run_bench(&BenchConfig {
                 reps: a.reps as usize,
