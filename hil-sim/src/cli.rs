@@ -3,7 +3,9 @@
 //! here is library code so tests can drive it.
 
 use crate::bench::{run_bench, BenchConfig};
-use crate::montecarlo::{run_records, stats_table, ControllerStats, McConfig, McResult, Outcome};
+use crate::montecarlo::{
+    run_records, stats_table, ControllerStats, McConfig, McRecords, McResult, Outcome,
+};
 use crate::report::{human_summary, metrics_table, scenario_summary, write_trace_csv, RunReport};
 use crate::scenario::{Scenario, TrajectoryKind};
 use crate::scenario_file::load_scenario;
@@ -496,10 +498,11 @@ fn progress_bar(total: u64, quiet: bool) -> indicatif::ProgressBar {
     pb
 }
 
-/// The error of a sweep with failed simulations (after its output).
-fn failed_error(failed: usize) -> Result<(), String> {
+/// The error of a sweep with `failed` simulations, after its output;
+/// `where_` says where their messages are.
+fn failed_error(failed: usize, where_: &str) -> Result<(), String> {
     if failed > 0 {
-        return Err(format!("{failed} simulations failed (see above)"));
+        return Err(format!("{failed} simulations failed ({where_})"));
     }
     Ok(())
 }
@@ -510,6 +513,67 @@ fn mc_text(sweep: &McConfig, stats: &[ControllerStats]) -> String {
     format!("{}\n\n{}\n", sweep.describe(), stats_table(stats))
 }
 
+/// What an unsharded `montecarlo` prints: the statistics (table or JSON)
+/// and the throughput; `file` is where `--out` wrote the records.
+fn mc_report(
+    cfg: &McConfig,
+    rec: &McRecords,
+    file: Option<&Path>,
+    json: bool,
+) -> Result<String, String> {
+    let res = McResult::from_records(rec);
+    if json {
+        return Ok(serde_json::to_string_pretty(&res).map_err(|e| e.to_string())? + "\n");
+    }
+    let mut t = mc_text(cfg, &res.stats)
+        + &format!(
+            "{} simulations in {:.2} s on {} threads: {:.1} runs/s\n",
+            res.simulations, res.elapsed_s, res.threads, res.runs_per_s
+        );
+    if let Some(path) = file {
+        t += &format!("raw results written to {}\n", path.display());
+    }
+    Ok(t)
+}
+
+/// What `montecarlo --shard` prints: the shard, its throughput and its file
+/// (no statistics: those come from `merge`).
+fn shard_report(
+    cfg: &McConfig,
+    header: &ShardHeader,
+    rec: &McRecords,
+    file: &Path,
+    json: bool,
+) -> Result<String, String> {
+    let [start, end] = header.runs;
+    if json {
+        let v = serde_json::json!({
+            "file": file.display().to_string(),
+            "shard": header.shard,
+            "runs": header.runs,
+            "simulations": rec.records.len(),
+            "elapsed_s": rec.elapsed_s,
+            "runs_per_s": rec.sims_per_s(),
+            "threads": rec.threads,
+        });
+        return Ok(serde_json::to_string_pretty(&v).map_err(|e| e.to_string())? + "\n");
+    }
+    Ok(format!(
+        "{}\nshard {}/{}: runs {start}..{end}, {} simulations in {:.2} s on {} threads: {:.1} runs/s\n\
+         raw results written to {} (combine with `hil-sim merge FILE...`)\n",
+        cfg.describe(),
+        header.shard.index,
+        header.shard.count,
+        rec.records.len(),
+        rec.elapsed_s,
+        rec.threads,
+        rec.sims_per_s(),
+        file.display()
+    ))
+}
+
+/// `montecarlo`: run the sweep or one shard of it, write the records with
+/// `--shard`/`--out`, print the statistics (unsharded) or the shard's summary.
 fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
     let cfg = McConfig {
         runs: a.runs as usize,
@@ -525,60 +589,20 @@ fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
         (runs.end - runs.start) * ControllerKind::ALL.len() as u64,
         a.quiet,
     );
-    let rec = run_records(&cfg, runs.clone(), &|| pb.inc(1));
+    let rec = run_records(&cfg, runs, &|| pb.inc(1));
     pb.finish_and_clear();
+    let header = ShardHeader::new(&cfg, shard, rec.elapsed_s, rec.threads);
     let file = match (&a.out, a.shard) {
         (Some(p), _) => Some(p.clone()),
         (None, Some(s)) => Some(default_shard_path(&cfg, s)),
         (None, None) => None,
     };
     if let Some(path) = &file {
-        let header = ShardHeader::new(&cfg, shard, rec.elapsed_s, rec.threads);
         write_shard(path, &header, &rec.records)?;
     }
-    let text = match (a.shard, &file) {
-        (Some(s), Some(path)) if a.json => {
-            let v = serde_json::json!({
-                "file": path.display().to_string(),
-                "shard": s,
-                "runs": [runs.start, runs.end],
-                "simulations": rec.records.len(),
-                "elapsed_s": rec.elapsed_s,
-                "runs_per_s": rec.sims_per_s(),
-                "threads": rec.threads,
-            });
-            serde_json::to_string_pretty(&v).map_err(|e| e.to_string())? + "\n"
-        }
-        (Some(s), Some(path)) => format!(
-            "{}\nshard {}/{}: runs {}..{}, {} simulations in {:.2} s on {} threads: {:.1} runs/s\n\
-             raw results written to {} (combine with `hil-sim merge FILE...`)\n",
-            cfg.describe(),
-            s.index,
-            s.count,
-            runs.start,
-            runs.end,
-            rec.records.len(),
-            rec.elapsed_s,
-            rec.threads,
-            rec.sims_per_s(),
-            path.display()
-        ),
-        _ => {
-            let res = McResult::from_records(&rec);
-            let mut t = if a.json {
-                serde_json::to_string_pretty(&res).map_err(|e| e.to_string())? + "\n"
-            } else {
-                mc_text(&cfg, &res.stats)
-                    + &format!(
-                        "{} simulations in {:.2} s on {} threads: {:.1} runs/s\n",
-                        res.simulations, res.elapsed_s, res.threads, res.runs_per_s
-                    )
-            };
-            if let (Some(path), false) = (&file, a.json) {
-                t += &format!("raw results written to {}\n", path.display());
-            }
-            t
-        }
+    let text = match &file {
+        Some(path) if a.shard.is_some() => shard_report(&cfg, &header, &rec, path, a.json)?,
+        _ => mc_report(&cfg, &rec, file.as_deref(), a.json)?,
     };
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
     let failed = rec
@@ -586,7 +610,11 @@ fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
         .iter()
         .filter(|r| matches!(r.outcome, Outcome::Error(_)))
         .count();
-    failed_error(failed)
+    let where_ = match &file {
+        Some(p) if a.shard.is_some() => format!("their errors are in {}", p.display()),
+        _ => "see above".to_string(),
+    };
+    failed_error(failed, &where_)
 }
 
 fn merge(a: &MergeArgs, out: &mut dyn Write) -> Result<(), String> {
@@ -603,7 +631,7 @@ fn merge(a: &MergeArgs, out: &mut dyn Write) -> Result<(), String> {
             )
     };
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
-    failed_error(m.stats.iter().map(|s| s.failed).sum())
+    failed_error(m.stats.iter().map(|s| s.failed).sum(), "see above")
 }
 
 /// Executes a parsed command line, writing results to `out`.
