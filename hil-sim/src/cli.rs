@@ -4,7 +4,7 @@
 
 use crate::bench::{run_bench, BenchConfig};
 use crate::montecarlo::{
-    run_records, stats_table, ControllerStats, McConfig, McRecords, McResult, Outcome,
+    run_records, stats_table, ControllerStats, McConfig, McRecords, McResult, Outcome, MAX_RUNS,
 };
 use crate::report::{human_summary, metrics_table, scenario_summary, write_trace_csv, RunReport};
 use crate::scenario::{Scenario, TrajectoryKind};
@@ -220,7 +220,7 @@ pub struct RunArgs {
 #[derive(Debug, Args)]
 pub struct McArgs {
     /// Runs per controller.
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=MAX_RUNS))]
     pub runs: u64,
     /// Paper case.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]

@@ -18,6 +18,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
+/// Most runs per controller of one sweep (`--runs`).
+pub const MAX_RUNS: u64 = 1_000_000;
+
 /// Range of the plant mass scale with `--vary-mass`.
 pub const MASS_SCALE_RANGE: (f64, f64) = (0.8, 1.2);
 

@@ -10,7 +10,7 @@
 //! [`SimRecord`] per line. Usage: docs/sweeps.md.
 
 use crate::montecarlo::{
-    run_seed, stats_from_records, ControllerStats, McConfig, Outcome, SimRecord, METRICS,
+    run_seed, stats_from_records, ControllerStats, McConfig, Outcome, SimRecord, MAX_RUNS, METRICS,
 };
 use crate::scenario::Scenario;
 use controller_core::ControllerKind;
@@ -148,17 +148,22 @@ pub fn default_shard_path(sweep: &McConfig, shard: Shard) -> PathBuf {
 
 /// Writes a shard file: the header, then one record per line. Written to
 /// `FILE.partial` and renamed, so an interrupted job leaves no file that
-/// looks finished.
+/// looks finished. A non-finite metric is an error (serde_json would write
+/// it as `null`, which does not read back).
 pub fn write_shard(path: &Path, header: &ShardHeader, records: &[SimRecord]) -> Result<(), String> {
+    for r in records {
+        check_finite(r)?;
+    }
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".partial");
     let tmp = PathBuf::from(tmp);
     let err = |e: std::io::Error| format!("cannot write {}: {e}", tmp.display());
     let f = std::fs::File::create(&tmp).map_err(err)?;
     let mut w = std::io::BufWriter::new(f);
-    writeln!(w, "{}", json_line(header)?).map_err(err)?;
+    let line = |v: serde_json::Result<String>| v.map_err(|e| e.to_string());
+    writeln!(w, "{}", line(serde_json::to_string(header))?).map_err(err)?;
     for r in records {
-        writeln!(w, "{}", json_line(r)?).map_err(err)?;
+        writeln!(w, "{}", line(serde_json::to_string(r))?).map_err(err)?;
     }
     w.into_inner()
         .map_err(|e| err(e.into_error()))?
@@ -168,39 +173,20 @@ pub fn write_shard(path: &Path, header: &ShardHeader, records: &[SimRecord]) -> 
         .map_err(|e| format!("cannot rename {} to {}: {e}", tmp.display(), path.display()))
 }
 
-/// One-line JSON of a header or record. serde_json writes a non-finite f64
-/// as `null`, which would not read back: such a metric is an error here.
-fn json_line<T: Serialize + Finite>(v: &T) -> Result<String, String> {
-    v.check_finite()?;
-    serde_json::to_string(v).map_err(|e| e.to_string())
-}
-
-/// Values whose floats must be finite to be stored.
-trait Finite {
-    fn check_finite(&self) -> Result<(), String>;
-}
-
-impl Finite for ShardHeader {
-    fn check_finite(&self) -> Result<(), String> {
-        Ok(())
-    }
-}
-
-impl Finite for SimRecord {
-    fn check_finite(&self) -> Result<(), String> {
-        if let Outcome::Metrics(m) = &self.outcome {
-            for (name, f) in METRICS {
-                if f(m).is_some_and(|x| !x.is_finite()) {
-                    return Err(format!(
-                        "run {} ({}): {name} is not finite and cannot be stored",
-                        self.run,
-                        self.controller.name()
-                    ));
-                }
+/// Error if a metric of `r` is NaN or infinite.
+fn check_finite(r: &SimRecord) -> Result<(), String> {
+    if let Outcome::Metrics(m) = &r.outcome {
+        for (name, f) in METRICS {
+            if f(m).is_some_and(|x| !x.is_finite()) {
+                return Err(format!(
+                    "run {} ({}): {name} is not finite and cannot be stored",
+                    r.run,
+                    r.controller.name()
+                ));
             }
         }
-        Ok(())
     }
+    Ok(())
 }
 
 /// Reads one shard file: its header and records. Errors name the file and
@@ -235,6 +221,20 @@ pub fn read_shard(path: &Path) -> Result<(ShardHeader, Vec<SimRecord>), String> 
     }
     let header: ShardHeader =
         serde_json::from_value(v).map_err(|e| format!("{name} line 1: bad header: {e}"))?;
+    let sweep = &header.sweep;
+    let expected = header.shard.runs(sweep.runs as u64);
+    if !(1..=MAX_RUNS).contains(&(sweep.runs as u64))
+        || Shard::new(header.shard.index, header.shard.count).is_err()
+        || header.runs != [expected.start, expected.end]
+    {
+        return Err(format!(
+            "{name} line 1: inconsistent header (runs {}, shard {}/{}, block {:?})",
+            sweep.runs, header.shard.index, header.shard.count, header.runs
+        ));
+    }
+    sweep
+        .validate()
+        .map_err(|e| format!("{name} line 1: {e}"))?;
     let range = header.runs[0]..header.runs[1];
     let mut records = Vec::new();
     for (k, l) in lines {

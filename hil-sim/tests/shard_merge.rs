@@ -160,6 +160,14 @@ fn bad_shard_sets_are_refused_with_named_runs() {
     std::fs::write(&v2, text.replacen("\"version\":1,", "\"version\":2,", 1)).unwrap();
     let e = merge_shards(&[v2]).unwrap_err();
     assert!(e.contains("format version 2"), "{e}");
+    let widened = dir.path().join("widened.jsonl");
+    std::fs::write(
+        &widened,
+        text.replacen("\"runs\":[0,3]", "\"runs\":[0,4]", 1),
+    )
+    .unwrap();
+    let e = merge_shards(&[widened]).unwrap_err();
+    assert!(e.contains("inconsistent header"), "{e}");
     let csv = dir.path().join("x.csv");
     std::fs::write(&csv, "a,b\n1,2\n").unwrap();
     assert!(merge_shards(&[csv])
