@@ -96,6 +96,7 @@ pub fn run_bench(cfg: &BenchConfig) -> BenchReport {
             case: 2,
             seed: 1,
             vary_mass: false,
+            duration_s: None,
         },
         &|| {},
     );

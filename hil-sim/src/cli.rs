@@ -1,19 +1,22 @@
 //! The `hil-sim` command line (clap derive): `compare`, `run`, `montecarlo`,
-//! `bench`. The binary is a thin wrapper around [`main_entry`]; everything
+//! `merge`, `bench`. The binary is a thin wrapper around [`main_entry`]; everything
 //! here is library code so tests can drive it.
 
 use crate::bench::{run_bench, BenchConfig};
-use crate::montecarlo::{run_montecarlo, stats_table, McConfig};
-use crate::report::{human_summary, metrics_table, write_trace_csv, RunReport};
+use crate::montecarlo::{
+    run_records, stats_table, ControllerStats, McConfig, McRecords, McResult, Outcome, MAX_RUNS,
+};
+use crate::report::{human_summary, metrics_table, scenario_summary, write_trace_csv, RunReport};
 use crate::scenario::{Scenario, Sensing, TrajectoryKind};
 use crate::scenario_file::load_scenario;
+use crate::shard::{default_shard_path, merge_shards, write_shard, Shard, ShardHeader};
 use crate::sim::{controller_config, run_with, SimOutput};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use controller_core::ControllerKind;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Host simulator: the controller-core controllers against the paper's
 /// differential-drive robot with slip, skid, disturbance and actuator fault.
@@ -32,8 +35,11 @@ pub enum Command {
     Compare(CompareArgs),
     /// One scenario with one controller.
     Run(Box<RunArgs>),
-    /// N random paper scenarios per controller, in parallel: mean/p95/max of every metric.
+    /// N random paper scenarios per controller, in parallel: mean/p95/max of every metric
+    /// (or, with --shard, one slice of the runs written to a file for `merge`).
     Montecarlo(McArgs),
+    /// Combines shard files of `montecarlo --shard` into the statistics of one run.
+    Merge(MergeArgs),
     /// Time per 40 s paper scenario and Monte-Carlo throughput on this machine.
     Bench(BenchArgs),
 }
@@ -223,7 +229,7 @@ pub struct RunArgs {
 #[derive(Debug, Args)]
 pub struct McArgs {
     /// Runs per controller.
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=MAX_RUNS))]
     pub runs: u64,
     /// Paper case.
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(1..=2))]
@@ -234,12 +240,35 @@ pub struct McArgs {
     /// Also draw the plant mass scale in [0.8, 1.2].
     #[arg(long)]
     pub vary_mass: bool,
+    /// Run length [s] [default: the paper's 40 s].
+    #[arg(long, value_name = "s")]
+    pub duration: Option<f64>,
+    /// Run only shard I of N (0-based: 0/N … N-1/N), a contiguous block of the run
+    /// indices with the same seeds as the unsharded run; write its raw results to
+    /// --out (default mc-case<C>-seed<S>-runs<R>-shard<I>of<N>.jsonl) for `merge`.
+    #[arg(long, value_name = "I/N", value_parser = Shard::parse)]
+    pub shard: Option<Shard>,
+    /// Write the raw per-run results (JSON Lines, the shard file format) to FILE.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
     /// Print the statistics as JSON instead of the table.
     #[arg(long)]
     pub json: bool,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// `merge` options.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// Shard files written by `montecarlo --shard I/N` (any order; together they must
+    /// hold every run index of one sweep exactly once).
+    #[arg(required = true, value_name = "FILE")]
+    pub files: Vec<PathBuf>,
+    /// Print the statistics as JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `bench` options.
@@ -268,7 +297,7 @@ pub fn compare_runs(
     seed: u64,
     beta: Option<f64>,
     eps: Option<f64>,
-) -> Result<Vec<(u8, Scenario, Vec<SimOutput>)>, String> {
+) -> Result<Vec<CaseRuns>, String> {
     let cases: Vec<(u8, Scenario)> = [1u8, 2]
         .iter()
         .map(|&c| (c, Scenario::paper_case(c, seed, beta, eps)))
@@ -296,11 +325,13 @@ pub fn compare_runs(
     Ok(res)
 }
 
-fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
-    let t0 = std::time::Instant::now();
-    let results = compare_runs(a.seed, a.beta, a.eps)?;
-    let t_sim = t0.elapsed();
-    let rows: Vec<CompareRow> = results
+/// A case's simulations: the paper case number, its scenario and one output
+/// per controller (in [`ControllerKind::ALL`] order).
+pub type CaseRuns = (u8, Scenario, Vec<SimOutput>);
+
+/// One [`CompareRow`] per case × controller, in the order of `results`.
+pub fn compare_rows(results: &[CaseRuns]) -> Vec<CompareRow> {
+    results
         .iter()
         .flat_map(|(c, s, runs)| {
             runs.iter().map(move |o| CompareRow {
@@ -308,73 +339,118 @@ fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
                 report: RunReport::new(o.kind, s, o),
             })
         })
+        .collect()
+}
+
+/// The rows as pretty JSON (the content of `metrics.json` and of `compare --json`).
+pub fn compare_json(rows: &[CompareRow]) -> Result<String, String> {
+    serde_json::to_string_pretty(rows).map_err(|e| e.to_string())
+}
+
+/// Writes `json` to `dir/metrics.json` (creating `dir`); returns the path.
+pub fn write_metrics_json(dir: &Path, json: &str) -> Result<PathBuf, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let path = dir.join("metrics.json");
+    std::fs::write(&path, format!("{json}\n"))
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    Ok(path)
+}
+
+/// Title of a case's figures, e.g. `Case 2 (β = 0.183 rad/s, ε = 0.152)`.
+fn case_plot_title(case: u8, scn: &Scenario) -> String {
+    format!(
+        "Case {case} (β = {:.3} rad/s{})",
+        scn.beta,
+        if scn.eps > 0.0 {
+            format!(", ε = {:.3}", scn.eps)
+        } else {
+            String::new()
+        }
+    )
+}
+
+/// Draws every case's figures into `dir` (cases in parallel); the files
+/// written, per case.
+pub fn draw_compare_plots(dir: &Path, results: &[CaseRuns]) -> Result<Vec<Vec<PathBuf>>, String> {
+    results
+        .par_iter()
+        .map(|(c, s, runs)| {
+            crate::plot::write_case_plots(
+                dir,
+                &format!("case{c}"),
+                &case_plot_title(*c, s),
+                s,
+                runs,
+            )
+        })
+        .collect()
+}
+
+/// The text `compare` prints without `--json`: the scenarios, the metrics
+/// table with its legend, the timing and where the files went.
+fn compare_text(
+    results: &[CaseRuns],
+    rows: &[CompareRow],
+    sim_time: std::time::Duration,
+    metrics_path: &Path,
+    plot_files: Option<(&[Vec<PathBuf>], &Path)>,
+) -> String {
+    let mut text = String::new();
+    for (c, s, _) in results {
+        text += &format!("case {c}: {}\n", scenario_summary(s));
+    }
+    text.push('\n');
+    let table_rows: Vec<(Vec<String>, crate::Metrics)> = rows
+        .iter()
+        .map(|r| {
+            (
+                vec![r.case.to_string(), r.report.controller.to_string()],
+                r.report.metrics.clone(),
+            )
+        })
         .collect();
-    std::fs::create_dir_all(&a.out)
-        .map_err(|e| format!("cannot create {}: {e}", a.out.display()))?;
-    let json = serde_json::to_string_pretty(&rows).map_err(|e| e.to_string())?;
-    let mpath = a.out.join("metrics.json");
-    std::fs::write(&mpath, format!("{json}\n"))
-        .map_err(|e| format!("cannot write {}: {e}", mpath.display()))?;
-    let plots: Result<Vec<Vec<PathBuf>>, String> = if a.no_plots {
-        Ok(Vec::new())
-    } else {
-        results
-            .par_iter()
-            .map(|(c, s, runs)| {
-                let title = format!(
-                    "Case {c} (β = {:.3} rad/s{})",
-                    s.beta,
-                    if s.eps > 0.0 {
-                        format!(", ε = {:.3}", s.eps)
-                    } else {
-                        String::new()
-                    }
-                );
-                crate::plot::write_case_plots(&a.out, &format!("case{c}"), &title, s, runs)
-            })
-            .collect()
-    };
-    let w = |out: &mut dyn Write, s: &str| out.write_all(s.as_bytes()).map_err(|e| e.to_string());
-    if a.json {
-        w(out, &format!("{json}\n"))?;
-    } else {
-        let mut text = String::new();
-        for (c, s, _) in &results {
+    text += &metrics_table(&["case", "controller"], &table_rows);
+    text += "\nrms: whole run; rms_win/max_win: perturbation window 10-35 s; rms_t>5: t >= 5 s; \
+settle: error stays < 0.1 m until the window;\nsat: steps at the torque limit; F_rmse: RMS |F̂ − F| over the window (proposed only)\n";
+    text += &format!(
+        "\n6 simulations in {:.0} ms ({} threads); metrics written to {}\n",
+        sim_time.as_secs_f64() * 1e3,
+        rayon::current_num_threads(),
+        metrics_path.display()
+    );
+    if let Some((files, dir)) = plot_files {
+        if !files.is_empty() {
             text += &format!(
-                "case {c}: beta = {:.4} rad/s, eps = {:.4}, skid x{}, disturbance {} N·m, torque limit {} N·m, seed {}\n",
-                s.beta, s.eps, s.skid_scale, s.disturbance_nm, s.torque_limit_nm, s.seed
+                "{} plot files written to {} (case<N>_{{xy,errors,velocities,torques,faults}}.{{png,svg}})\n",
+                files.iter().map(Vec::len).sum::<usize>(),
+                dir.display()
             );
         }
-        text.push('\n');
-        let table_rows: Vec<(Vec<String>, crate::Metrics)> = rows
-            .iter()
-            .map(|r| {
-                (
-                    vec![r.case.to_string(), r.report.controller.to_string()],
-                    r.report.metrics.clone(),
-                )
-            })
-            .collect();
-        text += &metrics_table(&["case", "controller"], &table_rows);
-        text += "\nrms: whole run; rms_win/max_win: perturbation window 10-35 s; rms_t>5: t >= 5 s; \
-settle: error stays < 0.1 m until the window;\nsat: steps at the torque limit; F_rmse: RMS |F̂ − F| over the window (proposed only)\n";
-        text += &format!(
-            "\n6 simulations in {:.0} ms ({} threads); metrics written to {}\n",
-            t_sim.as_secs_f64() * 1e3,
-            rayon::current_num_threads(),
-            mpath.display()
-        );
-        if let Ok(p) = &plots {
-            if !p.is_empty() {
-                text += &format!(
-                    "{} plot files written to {} (case<N>_{{xy,errors,velocities,torques,faults}}.{{png,svg}})\n",
-                    p.iter().map(Vec::len).sum::<usize>(),
-                    a.out.display()
-                );
-            }
-        }
-        w(out, &text)?;
     }
+    text
+}
+
+/// `compare`: run, write metrics.json, draw the plots, print; a plot error
+/// is returned after the table has been printed.
+fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
+    let t0 = std::time::Instant::now();
+    let results = compare_runs(a.seed, a.beta, a.eps)?;
+    let sim_time = t0.elapsed();
+    let rows = compare_rows(&results);
+    let json = compare_json(&rows)?;
+    let metrics_path = write_metrics_json(&a.out, &json)?;
+    let plots = if a.no_plots {
+        Ok(Vec::new())
+    } else {
+        draw_compare_plots(&a.out, &results)
+    };
+    let text = if a.json {
+        format!("{json}\n")
+    } else {
+        let plot_files = plots.as_ref().ok().map(|p| (p.as_slice(), a.out.as_path()));
+        compare_text(&results, &rows, sim_time, &metrics_path, plot_files)
+    };
+    out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
     plots.map(|_| ())
 }
 
@@ -387,7 +463,7 @@ fn run_cmd(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
     let every = match (a.csv.is_some(), a.csv_every) {
         (false, _) => 0,
         (true, Some(n)) => n.max(1),
-        (true, None) => ((0.01 / scn.control_period_s).round() as usize).max(1),
+        (true, None) => crate::sim::trace_every(&scn),
     };
     let res = run_with(&scn, controller_config(&scn, kind), every)?;
     if let Some(path) = &a.csv {
@@ -412,56 +488,159 @@ fn run_cmd(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())
 }
 
+/// A progress bar on stderr for `total` simulations (hidden with `quiet`).
+fn progress_bar(total: u64, quiet: bool) -> indicatif::ProgressBar {
+    if quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    let pb = indicatif::ProgressBar::with_draw_target(
+        Some(total),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} simulations, eta {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    pb
+}
+
+/// The error of a sweep with `failed` simulations, after its output;
+/// `where_` says where their messages are.
+fn failed_error(failed: usize, where_: &str) -> Result<(), String> {
+    if failed > 0 {
+        return Err(format!("{failed} simulations failed ({where_})"));
+    }
+    Ok(())
+}
+
+/// The sweep's description and statistics table, as both `montecarlo` and
+/// `merge` print them (followed by one line on timing or shard files).
+fn mc_text(sweep: &McConfig, stats: &[ControllerStats]) -> String {
+    format!("{}\n\n{}\n", sweep.describe(), stats_table(stats))
+}
+
+/// What an unsharded `montecarlo` prints: the statistics (table or JSON)
+/// and the throughput; `file` is where `--out` wrote the records.
+fn mc_report(
+    cfg: &McConfig,
+    rec: &McRecords,
+    file: Option<&Path>,
+    json: bool,
+) -> Result<String, String> {
+    let res = McResult::from_records(rec);
+    if json {
+        return Ok(serde_json::to_string_pretty(&res).map_err(|e| e.to_string())? + "\n");
+    }
+    let mut t = mc_text(cfg, &res.stats)
+        + &format!(
+            "{} simulations in {:.2} s on {} threads: {:.1} runs/s\n",
+            res.simulations, res.elapsed_s, res.threads, res.runs_per_s
+        );
+    if let Some(path) = file {
+        t += &format!("raw results written to {}\n", path.display());
+    }
+    Ok(t)
+}
+
+/// What `montecarlo --shard` prints: the shard, its throughput and its file
+/// (no statistics: those come from `merge`).
+fn shard_report(
+    cfg: &McConfig,
+    header: &ShardHeader,
+    rec: &McRecords,
+    file: &Path,
+    json: bool,
+) -> Result<String, String> {
+    let [start, end] = header.runs;
+    if json {
+        let v = serde_json::json!({
+            "file": file.display().to_string(),
+            "shard": header.shard,
+            "runs": header.runs,
+            "simulations": rec.records.len(),
+            "elapsed_s": rec.elapsed_s,
+            "runs_per_s": rec.sims_per_s(),
+            "threads": rec.threads,
+        });
+        return Ok(serde_json::to_string_pretty(&v).map_err(|e| e.to_string())? + "\n");
+    }
+    Ok(format!(
+        "{}\nshard {}/{}: runs {start}..{end}, {} simulations in {:.2} s on {} threads: {:.1} runs/s\n\
+         raw results written to {} (combine with `hil-sim merge FILE...`)\n",
+        cfg.describe(),
+        header.shard.index,
+        header.shard.count,
+        rec.records.len(),
+        rec.elapsed_s,
+        rec.threads,
+        rec.sims_per_s(),
+        file.display()
+    ))
+}
+
+/// `montecarlo`: run the sweep or one shard of it, write the records with
+/// `--shard`/`--out`, print the statistics (unsharded) or the shard's summary.
 fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
     let cfg = McConfig {
         runs: a.runs as usize,
         case: a.case,
         seed: a.seed,
         vary_mass: a.vary_mass,
+        duration_s: a.duration,
     };
-    let total = cfg.runs as u64 * ControllerKind::ALL.len() as u64;
-    let pb = if a.quiet {
-        indicatif::ProgressBar::hidden()
-    } else {
-        let pb = indicatif::ProgressBar::with_draw_target(
-            Some(total),
-            indicatif::ProgressDrawTarget::stderr(),
-        );
-        pb.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{elapsed_precise} [{bar:40}] {pos}/{len} simulations, eta {eta}",
-            )
-            .expect("valid template")
-            .progress_chars("=> "),
-        );
-        pb
-    };
-    let res = run_montecarlo(&cfg, &|| pb.inc(1));
+    cfg.validate()?;
+    let shard = a.shard.unwrap_or(Shard::WHOLE);
+    let runs = shard.runs(a.runs);
+    let pb = progress_bar(
+        (runs.end - runs.start) * ControllerKind::ALL.len() as u64,
+        a.quiet,
+    );
+    let rec = run_records(&cfg, runs, &|| pb.inc(1));
     pb.finish_and_clear();
-    let text = if a.json {
-        serde_json::to_string_pretty(&res).map_err(|e| e.to_string())? + "\n"
-    } else {
-        format!(
-            "Monte-Carlo: case {}, {} runs per controller, beta in (0, 0.2) rad/s{}{}, base seed {}\n\n{}\n\
-             {} simulations in {:.2} s on {} threads: {:.1} runs/s\n",
-            cfg.case,
-            cfg.runs,
-            if cfg.case >= 2 { ", eps in (0.125, 0.25)" } else { "" },
-            if cfg.vary_mass { ", mass scale in [0.8, 1.2]" } else { "" },
-            cfg.seed,
-            stats_table(&res),
-            res.simulations,
-            res.elapsed_s,
-            res.threads,
-            res.runs_per_s
-        )
+    let header = ShardHeader::new(&cfg, shard, rec.elapsed_s, rec.threads);
+    let file = match (&a.out, a.shard) {
+        (Some(p), _) => Some(p.clone()),
+        (None, Some(s)) => Some(default_shard_path(&cfg, s)),
+        (None, None) => None,
+    };
+    if let Some(path) = &file {
+        write_shard(path, &header, &rec.records)?;
+    }
+    let text = match &file {
+        Some(path) if a.shard.is_some() => shard_report(&cfg, &header, &rec, path, a.json)?,
+        _ => mc_report(&cfg, &rec, file.as_deref(), a.json)?,
     };
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
-    let failed: usize = res.stats.iter().map(|s| s.failed).sum();
-    if failed > 0 {
-        return Err(format!("{failed} simulations failed (see above)"));
-    }
-    Ok(())
+    let failed = rec
+        .records
+        .iter()
+        .filter(|r| matches!(r.outcome, Outcome::Error(_)))
+        .count();
+    let where_ = match &file {
+        Some(p) if a.shard.is_some() => format!("their errors are in {}", p.display()),
+        _ => "see above".to_string(),
+    };
+    failed_error(failed, &where_)
+}
+
+fn merge(a: &MergeArgs, out: &mut dyn Write) -> Result<(), String> {
+    let m = merge_shards(&a.files)?;
+    let text = if a.json {
+        serde_json::to_string_pretty(&m).map_err(|e| e.to_string())? + "\n"
+    } else {
+        mc_text(&m.sweep, &m.stats)
+            + &format!(
+                "{} simulations merged from {} shard files (the shards ran {:.2} s in total)\n",
+                m.simulations,
+                m.shard_files.len(),
+                m.shards_elapsed_s
+            )
+    };
+    out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
+    failed_error(m.stats.iter().map(|s| s.failed).sum(), "see above")
 }
 
 /// Executes a parsed command line, writing results to `out`.
@@ -470,6 +649,7 @@ pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
         Command::Compare(a) => compare(a, out),
         Command::Run(a) => run_cmd(a, out),
         Command::Montecarlo(a) => montecarlo(a, out),
+        Command::Merge(a) => merge(a, out),
         Command::Bench(a) => {
             let r = run_bench(&BenchConfig {
                 reps: a.reps as usize,

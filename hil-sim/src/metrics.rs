@@ -3,13 +3,13 @@
 //! Position error = Euclidean distance between the true position of G and the
 //! reference point, sampled at every control step.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Error threshold for [`Metrics::settling_time_s`] \[m\].
 pub const SETTLE_THRESHOLD_M: f64 = 0.1;
 
 /// Metrics of one run (`--json` prints this object).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
     /// RMS position error over the whole run \[m\].
     pub rms_pos_err_m: f64,

@@ -3,6 +3,11 @@
 //! derived from the base seed and the run index, optionally the plant's mass
 //! scale ∈ \[0.8, 1.2\]. Every controller sees the same N scenarios (paired
 //! comparison). Runs go in parallel on rayon's pool.
+//!
+//! A sweep produces one [`SimRecord`] per run index × controller; the
+//! statistics are computed from those records by one function,
+//! [`stats_from_records`], whether they come from one process
+//! ([`run_montecarlo`]) or from shard files merged later (`crate::shard`).
 
 use crate::metrics::Metrics;
 use crate::rng::Rng;
@@ -10,7 +15,11 @@ use crate::scenario::Scenario;
 use crate::sim::{controller_config, run_with};
 use controller_core::ControllerKind;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+use std::ops::Range;
+
+/// Most runs per controller of one sweep (`--runs`).
+pub const MAX_RUNS: u64 = 1_000_000;
 
 /// Range of the plant mass scale with `--vary-mass`.
 pub const MASS_SCALE_RANGE: (f64, f64) = (0.8, 1.2);
@@ -105,21 +114,28 @@ fn as_map<S: serde::Serializer>(
     s.collect_map(v.iter().map(|(k, x)| (k, x)))
 }
 
-/// Statistics of one controller's results.
-pub fn controller_stats(
-    kind: ControllerKind,
-    results: &[Result<Metrics, String>],
-) -> ControllerStats {
-    let ok: Vec<&Metrics> = results.iter().filter_map(|r| r.as_ref().ok()).collect();
-    let errors: Vec<String> = results
+/// Statistics of one controller's outcomes (in run-index order: the first
+/// few errors are listed in that order).
+pub fn controller_stats(kind: ControllerKind, outcomes: &[&Outcome]) -> ControllerStats {
+    let ok: Vec<&Metrics> = outcomes
         .iter()
-        .filter_map(|r| r.as_ref().err().cloned())
+        .filter_map(|o| match o {
+            Outcome::Metrics(m) => Some(m),
+            Outcome::Error(_) => None,
+        })
+        .collect();
+    let errors: Vec<&String> = outcomes
+        .iter()
+        .filter_map(|o| match o {
+            Outcome::Error(e) => Some(e),
+            Outcome::Metrics(_) => None,
+        })
         .collect();
     ControllerStats {
         controller: kind.name(),
-        runs: results.len(),
+        runs: outcomes.len(),
         failed: errors.len(),
-        errors: errors.into_iter().take(5).collect(),
+        errors: errors.into_iter().take(5).cloned().collect(),
         metrics: METRICS
             .iter()
             .map(|(name, f)| {
@@ -130,8 +146,72 @@ pub fn controller_stats(
     }
 }
 
-/// Monte-Carlo settings.
-#[derive(Clone, Copy, Debug)]
+/// Outcome of one simulation: its metrics, or why it failed (plant diverged).
+/// In a shard file: `"metrics": {…}` or `"error": "…"`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// The run finished.
+    Metrics(Metrics),
+    /// The run failed.
+    Error(String),
+}
+
+/// One simulation of a sweep: one line of a shard file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SimRecord {
+    /// Run index in `0..runs` (the scenario is [`McConfig::scenario`] of it).
+    pub run: u64,
+    /// Seed of the run, [`run_seed`]`(base seed, run)` (stored as a check).
+    pub seed: u64,
+    /// Controller (`smc`, `asmc`, `proposed`).
+    #[serde(with = "controller_name")]
+    pub controller: ControllerKind,
+    /// Metrics or error.
+    #[serde(flatten)]
+    pub outcome: Outcome,
+}
+
+/// A [`ControllerKind`] as its name in JSON.
+mod controller_name {
+    use controller_core::ControllerKind;
+    use serde::{de::Error, Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(k: &ControllerKind, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(k.name())
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<ControllerKind, D::Error> {
+        let name = String::deserialize(d)?;
+        ControllerKind::ALL
+            .into_iter()
+            .find(|k| k.name() == name)
+            .ok_or_else(|| D::Error::custom(format!("unknown controller '{name}'")))
+    }
+}
+
+/// The statistics of a sweep from its records, one [`ControllerStats`] per
+/// controller in the paper's order. The one function behind both
+/// `montecarlo` and `merge`: the records may come in any order (they are
+/// sorted by run index first), so shards merged give bit-identical results.
+pub fn stats_from_records(records: &[SimRecord]) -> Vec<ControllerStats> {
+    let mut sorted: Vec<&SimRecord> = records.iter().collect();
+    sorted.sort_by_key(|r| r.run);
+    ControllerKind::ALL
+        .iter()
+        .map(|&k| {
+            let outcomes: Vec<&Outcome> = sorted
+                .iter()
+                .filter(|r| r.controller == k)
+                .map(|r| &r.outcome)
+                .collect();
+            controller_stats(k, &outcomes)
+        })
+        .collect()
+}
+
+/// Monte-Carlo settings (stored in every shard file's header).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct McConfig {
     /// Runs per controller.
     pub runs: usize,
@@ -141,6 +221,94 @@ pub struct McConfig {
     pub seed: u64,
     /// Draw the plant mass scale too.
     pub vary_mass: bool,
+    /// Run length \[s\]; None = the paper's.
+    pub duration_s: Option<f64>,
+}
+
+impl McConfig {
+    /// The scenario of run `i`: [`sample_scenario`] with the run length
+    /// override.
+    pub fn scenario(&self, i: u64) -> Scenario {
+        let mut scn = sample_scenario(self.case, self.seed, i, self.vary_mass);
+        if let Some(d) = self.duration_s {
+            scn.duration_s = d;
+        }
+        scn
+    }
+
+    /// Rejects settings no run could use (checks run 0's scenario).
+    pub fn validate(&self) -> Result<(), String> {
+        if !(1..=2).contains(&self.case) {
+            return Err(format!("case must be 1 or 2, got {}", self.case));
+        }
+        self.scenario(0).validate()
+    }
+
+    /// One line describing the sweep, e.g. `Monte-Carlo: case 2, 200 runs
+    /// per controller, beta in (0, 0.2) rad/s, eps in (0.125, 0.25), base
+    /// seed 1` (printed by `montecarlo` and `merge`).
+    pub fn describe(&self) -> String {
+        format!(
+            "Monte-Carlo: case {}, {} runs per controller, beta in (0, 0.2) rad/s{}{}{}, base seed {}",
+            self.case,
+            self.runs,
+            if self.case >= 2 { ", eps in (0.125, 0.25)" } else { "" },
+            if self.vary_mass { ", mass scale in [0.8, 1.2]" } else { "" },
+            self.duration_s.map_or(String::new(), |d| format!(", {d} s runs")),
+            self.seed,
+        )
+    }
+}
+
+/// Records of the run indices `runs` (a shard, or `0..cfg.runs`) and how
+/// long they took.
+#[derive(Clone, Debug)]
+pub struct McRecords {
+    /// One record per run index × controller, run-major, paper order.
+    pub records: Vec<SimRecord>,
+    /// Wall-clock time \[s\].
+    pub elapsed_s: f64,
+    /// Worker threads used.
+    pub threads: usize,
+}
+
+impl McRecords {
+    /// Simulations per second.
+    pub fn sims_per_s(&self) -> f64 {
+        self.records.len() as f64 / self.elapsed_s.max(1e-9)
+    }
+}
+
+/// Runs the scenarios of the run indices `runs` × the three controllers in
+/// parallel (no trace); `tick` is called once per finished simulation
+/// (progress bar).
+pub fn run_records(cfg: &McConfig, runs: Range<u64>, tick: &(dyn Fn() + Sync)) -> McRecords {
+    let jobs: Vec<(u64, ControllerKind)> = runs
+        .flat_map(|i| ControllerKind::ALL.map(|k| (i, k)))
+        .collect();
+    let t0 = std::time::Instant::now();
+    let records: Vec<SimRecord> = jobs
+        .par_iter()
+        .map(|&(i, kind)| {
+            let scn = cfg.scenario(i);
+            let outcome = match run_with(&scn, controller_config(&scn, kind), 0) {
+                Ok(o) => Outcome::Metrics(o.metrics),
+                Err(e) => Outcome::Error(format!("run {i} (seed {}): {e}", scn.seed)),
+            };
+            tick();
+            SimRecord {
+                run: i,
+                seed: scn.seed,
+                controller: kind,
+                outcome,
+            }
+        })
+        .collect();
+    McRecords {
+        records,
+        elapsed_s: t0.elapsed().as_secs_f64(),
+        threads: rayon::current_num_threads(),
+    }
 }
 
 /// Result of [`run_montecarlo`].
@@ -158,47 +326,27 @@ pub struct McResult {
     pub threads: usize,
 }
 
-/// Runs `cfg.runs` scenarios × the three controllers in parallel (no trace);
-/// `tick` is called once per finished simulation (progress bar).
-pub fn run_montecarlo(cfg: &McConfig, tick: &(dyn Fn() + Sync)) -> McResult {
-    let jobs: Vec<(usize, ControllerKind)> = (0..cfg.runs)
-        .flat_map(|i| ControllerKind::ALL.map(|k| (i, k)))
-        .collect();
-    let t0 = std::time::Instant::now();
-    let results: Vec<(ControllerKind, Result<Metrics, String>)> = jobs
-        .par_iter()
-        .map(|&(i, kind)| {
-            let scn = sample_scenario(cfg.case, cfg.seed, i as u64, cfg.vary_mass);
-            let r = run_with(&scn, controller_config(&scn, kind), 0)
-                .map(|o| o.metrics)
-                .map_err(|e| format!("run {i} (seed {}): {e}", scn.seed));
-            tick();
-            (kind, r)
-        })
-        .collect();
-    let elapsed_s = t0.elapsed().as_secs_f64();
-    let stats = ControllerKind::ALL
-        .iter()
-        .map(|&k| {
-            let rs: Vec<Result<Metrics, String>> = results
-                .iter()
-                .filter(|(kk, _)| *kk == k)
-                .map(|(_, r)| r.clone())
-                .collect();
-            controller_stats(k, &rs)
-        })
-        .collect();
-    McResult {
-        stats,
-        simulations: jobs.len(),
-        elapsed_s,
-        runs_per_s: jobs.len() as f64 / elapsed_s.max(1e-9),
-        threads: rayon::current_num_threads(),
+impl McResult {
+    /// Statistics and timing of a complete set of records.
+    pub fn from_records(r: &McRecords) -> Self {
+        McResult {
+            stats: stats_from_records(&r.records),
+            simulations: r.records.len(),
+            elapsed_s: r.elapsed_s,
+            runs_per_s: r.sims_per_s(),
+            threads: r.threads,
+        }
     }
 }
 
+/// Runs `cfg.runs` scenarios × the three controllers in parallel (no trace);
+/// `tick` is called once per finished simulation (progress bar).
+pub fn run_montecarlo(cfg: &McConfig, tick: &(dyn Fn() + Sync)) -> McResult {
+    McResult::from_records(&run_records(cfg, 0..cfg.runs as u64, tick))
+}
+
 /// The statistics as a table: one row per controller × statistic.
-pub fn stats_table(res: &McResult) -> String {
+pub fn stats_table(stats: &[ControllerStats]) -> String {
     use std::fmt::Write as _;
     let short = [
         "rms", "rms_win", "max_win", "rms_t>5", "final", "settle", "tau_rms", "tau_max", "chatter",
@@ -221,7 +369,7 @@ pub fn stats_table(res: &McResult) -> String {
         let _ = write!(s, " {u:>9}");
     }
     s.push('\n');
-    for st in &res.stats {
+    for st in stats {
         for (row, pick) in [
             ("mean", (|x: &Summary| x.mean) as fn(&Summary) -> f64),
             ("p95", |x| x.p95),
@@ -319,12 +467,12 @@ mod tests {
             saturated_fraction: 0.0,
             fault_est_rmse: None,
         };
-        let rs = vec![
-            Ok(m(1.0, Some(2.0))),
-            Ok(m(3.0, None)),
-            Err("diverged".to_string()),
+        let rs = [
+            Outcome::Metrics(m(1.0, Some(2.0))),
+            Outcome::Metrics(m(3.0, None)),
+            Outcome::Error("diverged".to_string()),
         ];
-        let st = controller_stats(ControllerKind::Smc, &rs);
+        let st = controller_stats(ControllerKind::Smc, &rs.iter().collect::<Vec<_>>());
         assert_eq!((st.runs, st.failed), (3, 1));
         assert_eq!(st.metrics[0].1.unwrap().mean, 2.0);
         assert_eq!(st.metrics[5].1.unwrap().n, 1);

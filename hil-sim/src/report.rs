@@ -119,6 +119,22 @@ pub fn metrics_table(labels: &[&str], rows: &[(Vec<String>, Metrics)]) -> String
     out
 }
 
+/// The scenario's random and physical knobs on one line (no newline), as
+/// `run` and `compare` print them: `beta 0.1825 rad/s, eps 0.1524, skid x0.05,
+/// disturbance 1 N·m, mass x1, torque limit 10 N·m, seed 1`.
+pub fn scenario_summary(scn: &Scenario) -> String {
+    format!(
+        "beta {:.4} rad/s, eps {:.4}, skid x{}, disturbance {} N·m, mass x{}, torque limit {} N·m, seed {}",
+        scn.beta,
+        scn.eps,
+        scn.skid_scale,
+        scn.disturbance_nm,
+        scn.mass_scale,
+        scn.torque_limit_nm,
+        scn.seed
+    )
+}
+
 /// A human summary of one run (what `run` prints without `--json`).
 pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutput) -> String {
     let m = &out.metrics;
@@ -131,11 +147,7 @@ pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutpu
         scn.duration_s,
         kind.name()
     );
-    let _ = writeln!(
-        s,
-        "  beta {:.4} rad/s, eps {:.4}, skid x{}, disturbance {} N·m, mass x{}, torque limit {} N·m, seed {}",
-        scn.beta, scn.eps, scn.skid_scale, scn.disturbance_nm, scn.mass_scale, scn.torque_limit_nm, scn.seed
-    );
+    let _ = writeln!(s, "  {}", scenario_summary(scn));
     let _ = writeln!(
         s,
         "  position error: rms {:.4} m, window rms {:.4} m / max {:.4} m, rms after 5 s {:.4} m, final {:.4} m",
