@@ -15,14 +15,23 @@
 //! | arm button | PA0 (F411 "KEY") / PC13 (Nucleo B1) | GPIO in, pull-up, active low |
 //!
 //! TIM5 is embassy's time driver; TIM2 is free.
+//!
+//! Motor outputs are never left floating by the firmware: [`outputs_low_early`]
+//! drives them low before the clocks start, the PWM channels stay enabled
+//! with a zero compare value while disarmed (driven low by TIM1, not
+//! released), TIM1 forces them low when a debugger halts the core, and
+//! [`motors_off_raw`] cuts everything from the fault handlers. Between reset
+//! and the first instruction only the external pull-downs hold them (see
+//! the README's pin-state table).
 
 use controller_core::runtime::{DutyCommand, Encoder, MotorDriver};
 use embassy_stm32::gpio::{Input, Level, Output, OutputType, Pull, Speed};
+use embassy_stm32::pac::timer::vals::{FilterValue, Ossi};
 use embassy_stm32::peripherals::{IWDG, TIM1, TIM3, TIM4};
 use embassy_stm32::time::{khz, Hertz};
 use embassy_stm32::timer::low_level::CountingMode;
 use embassy_stm32::timer::qei::{self, Qei};
-use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm, SimplePwmChannel};
+use embassy_stm32::timer::simple_pwm::{PwmPin, PwmPinConfig, SimplePwm, SimplePwmChannel};
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{pac, rcc, Config};
 
@@ -36,14 +45,66 @@ compile_error!("select a chip feature: stm32f411ce (default) or stm32f446re");
 pub const CHIP: &str = "STM32F411CE (Black Pill), HSE 25 MHz -> SYSCLK 96 MHz";
 /// Chip name for the banner.
 #[cfg(feature = "stm32f446re")]
-pub const CHIP: &str = "STM32F446RE (Nucleo-64), HSE 8 MHz bypass -> SYSCLK 180 MHz";
+pub const CHIP: &str = "STM32F446RE (Nucleo-64), HSE 8 MHz bypass -> SYSCLK 168 MHz";
 
-/// Core clock \[Hz\] (DWT cycle counts are in these cycles).
+/// Core clock \[Hz\] (DWT cycle counts are in these cycles); the same on
+/// the HSI fallback.
 #[cfg(feature = "stm32f411ce")]
 pub const SYSCLK_HZ: u32 = 96_000_000;
-/// Core clock \[Hz\] (DWT cycle counts are in these cycles).
+/// Core clock \[Hz\] (DWT cycle counts are in these cycles); the same on
+/// the HSI fallback. 168 MHz rather than the chip's 180 MHz so that the
+/// main PLL's Q output gives the 48 MHz USB clock (see [`clock_config`]).
 #[cfg(feature = "stm32f446re")]
-pub const SYSCLK_HZ: u32 = 180_000_000;
+pub const SYSCLK_HZ: u32 = 168_000_000;
+
+/// HSE mode: a 25 MHz crystal on the Black Pill.
+#[cfg(feature = "stm32f411ce")]
+const HSE: rcc::Hse = rcc::Hse {
+    freq: Hertz(25_000_000),
+    mode: rcc::HseMode::Oscillator,
+};
+/// HSE mode: the ST-LINK's 8 MHz MCO output, bypass mode.
+#[cfg(feature = "stm32f446re")]
+const HSE: rcc::Hse = rcc::Hse {
+    freq: Hertz(8_000_000),
+    mode: rcc::HseMode::Bypass,
+};
+
+/// Longest wait for HSE ready at boot \[ms\] (crystals start in a few ms;
+/// ST's HAL allows 100 ms). Beyond it the board runs on the HSI.
+pub const HSE_STARTUP_TIMEOUT_MS: u32 = 100;
+
+/// Encoder input pulls. `Up` for open-collector encoders (add external
+/// 2.2-4.7 kΩ pull-ups to 3.3 V, see the README). Set `None` for encoders
+/// with 5 V push-pull outputs on the 5 V tolerant pins: an FT pin only
+/// tolerates more than VDD + 0.3 V with its internal pulls disabled.
+pub const ENCODER_PULL: Pull = Pull::Up;
+
+/// Digital input filter of both encoder channels (TIMx_CCMR1 IC1F/IC2F):
+/// fSAMPLING = fDTS/16, N = 8 consecutive equal samples.
+///
+/// fDTS = the timer kernel clock (CKD = 0): 96 MHz on the F411 (APB1 48 MHz
+/// ×2), 84 MHz on the F446 (APB1 42 MHz ×2). The filter rejects pulses
+/// shorter than 16·8/96 MHz = 1.33 µs (1.52 µs on the F446) and delays
+/// every edge by that much, equally on A and B, with ±1 sample
+/// (0.17/0.19 µs) of jitter.
+///
+/// Edge spacing at the top speed: the example motor's no-load wheel speed
+/// is 24 V / (0.05 V·s/rad × 12) = 40 rad/s; at 24 000 counts per wheel
+/// revolution that is 40 × 24 000 / 2π = 152 800 counts/s, one ×4 edge
+/// every 6.5 µs (alternating A and B; 13.1 µs between edges of one
+/// channel). 1.33-1.52 µs is a quarter of the A-to-B spacing (half of it
+/// with a 45° quadrature phase error), so the A/B order survives, while the
+/// sub-µs ringing that motor PWM edges couple into encoder cables is
+/// rejected. Faster encoders (more counts per second) need a shorter filter.
+pub const ENCODER_INPUT_FILTER: FilterValue = FilterValue::FDTS_DIV16_N8;
+
+/// Keep the independent watchdog counting while a debugger halts the core
+/// (default), so a halted board resets within the watchdog timeout; the
+/// `halt-freezes-watchdog` feature freezes it for bench debugging (the PWM
+/// outputs are still forced low by TIM1 while halted, but ENABLE and DIR
+/// keep their levels).
+const FREEZE_WATCHDOG_ON_HALT: bool = cfg!(feature = "halt-freezes-watchdog");
 
 /// Control loop rate \[Hz\] (must match the controller's `period_s`).
 pub const CONTROL_HZ: u64 = 1000;
@@ -53,23 +114,65 @@ pub const PWM_FREQ: Hertz = khz(20);
 pub const WATCHDOG_TIMEOUT_US: u32 = 50_000;
 /// Telemetry every this many ticks (50 -> 20 Hz at 1 kHz).
 pub const TELEMETRY_DECIMATION: u32 = 50;
-/// Button debounce \[ticks\]: pressed this long counts as one press.
+/// Button debounce \[ticks\]: held this long counts as one press
+/// (`controller_core::runtime::ArmingButton`).
 pub const BUTTON_DEBOUNCE_TICKS: u16 = 20;
 
-/// Clock tree of the selected chip.
-pub fn clock_config() -> Config {
+/// Which oscillator the PLL runs from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum ClockSource {
+    /// The external clock ([`HSE`]), as designed.
+    Hse,
+    /// The internal 16 MHz RC (HSE did not start within
+    /// [`HSE_STARTUP_TIMEOUT_MS`]): same SYSCLK, ±1 % accuracy at 25 °C and
+    /// worse over temperature, not accurate enough for USB.
+    HsiFallback,
+}
+
+/// Starts the HSE with a bounded wait (embassy's own wait has no timeout),
+/// with raw RCC writes before embassy's clock setup; leaves it running when
+/// it starts, off otherwise. Runs on the 16 MHz HSI (the reset clock).
+fn start_hse() -> ClockSource {
+    let rcc = pac::RCC;
+    if rcc.cr().read().hserdy() {
+        return ClockSource::Hse; // already running (started before a jump here)
+    }
+    // HSEBYP may only be written while HSE is off (the reset state; an HSE
+    // that is on but not ready clocks nothing, so switching it off is safe).
+    rcc.cr().modify(|w| w.set_hseon(false));
+    rcc.cr()
+        .modify(|w| w.set_hsebyp(HSE.mode == rcc::HseMode::Bypass));
+    rcc.cr().modify(|w| w.set_hseon(true));
+    for _ in 0..HSE_STARTUP_TIMEOUT_MS {
+        if rcc.cr().read().hserdy() {
+            return ClockSource::Hse;
+        }
+        cortex_m::asm::delay(rcc::HSI_FREQ.0 / 1000); // >= 1 ms at 16 MHz
+    }
+    rcc.cr().modify(|w| w.set_hseon(false));
+    ClockSource::HsiFallback
+}
+
+/// Clock tree of the selected chip, from the HSE or (fallback) the HSI with
+/// the same PLL output.
+pub fn clock_config(source: ClockSource) -> Config {
     use rcc::*;
     let mut config = embassy_stm32::Config::default();
+    let (hse, pll_src) = match source {
+        ClockSource::Hse => (Some(HSE), PllSource::HSE),
+        ClockSource::HsiFallback => (None, PllSource::HSI),
+    };
+    config.rcc.hse = hse;
+    config.rcc.pll_src = pll_src;
     #[cfg(feature = "stm32f411ce")]
     {
-        // 25 MHz crystal /25 ×192 = 192 MHz VCO; /2 = 96 MHz SYSCLK, /4 = 48 MHz (USB).
-        config.rcc.hse = Some(Hse {
-            freq: Hertz(25_000_000),
-            mode: HseMode::Oscillator,
-        });
-        config.rcc.pll_src = PllSource::HSE;
+        // 25 MHz HSE /25 (or 16 MHz HSI /16) = 1 MHz ×192 = 192 MHz VCO;
+        // /2 = 96 MHz SYSCLK, /4 = 48 MHz (USB).
         config.rcc.pll = Some(Pll {
-            prediv: PllPreDiv::DIV25,
+            prediv: match source {
+                ClockSource::Hse => PllPreDiv::DIV25,
+                ClockSource::HsiFallback => PllPreDiv::DIV16,
+            },
             mul: PllMul::MUL192,
             divp: Some(PllPDiv::DIV2),
             divq: Some(PllQDiv::DIV4),
@@ -82,22 +185,26 @@ pub fn clock_config() -> Config {
     }
     #[cfg(feature = "stm32f446re")]
     {
-        // ST-LINK MCO 8 MHz (bypass) /4 ×180 = 360 MHz VCO; /2 = 180 MHz SYSCLK.
-        config.rcc.hse = Some(Hse {
-            freq: Hertz(8_000_000),
-            mode: HseMode::Bypass,
-        });
-        config.rcc.pll_src = PllSource::HSE;
+        // 8 MHz MCO /4 (or 16 MHz HSI /8) = 2 MHz ×168 = 336 MHz VCO;
+        // /2 = 168 MHz SYSCLK, Q /7 = 48 MHz for USB (CLK48SEL = PLL Q, the
+        // reset value of DCKCFGR2). 180 MHz (VCO 360) has no integer Q for
+        // 48 MHz; PLLSAI could supply it, but embassy-stm32 0.6 writes
+        // PLLSAICFGR without PLLSAIM on the F446 (reset value 0 after its
+        // whole-register write: an invalid divider) and names the CLK48 mux
+        // input PLLSAI Q where RM0390 routes PLLSAI P, so it is not used.
         config.rcc.pll = Some(Pll {
-            prediv: PllPreDiv::DIV4,
-            mul: PllMul::MUL180,
+            prediv: match source {
+                ClockSource::Hse => PllPreDiv::DIV4,
+                ClockSource::HsiFallback => PllPreDiv::DIV8,
+            },
+            mul: PllMul::MUL168,
             divp: Some(PllPDiv::DIV2),
-            divq: None,
+            divq: Some(PllQDiv::DIV7),
             divr: None,
         });
         config.rcc.ahb_pre = AHBPrescaler::DIV1;
-        config.rcc.apb1_pre = APBPrescaler::DIV4; // 45 MHz; timers 90 MHz
-        config.rcc.apb2_pre = APBPrescaler::DIV2; // 90 MHz; TIM1 at 180 MHz
+        config.rcc.apb1_pre = APBPrescaler::DIV4; // 42 MHz (max 45); timers 84 MHz
+        config.rcc.apb2_pre = APBPrescaler::DIV2; // 84 MHz (max 90); TIM1 at 168 MHz
         config.rcc.sys = Sysclk::PLL1_P;
     }
     config
@@ -130,6 +237,10 @@ impl HBridge {
     }
 }
 
+/// The PWM channels stay enabled (CCxE = 1, MOE = 1) in every state: with
+/// CCR = 0, PWM mode 1 keeps OCxREF low, so the timer drives the pins low.
+/// Clearing CCxE instead (with OSSR = 0) would release the pins to the GPIO
+/// controller: floating, the defect this layout avoids.
 impl MotorDriver for HBridge {
     fn set(&mut self, cmd: [DutyCommand; 2]) {
         for ((ch, dir), c) in self.pwm.iter_mut().zip(self.dir.iter_mut()).zip(cmd) {
@@ -137,9 +248,6 @@ impl MotorDriver for HBridge {
             ch.set_duty_cycle(c.duty as u32);
         }
         if !self.enabled {
-            for ch in &mut self.pwm {
-                ch.enable();
-            }
             self.enable.set_high();
             self.enabled = true;
         }
@@ -147,15 +255,11 @@ impl MotorDriver for HBridge {
 
     fn disable(&mut self) {
         self.enable.set_low();
-        for ch in &mut self.pwm {
+        for (ch, dir) in self.pwm.iter_mut().zip(self.dir.iter_mut()) {
             ch.set_duty_cycle(0);
+            dir.set_low();
         }
-        if self.enabled {
-            for ch in &mut self.pwm {
-                ch.disable();
-            }
-            self.enabled = false;
-        }
+        self.enabled = false;
     }
 }
 
@@ -171,6 +275,8 @@ impl ArmButton {
 
 /// Everything the control task drives.
 pub struct Board {
+    /// The oscillator the clocks run from.
+    pub clock: ClockSource,
     /// `(right, left)` encoders.
     pub encoders: Encoders,
     /// Motor driver, disabled.
@@ -181,47 +287,128 @@ pub struct Board {
     pub watchdog: IndependentWatchdog<'static, IWDG>,
 }
 
-/// Initialises clocks and binds the peripherals. Motor outputs start off:
-/// ENABLE low, duty 0, PWM channels disabled.
+/// Drives the motor outputs low with raw register writes, before anything
+/// else runs (call it first in `main`, before [`init`]): ENABLE (PB14), DIR
+/// (PB12, PB13) and PWM (PA8, PA9) as push-pull outputs at 0, with pull-downs
+/// on the three enable/PWM lines for the instants when [`init`] hands PA8/PA9
+/// to TIM1. Runs on the reset clock (HSI); embassy's init only enables the
+/// GPIO clocks (it does not reset the ports), so this state holds until
+/// [`init`] reconfigures the pins.
+///
+/// Not a `#[pre_init]`: cortex-m-rt 0.7 deprecates it (Rust before RAM
+/// initialisation is undefined behaviour), and it would gain only the RAM
+/// initialisation (about 2.2 KiB of .bss/.data, tens of µs at 16 MHz);
+/// the pins float from reset to here in any case, which is what the
+/// external pull-downs are for.
+pub fn outputs_low_early() {
+    pac::RCC.ahb1enr().modify(|w| {
+        w.set_gpioaen(true);
+        w.set_gpioben(true);
+    });
+    let _ = pac::RCC.ahb1enr().read(); // clock on before the first port access
+    pac::GPIOB.bsrr().write(|w| {
+        w.set_br(12, true);
+        w.set_br(13, true);
+        w.set_br(14, true);
+    });
+    pac::GPIOA.bsrr().write(|w| {
+        w.set_br(8, true);
+        w.set_br(9, true);
+    });
+    pac::GPIOB
+        .pupdr()
+        .modify(|w| w.set_pupdr(14, pac::gpio::vals::Pupdr::PULL_DOWN));
+    pac::GPIOA.pupdr().modify(|w| {
+        w.set_pupdr(8, pac::gpio::vals::Pupdr::PULL_DOWN);
+        w.set_pupdr(9, pac::gpio::vals::Pupdr::PULL_DOWN);
+    });
+    pac::GPIOB.moder().modify(|w| {
+        for pin in [12, 13, 14] {
+            w.set_moder(pin, pac::gpio::vals::Moder::OUTPUT);
+        }
+    });
+    pac::GPIOA.moder().modify(|w| {
+        w.set_moder(8, pac::gpio::vals::Moder::OUTPUT);
+        w.set_moder(9, pac::gpio::vals::Moder::OUTPUT);
+    });
+}
+
+/// Starts the clocks (HSE with a bounded wait, else HSI) and binds the
+/// peripherals. Motor outputs stay low throughout: ENABLE and DIR low, the
+/// PWM channels enabled at duty 0 (driven low by TIM1). Call
+/// [`outputs_low_early`] first.
 pub fn init() -> Board {
-    let p = embassy_stm32::init(clock_config());
+    let clock = start_hse();
+    let p = embassy_stm32::init(clock_config(clock));
+    if clock == ClockSource::Hse {
+        // Clock security system: an HSE failure at run time switches to the
+        // HSI and raises an NMI, whose handler cuts the outputs.
+        pac::RCC.cr().modify(|w| w.set_csson(true));
+    }
     // Driver disabled before anything else touches the PWM timer.
     let enable = Output::new(p.PB14, Level::Low, Speed::Low);
     let dir = [
         Output::new(p.PB12, Level::Low, Speed::Low),
         Output::new(p.PB13, Level::Low, Speed::Low),
     ];
+    // Pull-downs hold PA8/PA9 low between the switch to TIM1 and CCxE = 1.
+    let pin_cfg = PwmPinConfig {
+        output_type: OutputType::PushPull,
+        speed: Speed::Low, // 20 kHz needs no fast edges; slower edges ring less
+        pull: Pull::Down,
+    };
     let pwm = SimplePwm::new(
         p.TIM1,
-        Some(PwmPin::new(p.PA8, OutputType::PushPull)),
-        Some(PwmPin::new(p.PA9, OutputType::PushPull)),
+        Some(PwmPin::new_with_config(p.PA8, pin_cfg)),
+        Some(PwmPin::new_with_config(p.PA9, pin_cfg)),
         None,
         None,
         PWM_FREQ,
         CountingMode::EdgeAlignedUp,
     );
+    // MOE = 0 (panic path, debugger halt: "outputs disabled as if MOE were
+    // reset") with OSSI = 1 and CCxE = 1 keeps the timer driving the pins
+    // at their idle level OISx = 0 instead of releasing them to the GPIO
+    // controller. (OSSR only matters for channels with a complementary
+    // output; CCxE therefore stays set in every state, see `HBridge`.)
+    pac::TIM1.cr2().modify(|w| {
+        w.set_ois(0, false);
+        w.set_ois(1, false);
+    });
+    pac::TIM1.bdtr().modify(|w| w.set_ossi(Ossi::IDLE_LEVEL));
     let ch = pwm.split();
     let mut pwm = [ch.ch1, ch.ch2];
     for c in &mut pwm {
         c.set_duty_cycle(0);
-        c.disable();
+        c.enable();
     }
+    // Debugger halt: stop TIM1 (its outputs then go to the OSSI idle level,
+    // low) and, unless built with `halt-freezes-watchdog`, keep the IWDG
+    // running. DBGMCU is reset only by power-on, so write both bits.
+    pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
+    pac::DBGMCU
+        .apb1fzr()
+        .modify(|w| w.set_iwdg(FREEZE_WATCHDOG_ON_HALT));
+
     let encoders = (
         QeiEncoder(Qei::new(p.TIM3, p.PA6, p.PA7, qei_config())),
         QeiEncoder(Qei::new(p.TIM4, p.PB6, p.PB7, qei_config())),
     );
+    for tim in [pac::TIM3, pac::TIM4] {
+        tim.ccmr_input(0).modify(|w| {
+            w.set_icf(0, ENCODER_INPUT_FILTER);
+            w.set_icf(1, ENCODER_INPUT_FILTER);
+        });
+    }
     #[cfg(feature = "stm32f411ce")]
     let button = ArmButton(Input::new(p.PA0, Pull::Up));
     #[cfg(feature = "stm32f446re")]
     let button = ArmButton(Input::new(p.PC13, Pull::Up));
 
-    // Keep the watchdog counting while a debugger halts the core? No: freeze
-    // it, so breakpoints do not reset the board (motors are off when halted
-    // only if the driver's ENABLE is low, so never debug with wheels on the floor).
-    pac::DBGMCU.apb1fzr().modify(|w| w.set_iwdg(true));
     let watchdog = IndependentWatchdog::new(p.IWDG, WATCHDOG_TIMEOUT_US);
 
     Board {
+        clock,
         encoders,
         motors: HBridge {
             pwm,
@@ -236,16 +423,17 @@ pub fn init() -> Board {
 
 fn qei_config() -> qei::Config {
     qei::Config {
-        ch1_pull: Pull::Up, // open-collector encoders need pull-ups
-        ch2_pull: Pull::Up,
+        ch1_pull: ENCODER_PULL,
+        ch2_pull: ENCODER_PULL,
         ..qei::Config::default() // mode 3 (×4), full 16-bit range
     }
 }
 
 /// Turns the motor outputs off with raw register writes, usable from the
-/// panic and fault handlers whatever state the drivers are in: ENABLE and
-/// DIR low, TIM1 outputs disabled (MOE = 0, CCR = 0), PWM pins forced to
-/// GPIO output low.
+/// panic, fault and NMI handlers whatever state the drivers are in: ENABLE
+/// and DIR low, TIM1 main output off (MOE = 0; with OSSI = 1 the timer
+/// drives the pins at their idle level, low), CCR = 0, PWM pins forced to
+/// GPIO output low. Idempotent; touches no RAM.
 pub fn motors_off_raw() {
     // ENABLE (PB14), DIR (PB12, PB13) low.
     pac::GPIOB.bsrr().write(|w| {

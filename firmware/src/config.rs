@@ -3,12 +3,31 @@
 //! every field (`controller_core::RobotParams`,
 //! `controller_core::runtime::{MotorParams, EncoderParams, SafetyLimits}`).
 
-use controller_core::runtime::{EncoderParams, MotorParams, RuntimeConfig, SafetyLimits};
+use controller_core::controller::{DEFAULT_K_Y, DEFAULT_TORQUE_LIMIT_NM};
+use controller_core::eso::EsoParams;
+use controller_core::fault_observer::FaultObserverGains;
+use controller_core::kinematic::KinematicGains;
+use controller_core::runtime::{
+    EncoderParams, MotorParams, RuntimeConfig, SafetyLimits, MIRRORED_LEFT,
+};
 use controller_core::trajectory::{PaperCurve, PaperHeading, Reference, Trajectory};
-use controller_core::{ControllerConfig, ControllerKind, RobotParams};
+use controller_core::{ControllerConfig, ControllerKind, InputLimits, RobotParams};
 
 /// Which of the paper's controllers runs.
 pub const CONTROLLER: ControllerKind = ControllerKind::Proposed;
+
+/// Per-wheel torque limit \[N·m\] the controller saturates at:
+/// controller-core's default (the paper gives none, DECISIONS D14). Set it
+/// to what your motors and gearboxes can deliver.
+pub const TORQUE_LIMIT_NM: f32 = DEFAULT_TORQUE_LIMIT_NM;
+
+/// Kinematic-loop gains, eq. (14): Table 2's k_x = 1.2, k_th = 5 with
+/// controller-core's k_y (the printed 250 is unstable on reversals,
+/// DECISIONS D8).
+pub const KINEMATIC_GAINS: KinematicGains = KinematicGains {
+    k_y: DEFAULT_K_Y,
+    ..KinematicGains::paper()
+};
 
 /// Robot body: mass, inertia, wheel radius, half track, centre-of-mass
 /// offset. Default: the paper's Table 1 (15 kg, r = 0.1 m, track 0.4 m,
@@ -33,25 +52,36 @@ pub const MOTOR: MotorParams = MotorParams {
 /// forward, and the speed window.
 pub const ENCODER: EncoderParams = EncoderParams {
     counts_per_wheel_rev: 24_000.0,
-    inverted: [false, true], // left encoder mirrored
+    inverted: MIRRORED_LEFT, // left encoder mirrored
     speed_window_ticks: 4,   // 4 ms window: 0.065 rad/s quantization, 2 ms delay
 };
 
 /// Per wheel `[right, left]`: flip the DIR output (left motor mirrored).
-pub const MOTOR_INVERTED: [bool; 2] = [false, true];
+pub const MOTOR_INVERTED: [bool; 2] = MIRRORED_LEFT;
 
 /// Safety thresholds (see `SafetyLimits`): jump > 400 counts/ms
-/// (2.6× the 40 rad/s no-load speed), stall at >= 2 N·m for 250 ms,
-/// overrun > 1.5 ms with 5 in a row latching, first bad input latching.
+/// (2.6× the 40 rad/s no-load speed), stall at >= 2 N·m for 250 ms, a tick
+/// more than 0.5 ms behind its schedule is late and 5 late ticks in a row
+/// latch, first bad input latching.
 pub const SAFETY: SafetyLimits = SafetyLimits::EXAMPLE;
 
 /// The full runtime configuration; `pwm_full_scale` is the PWM timer's
 /// counts at 100 % duty.
 pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {
+    // Every field named: the sliding loop's k_s and switching gain are
+    // Table 2's for CONTROLLER (k_s = 50 proposed, 5 baselines; adaptive
+    // ρ̂ or the fixed SMC gain), the observers take controller-core's
+    // defaults (fault observer eq. 13, fal-ESO eq. 18).
     let controller = ControllerConfig {
+        kind: CONTROLLER,
         robot: ROBOT,
+        kinematic: KINEMATIC_GAINS,
+        fault_observer: FaultObserverGains::default(),
+        eso: EsoParams::default(),
+        sliding: ControllerConfig::paper(CONTROLLER).sliding,
+        torque_limit_nm: TORQUE_LIMIT_NM,
         period_s: 1.0 / crate::board::CONTROL_HZ as f32,
-        ..ControllerConfig::paper(CONTROLLER)
+        input_limits: InputLimits::default(),
     };
     // The paper's reference curve; odometry starts on its initial pose, so
     // place the robot there (x = 4 m, y = 3 m from the origin, facing +x).

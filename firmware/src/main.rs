@@ -11,7 +11,10 @@
 mod board;
 mod config;
 
-use controller_core::runtime::{ControlLoop, CycleStats, RunState, TickReport, WheelOdometryOnly};
+use controller_core::runtime::{
+    ArmingButton, ArmingEvent, ControlLoop, CycleStats, LoopTimer, RunState, TickReport,
+    WheelOdometryOnly,
+};
 use cortex_m::peripheral::DWT;
 use defmt::{error, info, unwrap, warn};
 use defmt_rtt as _;
@@ -20,6 +23,8 @@ use embassy_time::{Duration, Instant, Ticker};
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
+    // Motor lines defined low before the clocks start (HSE start, PLL lock).
+    board::outputs_low_early();
     let board = board::init();
 
     // DWT cycle counter for the control step's execution time.
@@ -39,6 +44,12 @@ async fn main(spawner: Spawner) {
         env!("CARGO_PKG_VERSION")
     );
     info!("chip: {}", board::CHIP);
+    if board.clock == board::ClockSource::HsiFallback {
+        error!(
+            "HSE did not start within {=u32} ms: running on the internal HSI (same SYSCLK, ~1 % accuracy, no USB)",
+            board::HSE_STARTUP_TIMEOUT_MS
+        );
+    }
     info!(
         "loop {=u64} Hz, PWM {=u32} Hz full scale {=u16} counts, watchdog {=u32} us, telemetry every {=u32} ticks",
         board::CONTROL_HZ,
@@ -55,9 +66,13 @@ async fn main(spawner: Spawner) {
     info!("safety: {}", cfg.safety);
     info!("pose source: wheel odometry only (slip and actuator faults are invisible to it)");
 
-    let control = match ControlLoop::new(cfg) {
-        Ok(c) => c,
-        Err(e) => {
+    let (control, timer, button) = match (
+        ControlLoop::new(cfg),
+        LoopTimer::from_config(&cfg),
+        ArmingButton::new(board::BUTTON_DEBOUNCE_TICKS),
+    ) {
+        (Ok(c), Ok(t), Ok(b)) => (c, t, b),
+        (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => {
             // Never armed: motors stay off, the watchdog is not started.
             error!("invalid configuration: {}; motors stay disabled", e);
             loop {
@@ -66,65 +81,42 @@ async fn main(spawner: Spawner) {
         }
     };
     info!("state: DISARMED (motors off). Press the button to arm.");
-    spawner.spawn(unwrap!(control_task(board, control)));
-}
-
-/// Debounced press detector.
-struct Debounce {
-    held: u16,
-}
-
-impl Debounce {
-    /// True once per press held for `BUTTON_DEBOUNCE_TICKS`.
-    fn press(&mut self, down: bool) -> bool {
-        if !down {
-            self.held = 0;
-            return false;
-        }
-        self.held = self.held.saturating_add(1);
-        self.held == board::BUTTON_DEBOUNCE_TICKS
-    }
+    spawner.spawn(unwrap!(control_task(board, control, timer, button)));
 }
 
 #[embassy_executor::task]
-async fn control_task(mut b: board::Board, mut cl: ControlLoop) {
+async fn control_task(
+    mut b: board::Board,
+    mut cl: ControlLoop,
+    mut timer: LoopTimer,
+    mut button: ArmingButton,
+) {
     let mut ticker = Ticker::every(Duration::from_hz(board::CONTROL_HZ));
     b.watchdog.unleash();
     let mut cycles = CycleStats::new();
-    let mut button = Debounce { held: 0 };
-    let mut last_start: Option<Instant> = None;
     let mut state = cl.state();
     let mut n: u32 = 0;
     loop {
+        // Late ticks arrive back to back; the timer measures them against
+        // the schedule t0 + n·1 ms and gives the runtime the true dt.
         ticker.next().await;
-        let start = Instant::now();
-        let loop_us = match last_start {
-            Some(t) => (start - t).as_micros().min(u32::MAX as u64) as u32,
-            None => 0,
-        };
-        last_start = Some(start);
+        let timing = timer.tick(Instant::now().as_micros() as u32);
 
         let c0 = DWT::cycle_count();
         let rep = cl.tick(
             &mut b.encoders,
             &mut b.motors,
             &mut WheelOdometryOnly,
-            loop_us,
+            timing,
         );
         cycles.record(DWT::cycle_count().wrapping_sub(c0));
         b.watchdog.pet();
 
-        // Operator button: arm when disarmed, disarm when running, clear a
-        // latched stop (back to disarmed) when stopped.
-        if button.press(b.button.pressed()) {
-            match cl.state() {
-                RunState::Disarmed => match cl.arm() {
-                    Ok(()) => {}
-                    Err(e) => warn!("arm refused: {}", e),
-                },
-                RunState::Running => cl.disarm(&mut b.motors),
-                RunState::Stopped(_) => cl.reset(),
-            }
+        // Operator button: arm / disarm / clear a latched stop.
+        if let ArmingEvent::ArmRefused(e) =
+            button.update(b.button.pressed(), &mut cl, &mut b.motors)
+        {
+            warn!("arm refused: {}", e);
         }
         if let Some(reason) = rep.stopped {
             error!("SAFE STOP latched: {} (motors disabled)", reason);
@@ -144,11 +136,14 @@ async fn control_task(mut b: board::Board, mut cl: ControlLoop) {
         }
         if n % board::CONTROL_HZ as u32 == 0 {
             let s = cl.status();
+            let t = timer.stats();
             info!(
-                "status ticks={=u32} run={=u32} overruns={=u32} max_loop_us={=u32} enc_jumps={=u32} input_faults={=u32} tau_sat={=u32} duty_sat={=u32} stops={=u32}",
+                "status ticks={=u32} run={=u32} overruns={=u32} late={=u32} max_late_us={=u32} max_loop_us={=u32} enc_jumps={=u32} input_faults={=u32} tau_sat={=u32} duty_sat={=u32} stops={=u32}",
                 s.ticks,
                 s.run_ticks,
                 s.overruns,
+                t.late_ticks,
+                t.max_lateness_us,
                 s.max_loop_time_us,
                 s.encoder_jumps,
                 s.input_faults,
@@ -221,6 +216,36 @@ fn defmt_panic() -> ! {
 #[cortex_m_rt::exception]
 unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
     board::motors_off_raw();
+    wait_for_watchdog()
+}
+
+/// NMI (the clock security system on an HSE failure, or any other source):
+/// outputs off, no logging (an NMI may interrupt a log in progress), then
+/// wait for the watchdog reset.
+#[cortex_m_rt::exception]
+unsafe fn NonMaskableInt() {
+    board::motors_off_raw();
+    wait_for_watchdog()
+}
+
+/// Every exception and interrupt without a handler (cortex-m-rt's default is
+/// an endless loop that leaves the outputs running): outputs off, then the
+/// interrupt number for device interrupts (`irqn` >= 0; system exceptions
+/// are not logged), then wait for the watchdog reset.
+#[cortex_m_rt::exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    board::motors_off_raw();
+    if irqn >= 0 {
+        error!("unexpected interrupt {=i16} (motors off)", irqn);
+    }
+    wait_for_watchdog()
+}
+
+/// Spins until the independent watchdog resets the chip (within
+/// `WATCHDOG_TIMEOUT_US` of the last feed when it runs; before it is
+/// started, e.g. a fault during init, the board stays here with the outputs
+/// off until power-cycled or reset by a debugger).
+fn wait_for_watchdog() -> ! {
     loop {
         cortex_m::asm::nop();
     }

@@ -13,7 +13,7 @@ use crate::control_side::{Actuation, ControlOutput, ControlSide, Sensed};
 use crate::scenario::{Scenario, Sensing};
 use crate::sim::{run_loop, trace_every, SimOutput};
 use controller_core::runtime::{
-    ControlLoop, PoseSource, RuntimeConfig, SafetyLimits, StopReason, MIRRORED_LEFT,
+    ControlLoop, LoopTimer, PoseSource, RuntimeConfig, SafetyLimits, StopReason, MIRRORED_LEFT,
 };
 use controller_core::{ControllerConfig, ControllerKind, Pose};
 use sim_robot::{MotorDrive, SimDriver, SimEncoders};
@@ -50,6 +50,9 @@ impl PoseSource for ExternalPose {
 /// The runtime as the controller side of [`run_loop`].
 pub struct RuntimeSide {
     control: ControlLoop,
+    /// Measures each tick against the schedule, as in the firmware; the
+    /// simulated clock advances exactly one period per step.
+    timer: LoopTimer,
     encoders: SimEncoders,
     bridge: SimDriver,
     external_pose: bool,
@@ -83,9 +86,11 @@ impl RuntimeSide {
             safety: opts.safety,
         };
         let mut control = ControlLoop::new(cfg).map_err(|e| format!("runtime config: {e}"))?;
+        let timer = LoopTimer::from_config(&cfg).map_err(|e| format!("loop timer: {e}"))?;
         control.arm().map_err(|e| format!("arm: {e:?}"))?;
         Ok(Self {
             control,
+            timer,
             encoders: SimEncoders::new(&cfg.encoder),
             bridge: SimDriver::default(),
             external_pose,
@@ -108,10 +113,12 @@ impl ControlSide for RuntimeSide {
             }
         }
         let mut pose = ExternalPose(self.external_pose.then_some(sensed.pose));
-        let period_us = (self.control.config().controller.period_s * 1e6) as u32;
+        // A µs counter that wraps, like the firmware's.
+        let now_us = (sensed.step as u64 * self.timer.period_us() as u64) as u32;
+        let timing = self.timer.tick(now_us);
         let rep = self
             .control
-            .tick(&mut self.encoders, &mut self.bridge, &mut pose, period_us);
+            .tick(&mut self.encoders, &mut self.bridge, &mut pose, timing);
         if let (Some(reason), None) = (rep.stopped, self.stop) {
             self.stop = Some((sensed.step, reason));
         }

@@ -4,7 +4,9 @@
 //! Checks sign conventions end to end (mirrored encoder and motor) and that
 //! wheel odometry agrees with the truth when nothing slips.
 
-use controller_core::runtime::{ControlLoop, RunState, RuntimeConfig, WheelOdometryOnly};
+use controller_core::runtime::{
+    ControlLoop, RunState, RuntimeConfig, TickTiming, WheelOdometryOnly,
+};
 use controller_core::trajectory::{Circle, Reference, Trajectory};
 use controller_core::ControllerKind;
 use sim_robot::{MotorDrive, Perturbation, Plant, PlantParams, PlantState, SimDriver, SimEncoders};
@@ -47,7 +49,8 @@ fn quantized_closed_loop_tracks_a_circle() {
     let steps = 20_000; // 20 s, over two laps
     for k in 0..steps {
         enc.set_angles([st.q[3], st.q[4]]);
-        let rep = cl.tick(&mut enc, &mut bridge, &mut WheelOdometryOnly, 1000);
+        let on_time = TickTiming::on_schedule(1000);
+        let rep = cl.tick(&mut enc, &mut bridge, &mut WheelOdometryOnly, on_time);
         assert_eq!(rep.stopped, None, "tick {k}: {rep:?}");
         let drive = MotorDrive {
             model: *cl.motor_model(),

@@ -1,6 +1,6 @@
 //! What the runtime is configured with: the controller, the reference, the
 //! hardware constants and the safety thresholds, validated by
-//! [`ControlLoop::new`](super::ControlLoop::new).
+//! [`ControlLoop::new`](super::ControlLoop::new)(super::ControlLoop::new).
 
 use super::encoder::EncoderParams;
 use super::error::RuntimeConfigError;
@@ -14,34 +14,37 @@ use crate::types::Pose;
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SafetyLimits {
-    /// Largest plausible |count change| of one wheel in one tick \[counts\]
-    /// (1..=32767); beyond it the reading is a glitch ([`StopReason::EncoderJump`]).
+    /// Largest plausible |count change| of one wheel in one period \[counts\]
+    /// (1..=32767; scaled by the periods a late tick spans); beyond it the
+    /// reading is a glitch ([`StopReason::EncoderJump`](super::StopReason::EncoderJump)).
     /// Set it to about twice the no-load wheel speed in counts per tick.
     pub max_counts_per_tick: u16,
     /// |Commanded wheel torque| \[N·m\] at or above which a wheel must move.
     pub stall_torque_nm: f32,
     /// Consecutive ticks at or above `stall_torque_nm` with no count change
-    /// that mean a stalled wheel or a dead encoder ([`StopReason::EncoderStalled`]).
+    /// that mean a stalled wheel or a dead encoder ([`StopReason::EncoderStalled`](super::StopReason::EncoderStalled)).
     pub stall_ticks: u16,
-    /// Measured loop time \[µs\] above which a tick counts as an overrun.
+    /// A tick that starts more than this \[µs\] behind its scheduled time
+    /// t₀ + n·period is late ([`LoopTimer`](super::LoopTimer)).
     pub overrun_limit_us: u32,
-    /// Consecutive overruns that latch [`StopReason::LoopOverrun`] (>= 1).
+    /// Consecutive late ticks that latch [`StopReason::LoopOverrun`](super::StopReason::LoopOverrun) (>= 1).
     pub max_consecutive_overruns: u16,
     /// Consecutive controller input faults that latch
-    /// [`StopReason::ControllerInput`] (>= 1; 1 latches on the first).
+    /// [`StopReason::ControllerInput`](super::StopReason::ControllerInput) (>= 1; 1 latches on the first).
     pub max_consecutive_input_faults: u16,
 }
 
 impl SafetyLimits {
     /// Example limits for a 1 kHz loop with [`EncoderParams::EXAMPLE`] and
     /// [`MotorParams::EXAMPLE`] (no-load wheel speed 40 rad/s = 153 counts/ms):
-    /// jump > 400 counts/tick, stall at >= 2 N·m for 250 ms, overrun above
-    /// 1.5 ms with 5 in a row latching, the first NaN/implausible input latching.
+    /// jump > 400 counts/tick, stall at >= 2 N·m for 250 ms, a tick more
+    /// than 0.5 ms behind schedule late with 5 in a row latching, the first
+    /// NaN/implausible input latching.
     pub const EXAMPLE: Self = Self {
         max_counts_per_tick: 400,
         stall_torque_nm: 2.0,
         stall_ticks: 250,
-        overrun_limit_us: 1500,
+        overrun_limit_us: 500,
         max_consecutive_overruns: 5,
         max_consecutive_input_faults: 1,
     };
@@ -64,7 +67,7 @@ impl SafetyLimits {
     }
 }
 
-/// Everything the runtime needs, validated by [`ControlLoop::new`].
+/// Everything the runtime needs, validated by [`ControlLoop::new`](super::ControlLoop::new).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RuntimeConfig {

@@ -8,6 +8,7 @@ use super::hardware::{MotorDriver, PoseSource, WheelEncoders};
 use super::motor::{DutyCommand, MotorModel};
 use super::odometry::Odometry;
 use super::state::{ArmError, RunState, Status, StopReason, TickReport};
+use super::timing::TickTiming;
 use super::Wheel;
 use crate::controller::{Controller, Diagnostics, StepInput};
 use crate::trajectory::Trajectory;
@@ -160,8 +161,10 @@ impl ControlLoop {
         self.status.state == RunState::Running
     }
 
-    /// One control period. `loop_time_us` is the measured time since the
-    /// previous tick started \[µs\] (0 when unknown, e.g. on the first tick).
+    /// One control period. `timing` is this tick's measurement by the
+    /// loop's [`LoopTimer`](super::LoopTimer): its true elapsed time feeds
+    /// the wheel-rate estimate and scales the encoder-jump limit, its
+    /// lateness against the schedule drives the overrun check.
     ///
     /// Never panics; on any safety violation while running it latches a
     /// stop, disables `motors` and reports the reason in
@@ -171,7 +174,7 @@ impl ControlLoop {
         encoders: &mut impl WheelEncoders,
         motors: &mut impl MotorDriver,
         pose_source: &mut impl PoseSource,
-        loop_time_us: u32,
+        timing: TickTiming,
     ) -> TickReport {
         let safety = self.cfg.safety;
         let dt = self.cfg.controller.period_s;
@@ -179,24 +182,22 @@ impl ControlLoop {
         st.ticks = st.ticks.wrapping_add(1);
         let mut stop: Option<StopReason> = None;
 
-        // 1. Loop timing.
-        st.max_loop_time_us = st.max_loop_time_us.max(loop_time_us);
-        if loop_time_us > safety.overrun_limit_us {
-            st.overruns = st.overruns.saturating_add(1);
-            st.consecutive_overruns = st.consecutive_overruns.saturating_add(1);
-            if st.state == RunState::Running
-                && st.consecutive_overruns >= safety.max_consecutive_overruns
-            {
-                stop = Some(StopReason::LoopOverrun { loop_time_us });
-            }
-        } else {
-            st.consecutive_overruns = 0;
+        // 1. Loop timing (lateness against the schedule: see `LoopTimer`).
+        st.max_loop_time_us = st.max_loop_time_us.max(timing.elapsed_us);
+        st.overruns = st.overruns.saturating_add(timing.new_overrun as u32);
+        st.consecutive_overruns = timing.consecutive_late;
+        if st.state == RunState::Running && timing.sustained_overrun {
+            stop = Some(StopReason::LoopOverrun {
+                lateness_us: timing.lateness_us,
+            });
         }
 
         // 2. Encoders: plausibility, deltas, rates, η.
         let raw = encoders.counts();
         let delta = self.counts.peek_delta(raw);
-        let limit = safety.max_counts_per_tick as i32;
+        let limit = (safety.max_counts_per_tick as u32)
+            .saturating_mul(timing.elapsed_periods)
+            .min(i16::MAX as u32) as i32;
         let jump = Wheel::BOTH
             .into_iter()
             .find(|w| delta[w.index()].abs() > limit);
@@ -212,7 +213,7 @@ impl ControlLoop {
                 }
                 CountSample::default()
             }
-            None => self.counts.update(raw, dt),
+            None => self.counts.update(raw, timing.elapsed_s()),
         };
         let robot = &self.cfg.controller.robot;
         let eta = robot.eta_from_wheel_rates(sample.rate_radps);

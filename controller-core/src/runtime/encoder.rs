@@ -28,7 +28,8 @@ pub struct EncoderParams {
     /// the wheel drives the robot forward (mirrored mounting).
     pub inverted: [bool; 2],
     /// Window N \[ticks\] of the rate estimate
-    /// `(count_k − count_{k−N}) / (N·dt)`, in `1..=`[`MAX_SPEED_WINDOW`].
+    /// `(count_k − count_{k−N}) / (t_k − t_{k−N})` (the true time the N
+    /// ticks took), in `1..=`[`MAX_SPEED_WINDOW`].
     /// Larger N: finer speed quantization (one count per N·dt) but a group
     /// delay of N·dt/2.
     pub speed_window_ticks: u8,
@@ -73,8 +74,12 @@ pub struct WheelCounts {
     position: [i32; 2],
     /// Ring buffer of past positions, `history[head]` is the oldest.
     history: [[i32; 2]; MAX_SPEED_WINDOW],
+    /// Elapsed time \[s\] of the tick that produced each `history` entry.
+    dt_history: [f32; MAX_SPEED_WINDOW],
     head: usize,
     filled: usize,
+    /// Last rate, kept when a window's time is zero.
+    last_rate: [f32; 2],
 }
 
 /// One tick's encoder result.
@@ -102,8 +107,10 @@ impl WheelCounts {
             primed: false,
             position: [0; 2],
             history: [[0; 2]; MAX_SPEED_WINDOW],
+            dt_history: [0.0; MAX_SPEED_WINDOW],
             head: 0,
             filled: 0,
+            last_rate: [0.0; 2],
         })
     }
 
@@ -136,7 +143,10 @@ impl WheelCounts {
     }
 
     /// Accepts new raw counts: integrates the delta and updates the rate
-    /// estimate. `dt_s` is the nominal tick period \[s\] (> 0).
+    /// estimate. `dt_s` is the true time since the previous update \[s\]
+    /// (>= 0; see [`TickTiming`](super::TickTiming)): the rate is the count
+    /// change over the window divided by the sum of its ticks' `dt_s`, so
+    /// late or bunched-up ticks do not bias it.
     pub fn update(&mut self, raw: [u16; 2], dt_s: f32) -> CountSample {
         let delta = self.peek_delta(raw);
         self.resync(raw);
@@ -153,21 +163,31 @@ impl WheelCounts {
             let idx = (self.head + MAX_SPEED_WINDOW - back) % MAX_SPEED_WINDOW;
             self.history[idx]
         };
-        let span = self.filled.min(n).max(1) as f32;
+        // Time from the oldest kept position to now: this tick's dt plus
+        // the dts of the ticks after the oldest one.
+        let back = self.filled.min(n);
+        let mut span_s = dt_s;
+        for j in 1..back {
+            span_s += self.dt_history[(self.head + MAX_SPEED_WINDOW - j) % MAX_SPEED_WINDOW];
+        }
         self.history[self.head] = self.position;
+        self.dt_history[self.head] = dt_s;
         self.head = (self.head + 1) % MAX_SPEED_WINDOW;
         self.filled = (self.filled + 1).min(MAX_SPEED_WINDOW);
         let mut rate = [0.0f32; 2];
         let mut dphi = [0.0f32; 2];
         for i in 0..2 {
             let counts = self.position[i].wrapping_sub(oldest[i]) as f32;
-            rate[i] = if self.filled > 1 {
-                counts * self.rad_per_count / (span * dt_s)
-            } else {
+            rate[i] = if self.filled <= 1 {
                 0.0
+            } else if span_s > 0.0 {
+                counts * self.rad_per_count / span_s
+            } else {
+                self.last_rate[i] // no time passed (never on a real clock)
             };
             dphi[i] = delta[i] as f32 * self.rad_per_count;
         }
+        self.last_rate = rate;
         CountSample {
             delta,
             dphi_rad: dphi,
@@ -254,6 +274,31 @@ mod tests {
         assert!((max1 - count_rate).abs() < 1e-3);
         let truth = count_rate / 4.0;
         assert!((s8.rate_radps[0] - truth).abs() < 1e-3 * truth);
+    }
+
+    /// Irregular ticks (0.5 ms and 1.5 ms alternating, as a late tick
+    /// followed by a catch-up one) at one count per tick: the window rate
+    /// divides by the true window time, so a 4-tick window reads exactly
+    /// 4 counts per 4 ms, and a 1-tick window reads each tick's own rate.
+    #[test]
+    fn window_uses_true_elapsed_time() {
+        let cpr = 1000.0;
+        let mut w4 = WheelCounts::new(params(cpr, 4)).unwrap();
+        let mut w1 = WheelCounts::new(params(cpr, 1)).unwrap();
+        let mut raw = 0u16;
+        let count_rad = 2.0 * PI / cpr;
+        for k in 0..20 {
+            let dt = if k % 2 == 0 { 0.5e-3 } else { 1.5e-3 };
+            raw = raw.wrapping_add(1);
+            let s4 = w4.update([raw, 0], dt);
+            let s1 = w1.update([raw, 0], dt);
+            if k >= 4 {
+                let expect = count_rad / 1e-3; // 4 counts in 4 ms
+                assert!((s4.rate_radps[0] - expect).abs() < 1e-3 * expect, "{k}");
+                let own = count_rad / dt;
+                assert!((s1.rate_radps[0] - own).abs() < 1e-3 * own, "{k}");
+            }
+        }
     }
 
     #[test]

@@ -31,6 +31,8 @@ pub enum RuntimeConfigError {
     InvalidSafetyLimit,
     /// The initial pose is not finite.
     NonFiniteInitialPose,
+    /// Button debounce must be >= 1 tick.
+    InvalidDebounce,
 }
 
 impl From<ConfigError> for RuntimeConfigError {
@@ -54,6 +56,7 @@ impl core::fmt::Display for RuntimeConfigError {
             Self::ZeroDutyResolution => "duty full scale must be > 0",
             Self::InvalidSafetyLimit => "invalid safety limit",
             Self::NonFiniteInitialPose => "initial pose must be finite",
+            Self::InvalidDebounce => "button debounce must be >= 1 tick",
         };
         f.write_str(s)
     }

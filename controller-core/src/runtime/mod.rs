@@ -4,7 +4,9 @@
 //!
 //! Per tick, [`ControlLoop::tick`]:
 //!
-//! 1. checks the reported loop time against the overrun limit;
+//! 1. takes the tick's [`TickTiming`] from a [`LoopTimer`] (lateness
+//!    against the schedule t₀ + n·period, true elapsed time) and latches on a
+//!    sustained overrun;
 //! 2. reads both encoders ([`WheelEncoders`]), forms 16-bit wrap-safe count
 //!    deltas ([`count_delta`]), rejects implausible jumps, estimates wheel
 //!    rates over a short window and η = \[v, ω\]
@@ -23,10 +25,12 @@
 //! a latched stop is only cleared by [`ControlLoop::reset`] (back to
 //! disarmed).
 //!
-//! Conventions: wheel arrays are `[right, left]`; time is passed in as the
-//! measured loop time \[µs\], the control period is the controller's
+//! Conventions: wheel arrays are `[right, left]`; time comes in as each
+//! tick's [`TickTiming`] (true elapsed time for the rate estimate), the
+//! control period (reference time, controller steps) is the controller's
 //! `period_s`.
 
+mod arming;
 mod config;
 mod control_loop;
 mod encoder;
@@ -36,7 +40,9 @@ mod motor;
 mod odometry;
 mod state;
 mod stats;
+mod timing;
 
+pub use arming::{ArmingButton, ArmingEvent};
 pub use config::{RuntimeConfig, SafetyLimits};
 pub use control_loop::ControlLoop;
 pub use encoder::{count_delta, CountSample, EncoderParams, WheelCounts, MAX_SPEED_WINDOW};
@@ -46,6 +52,7 @@ pub use motor::{DutyCommand, DutyRequest, MotorModel, MotorParams};
 pub use odometry::Odometry;
 pub use state::{ArmError, RunState, Status, StopReason, TickReport};
 pub use stats::CycleStats;
+pub use timing::{LoopTimer, TickTiming, TimingStats};
 
 /// Per wheel `[right, left]`: the usual mounting of a differential drive,
 /// the left motor and encoder mirrored (they turn backwards when the robot

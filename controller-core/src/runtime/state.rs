@@ -30,10 +30,11 @@ pub enum StopReason {
         /// Which wheel.
         wheel: Wheel,
     },
-    /// `max_consecutive_overruns` loop overruns in a row.
+    /// `max_consecutive_overruns` late ticks in a row (see
+    /// [`LoopTimer`](super::LoopTimer)).
     LoopOverrun {
-        /// The last measured loop time \[µs\].
-        loop_time_us: u32,
+        /// How far behind schedule the latching tick started \[µs\].
+        lateness_us: u32,
     },
     /// Stopped on request ([`ControlLoop::stop`]).
     Commanded,
@@ -70,11 +71,12 @@ pub struct Status {
     pub ticks: u32,
     /// Controller steps since the last arming (the reference time base).
     pub run_ticks: u32,
-    /// Ticks whose measured loop time exceeded the limit.
+    /// Overrun episodes: runs of late ticks (a stall and the catch-up
+    /// burst after it count once).
     pub overruns: u32,
-    /// Current run of consecutive overruns.
+    /// Current run of consecutive late ticks.
     pub consecutive_overruns: u16,
-    /// Largest measured loop time \[µs\].
+    /// Largest time between two ticks \[µs\].
     pub max_loop_time_us: u32,
     /// Implausible encoder jumps (also counted while disarmed).
     pub encoder_jumps: u32,
