@@ -7,6 +7,7 @@ use crate::scenario::Scenario;
 use crate::sim::{controller_config, run, run_with};
 use controller_core::ControllerKind;
 use std::fmt;
+use std::hint::black_box;
 use std::time::Instant;
 
 /// Benchmark settings.
@@ -46,6 +47,10 @@ pub struct BenchReport {
     pub threads: usize,
     /// Control steps per scenario.
     pub steps: usize,
+    /// RK4 sub-steps per control step.
+    pub substeps: u32,
+    /// The floor: each part of a control period timed alone.
+    pub floor: Floor,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -55,6 +60,94 @@ fn median(mut v: Vec<f64>) -> f64 {
         v[n / 2]
     } else {
         0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// What every simulated control period must cost at least: one reference
+/// sample, one controller step and the plant's evaluations (RK4 with the
+/// perturbations), each timed alone in a loop over the scenario's periods
+/// (median of the repetitions) \[ns per period\].
+#[derive(Clone, Copy, Debug)]
+pub struct Floor {
+    /// `Reference::sample`.
+    pub reference_ns: f64,
+    /// `Controller::step` per controller kind (paper order).
+    pub controller_ns: [f64; 3],
+    /// The plant over one period (`substeps` RK4 steps, perturbation grid).
+    pub plant_ns: f64,
+}
+
+fn time_per_period(reps: usize, n: usize, mut f: impl FnMut()) -> f64 {
+    let runs: Vec<f64> = (0..reps.max(1))
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64() * 1e9 / n as f64
+        })
+        .collect();
+    median(runs)
+}
+
+/// Measures the [`Floor`] on the scenario's reference and plant.
+pub fn measure_floor(scn: &Scenario, reps: usize) -> Floor {
+    use controller_core::trajectory::Trajectory;
+    use controller_core::{Controller, Pose, StepInput, Vel2};
+    use sim_robot::{PerturbationGrid, Plant, PlantParams, PlantState};
+    let dt = scn.control_period_s;
+    let n = (scn.duration_s / dt).round() as usize;
+    let reference = scn.trajectory.reference();
+    let reference_ns = time_per_period(reps, n, || {
+        for k in 0..n {
+            black_box(reference.sample(black_box((k as f64 * dt) as f32)));
+        }
+    });
+    // Controller inputs: the reference with a slowly varying pose offset
+    // (the loop's error never vanishes) and the reference's velocities.
+    let inputs: Vec<StepInput> = (0..n)
+        .map(|k| {
+            let t = k as f64 * dt;
+            let r = reference.sample(t as f32);
+            let off = 0.05 * (0.3 * t).sin() as f32;
+            StepInput {
+                reference: r,
+                pose: Pose::new(r.pose.x_m + off, r.pose.y_m - off, r.pose.theta_rad + off),
+                eta: Vel2::new(r.v_mps, r.omega_radps),
+            }
+        })
+        .collect();
+    let controller_ns = ControllerKind::ALL.map(|kind| {
+        let cfg = controller_config(scn, kind);
+        time_per_period(reps, n, || {
+            let mut c = Controller::new(cfg).expect("paper gains are valid");
+            for input in &inputs {
+                black_box(c.step(black_box(input)));
+            }
+        })
+    });
+    let plant = Plant::new(PlantParams::from_robot(
+        &controller_config(scn, ControllerKind::Proposed).robot,
+        scn.mass_scale,
+        scn.inertia_scale,
+    ));
+    let h = dt / scn.substeps as f64;
+    let plant_ns = time_per_period(reps, n, || {
+        let mut grid = PerturbationGrid::new(scn.perturbations(), 0.5 * h);
+        let mut st = PlantState {
+            q: [2.5, 0.0, 0.0, 0.0, 0.0],
+            nu: [0.5, 0.1],
+        };
+        for k in 0..n {
+            for j in 0..scn.substeps {
+                let t = k as f64 * dt + j as f64 * h;
+                st = plant.rk4_step(&st, t, h, &[0.5, 0.4], &mut |t| grid.at(t));
+            }
+        }
+        black_box(st);
+    });
+    Floor {
+        reference_ns,
+        controller_ns,
+        plant_ns,
     }
 }
 
@@ -107,6 +200,8 @@ pub fn run_bench(cfg: &BenchConfig) -> BenchReport {
         mc_simulations: mc.simulations,
         threads: mc.threads,
         steps: (scn.duration_s / scn.control_period_s).round() as usize,
+        substeps: scn.substeps,
+        floor: measure_floor(&scn, cfg.reps),
     }
 }
 
@@ -114,8 +209,8 @@ impl fmt::Display for BenchReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "one 40 s paper Case 2 scenario ({} control steps at 1 kHz, 2 RK4 sub-steps), single thread, {} reps:",
-            self.steps, self.cfg.reps
+            "one 40 s paper Case 2 scenario ({} control steps at 1 kHz, {} RK4 sub-step(s)), single thread, {} reps:",
+            self.steps, self.substeps, self.cfg.reps
         )?;
         writeln!(
             f,
@@ -131,6 +226,24 @@ impl fmt::Display for BenchReport {
                 t.min_ms,
                 t.traced_median_ms,
                 t.median_ms * 1e6 / self.steps as f64
+            )?;
+        }
+        let fl = &self.floor;
+        writeln!(
+            f,
+            "floor per period, each part alone: reference sample {:.0} ns, plant {:.0} ns, controller step {:.0} / {:.0} / {:.0} ns (smc / asmc / proposed)",
+            fl.reference_ns, fl.plant_ns, fl.controller_ns[0], fl.controller_ns[1], fl.controller_ns[2]
+        )?;
+        for (t, c) in self.timings.iter().zip(fl.controller_ns) {
+            let floor_ns = fl.reference_ns + fl.plant_ns + c;
+            let full_ns = t.median_ms * 1e6 / self.steps as f64;
+            writeln!(
+                f,
+                "{:<10} floor {:>4.0} ns, full loop {:>4.0} ns ({:.2}x the floor)",
+                t.kind.name(),
+                floor_ns,
+                full_ns,
+                full_ns / floor_ns
             )?;
         }
         writeln!(

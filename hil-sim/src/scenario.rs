@@ -135,7 +135,7 @@ impl Default for Scenario {
             name: "custom".into(),
             duration_s: 40.0,
             control_period_s: 1e-3,
-            substeps: 2,
+            substeps: 1,
             window_s: [10.0, 35.0],
             initial_pose: [2.5, 0.0, 0.0],
             trajectory: TrajectoryKind::Paper,

@@ -15,7 +15,7 @@ use crate::scenario::{Scenario, Sensing};
 use controller_core::trajectory::Trajectory;
 use controller_core::{Controller, ControllerConfig, ControllerKind, Pose, RobotParams, StepInput};
 use serde::Serialize;
-use sim_robot::{Plant, PlantParams, PlantState};
+use sim_robot::{PerturbationGrid, Plant, PlantParams, PlantState};
 
 /// Period of the logged trace \[s\] (every control step goes into the metrics).
 pub const TRACE_PERIOD_S: f64 = 0.01;
@@ -192,19 +192,8 @@ pub fn run_loop(
     let kind = side.kind();
     let mut acc = MetricsAcc::new(kind == ControllerKind::Proposed);
     let mut trace = Vec::with_capacity(n.checked_div(trace_every).map_or(0, |q| q + 1));
-    // RK4 asks for the perturbation at the end of one step and again at the
-    // start of the next, and the loop asks at the period's start: remember
-    // the last one (exact time match, so bit-identical).
-    let last_perturb = std::cell::Cell::new((f64::NAN, sim_robot::Perturbation::default()));
-    let perturb = |t: f64| {
-        let (lt, lp) = last_perturb.get();
-        if lt.to_bits() == t.to_bits() {
-            return lp;
-        }
-        let p = perturbations.at(t);
-        last_perturb.set((t, p));
-        p
-    };
+    // RK4 asks at t, t + h/2 and t + h of each sub-step h: a grid of h/2.
+    let mut perturb = PerturbationGrid::new(perturbations, 0.5 * substep_s);
     let noisy = scn.pose_noise_m != 0.0 || scn.heading_noise_rad != 0.0;
 
     for k in 0..n {
@@ -219,7 +208,7 @@ pub fn run_loop(
         } else {
             [0.0; 3]
         };
-        let p_now = perturb(t);
+        let p_now = perturb.at(t);
         let rs = reference.sample(t as f32);
         let sensed = Sensed {
             step: k,
@@ -244,8 +233,9 @@ pub fn run_loop(
         let f_true = [p_now.fault_eps * eta_true[0], p_now.fault_eps * eta_true[1]];
         let ex = rs.pose.x_m as f64 - st.q[0];
         let ey = rs.pose.y_m as f64 - st.q[1];
-        let pos_err = ex.hypot(ey);
-        let fe = (d.f_hat[0] as f64 - f_true[0]).hypot(d.f_hat[1] as f64 - f_true[1]);
+        let norm = |a: f64, b: f64| (a * a + b * b).sqrt(); // no overflow at these sizes
+        let pos_err = norm(ex, ey);
+        let fe = norm(d.f_hat[0] as f64 - f_true[0], d.f_hat[1] as f64 - f_true[1]);
         acc.push(
             t,
             pos_err,
@@ -281,13 +271,8 @@ pub fn run_loop(
         }
         // Plant over [t, t + dt]: actuation held (zero-order hold).
         for j in 0..scn.substeps {
-            st = plant.rk4_step(
-                &st,
-                t + j as f64 * substep_s,
-                substep_s,
-                &actuation,
-                &perturb,
-            );
+            let t_j = t + j as f64 * substep_s;
+            st = plant.rk4_step(&st, t_j, substep_s, &actuation, &mut |t| perturb.at(t));
         }
         if !Plant::state_is_finite(&st) {
             return Err(format!("plant state diverged at t = {t:.3} s"));

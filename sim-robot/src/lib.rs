@@ -24,5 +24,5 @@ pub mod perturbation;
 pub mod plant;
 
 pub use hardware::{MotorDrive, SimDriver, SimEncoders};
-pub use perturbation::PerturbationProfile;
+pub use perturbation::{PerturbationGrid, PerturbationProfile};
 pub use plant::{Drive, Perturbation, Plant, PlantParams, PlantState};

@@ -9,7 +9,7 @@
 //!   τ_θ = 0.5A·sin(0.9t), τ_dR = A(0.6 + 0.4 sin 2t), τ_dL = A(−0.3 + 0.5 cos 1.7t),
 //! * actuator fault (Case 2): the body moves at (1 − ε)·η.
 
-use crate::math::{cos, sin, sin_cos};
+use crate::math::sin_cos;
 use crate::plant::Perturbation;
 
 /// Amplitudes and window of the section-4 perturbations.
@@ -47,8 +47,12 @@ impl PerturbationProfile {
         if !self.in_window(t_s) {
             return Perturbation::default();
         }
-        let t = t_s;
-        let (s, c) = sin_cos(t);
+        self.at_phasors(FREQUENCIES_RADPS.map(|w| sin_cos(w * t_s)))
+    }
+
+    /// The perturbations from (sin, cos) of t, 0.9t and 1.7t (in the window).
+    fn at_phasors(&self, [(s, c), (s09, _), (_, c17)]: [(f64, f64); 3]) -> Perturbation {
+        let sin_2t = 2.0 * s * c;
         let a = self.disturbance_nm;
         let beta = self.beta_radps;
         Perturbation {
@@ -59,12 +63,95 @@ impl PerturbationProfile {
             tau_d: [
                 0.0,
                 0.0,
-                0.5 * a * sin(0.9 * t),
-                a * (0.6 + 0.4 * sin(2.0 * t)),
-                a * (-0.3 + 0.5 * cos(1.7 * t)),
+                0.5 * a * s09,
+                a * (0.6 + 0.4 * sin_2t),
+                a * (-0.3 + 0.5 * c17),
             ],
             fault_eps: self.fault_eps,
         }
+    }
+}
+
+/// Evaluates a [`PerturbationProfile`] along a run whose queries fall on a
+/// regular grid t = k·`step_s` (an RK4 integrator at its half steps):
+/// sin/cos of the profile's three frequencies advance from one grid point
+/// to the next by a fixed rotation instead of new sin/cos calls. Exact to
+/// rounding: the phasors are recomputed from sin/cos every
+/// [`Self::RESYNC_STEPS`] points and whenever a query leaves the grid
+/// sequence, and the last query is remembered (a repeated time returns the
+/// same value).
+#[derive(Clone, Copy, Debug)]
+pub struct PerturbationGrid {
+    profile: PerturbationProfile,
+    step_s: f64,
+    /// Rotation by one grid step for the frequencies 1, 0.9 and 1.7 rad/s.
+    rotation: [(f64, f64); 3],
+    /// Grid index and (sin, cos) at it of the last query inside the window.
+    phasor: Option<(i64, [(f64, f64); 3])>,
+    /// Since the last resync.
+    rotations: u32,
+    /// The last query and its answer.
+    last: Option<(f64, Perturbation)>,
+}
+
+/// The profile's angular frequencies \[rad/s\]: slip and skid (1), τ_θ (0.9), τ_dL (1.7).
+const FREQUENCIES_RADPS: [f64; 3] = [1.0, 0.9, 1.7];
+
+impl PerturbationGrid {
+    /// Grid points between exact recomputations of the phasors (bounds the
+    /// rounding drift of repeated rotation to ~10⁻¹³).
+    pub const RESYNC_STEPS: u32 = 1000;
+
+    /// An evaluator of `profile` for queries on the grid k·`step_s` (> 0).
+    pub fn new(profile: PerturbationProfile, step_s: f64) -> Self {
+        Self {
+            profile,
+            step_s,
+            rotation: FREQUENCIES_RADPS.map(|w| sin_cos(w * step_s)),
+            phasor: None,
+            rotations: 0,
+            last: None,
+        }
+    }
+
+    /// The perturbations at `t_s`; equal to [`PerturbationProfile::at`]
+    /// to rounding.
+    pub fn at(&mut self, t_s: f64) -> Perturbation {
+        if let Some((t, p)) = self.last {
+            if t.to_bits() == t_s.to_bits() {
+                return p;
+            }
+        }
+        let p = if self.profile.in_window(t_s) {
+            let ph = self.phasors(t_s);
+            self.profile.at_phasors(ph)
+        } else {
+            Perturbation::default()
+        };
+        self.last = Some((t_s, p));
+        p
+    }
+
+    fn phasors(&mut self, t_s: f64) -> [(f64, f64); 3] {
+        let k = libm::round(t_s / self.step_s);
+        let on_grid = libm::fabs(t_s - k * self.step_s) <= 1e-9 * self.step_s.max(1.0);
+        let k = k as i64;
+        if let (true, Some((k_prev, ph))) = (on_grid, self.phasor) {
+            if k == k_prev + 1 && self.rotations < Self::RESYNC_STEPS {
+                let next = core::array::from_fn(|i| {
+                    let (s, c) = ph[i];
+                    let (sr, cr) = self.rotation[i];
+                    (s * cr + c * sr, c * cr - s * sr)
+                });
+                self.phasor = Some((k, next));
+                self.rotations += 1;
+                return next;
+            }
+        }
+        let exact = FREQUENCIES_RADPS.map(|w| sin_cos(w * t_s));
+        self.phasor = on_grid.then_some((k, exact));
+        self.rotations = 0;
+        exact
     }
 }
 
@@ -92,6 +179,46 @@ mod tests {
             for w in 0..2 {
                 let num = d(a.wheel_slip_radps[w], b.wheel_slip_radps[w]);
                 assert!((num - m.wheel_slip_rate_radps2[w]).abs() < 1e-7);
+            }
+        }
+    }
+
+    /// Along an RK4 half-step grid over a whole window (more than one
+    /// resync), the rotated phasors equal direct evaluation to rounding;
+    /// off-grid and repeated queries too.
+    #[test]
+    fn grid_equals_direct_evaluation() {
+        let p = PerturbationProfile {
+            window_s: [1.0, 30.0],
+            beta_radps: 0.15,
+            fault_eps: 0.2,
+            skid_scale: 0.05,
+            disturbance_nm: 1.0,
+        };
+        let h = 1e-3;
+        let mut g = PerturbationGrid::new(p, 0.5 * h);
+        let close = |a: &Perturbation, b: &Perturbation| {
+            let fields = |x: &Perturbation| {
+                let mut v = [0.0; 10];
+                v[0] = x.skid_mps;
+                v[1] = x.skid_rate_mps2;
+                v[2..4].copy_from_slice(&x.wheel_slip_radps);
+                v[4..6].copy_from_slice(&x.wheel_slip_rate_radps2);
+                v[6..9].copy_from_slice(&x.tau_d[2..5]);
+                v[9] = x.fault_eps;
+                v
+            };
+            let (u, w) = (fields(a), fields(b));
+            (0..10).all(|i| (u[i] - w[i]).abs() < 1e-12)
+        };
+        for k in 0..32_000u32 {
+            let t = k as f64 * h;
+            for tq in [t, t + 0.5 * h, t + h, t + h] {
+                assert!(close(&g.at(tq), &p.at(tq)), "t = {tq}");
+            }
+            if k % 997 == 0 {
+                let off = t + 0.123e-3;
+                assert!(close(&g.at(off), &p.at(off)), "off grid {off}");
             }
         }
     }

@@ -138,14 +138,66 @@ fn sin_cos_offset(theta0: f64, sc0: (f64, f64), delta: f64) -> (f64, f64) {
 /// The simulated robot.
 #[derive(Clone, Copy, Debug)]
 pub struct Plant {
-    /// Physical parameters.
-    pub params: PlantParams,
+    params: PlantParams,
+    /// Constants of (3) and (6) computed once.
+    k: Constants,
+}
+
+/// Products and reciprocals of the parameters used at every evaluation.
+#[derive(Clone, Copy, Debug)]
+struct Constants {
+    inv_r: f64,
+    h: f64,
+    d: f64,
+    m: f64,
+    /// 2·m·d (N1 and P1).
+    two_md: f64,
+    /// I_w/r (P1).
+    iw_over_r: f64,
+    /// 1/M1 diagonal.
+    inv_m1: [f64; 2],
+}
+
+/// The parts of (3) and (6) that depend only on the perturbations at one
+/// instant (shared by the RK4 stages at that instant).
+#[derive(Clone, Copy, Debug)]
+struct Forcing {
+    /// σ of eq. (3).
+    sigma: [f64; 2],
+    /// 1 − ε of eq. (10).
+    healthy: f64,
+    /// δ_sl.
+    skid_mps: f64,
+    /// P1 without its θ̇ term: \[I_w(ϖ̇_R + ϖ̇_L)/r, 2md·δ̇ + I_w·h(ϖ̇_R − ϖ̇_L)/r\].
+    p1_rest: [f64; 2],
+    /// τ_d's world-frame force \[f_x, f_y\] (rotated by θ in Sᵀτ_d).
+    force_xy: [f64; 2],
+    /// Sᵀτ_d without the force: \[(τ_R + τ_L)/r, τ_θ + h(τ_R − τ_L)/r\].
+    tau_body: [f64; 2],
 }
 
 impl Plant {
     /// The plant with these parameters.
-    pub const fn new(params: PlantParams) -> Self {
-        Self { params }
+    pub fn new(params: PlantParams) -> Self {
+        let (m, _, iw, r, h, d) = params.unpack();
+        let m1 = params.m1_diag();
+        Self {
+            params,
+            k: Constants {
+                inv_r: 1.0 / r,
+                h,
+                d,
+                m,
+                two_md: 2.0 * m * d,
+                iw_over_r: iw / r,
+                inv_m1: [1.0 / m1[0], 1.0 / m1[1]],
+            },
+        }
+    }
+
+    /// Physical parameters.
+    pub fn params(&self) -> &PlantParams {
+        &self.params
     }
 
     /// σ = \[σ_v, σ_ω\] of eq. (3) for wheel slip ϖ (with the sign fixed: D15).
@@ -165,98 +217,117 @@ impl Plant {
 
     /// Wheel rates φ̇ = \[(v + hω)/r, (v − hω)/r\] \[rad/s\] (eq. 3, rows 4-5).
     pub fn wheel_rates_radps(&self, st: &PlantState, p: &Perturbation) -> [f64; 2] {
-        let (r, h) = (self.params.wheel_radius_m, self.params.half_track_m);
-        let eta = self.eta(st, p);
-        [(eta[0] + h * eta[1]) / r, (eta[0] - h * eta[1]) / r]
+        let q = self.q_dot(st, p);
+        [q[3], q[4]]
+    }
+
+    fn forcing(&self, p: &Perturbation) -> Forcing {
+        let k = &self.k;
+        let sr = p.wheel_slip_rate_radps2;
+        let t = p.tau_d;
+        Forcing {
+            sigma: self.sigma(p.wheel_slip_radps),
+            healthy: 1.0 - p.fault_eps,
+            skid_mps: p.skid_mps,
+            p1_rest: [
+                k.iw_over_r * (sr[0] + sr[1]),
+                k.two_md * p.skid_rate_mps2 + k.iw_over_r * k.h * (sr[0] - sr[1]),
+            ],
+            force_xy: [t[0], t[1]],
+            tau_body: [
+                (t[3] + t[4]) * k.inv_r,
+                t[2] + k.h * (t[3] - t[4]) * k.inv_r,
+            ],
+        }
     }
 
     /// q̇ (eq. 3 with the fault of eq. 10).
     pub fn q_dot(&self, st: &PlantState, p: &Perturbation) -> [f64; 5] {
-        self.q_dot_sc(st, p, sin_cos(st.q[2]))
+        self.q_dot_f(st, &self.forcing(p), sin_cos(st.q[2]))
     }
 
-    /// [`Self::q_dot`] with (sin θ, cos θ) given.
-    fn q_dot_sc(&self, st: &PlantState, p: &Perturbation, (s, c): (f64, f64)) -> [f64; 5] {
-        let (_, _, _, r, h, d) = self.params.unpack();
-        let eta = self.eta(st, p);
-        let sig = self.sigma(p.wheel_slip_radps);
-        let k = 1.0 - p.fault_eps;
-        let vb = k * eta[0] - sig[0];
-        let wb = k * eta[1] - sig[1];
-        let dl = p.skid_mps;
+    /// q̇ of eq. (3) with the fault (10): the wheels turn per η = ν + σ, the
+    /// body moves at (1 − ε)η − σ plus the skid.
+    #[inline]
+    fn q_dot_f(&self, st: &PlantState, f: &Forcing, (s, c): (f64, f64)) -> [f64; 5] {
+        let k = &self.k;
+        let eta = [st.nu[0] + f.sigma[0], st.nu[1] + f.sigma[1]];
+        let vb = f.healthy * eta[0] - f.sigma[0];
+        let wb = f.healthy * eta[1] - f.sigma[1];
+        let dl = f.skid_mps;
         [
-            vb * c - d * wb * s - s * dl,
-            vb * s + d * wb * c + c * dl,
+            vb * c - k.d * wb * s - s * dl,
+            vb * s + k.d * wb * c + c * dl,
             wb,
-            (eta[0] + h * eta[1]) / r,
-            (eta[0] - h * eta[1]) / r,
+            (eta[0] + k.h * eta[1]) * k.inv_r,
+            (eta[0] - k.h * eta[1]) * k.inv_r,
         ]
     }
 
     /// ν̇ from eq. (6) for wheel torques `[right, left]`.
     pub fn nu_dot(&self, st: &PlantState, p: &Perturbation, torque_nm: [f64; 2]) -> [f64; 2] {
         let sc = sin_cos(st.q[2]);
-        let theta_dot = self.q_dot_sc(st, p, sc)[2];
-        self.nu_dot_sc(st, p, torque_nm, theta_dot, sc)
+        let f = self.forcing(p);
+        let theta_dot = self.q_dot_f(st, &f, sc)[2];
+        self.nu_dot_f(st, &f, torque_nm, theta_dot, sc)
     }
 
-    /// [`Self::nu_dot`] with θ̇ and (sin θ, cos θ) given.
-    fn nu_dot_sc(
+    /// ν̇ of eq. (6): M1·ν̇ = B1·τ − N1(θ̇)·ν − P1 − Sᵀτ_d.
+    #[inline]
+    fn nu_dot_f(
         &self,
         st: &PlantState,
-        p: &Perturbation,
+        f: &Forcing,
         torque_nm: [f64; 2],
         theta_dot: f64,
         (s, c): (f64, f64),
     ) -> [f64; 2] {
-        let (m, _, iw, r, h, d) = self.params.unpack();
-        let m1 = self.params.m1_diag();
-        let n1c = 2.0 * m * d * theta_dot;
+        let k = &self.k;
+        let n1c = k.two_md * theta_dot;
         let n1nu = [-n1c * st.nu[1], n1c * st.nu[0]];
-        let sr = p.wheel_slip_rate_radps2;
-        let p1 = [
-            -m * theta_dot * p.skid_mps + iw * (sr[0] + sr[1]) / r,
-            2.0 * m * d * p.skid_rate_mps2 + iw * h * (sr[0] - sr[1]) / r,
-        ];
-        let t = p.tau_d;
+        let p1 = [-k.m * theta_dot * f.skid_mps + f.p1_rest[0], f.p1_rest[1]];
+        let [fx, fy] = f.force_xy;
         let std = [
-            c * t[0] + s * t[1] + (t[3] + t[4]) / r,
-            -d * s * t[0] + d * c * t[1] + t[2] + h * (t[3] - t[4]) / r,
+            c * fx + s * fy + f.tau_body[0],
+            k.d * (c * fy - s * fx) + f.tau_body[1],
         ];
         let b1tau = [
-            (torque_nm[0] + torque_nm[1]) / r,
-            h * (torque_nm[0] - torque_nm[1]) / r,
+            (torque_nm[0] + torque_nm[1]) * k.inv_r,
+            k.h * (torque_nm[0] - torque_nm[1]) * k.inv_r,
         ];
         [
-            (b1tau[0] - n1nu[0] - p1[0] - std[0]) / m1[0],
-            (b1tau[1] - n1nu[1] - p1[1] - std[1]) / m1[1],
+            (b1tau[0] - n1nu[0] - p1[0] - std[0]) * k.inv_m1[0],
+            (b1tau[1] - n1nu[1] - p1[1] - std[1]) * k.inv_m1[1],
         ]
     }
 
     /// (q̇, ν̇) at (sin θ, cos θ) = `sc`, the drive's torque taken at the
     /// state's wheel rates (q̇ rows 4-5).
+    #[inline]
     fn deriv(
         &self,
         st: &PlantState,
-        p: &Perturbation,
+        f: &Forcing,
         drive: &impl Drive,
         sc: (f64, f64),
     ) -> PlantState {
-        let q = self.q_dot_sc(st, p, sc);
+        let q = self.q_dot_f(st, f, sc);
         let tau = drive.torque_nm([q[3], q[4]]);
-        let nu = self.nu_dot_sc(st, p, tau, q[2], sc);
+        let nu = self.nu_dot_f(st, f, tau, q[2], sc);
         PlantState { q, nu }
     }
 
     /// One classical RK4 step of length `h_s` from `t_s`; `perturb(t)` gives
-    /// the perturbations at time t, `drive` the wheel torques at each stage.
+    /// the perturbations at time t (asked at t, t + h/2 and t + h: a
+    /// [`PerturbationGrid`](crate::PerturbationGrid) of step h/2 serves them
+    /// cheaply), `drive` the wheel torques at each stage.
     pub fn rk4_step(
         &self,
         st: &PlantState,
         t_s: f64,
         h_s: f64,
         drive: &impl Drive,
-        perturb: &impl Fn(f64) -> Perturbation,
+        perturb: &mut impl FnMut(f64) -> Perturbation,
     ) -> PlantState {
         let add = |a: &PlantState, k: &PlantState, f: f64| {
             let mut o = *a;
@@ -270,9 +341,9 @@ impl Plant {
         };
         let th0 = st.q[2];
         let sc0 = sin_cos(th0);
-        let p0 = perturb(t_s);
-        let pm = perturb(t_s + 0.5 * h_s);
-        let p1 = perturb(t_s + h_s);
+        let p0 = self.forcing(&perturb(t_s));
+        let pm = self.forcing(&perturb(t_s + 0.5 * h_s));
+        let p1 = self.forcing(&perturb(t_s + h_s));
         let k1 = self.deriv(st, &p0, drive, sc0);
         let s2 = add(st, &k1, 0.5 * h_s);
         let k2 = self.deriv(&s2, &pm, drive, sin_cos_offset(th0, sc0, s2.q[2] - th0));
@@ -302,9 +373,7 @@ mod tests {
     use controller_core::RobotParams;
 
     fn paper_plant() -> Plant {
-        Plant {
-            params: PlantParams::from_robot(&RobotParams::paper(), 1.0, 1.0),
-        }
+        Plant::new(PlantParams::from_robot(&RobotParams::paper(), 1.0, 1.0))
     }
 
     fn perturbed(t: f64) -> Perturbation {
@@ -323,7 +392,7 @@ mod tests {
         h: f64,
         t_end: f64,
         tau: [f64; 2],
-        pert: &impl Fn(f64) -> Perturbation,
+        pert: &mut impl FnMut(f64) -> Perturbation,
     ) -> PlantState {
         let mut st = PlantState {
             q: [2.5, 0.0, 0.3, 0.0, 0.0],
@@ -331,7 +400,7 @@ mod tests {
         };
         let n = (t_end / h).round() as usize;
         for k in 0..n {
-            st = plant.rk4_step(&st, k as f64 * h, h, &tau, pert);
+            st = plant.rk4_step(&st, k as f64 * h, h, &tau, &mut *pert);
         }
         st
     }
@@ -356,9 +425,9 @@ mod tests {
     fn rk4_converges_at_fourth_order() {
         let plant = paper_plant();
         let tau = [0.8, 0.3];
-        let a = run(&plant, 0.04, 4.0, tau, &perturbed);
-        let b = run(&plant, 0.02, 4.0, tau, &perturbed);
-        let c = run(&plant, 0.01, 4.0, tau, &perturbed);
+        let a = run(&plant, 0.04, 4.0, tau, &mut perturbed);
+        let b = run(&plant, 0.02, 4.0, tau, &mut perturbed);
+        let c = run(&plant, 0.01, 4.0, tau, &mut perturbed);
         let diff = |u: &PlantState, v: &PlantState| {
             (0..3).map(|i| (u.q[i] - v.q[i]).abs()).fold(0.0, f64::max)
         };
@@ -379,18 +448,18 @@ mod tests {
         let h = 1e-3;
         let t_end = 3.0;
         for k in 0..3000 {
-            st = plant.rk4_step(&st, k as f64 * h, h, &[tau, tau], &|_| {
+            st = plant.rk4_step(&st, k as f64 * h, h, &[tau, tau], &mut |_| {
                 Perturbation::default()
             });
         }
-        let a = 2.0 * tau / (plant.params.wheel_radius_m * plant.params.m1_diag()[0]);
+        let a = 2.0 * tau / (plant.params().wheel_radius_m * plant.params().m1_diag()[0]);
         let dist = 0.5 * a * t_end * t_end;
         assert!((st.nu[0] - a * t_end).abs() < 1e-9);
         assert!(st.nu[1].abs() < 1e-12);
         assert!((st.q[0] - (1.0 + dist * 0.4f64.cos())).abs() < 1e-9);
         assert!((st.q[1] - (-1.0 + dist * 0.4f64.sin())).abs() < 1e-9);
         // Wheel angles: φ = distance / r.
-        assert!((st.q[3] - dist / plant.params.wheel_radius_m).abs() < 1e-8);
+        assert!((st.q[3] - dist / plant.params().wheel_radius_m).abs() < 1e-8);
     }
 
     /// Opposite torques from rest: ω̇ = 2hτ/(r·M1₂₂) = α constant (N1 ν has no
@@ -403,11 +472,11 @@ mod tests {
         let mut st = PlantState::default();
         let h = 1e-3;
         for k in 0..1000 {
-            st = plant.rk4_step(&st, k as f64 * h, h, &[tau, -tau], &|_| {
+            st = plant.rk4_step(&st, k as f64 * h, h, &[tau, -tau], &mut |_| {
                 Perturbation::default()
             });
         }
-        let p = plant.params;
+        let p = *plant.params();
         let m1 = p.m1_diag();
         let alpha = 2.0 * p.half_track_m * tau / (p.wheel_radius_m * m1[1]);
         let v_expect = 2.0 * p.mass_kg * p.com_offset_m * alpha * alpha / (3.0 * m1[0]);
@@ -429,7 +498,7 @@ mod tests {
     #[test]
     fn perturbed_constraint_holds_along_run() {
         let plant = paper_plant();
-        let p = plant.params;
+        let p = *plant.params();
         let (r, h, d) = (p.wheel_radius_m, p.half_track_m, p.com_offset_m);
         let mut st = PlantState {
             q: [0.0, 0.0, 0.5, 0.0, 0.0],
@@ -454,7 +523,7 @@ mod tests {
             for i in 0..3 {
                 assert!((aq[i] - ds[i]).abs() < 1e-12, "row {i} at t {t}");
             }
-            st = plant.rk4_step(&st, t, dt, &[0.3, 0.1], &perturbed);
+            st = plant.rk4_step(&st, t, dt, &[0.3, 0.1], &mut perturbed);
         }
     }
 
@@ -462,7 +531,7 @@ mod tests {
     #[test]
     fn p1_closed_form_matches_matrices() {
         let plant = paper_plant();
-        let p = plant.params;
+        let p = *plant.params();
         let (m, i, iw, r, h, d) = p.unpack();
         let st = PlantState {
             q: [0.0, 0.0, 0.9, 0.0, 0.0],

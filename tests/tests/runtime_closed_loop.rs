@@ -43,7 +43,7 @@ fn quantized_closed_loop_tracks_a_circle() {
     let mut enc = SimEncoders::new(&cfg.encoder);
     let mut bridge = SimDriver::default();
     let dt = cfg.controller.period_s as f64;
-    let no_perturbation = |_t: f64| Perturbation::default();
+    let mut no_perturbation = |_t: f64| Perturbation::default();
     cl.arm().unwrap();
     let mut worst_late = 0.0f64;
     let steps = 20_000; // 20 s, over two laps
@@ -57,7 +57,7 @@ fn quantized_closed_loop_tracks_a_circle() {
             bridge,
             inverted: cfg.motor_inverted,
         };
-        st = plant.rk4_step(&st, k as f64 * dt, dt, &drive, &no_perturbation);
+        st = plant.rk4_step(&st, k as f64 * dt, dt, &drive, &mut no_perturbation);
         if k > 5_000 {
             let r = reference.sample((k + 1) as f32 * dt as f32).pose;
             let err = (r.x_m as f64 - st.q[0]).hypot(r.y_m as f64 - st.q[1]);
