@@ -11,7 +11,10 @@
 //! | [`RunState::Running`] | [`ControlLoop::disarm`] (motors off, not latched) |
 //! | [`RunState::Stopped`] | [`ControlLoop::reset`] (clears the latch, back to disarmed; arming takes another press) |
 
-use super::{ArmError, ControlLoop, MotorDriver, RunState, RuntimeConfigError};
+use super::control_loop::ControlLoop;
+use super::error::RuntimeConfigError;
+use super::hardware::MotorDriver;
+use super::state::{ArmError, RunState};
 
 /// What a button sample did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

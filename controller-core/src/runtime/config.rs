@@ -4,8 +4,8 @@
 
 use super::encoder::EncoderParams;
 use super::error::RuntimeConfigError;
+use super::hardware::MIRRORED_LEFT;
 use super::motor::MotorParams;
-use super::MIRRORED_LEFT;
 use crate::controller::{ControllerConfig, ControllerKind};
 use crate::trajectory::{PaperCurve, PaperHeading, Reference, Trajectory};
 use crate::types::Pose;

@@ -4,12 +4,12 @@
 use super::config::RuntimeConfig;
 use super::encoder::{CountSample, WheelCounts};
 use super::error::RuntimeConfigError;
+use super::hardware::Wheel;
 use super::hardware::{MotorDriver, PoseSource, WheelEncoders};
 use super::motor::{DutyCommand, MotorModel};
 use super::odometry::Odometry;
 use super::state::{ArmError, RunState, Status, StopReason, TickReport};
 use super::timing::TickTiming;
-use super::Wheel;
 use crate::controller::{Controller, Diagnostics, StepInput};
 use crate::trajectory::Trajectory;
 use crate::types::Pose;
@@ -176,61 +176,20 @@ impl ControlLoop {
         pose_source: &mut impl PoseSource,
         timing: TickTiming,
     ) -> TickReport {
-        let safety = self.cfg.safety;
-        let dt = self.cfg.controller.period_s;
-        let st = &mut self.status;
-        st.ticks = st.ticks.wrapping_add(1);
-        let mut stop: Option<StopReason> = None;
-
-        // 1. Loop timing (lateness against the schedule: see `LoopTimer`).
-        st.max_loop_time_us = st.max_loop_time_us.max(timing.elapsed_us);
-        st.overruns = st.overruns.saturating_add(timing.new_overrun as u32);
-        st.consecutive_overruns = timing.consecutive_late;
-        if st.state == RunState::Running && timing.sustained_overrun {
-            stop = Some(StopReason::LoopOverrun {
-                lateness_us: timing.lateness_us,
-            });
-        }
-
-        // 2. Encoders: plausibility, deltas, rates, η.
-        let raw = encoders.counts();
-        let delta = self.counts.peek_delta(raw);
-        let limit = (safety.max_counts_per_tick as u32)
-            .saturating_mul(timing.elapsed_periods)
-            .min(i16::MAX as u32) as i32;
-        let jump = Wheel::BOTH
-            .into_iter()
-            .find(|w| delta[w.index()].abs() > limit);
-        let sample = match jump {
-            Some(wheel) => {
-                self.status.encoder_jumps = self.status.encoder_jumps.saturating_add(1);
-                self.counts.resync(raw);
-                if stop.is_none() && self.running() {
-                    stop = Some(StopReason::EncoderJump {
-                        wheel,
-                        delta: delta[wheel.index()],
-                    });
-                }
-                CountSample::default()
-            }
-            None => self.counts.update(raw, timing.elapsed_s()),
-        };
-        let robot = &self.cfg.controller.robot;
-        let eta = robot.eta_from_wheel_rates(sample.rate_radps);
-
+        self.status.ticks = self.status.ticks.wrapping_add(1);
+        // 1. Loop timing, 2. encoders: the first violation found wins.
+        let mut stop = self.check_timing(&timing);
+        let (sample, jump) = self.read_wheels(encoders, &timing);
+        stop = stop.or(jump);
+        let eta = self
+            .cfg
+            .controller
+            .robot
+            .eta_from_wheel_rates(sample.rate_radps);
         // 3. Pose.
-        self.odometry.update(sample.dphi_rad);
-        let (pose, external_pose) = match pose_source.pose() {
-            Some(p) => {
-                self.status.external_poses = self.status.external_poses.saturating_add(1);
-                self.odometry.set_pose(p);
-                (p, true)
-            }
-            None => (self.odometry.pose(), false),
-        };
-
-        // 4. Reference and controller.
-        let t_s = self.status.run_ticks as f32 * dt;
+        let (pose, external_pose) = self.measure_pose(sample.dphi_rad, pose_source);
+        // 4. Reference and controller, 5. torque -> duty.
+        let t_s = self.status.run_ticks as f32 * self.cfg.controller.period_s;
         let reference = self.cfg.reference.sample(t_s);
         let mut diag = Diagnostics::default();
         let mut torque = [0.0f32; 2];
@@ -243,52 +202,16 @@ impl ControlLoop {
                 eta,
             });
             diag = out.diag;
-            if let Some(f) = diag.fault {
-                self.status.input_faults = self.status.input_faults.saturating_add(1);
-                self.consecutive_input_faults = self.consecutive_input_faults.saturating_add(1);
-                if self.consecutive_input_faults >= safety.max_consecutive_input_faults {
-                    stop = Some(StopReason::ControllerInput(f));
-                }
-            } else {
-                self.consecutive_input_faults = 0;
-            }
-            if diag.saturated {
-                self.status.torque_saturated = self.status.torque_saturated.saturating_add(1);
-            }
-            // Stall: the torque applied during the elapsed tick moved nothing.
-            for w in Wheel::BOTH {
-                let i = w.index();
-                let n = &mut self.stall_ticks[i];
-                if self.last_torque_nm[i].abs() >= safety.stall_torque_nm && sample.delta[i] == 0 {
-                    *n = n.saturating_add(1);
-                } else {
-                    *n = 0;
-                }
-                if *n >= safety.stall_ticks && stop.is_none() {
-                    stop = Some(StopReason::EncoderStalled { wheel: w });
-                }
-            }
+            stop = self.supervise_step(&diag).or(self.check_stall(&sample));
             if stop.is_none() {
-                // 5. Torque -> duty at each wheel's measured rate.
                 torque = out.torque_nm;
-                for i in 0..2 {
-                    let req = self.motor.duty_for_torque(torque[i], sample.rate_radps[i]);
-                    if req.saturated {
-                        self.status.duty_saturated = self.status.duty_saturated.saturating_add(1);
-                    }
-                    let mut cmd = req.command;
-                    if self.cfg.motor_inverted[i] && cmd.duty > 0 {
-                        cmd.reverse = !cmd.reverse;
-                    }
-                    duty[i] = cmd;
-                }
+                duty = self.duty_for(torque, &sample);
                 motors.set(duty);
                 enabled = true;
                 self.last_torque_nm = torque;
                 self.status.run_ticks = self.status.run_ticks.saturating_add(1);
             }
         }
-
         // 6. Safe stop.
         if let Some(r) = stop {
             self.latch(r);
@@ -297,7 +220,6 @@ impl ControlLoop {
             self.last_torque_nm = [0.0; 2];
             motors.disable();
         }
-
         TickReport {
             state: self.status.state,
             stopped: stop,
@@ -313,6 +235,127 @@ impl ControlLoop {
             motors_enabled: enabled,
             diag,
         }
+    }
+
+    /// Step 1: overrun accounting from the [`LoopTimer`](super::LoopTimer)'s
+    /// measurement; a sustained overrun while running stops.
+    fn check_timing(&mut self, timing: &TickTiming) -> Option<StopReason> {
+        let st = &mut self.status;
+        st.max_loop_time_us = st.max_loop_time_us.max(timing.elapsed_us);
+        st.overruns = st.overruns.saturating_add(timing.new_overrun as u32);
+        st.consecutive_overruns = timing.consecutive_late;
+        (st.state == RunState::Running && timing.sustained_overrun).then_some(
+            StopReason::LoopOverrun {
+                lateness_us: timing.lateness_us,
+            },
+        )
+    }
+
+    /// Step 2: encoder counts to deltas and rates over the true elapsed time.
+    /// An implausible jump (beyond `max_counts_per_tick` per elapsed period)
+    /// is counted, resynchronised and not integrated; while running it stops.
+    fn read_wheels(
+        &mut self,
+        encoders: &mut impl WheelEncoders,
+        timing: &TickTiming,
+    ) -> (CountSample, Option<StopReason>) {
+        let raw = encoders.counts();
+        let delta = self.counts.peek_delta(raw);
+        let limit = (self.cfg.safety.max_counts_per_tick as u32)
+            .saturating_mul(timing.elapsed_periods)
+            .min(i16::MAX as u32) as i32;
+        let jump = Wheel::BOTH
+            .into_iter()
+            .find(|w| delta[w.index()].abs() > limit);
+        match jump {
+            Some(wheel) => {
+                self.status.encoder_jumps = self.status.encoder_jumps.saturating_add(1);
+                self.counts.resync(raw);
+                let stop = self.running().then_some(StopReason::EncoderJump {
+                    wheel,
+                    delta: delta[wheel.index()],
+                });
+                (CountSample::default(), stop)
+            }
+            None => (self.counts.update(raw, timing.elapsed_s()), None),
+        }
+    }
+
+    /// Step 3: wheel odometry, replaced (and re-anchored) by an external
+    /// measurement when the source has one. Returns the pose and whether it
+    /// was external.
+    fn measure_pose(
+        &mut self,
+        dphi_rad: [f32; 2],
+        pose_source: &mut impl PoseSource,
+    ) -> (Pose, bool) {
+        self.odometry.update(dphi_rad);
+        match pose_source.pose() {
+            Some(p) => {
+                self.status.external_poses = self.status.external_poses.saturating_add(1);
+                self.odometry.set_pose(p);
+                (p, true)
+            }
+            None => (self.odometry.pose(), false),
+        }
+    }
+
+    /// Step 4 supervision: input faults (latching after
+    /// `max_consecutive_input_faults`) and saturation counting.
+    fn supervise_step(&mut self, diag: &Diagnostics) -> Option<StopReason> {
+        if diag.saturated {
+            self.status.torque_saturated = self.status.torque_saturated.saturating_add(1);
+        }
+        match diag.fault {
+            Some(f) => {
+                self.status.input_faults = self.status.input_faults.saturating_add(1);
+                self.consecutive_input_faults = self.consecutive_input_faults.saturating_add(1);
+                (self.consecutive_input_faults >= self.cfg.safety.max_consecutive_input_faults)
+                    .then_some(StopReason::ControllerInput(f))
+            }
+            None => {
+                self.consecutive_input_faults = 0;
+                None
+            }
+        }
+    }
+
+    /// Stall: the torque applied during the elapsed tick moved nothing, for
+    /// `stall_ticks` in a row (both wheels counted; the first reported).
+    fn check_stall(&mut self, sample: &CountSample) -> Option<StopReason> {
+        let safety = &self.cfg.safety;
+        let mut stop = None;
+        for w in Wheel::BOTH {
+            let i = w.index();
+            let n = &mut self.stall_ticks[i];
+            if self.last_torque_nm[i].abs() >= safety.stall_torque_nm && sample.delta[i] == 0 {
+                *n = n.saturating_add(1);
+            } else {
+                *n = 0;
+            }
+            if *n >= safety.stall_ticks && stop.is_none() {
+                stop = Some(StopReason::EncoderStalled { wheel: w });
+            }
+        }
+        stop
+    }
+
+    /// Step 5: torque to duty and direction at each wheel's measured rate
+    /// (the motor model's inverse), flipped for mirrored motors.
+    fn duty_for(&mut self, torque_nm: [f32; 2], sample: &CountSample) -> [DutyCommand; 2] {
+        core::array::from_fn(|i| {
+            let req = self
+                .motor
+                .duty_for_torque(torque_nm[i], sample.rate_radps[i]);
+            if req.saturated {
+                self.status.duty_saturated = self.status.duty_saturated.saturating_add(1);
+            }
+            let mut cmd = req.command;
+            if self.cfg.motor_inverted[i] && cmd.duty > 0 {
+                cmd.reverse = !cmd.reverse;
+            }
+            cmd
+        })
     }
 }
 

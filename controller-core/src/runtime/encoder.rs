@@ -1,7 +1,8 @@
 //! Quadrature encoder counts: 16-bit wrap-around, per-tick deltas and a
 //! windowed wheel-rate estimate.
 
-use super::{RuntimeConfigError, Wheel};
+use super::error::RuntimeConfigError;
+use super::hardware::Wheel;
 
 /// Largest speed-estimation window \[ticks\] ([`EncoderParams::speed_window_ticks`]).
 pub const MAX_SPEED_WINDOW: usize = 32;
@@ -40,7 +41,7 @@ impl EncoderParams {
     /// (24 000 counts per wheel revolution), left encoder mirrored, 4-tick window.
     pub const EXAMPLE: Self = Self {
         counts_per_wheel_rev: 24_000.0,
-        inverted: super::MIRRORED_LEFT,
+        inverted: super::hardware::MIRRORED_LEFT,
         speed_window_ticks: 4,
     };
 

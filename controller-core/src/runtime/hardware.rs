@@ -4,6 +4,35 @@
 use super::motor::DutyCommand;
 use crate::types::Pose;
 
+/// Per wheel `[right, left]`: the usual mounting of a differential drive,
+/// the left motor and encoder mirrored (they turn backwards when the robot
+/// drives forward). The default of [`EncoderParams::EXAMPLE`](super::EncoderParams::EXAMPLE) and
+/// [`RuntimeConfig::example`](super::RuntimeConfig::example).
+pub const MIRRORED_LEFT: [bool; 2] = [false, true];
+
+/// A wheel, for fault reports and indexing `[right, left]` arrays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Wheel {
+    /// Right wheel (index 0).
+    Right,
+    /// Left wheel (index 1).
+    Left,
+}
+
+impl Wheel {
+    /// Both wheels in array order.
+    pub const BOTH: [Wheel; 2] = [Wheel::Right, Wheel::Left];
+
+    /// Index into a `[right, left]` array.
+    pub const fn index(self) -> usize {
+        match self {
+            Wheel::Right => 0,
+            Wheel::Left => 1,
+        }
+    }
+}
+
 /// One quadrature encoder: the raw free-running 16-bit hardware count
 /// (e.g. a timer in encoder mode, or a simulated counter).
 pub trait Encoder {

@@ -47,38 +47,11 @@ pub use config::{RuntimeConfig, SafetyLimits};
 pub use control_loop::ControlLoop;
 pub use encoder::{count_delta, CountSample, EncoderParams, WheelCounts, MAX_SPEED_WINDOW};
 pub use error::RuntimeConfigError;
-pub use hardware::{Encoder, MotorDriver, PoseSource, WheelEncoders, WheelOdometryOnly};
+pub use hardware::{
+    Encoder, MotorDriver, PoseSource, Wheel, WheelEncoders, WheelOdometryOnly, MIRRORED_LEFT,
+};
 pub use motor::{DutyCommand, DutyRequest, MotorModel, MotorParams};
 pub use odometry::Odometry;
 pub use state::{ArmError, RunState, Status, StopReason, TickReport};
 pub use stats::CycleStats;
 pub use timing::{LoopTimer, TickTiming, TimingStats};
-
-/// Per wheel `[right, left]`: the usual mounting of a differential drive,
-/// the left motor and encoder mirrored (they turn backwards when the robot
-/// drives forward). The default of [`EncoderParams::EXAMPLE`] and
-/// [`RuntimeConfig::example`].
-pub const MIRRORED_LEFT: [bool; 2] = [false, true];
-
-/// A wheel, for fault reports and indexing `[right, left]` arrays.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum Wheel {
-    /// Right wheel (index 0).
-    Right,
-    /// Left wheel (index 1).
-    Left,
-}
-
-impl Wheel {
-    /// Both wheels in array order.
-    pub const BOTH: [Wheel; 2] = [Wheel::Right, Wheel::Left];
-
-    /// Index into a `[right, left]` array.
-    pub const fn index(self) -> usize {
-        match self {
-            Wheel::Right => 0,
-            Wheel::Left => 1,
-        }
-    }
-}

@@ -19,7 +19,7 @@
 //! duty resolution. [`MotorModel::torque_for_duty`] is the forward model for
 //! a simulator's actuator.
 
-use super::RuntimeConfigError;
+use super::error::RuntimeConfigError;
 
 /// Motor, gearbox, supply and PWM constants (one motor type on both wheels).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -2,8 +2,8 @@
 //! counters and the per-tick report.
 
 use super::encoder::CountSample;
+use super::hardware::Wheel;
 use super::motor::DutyCommand;
-use super::Wheel;
 use crate::controller::Diagnostics;
 use crate::error::InputFault;
 use crate::trajectory::RefSample;
@@ -36,7 +36,7 @@ pub enum StopReason {
         /// How far behind schedule the latching tick started \[µs\].
         lateness_us: u32,
     },
-    /// Stopped on request ([`ControlLoop::stop`]).
+    /// Stopped on request ([`ControlLoop::stop`](super::ControlLoop::stop)).
     Commanded,
 }
 
@@ -44,20 +44,20 @@ pub enum StopReason {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum RunState {
-    /// Motors disabled, waiting for [`ControlLoop::arm`] (the boot state).
+    /// Motors disabled, waiting for [`ControlLoop::arm`](super::ControlLoop::arm) (the boot state).
     Disarmed,
     /// Controller running, motors driven.
     Running,
-    /// Latched safe stop: motors disabled until [`ControlLoop::reset`].
+    /// Latched safe stop: motors disabled until [`ControlLoop::reset`](super::ControlLoop::reset).
     Stopped(StopReason),
 }
 
-/// Why [`ControlLoop::arm`] refused.
+/// Why [`ControlLoop::arm`](super::ControlLoop::arm) refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum ArmError {
-    /// A safe stop is latched; [`ControlLoop::reset`] first.
+    /// A safe stop is latched; [`ControlLoop::reset`](super::ControlLoop::reset) first.
     Latched(StopReason),
 }
 
@@ -107,7 +107,7 @@ pub struct TickReport {
     pub pose: Pose,
     /// Wheel odometry pose of G (re-anchored on external measurements).
     pub odometry: Pose,
-    /// True when `pose` came from the [`PoseSource`].
+    /// True when `pose` came from the [`PoseSource`](super::PoseSource).
     pub external_pose: bool,
     /// Encoder deltas and wheel rates.
     pub counts: CountSample,

@@ -26,8 +26,8 @@
 //! wrap of a `u32` µs counter is harmless as long as two ticks are less than
 //! 35 min apart.
 
-use super::RuntimeConfig;
-use super::RuntimeConfigError;
+use super::config::RuntimeConfig;
+use super::error::RuntimeConfigError;
 
 /// What the [`LoopTimer`] measured for one tick, passed to
 /// [`ControlLoop::tick`](super::ControlLoop::tick).
