@@ -20,14 +20,15 @@ use core::panic::PanicInfo;
 
 use controller_core::controller::{saturate, ControlLaw, ControllerState};
 use controller_core::math;
-use controller_core::model::ReducedModel;
 use controller_core::trajectory::{PaperCurve, PaperHeading, Trajectory};
+use controller_core::RobotParams;
 use controller_core::{
     Controller, ControllerConfig, ControllerKind, Diagnostics, Pose, RefSample, StepInput,
     StepOutput, Vel2,
 };
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
+use sim_robot::{PerturbationGrid, PerturbationProfile, Plant, PlantParams, PlantState};
 use timer::Counter;
 
 /// Control steps per controller: the paper's 40 s at 1 kHz.
@@ -80,60 +81,54 @@ impl Scale {
     }
 }
 
-// TEMPORARY, bench-local plant (issue 13, "One plant"): to be replaced by
-// the project's one shared simulation plant once that is usable from no_std.
-// Not the simulator's plant: f32, Euler, no wheel slip; it only closes the
-// loop so that the controller sees realistic inputs.
-/// Simulated robot (semi-implicit Euler at the control period): reduced
-/// dynamics (eq. 7) with a wheel-torque disturbance, and the kinematics of
-/// the tracked point G with a multiplicative actuator fault: the body moves
-/// with (1 − ε)·η while the encoders report η. Case-2-like: both act in the
-/// window [10 s, 35 s), like the simulator's default scenario window.
-struct Plant {
-    model: ReducedModel,
-    pose: Pose,
-    eta: [f32; 2],
+/// The simulated robot that closes the loop: the project's one plant
+/// (`sim-robot`, f64 through libm, soft-float on this core; not timed),
+/// one RK4 step per period, in the paper's Case 2 shape: slip β = 0.1 rad/s,
+/// skid, disturbance 1 N·m and an actuator fault ε = 0.2 in [10 s, 35 s).
+struct SimRobot {
+    plant: Plant,
+    state: PlantState,
+    perturb: PerturbationGrid,
 }
 
-impl Plant {
-    fn new(model: ReducedModel) -> Self {
-        Self {
-            model,
-            // The simulator's default start; the reference starts at (4, 3).
-            pose: Pose::new(2.5, 0.0, 0.0),
-            eta: [0.0, 0.0],
-        }
-    }
-
-    fn advance(&mut self, torque: [f32; 2], t: f32, dt: f32) {
-        let window = (10.0..35.0).contains(&t);
-        let (dist_nm, eps) = if window {
-            let (s, _) = math::sin_cos(2.0 * t);
-            ([0.5 * s, -0.5 * s], 0.2)
-        } else {
-            ([0.0, 0.0], 0.0)
+impl SimRobot {
+    fn new(robot: &RobotParams, dt: f64) -> Self {
+        let profile = PerturbationProfile {
+            window_s: [10.0, 35.0],
+            beta_radps: 0.1,
+            fault_eps: 0.2,
+            skid_scale: 0.05,
+            disturbance_nm: 1.0,
         };
-        let m = self.model.m_eta(self.eta);
-        let n = self
-            .model
-            .n_tau([torque[0] + dist_nm[0], torque[1] + dist_nm[1]]);
-        for i in 0..2 {
-            self.eta[i] += (m[i] + n[i]) * dt;
+        Self {
+            plant: Plant::new(PlantParams::from_robot(robot, 1.0, 1.0)),
+            // The simulator's default start; the reference starts at (4, 3).
+            state: PlantState {
+                q: [2.5, 0.0, 0.0, 0.0, 0.0],
+                nu: [0.0; 2],
+            },
+            perturb: PerturbationGrid::new(profile, 0.5 * dt),
         }
-        let (v, w) = ((1.0 - eps) * self.eta[0], (1.0 - eps) * self.eta[1]);
-        let (s, c) = math::sin_cos(self.pose.theta_rad);
-        let dm = self.model.params.com_offset_m;
-        self.pose.x_m += (v * c - dm * w * s) * dt;
-        self.pose.y_m += (v * s + dm * w * c) * dt;
-        self.pose.theta_rad += w * dt;
     }
 
-    fn input(&self, reference: RefSample) -> StepInput {
+    /// The measured pose of G and the wheel-imposed η (ideal sensors).
+    fn input(&mut self, reference: RefSample, t: f64) -> StepInput {
+        let p = self.perturb.at(t);
+        let eta = self.plant.eta(&self.state, &p);
+        let q = self.state.q;
         StepInput {
             reference,
-            pose: self.pose,
-            eta: Vel2::from_array(self.eta),
+            pose: Pose::new(q[0] as f32, q[1] as f32, q[2] as f32),
+            eta: Vel2::new(eta[0] as f32, eta[1] as f32),
         }
+    }
+
+    fn advance(&mut self, torque_nm: [f32; 2], t: f64, dt: f64) {
+        let tau = torque_nm.map(f64::from);
+        let grid = &mut self.perturb;
+        self.state = self
+            .plant
+            .rk4_step(&self.state, t, dt, &tau, &mut |t| grid.at(t));
     }
 }
 
@@ -231,7 +226,7 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
     let law = ctrl.law().clone();
     let mut staged_state = law.initial_state();
     let traj = PaperCurve::paper(PaperHeading::SignedSmooth);
-    let mut plant = Plant::new(*ctrl.model());
+    let mut plant = SimRobot::new(&cfg.robot, cfg.period_s as f64);
     let mut res = RunResult {
         reference: Stat::default(),
         step: Stat::default(),
@@ -243,7 +238,7 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
     for k in 0..STEPS {
         let t = k as f32 * dt;
         let r = time(c, &mut res.reference, || traj.sample(black_box(t)));
-        let input = plant.input(r);
+        let input = plant.input(r, k as f64 * dt as f64);
         let out: StepOutput = time(c, &mut res.step, || ctrl.step(black_box(&input)));
         if out.diag.fault.is_some() {
             fail("controller rejected a step");
@@ -266,7 +261,7 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
             res.max_pos_error_after_10s = res.max_pos_error_after_10s.max(pe);
         }
         res.final_error = e;
-        plant.advance(out.torque_nm, t, dt);
+        plant.advance(out.torque_nm, k as f64 * dt as f64, dt as f64);
     }
     res
 }
