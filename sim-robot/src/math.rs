@@ -25,3 +25,12 @@ pub fn cos(x: f64) -> f64 {
     #[cfg(not(any(feature = "std", test)))]
     return libm::cos(x);
 }
+
+/// x rounded to the nearest integer, halves away from zero.
+#[inline]
+pub fn round(x: f64) -> f64 {
+    #[cfg(any(feature = "std", test))]
+    return x.round();
+    #[cfg(not(any(feature = "std", test)))]
+    return libm::round(x);
+}

@@ -9,7 +9,7 @@
 //!   τ_θ = 0.5A·sin(0.9t), τ_dR = A(0.6 + 0.4 sin 2t), τ_dL = A(−0.3 + 0.5 cos 1.7t),
 //! * actuator fault (Case 2): the body moves at (1 − ε)·η.
 
-use crate::math::sin_cos;
+use crate::math::{round, sin_cos};
 use crate::plant::Perturbation;
 
 /// Amplitudes and window of the section-4 perturbations.
@@ -133,8 +133,8 @@ impl PerturbationGrid {
     }
 
     fn phasors(&mut self, t_s: f64) -> [(f64, f64); 3] {
-        let k = libm::round(t_s / self.step_s);
-        let on_grid = libm::fabs(t_s - k * self.step_s) <= 1e-9 * self.step_s.max(1.0);
+        let k = round(t_s / self.step_s);
+        let on_grid = (t_s - k * self.step_s).abs() <= 1e-9 * self.step_s.max(1.0);
         let k = k as i64;
         if let (true, Some((k_prev, ph))) = (on_grid, self.phasor) {
             if k == k_prev + 1 && self.rotations < Self::RESYNC_STEPS {

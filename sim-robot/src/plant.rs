@@ -16,14 +16,16 @@
 //!
 //! Integration: classical RK4. The wheel torques come from a [`Drive`]
 //! evaluated at each stage's wheel rates (a torque source holds them; a DC
-//! motor at fixed duty feels its back-EMF continuously). One sin/cos of θ
-//! per step: the stages' headings differ from the step's start by a small
+//! motor at fixed duty feels its back-EMF continuously). At most one sin/cos
+//! of θ per step, none when the step starts where the last one ended: the
+//! stages' headings (and the end's) differ from the step's start by a small
 //! angle δ, and sin/cos(θ + δ) follow from the angle-sum identities with
 //! series for sin δ and cos δ (exact to rounding for |δ| ≤ [`SMALL_ANGLE_RAD`];
 //! larger δ falls back to sin/cos).
 
 use crate::math::sin_cos;
 use controller_core::RobotParams;
+use core::cell::Cell;
 
 /// Plant physical parameters (f64 copy of [`RobotParams`], possibly scaled).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -136,11 +138,14 @@ fn sin_cos_offset(theta0: f64, sc0: (f64, f64), delta: f64) -> (f64, f64) {
 }
 
 /// The simulated robot.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Plant {
     params: PlantParams,
     /// Constants of (3) and (6) computed once.
     k: Constants,
+    /// θ at the end of the last step (its bits) and its (sin, cos), formed
+    /// from that step's start: the next step starting there needs no sin/cos.
+    theta_end: Cell<(u64, (f64, f64))>,
 }
 
 /// Products and reciprocals of the parameters used at every evaluation.
@@ -183,6 +188,7 @@ impl Plant {
         let m1 = params.m1_diag();
         Self {
             params,
+            theta_end: Cell::new((f64::NAN.to_bits(), (0.0, 1.0))),
             k: Constants {
                 inv_r: 1.0 / r,
                 h,
@@ -217,8 +223,12 @@ impl Plant {
 
     /// Wheel rates φ̇ = \[(v + hω)/r, (v − hω)/r\] \[rad/s\] (eq. 3, rows 4-5).
     pub fn wheel_rates_radps(&self, st: &PlantState, p: &Perturbation) -> [f64; 2] {
-        let q = self.q_dot(st, p);
-        [q[3], q[4]]
+        let k = &self.k;
+        let eta = self.eta(st, p);
+        [
+            (eta[0] + k.h * eta[1]) * k.inv_r,
+            (eta[0] - k.h * eta[1]) * k.inv_r,
+        ]
     }
 
     fn forcing(&self, p: &Perturbation) -> Forcing {
@@ -340,7 +350,10 @@ impl Plant {
             o
         };
         let th0 = st.q[2];
-        let sc0 = sin_cos(th0);
+        let sc0 = match self.theta_end.get() {
+            (bits, sc) if bits == th0.to_bits() => sc,
+            _ => sin_cos(th0),
+        };
         let p0 = self.forcing(&perturb(t_s));
         let pm = self.forcing(&perturb(t_s + 0.5 * h_s));
         let p1 = self.forcing(&perturb(t_s + h_s));
@@ -358,6 +371,8 @@ impl Plant {
         for i in 0..2 {
             o.nu[i] += h_s / 6.0 * (k1.nu[i] + 2.0 * k2.nu[i] + 2.0 * k3.nu[i] + k4.nu[i]);
         }
+        let sc_end = sin_cos_offset(th0, sc0, o.q[2] - th0);
+        self.theta_end.set((o.q[2].to_bits(), sc_end));
         o
     }
 
