@@ -223,6 +223,11 @@ impl Pacer {
         self.report(st, transition)
     }
 
+    /// The report of `st` without a transition (for ticks that do not step).
+    pub fn status(&self, st: &PacerState) -> PaceReport {
+        self.report(st, None)
+    }
+
     fn report(&self, st: &PacerState, transition: Option<HealthTransition>) -> PaceReport {
         PaceReport {
             tau_s: self.governor.tau_s(&st.governor),

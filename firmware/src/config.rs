@@ -97,5 +97,6 @@ pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {
         },
         motor_inverted: MOTOR_INVERTED,
         safety: SAFETY,
+        pacing: controller_core::pacer::PacingConfig::on(),
     }
 }

@@ -155,6 +155,12 @@ pub struct ScenarioArgs {
     /// RK4 sub-steps per control period.
     #[arg(long)]
     pub substeps: Option<u32>,
+    /// Reference governor and health machine (beyond the paper; default on).
+    #[arg(long, value_name = "BOOL", action = clap::ArgAction::Set)]
+    pub governor: Option<bool>,
+    /// Large-error bound of the kinematic law (clean start; default on).
+    #[arg(long, value_name = "BOOL", action = clap::ArgAction::Set)]
+    pub clean_start: Option<bool>,
 }
 
 impl ScenarioArgs {
@@ -196,6 +202,8 @@ impl ScenarioArgs {
             heading_noise => heading_noise_rad,
             control_period => control_period_s,
             substeps => substeps,
+            governor => governor,
+            clean_start => clean_start,
         );
         if let Some(k) = self.k_y {
             scn.k_y = Some(k);

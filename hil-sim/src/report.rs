@@ -187,7 +187,8 @@ pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutpu
 /// CSV header of [`write_trace_csv`], one name per [`TraceSample`] scalar.
 pub const CSV_HEADER: &str = "t_s,ref_x_m,ref_y_m,ref_theta_rad,x_m,y_m,theta_rad,pos_err_m,\
 err_x_m,err_y_m,e_x,e_y,e_theta,v_mps,omega_radps,v_c_mps,omega_c_radps,tau_r_nm,tau_l_nm,\
-s_v,s_omega,rho_hat_v,rho_hat_omega,d_hat_v,d_hat_omega,f_hat_v,f_hat_omega,f_true_v,f_true_omega,saturated";
+s_v,s_omega,rho_hat_v,rho_hat_omega,d_hat_v,d_hat_omega,f_hat_v,f_hat_omega,f_true_v,f_true_omega,saturated,\
+time_scale,tau_s,health,health_reason";
 
 /// Writes the header and one row per sample.
 pub fn write_trace_csv(mut w: impl Write, trace: &[TraceSample]) -> io::Result<()> {
@@ -228,7 +229,15 @@ pub fn write_trace_csv(mut w: impl Write, trace: &[TraceSample]) -> io::Result<(
         for v in vals {
             let _ = write!(line, "{v},");
         }
-        let _ = write!(line, "{}", u8::from(s.saturated));
+        let _ = write!(
+            line,
+            "{},{},{},{},{}",
+            u8::from(s.saturated),
+            s.time_scale,
+            s.tau_s,
+            s.health,
+            s.health_reason
+        );
         writeln!(w, "{line}")?;
     }
     Ok(())

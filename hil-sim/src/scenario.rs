@@ -127,6 +127,12 @@ pub struct Scenario {
     pub seed: u64,
     /// Override of the kinematic gain k_y (None = controller default).
     pub k_y: Option<f64>,
+    /// Reference governor and health machine (`controller_core::pacer`),
+    /// beyond the paper; on by default, off in [`Self::as_printed`].
+    pub governor: bool,
+    /// Large-error bound of the kinematic law's lateral term (D23), beyond
+    /// the paper; on by default, off in [`Self::as_printed`].
+    pub clean_start: bool,
 }
 
 impl Default for Scenario {
@@ -154,6 +160,8 @@ impl Default for Scenario {
             heading_noise_rad: 0.0,
             seed: 1,
             k_y: None,
+            governor: true,
+            clean_start: true,
         }
     }
 }
@@ -176,6 +184,58 @@ impl Scenario {
             eps: if case >= 2 { eps.unwrap_or(e) } else { 0.0 },
             seed,
             ..Self::default()
+        }
+    }
+
+    /// This scenario in the paper's setting: no governor, no health machine
+    /// (what `compare`'s first table runs).
+    pub fn as_printed(mut self) -> Self {
+        self.governor = false;
+        self.clean_start = false;
+        self
+    }
+
+    /// The runtime/simulator pacing configuration for this scenario.
+    pub fn pacing(&self) -> controller_core::pacer::PacingConfig {
+        if self.governor {
+            let mut p = controller_core::pacer::PacingConfig::on();
+            let env = |k: &str| std::env::var(k).ok().map(|v| v.parse::<f32>().unwrap());
+            if let Some(v) = env("G_EMIN") {
+                p.governor.error_min_scale = v;
+            }
+            if let Some(v) = env("G_ESTART") {
+                p.governor.error_start_m = v;
+            }
+            if let Some(v) = env("G_ESTOP") {
+                p.governor.error_stop_m = v;
+            }
+            if let Some(v) = env("G_SSTART") {
+                p.governor.saturation_start = v;
+            }
+            if let Some(v) = env("G_SSTOP") {
+                p.governor.saturation_stop = v;
+            }
+            if let Some(v) = env("G_DEC") {
+                p.governor.max_decrease_per_s = v;
+            }
+            if let Some(v) = env("G_INC") {
+                p.governor.max_increase_per_s = v;
+            }
+            if let Some(v) = env("G_FILT") {
+                p.governor.saturation_filter_s = v;
+            }
+            if let Some(v) = env("H_ADAPT") {
+                p.health.adaptation_degraded = v;
+            }
+            if let Some(v) = env("H_CAP") {
+                p.health.degraded_speed_scale = v;
+            }
+            if let Some(v) = env("H_SAT") {
+                p.health.saturation_degraded = v;
+            }
+            p
+        } else {
+            controller_core::pacer::PacingConfig::off()
         }
     }
 
