@@ -300,15 +300,21 @@ pub struct CompareRow {
     pub report: RunReport,
 }
 
-/// Runs both paper cases with the three controllers in parallel (traced).
+/// Runs both paper cases with the three controllers in parallel (traced),
+/// in the paper's setting ([`Scenario::as_printed`]: no governor, no
+/// large-error bound) unless `beyond_paper`.
 pub fn compare_runs(
     seed: u64,
     beta: Option<f64>,
     eps: Option<f64>,
+    beyond_paper: bool,
 ) -> Result<Vec<CaseRuns>, String> {
     let cases: Vec<(u8, Scenario)> = [1u8, 2]
         .iter()
-        .map(|&c| (c, Scenario::paper_case(c, seed, beta, eps)))
+        .map(|&c| {
+            let s = Scenario::paper_case(c, seed, beta, eps);
+            (c, if beyond_paper { s } else { s.as_printed() })
+        })
         .collect();
     for (_, s) in &cases {
         s.validate()?;
@@ -377,15 +383,19 @@ fn case_plot_title(case: u8, scn: &Scenario) -> String {
     )
 }
 
-/// Draws every case's figures into `dir` (cases in parallel); the files
-/// written, per case.
-pub fn draw_compare_plots(dir: &Path, results: &[CaseRuns]) -> Result<Vec<Vec<PathBuf>>, String> {
+/// Draws every case's figures into `dir` (cases in parallel), file names
+/// `case<N><suffix>_<figure>`; the files written, per case.
+pub fn draw_compare_plots(
+    dir: &Path,
+    results: &[CaseRuns],
+    suffix: &str,
+) -> Result<Vec<Vec<PathBuf>>, String> {
     results
         .par_iter()
         .map(|(c, s, runs)| {
             crate::plot::write_case_plots(
                 dir,
-                &format!("case{c}"),
+                &format!("case{c}{suffix}"),
                 &case_plot_title(*c, s),
                 s,
                 runs,
@@ -438,11 +448,55 @@ settle: error stays < 0.1 m until the window;\nsat: steps at the torque limit; F
     text
 }
 
-/// `compare`: run, write metrics.json, draw the plots, print; a plot error
-/// is returned after the table has been printed.
+/// The second part of `compare`'s text: the same runs with the reference
+/// governor, the health machine and the large-error bound (the defaults
+/// beyond the paper), with their columns.
+fn beyond_paper_text(
+    rows: &[CompareRow],
+    metrics_path: &Path,
+    plot_files: Option<(&[Vec<PathBuf>], &Path)>,
+) -> String {
+    let table_rows: Vec<(Vec<String>, crate::Metrics)> = rows
+        .iter()
+        .map(|r| {
+            (
+                vec![r.case.to_string(), r.report.controller.to_string()],
+                r.report.metrics.clone(),
+            )
+        })
+        .collect();
+    let mut text = String::from(
+        "\nBeyond the paper (the simulator's and the runtime's default): reference governor, \
+health machine, large-error bound of the kinematic law; error against the governed reference\n\n",
+    );
+    text += &crate::report::metrics_table_with(
+        &["case", "controller"],
+        &table_rows,
+        &crate::report::PACE_COLUMNS,
+    );
+    text +=
+        "\nlag: t − τ at the end (how far the governed reference is behind the nominal clock); \
+s_min: smallest time scale;\ndegr: steps in a degraded health mode; h_tr: health transitions\n";
+    text += &format!("\nmetrics written to {}\n", metrics_path.display());
+    if let Some((files, dir)) = plot_files {
+        if !files.is_empty() {
+            text += &format!(
+                "{} plot files written to {} (case<N>_gov_{{xy,errors,velocities,torques,faults,pacing}}.{{png,svg}})\n",
+                files.iter().map(Vec::len).sum::<usize>(),
+                dir.display()
+            );
+        }
+    }
+    text
+}
+
+/// `compare`: run, write metrics.json, draw the plots, print (the paper's
+/// setting first, exactly as before the governor existed; then the same
+/// with the governor on, into `metrics_governor.json` and `case<N>_gov_*`);
+/// a plot error is returned after the tables have been printed.
 fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
     let t0 = std::time::Instant::now();
-    let results = compare_runs(a.seed, a.beta, a.eps)?;
+    let results = compare_runs(a.seed, a.beta, a.eps, false)?;
     let sim_time = t0.elapsed();
     let rows = compare_rows(&results);
     let json = compare_json(&rows)?;
@@ -450,16 +504,33 @@ fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
     let plots = if a.no_plots {
         Ok(Vec::new())
     } else {
-        draw_compare_plots(&a.out, &results)
+        draw_compare_plots(&a.out, &results, "")
+    };
+    // The same with the governor (the defaults beyond the paper).
+    let gov = compare_runs(a.seed, a.beta, a.eps, true)?;
+    let gov_rows = compare_rows(&gov);
+    let gov_json = compare_json(&gov_rows)?;
+    let gov_path = a.out.join("metrics_governor.json");
+    std::fs::write(&gov_path, format!("{gov_json}\n"))
+        .map_err(|e| format!("cannot write {}: {e}", gov_path.display()))?;
+    let gov_plots = if a.no_plots {
+        Ok(Vec::new())
+    } else {
+        draw_compare_plots(&a.out, &gov, "_gov")
     };
     let text = if a.json {
         format!("{json}\n")
     } else {
         let plot_files = plots.as_ref().ok().map(|p| (p.as_slice(), a.out.as_path()));
+        let gov_files = gov_plots
+            .as_ref()
+            .ok()
+            .map(|p| (p.as_slice(), a.out.as_path()));
         compare_text(&results, &rows, sim_time, &metrics_path, plot_files)
+            + &beyond_paper_text(&gov_rows, &gov_path, gov_files)
     };
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
-    plots.map(|_| ())
+    plots.and(gov_plots).map(|_| ())
 }
 
 fn run_cmd(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {

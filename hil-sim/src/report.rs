@@ -42,7 +42,8 @@ impl RunReport {
 }
 
 /// The metric columns of [`metrics_table`]: header, unit, value.
-type Column = (&'static str, &'static str, fn(&Metrics) -> String);
+/// A table column: header, unit, formatter.
+pub type Column = (&'static str, &'static str, fn(&Metrics) -> String);
 
 fn opt(x: Option<f64>, prec: usize) -> String {
     x.map_or_else(|| "-".into(), |v| format!("{v:.prec$}"))
@@ -64,13 +65,36 @@ const COLUMNS: [Column; 11] = [
     ("F_rmse", "", |m| opt(m.fault_est_rmse, 4)),
 ];
 
+/// Columns of the reference governor and health machine (runs with it on).
+pub const PACE_COLUMNS: [Column; 4] = [
+    ("lag", "s", |m| opt(m.time_lag_final_s, 2)),
+    ("s_min", "", |m| opt(m.min_time_scale, 2)),
+    ("degr", "%", |m| {
+        m.degraded_fraction
+            .map_or("-".into(), |f| format!("{:.1}", 100.0 * f))
+    }),
+    ("h_tr", "", |m| {
+        m.health_transitions.map_or("-".into(), |n| n.to_string())
+    }),
+];
+
 /// A fixed-width table, one row per `(label columns…, metrics)`; `labels`
 /// names the leading label columns (e.g. `["case", "controller"]`).
 pub fn metrics_table(labels: &[&str], rows: &[(Vec<String>, Metrics)]) -> String {
+    metrics_table_with(labels, rows, &[])
+}
+
+/// [`metrics_table`] with `extra` columns after the standard ones.
+pub fn metrics_table_with(
+    labels: &[&str],
+    rows: &[(Vec<String>, Metrics)],
+    extra: &[Column],
+) -> String {
     let mut header: Vec<String> = labels.iter().map(|s| s.to_string()).collect();
     let mut units: Vec<String> = labels.iter().map(|_| String::new()).collect();
-    for (h, u, _) in COLUMNS {
-        header.push(h.into());
+    let columns: Vec<&Column> = COLUMNS.iter().chain(extra).collect();
+    for (h, u, _) in columns.iter().copied() {
+        header.push(h.to_string());
         units.push(if u.is_empty() {
             String::new()
         } else {
@@ -81,7 +105,7 @@ pub fn metrics_table(labels: &[&str], rows: &[(Vec<String>, Metrics)]) -> String
         .iter()
         .map(|(l, m)| {
             let mut r = l.clone();
-            r.extend(COLUMNS.iter().map(|(_, _, f)| f(m)));
+            r.extend(columns.iter().map(|(_, _, f)| f(m)));
             r
         })
         .collect();

@@ -129,9 +129,11 @@ pub struct Scenario {
     pub k_y: Option<f64>,
     /// Reference governor and health machine (`controller_core::pacer`),
     /// beyond the paper; on by default, off in [`Self::as_printed`].
+    #[serde(skip_serializing_if = "is_true")]
     pub governor: bool,
     /// Large-error bound of the kinematic law's lateral term (D23), beyond
     /// the paper; on by default, off in [`Self::as_printed`].
+    #[serde(skip_serializing_if = "is_true")]
     pub clean_start: bool,
 }
 
@@ -164,6 +166,10 @@ impl Default for Scenario {
             clean_start: true,
         }
     }
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
 }
 
 /// β range of the paper, (0, 0.2) rad/s.
