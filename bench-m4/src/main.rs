@@ -99,6 +99,7 @@ impl SimRobot {
             fault_eps: 0.2,
             skid_scale: 0.05,
             disturbance_nm: 1.0,
+            fault_eps_end: None,
         };
         Self {
             plant: Plant::new(PlantParams::from_robot(robot, 1.0, 1.0)),

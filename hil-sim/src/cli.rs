@@ -161,6 +161,12 @@ pub struct ScenarioArgs {
     /// Large-error bound of the kinematic law (clean start; default on).
     #[arg(long, value_name = "BOOL", action = clap::ArgAction::Set)]
     pub clean_start: Option<bool>,
+    /// Growing fault: ε at the window's end, ramped from --eps at its start.
+    #[arg(long)]
+    pub eps_end: Option<f64>,
+    /// Fraction of its torque the left wheel delivers in the window (weak wheel).
+    #[arg(long, value_name = "FRACTION")]
+    pub left_torque_scale: Option<f64>,
 }
 
 impl ScenarioArgs {
@@ -207,6 +213,12 @@ impl ScenarioArgs {
         );
         if let Some(k) = self.k_y {
             scn.k_y = Some(k);
+        }
+        if let Some(e) = self.eps_end {
+            scn.eps_end = Some(e);
+        }
+        if let Some(k) = self.left_torque_scale {
+            scn.wheel_torque_scale[1] = k;
         }
         scn.validate()?;
         Ok(scn)

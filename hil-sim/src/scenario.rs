@@ -98,6 +98,14 @@ pub struct Scenario {
     pub beta: f64,
     /// Actuator fault ε (0 = none).
     pub eps: f64,
+    /// Growing fault (beyond the paper): ε at the window's end, ramped
+    /// linearly from `eps` at its start (None = constant `eps`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub eps_end: Option<f64>,
+    /// Fraction of the commanded torque each wheel `[right, left]` delivers
+    /// inside the window (beyond the paper; \[1, 1\] = healthy).
+    #[serde(skip_serializing_if = "is_healthy_wheels")]
+    pub wheel_torque_scale: [f64; 2],
     /// Scale of the lateral skid δ_sl (1 = as printed).
     pub skid_scale: f64,
     /// Disturbance amplitude A \[N·m\].
@@ -149,6 +157,8 @@ impl Default for Scenario {
             trajectory: TrajectoryKind::Paper,
             beta: 0.1,
             eps: 0.0,
+            eps_end: None,
+            wheel_torque_scale: [1.0, 1.0],
             skid_scale: 0.05,
             disturbance_nm: 1.0,
             mass_scale: 1.0,
@@ -170,6 +180,10 @@ impl Default for Scenario {
 
 fn is_true(b: &bool) -> bool {
     *b
+}
+
+fn is_healthy_wheels(s: &[f64; 2]) -> bool {
+    *s == [1.0, 1.0]
 }
 
 /// β range of the paper, (0, 0.2) rad/s.
@@ -204,42 +218,7 @@ impl Scenario {
     /// The runtime/simulator pacing configuration for this scenario.
     pub fn pacing(&self) -> controller_core::pacer::PacingConfig {
         if self.governor {
-            let mut p = controller_core::pacer::PacingConfig::on();
-            let env = |k: &str| std::env::var(k).ok().map(|v| v.parse::<f32>().unwrap());
-            if let Some(v) = env("G_EMIN") {
-                p.governor.error_min_scale = v;
-            }
-            if let Some(v) = env("G_ESTART") {
-                p.governor.error_start_m = v;
-            }
-            if let Some(v) = env("G_ESTOP") {
-                p.governor.error_stop_m = v;
-            }
-            if let Some(v) = env("G_SSTART") {
-                p.governor.saturation_start = v;
-            }
-            if let Some(v) = env("G_SSTOP") {
-                p.governor.saturation_stop = v;
-            }
-            if let Some(v) = env("G_DEC") {
-                p.governor.max_decrease_per_s = v;
-            }
-            if let Some(v) = env("G_INC") {
-                p.governor.max_increase_per_s = v;
-            }
-            if let Some(v) = env("G_FILT") {
-                p.governor.saturation_filter_s = v;
-            }
-            if let Some(v) = env("H_ADAPT") {
-                p.health.adaptation_degraded = v;
-            }
-            if let Some(v) = env("H_CAP") {
-                p.health.degraded_speed_scale = v;
-            }
-            if let Some(v) = env("H_SAT") {
-                p.health.saturation_degraded = v;
-            }
-            p
+            controller_core::pacer::PacingConfig::on()
         } else {
             controller_core::pacer::PacingConfig::off()
         }
@@ -250,7 +229,7 @@ impl Scenario {
         let pos = |x: f64| x.is_finite() && x > 0.0;
         let nonneg = |x: f64| x.is_finite() && x >= 0.0;
         let ideal = self.sensing == Sensing::Ideal;
-        let checks: [(bool, &str); 14] = [
+        let checks: [(bool, &str); 16] = [
             (pos(self.duration_s), "duration_s must be > 0"),
             (
                 pos(self.control_period_s) && self.control_period_s <= 0.1,
@@ -267,6 +246,14 @@ impl Scenario {
             ),
             (nonneg(self.beta), "beta must be >= 0"),
             (nonneg(self.eps) && self.eps < 1.0, "eps must be in [0, 1)"),
+            (
+                self.eps_end.is_none_or(|e| nonneg(e) && e < 1.0),
+                "eps_end must be in [0, 1)",
+            ),
+            (
+                self.wheel_torque_scale.iter().all(|&k| nonneg(k) && k <= 1.0),
+                "wheel_torque_scale must be in [0, 1]",
+            ),
             (
                 nonneg(self.skid_scale) && nonneg(self.disturbance_nm),
                 "skid_scale and disturbance_nm must be >= 0",
@@ -304,6 +291,7 @@ impl Scenario {
             fault_eps: self.eps,
             skid_scale: self.skid_scale,
             disturbance_nm: self.disturbance_nm,
+            fault_eps_end: self.eps_end,
         }
     }
 

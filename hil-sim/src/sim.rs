@@ -96,10 +96,7 @@ pub fn controller_config(scn: &Scenario, kind: ControllerKind) -> ControllerConf
         cfg.kinematic.k_y = k_y as f32;
     }
     if scn.clean_start {
-        cfg.kinematic.large_error_m = std::env::var("K_L")
-            .ok()
-            .map(|v| v.parse::<f32>().unwrap())
-            .unwrap_or(controller_core::kinematic::DEFAULT_LARGE_ERROR_M);
+        cfg.kinematic.large_error_m = controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
     }
     cfg
 }
@@ -346,10 +343,19 @@ pub fn run_loop(
         }
         last_tau_s = pace.tau_s as f64;
         last_scale = pace.scale as f64;
-        // Plant over [t, t + dt]: actuation held (zero-order hold).
+        // Plant over [t, t + dt]: actuation held (zero-order hold), each
+        // wheel delivering its share of the torque (a weak wheel in the window).
+        let drive = sim_robot::TorqueScaled {
+            drive: &actuation,
+            scale: if perturbations.in_window(t) {
+                scn.wheel_torque_scale
+            } else {
+                [1.0, 1.0]
+            },
+        };
         for j in 0..scn.substeps {
             let t_j = t + j as f64 * substep_s;
-            st = plant.rk4_step(&st, t_j, substep_s, &actuation, &mut |t| perturb.at(t));
+            st = plant.rk4_step(&st, t_j, substep_s, &drive, &mut |t| perturb.at(t));
         }
         if !Plant::state_is_finite(&st) {
             return Err(format!("plant state diverged at t = {t:.3} s"));
