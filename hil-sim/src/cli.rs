@@ -930,8 +930,8 @@ mod tests {
             text.lines()
                 .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()) && l.contains("proposed"))
                 .count(),
-            2,
-            "{text}"
+            4,
+            "the paper table and the governed one: {text}"
         );
         let v: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(dir.path().join("metrics.json")).unwrap(),
@@ -940,5 +940,18 @@ mod tests {
         assert_eq!(v.as_array().unwrap().len(), 6);
         assert_eq!(v[5]["case"], 2);
         assert_eq!(v[5]["controller"], "proposed");
+        // The paper's setting: no governor, so no governor metrics.
+        assert!(v[5].get("time_lag_final_s").is_none());
+        assert_eq!(v[5]["scenario"]["governor"], false);
+        let g: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("metrics_governor.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(g.as_array().unwrap().len(), 6);
+        assert!(g[5]["time_lag_final_s"].as_f64().unwrap() >= 0.0);
+        assert!(
+            g[5]["scenario"].get("governor").is_none(),
+            "on: the default"
+        );
     }
 }

@@ -750,6 +750,11 @@ mod tests {
             .collect();
         let dir = tempfile::tempdir().unwrap();
         let files = write_case_plots(dir.path(), "case2", "Case 2", &scn, &runs).unwrap();
+        // The governor is on: its pacing figure comes in addition.
+        assert_eq!(files.len(), 2 * (FIGURES.len() + 1));
+        assert!(dir.path().join("case2_pacing.png").is_file());
+        let printed = scn.clone().as_printed();
+        let files = write_case_plots(dir.path(), "paper", "Case 2", &printed, &runs).unwrap();
         assert_eq!(files.len(), 2 * FIGURES.len());
         for f in &files {
             let len = std::fs::metadata(f).unwrap().len();

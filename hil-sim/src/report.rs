@@ -281,7 +281,7 @@ mod tests {
         assert_eq!(lines.len(), 8);
         assert_eq!(lines[0], CSV_HEADER);
         let n = CSV_HEADER.split(',').count();
-        assert_eq!(n, 30);
+        assert_eq!(n, 34);
         assert!(lines[1..].iter().all(|l| l.split(',').count() == n));
     }
 
@@ -299,6 +299,11 @@ mod tests {
             chatter: 3.0,
             saturated_fraction: 0.25,
             fault_est_rmse: Some(0.03),
+            time_lag_final_s: None,
+            min_time_scale: None,
+            degraded_fraction: None,
+            health_transitions: None,
+            safe_stop: None,
         };
         let rows = vec![
             (vec!["1".into(), "smc".into()], m.clone()),
