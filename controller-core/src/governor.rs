@@ -255,11 +255,14 @@ impl Governor {
         if gap * gap < SNAP * SNAP {
             s = target;
         }
-        if !(s >= 0.0) {
-            s = 0.0;
-        } else if s > 1.0 {
-            s = 1.0;
-        }
+        // NaN or negative -> 0 (every comparison with NaN is false).
+        s = if s > 1.0 {
+            1.0
+        } else if s >= 0.0 {
+            s
+        } else {
+            0.0
+        };
         st.scale = s;
         st.scale_rate_per_s = (s - old) / self.period_s;
         // τ += s·Δt as a fraction of a period (s <= 1: at most one carry).

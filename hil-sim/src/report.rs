@@ -93,7 +93,7 @@ pub fn metrics_table_with(
     let mut header: Vec<String> = labels.iter().map(|s| s.to_string()).collect();
     let mut units: Vec<String> = labels.iter().map(|_| String::new()).collect();
     let columns: Vec<&Column> = COLUMNS.iter().chain(extra).collect();
-    for (h, u, _) in columns.iter().copied() {
+    for (h, u, _) in &columns {
         header.push(h.to_string());
         units.push(if u.is_empty() {
             String::new()
