@@ -145,6 +145,8 @@ impl Default for GovernorState {
 pub struct Governor {
     params: GovernorParams,
     period_s: f32,
+    /// 1/Δt.
+    inv_period: f32,
     /// Filter coefficient Δt/(T + Δt).
     alpha: f32,
     inv_sat_span: f32,
@@ -168,6 +170,7 @@ impl Governor {
         Ok(Self {
             params,
             period_s,
+            inv_period: 1.0 / period_s,
             alpha: period_s / (params.saturation_filter_s + period_s),
             inv_sat_span: 1.0 / (params.saturation_stop - params.saturation_start),
             inv_err_span_m: 1.0 / (params.error_stop_m - params.error_start_m),
@@ -264,7 +267,7 @@ impl Governor {
             0.0
         };
         st.scale = s;
-        st.scale_rate_per_s = (s - old) / self.period_s;
+        st.scale_rate_per_s = (s - old) * self.inv_period;
         // τ += s·Δt as a fraction of a period (s <= 1: at most one carry).
         st.frac += s;
         if st.frac >= 1.0 {

@@ -242,6 +242,8 @@ pub struct HealthState {
     pub saturation: f32,
     /// Filtered position error \[m\].
     pub error_m: f32,
+    /// ε̂ of the last update (see [`Self::fault_ratio`]).
+    pub eps_hat: f32,
 }
 
 impl HealthState {
@@ -338,6 +340,7 @@ impl HealthMonitor {
 
         // Hard conditions, held for hard_dwell.
         let eps = st.fault_ratio();
+        st.eps_hat = eps;
         let hard = if input.controller_fault {
             Some(HealthReason::ControllerFault)
         } else if input.estimator == EstimatorStatus::Failed {

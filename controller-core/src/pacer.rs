@@ -236,7 +236,7 @@ impl Pacer {
             reason: st.health.reason,
             transitions: st.health.transitions,
             transition,
-            fault_ratio: st.health.fault_ratio(),
+            fault_ratio: st.health.eps_hat,
         }
     }
 
