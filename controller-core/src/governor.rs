@@ -14,8 +14,8 @@
 //! The target scale is the smallest of three: one falling linearly from 1 to
 //! 0 as the (filtered) saturation ratio peak|τ_request|/τ_limit rises from
 //! `saturation_start` to `saturation_stop`; one falling from 1 to
-//! `error_min_scale` as the position error rises from `error_start_m` to
-//! `error_stop_m` (never to 0: a unicycle cannot remove a lateral error
+//! `error_min_scale` as the squared position error rises from
+//! `error_start_m`² to `error_stop_m`² (squares: no `sqrt` per tick; never to 0: a unicycle cannot remove a lateral error
 //! while its reference stands still, so a zero floor could deadlock); and
 //! the cap the health machine sets ([`crate::health`]). s approaches the
 //! target at `gain_per_s`, its rate limited to `max_decrease_per_s` down and
@@ -25,11 +25,10 @@
 //! that it does not drift in `f32` over a long run, and so that at s = 1
 //! throughout τ = ticks·Δt exactly as the runtime's unscaled clock.
 //!
-//! Per tick: a handful of multiplies and compares, one `sqrt`, no
+//! Per tick: a handful of multiplies and compares, no `sqrt`, no
 //! transcendental.
 
 use crate::error::ConfigError;
-use crate::math::sqrt;
 use crate::trajectory::{RefSample, Trajectory};
 
 /// Parameters of the time-scaling governor (validated by [`Governor::new`]).
@@ -104,8 +103,8 @@ impl GovernorParams {
 pub struct GovernorInput {
     /// peak |torque request| / torque limit of the step (>= 0; 0 when unknown).
     pub saturation_ratio: f32,
-    /// Position error |(e_x, e_y)| \[m\].
-    pub position_error_m: f32,
+    /// Squared position error e_x² + e_y² \[m²\].
+    pub position_error_sq_m2: f32,
     /// Upper bound on s from the health machine, in \[0, 1\].
     pub speed_cap: f32,
 }
@@ -150,7 +149,9 @@ pub struct Governor {
     /// Filter coefficient Δt/(T + Δt).
     alpha: f32,
     inv_sat_span: f32,
-    inv_err_span_m: f32,
+    /// e_start², 1/(e_stop² − e_start²).
+    err_start_sq_m2: f32,
+    inv_err_span_m2: f32,
 }
 
 /// Saturation ratios above this are treated as this (a request of 100 times
@@ -173,7 +174,10 @@ impl Governor {
             inv_period: 1.0 / period_s,
             alpha: period_s / (params.saturation_filter_s + period_s),
             inv_sat_span: 1.0 / (params.saturation_stop - params.saturation_start),
-            inv_err_span_m: 1.0 / (params.error_stop_m - params.error_start_m),
+            err_start_sq_m2: params.error_start_m * params.error_start_m,
+            inv_err_span_m2: 1.0
+                / (params.error_stop_m * params.error_stop_m
+                    - params.error_start_m * params.error_start_m),
         })
     }
 
@@ -199,8 +203,9 @@ impl Governor {
     pub fn target(&self, saturation_filtered: f32, input: &GovernorInput) -> f32 {
         let p = &self.params;
         let s_sat = 1.0 - (saturation_filtered - p.saturation_start) * self.inv_sat_span;
-        let e = input.position_error_m;
-        let s_err = 1.0 - (1.0 - p.error_min_scale) * (e - p.error_start_m) * self.inv_err_span_m;
+        let e2 = input.position_error_sq_m2;
+        let s_err =
+            1.0 - (1.0 - p.error_min_scale) * (e2 - self.err_start_sq_m2) * self.inv_err_span_m2;
         let s_err = if s_err < p.error_min_scale {
             p.error_min_scale
         } else {
@@ -292,10 +297,10 @@ pub fn scale_sample(r: RefSample, scale: f32, scale_rate_per_s: f32) -> RefSampl
     }
 }
 
-/// |(e_x, e_y)| \[m\] of a tracking error (one `sqrt`).
+/// e_x² + e_y² \[m²\] of a tracking error.
 #[inline]
-pub fn position_error_m(error: [f32; 3]) -> f32 {
-    sqrt(error[0] * error[0] + error[1] * error[1])
+pub fn position_error_sq_m2(error: [f32; 3]) -> f32 {
+    error[0] * error[0] + error[1] * error[1]
 }
 
 #[cfg(test)]
@@ -309,7 +314,7 @@ mod tests {
 
     const CALM: GovernorInput = GovernorInput {
         saturation_ratio: 0.5,
-        position_error_m: 0.01,
+        position_error_sq_m2: 1e-4,
         speed_cap: 1.0,
     };
 
@@ -446,7 +451,7 @@ mod tests {
         let g = gov();
         let mut st = GovernorState::default();
         let far = GovernorInput {
-            position_error_m: 3.0,
+            position_error_sq_m2: 9.0,
             ..CALM
         };
         for _ in 0..5000 {

@@ -10,7 +10,8 @@
 //!   max|N⁻¹·D̂|/τ_limit (the torque the ESO's D̂ eats);
 //! * the adaptive gain's share of its bound, max ρ̂/ρ_max;
 //! * the share of steps at the torque limit;
-//! * the position error;
+//! * the squared position error (its filter is a mean square: the
+//!   thresholds below apply to its root, an RMS error);
 //! * the estimator's status (a hook: [`EstimatorStatus`]).
 //!
 //! Nominal → Degraded when any filtered input reaches its `*_degraded`
@@ -98,8 +99,8 @@ pub struct HealthInput {
     pub adaptation_ratio: f32,
     /// True when the torque was at its limit this step.
     pub saturated: bool,
-    /// Position error \[m\].
-    pub position_error_m: f32,
+    /// Squared position error e_x² + e_y² \[m²\].
+    pub position_error_sq_m2: f32,
     /// Estimator status.
     pub estimator: EstimatorStatus,
     /// The controller rejected its input or reset this step.
@@ -240,8 +241,8 @@ pub struct HealthState {
     pub adaptation: f32,
     /// Filtered saturated share.
     pub saturation: f32,
-    /// Filtered position error \[m\].
-    pub error_m: f32,
+    /// Filtered squared position error (mean square) \[m²\].
+    pub error_sq_m2: f32,
     /// ε̂ of the last update (see [`Self::fault_ratio`]).
     pub eps_hat: f32,
 }
@@ -266,6 +267,9 @@ pub struct HealthMonitor {
     alpha: f32,
     dwell_ticks: u32,
     hard_ticks: u32,
+    acquired_sq_m2: f32,
+    lost_path_sq_m2: f32,
+    error_degraded_sq_m2: f32,
 }
 
 impl HealthMonitor {
@@ -282,6 +286,9 @@ impl HealthMonitor {
             alpha: period_s / (params.filter_s + period_s),
             dwell_ticks: ticks(params.min_dwell_s),
             hard_ticks: ticks(params.hard_dwell_s).max(1),
+            acquired_sq_m2: params.acquired_m * params.acquired_m,
+            lost_path_sq_m2: params.lost_path_m * params.lost_path_m,
+            error_degraded_sq_m2: params.error_degraded_m * params.error_degraded_m,
         })
     }
 
@@ -329,8 +336,8 @@ impl HealthMonitor {
         filt(&mut st.disturbance, input.disturbance_ratio);
         filt(&mut st.adaptation, input.adaptation_ratio);
         filt(&mut st.saturation, input.saturated as u8 as f32);
-        filt(&mut st.error_m, input.position_error_m);
-        if st.error_m < p.acquired_m {
+        filt(&mut st.error_sq_m2, input.position_error_sq_m2);
+        if st.error_sq_m2 < self.acquired_sq_m2 {
             st.acquired = true;
         }
         st.ticks_in_mode = st.ticks_in_mode.saturating_add(1);
@@ -347,7 +354,7 @@ impl HealthMonitor {
             Some(HealthReason::Estimator)
         } else if eps >= p.fault_ratio_hard {
             Some(HealthReason::ActuatorFault)
-        } else if st.acquired && st.error_m > p.lost_path_m {
+        } else if st.acquired && st.error_sq_m2 > self.lost_path_sq_m2 {
             Some(HealthReason::LostPath)
         } else {
             None
@@ -375,7 +382,7 @@ impl HealthMonitor {
                 Some(HealthReason::AdaptationLimit)
             } else if input.estimator == EstimatorStatus::Degraded {
                 Some(HealthReason::Estimator)
-            } else if st.acquired && st.error_m >= scale * p.error_degraded_m {
+            } else if st.acquired && st.error_sq_m2 >= scale * scale * self.error_degraded_sq_m2 {
                 Some(HealthReason::TrackingError)
             } else {
                 None
@@ -424,7 +431,7 @@ mod tests {
         disturbance_ratio: 0.05,
         adaptation_ratio: 0.02,
         saturated: false,
-        position_error_m: 0.01,
+        position_error_sq_m2: 1e-4,
         estimator: EstimatorStatus::Ok,
         controller_fault: false,
     };
@@ -524,7 +531,7 @@ mod tests {
                 &mut st,
                 &HealthInput {
                     saturated: true,
-                    position_error_m: 1.0,
+                    position_error_sq_m2: 1.0,
                     ..CALM
                 },
             );

@@ -13,7 +13,9 @@
 use crate::asmc::Switching;
 use crate::controller::{ControllerConfig, Diagnostics};
 use crate::error::ConfigError;
-use crate::governor::{position_error_m, Governor, GovernorInput, GovernorParams, GovernorState};
+use crate::governor::{
+    position_error_sq_m2, Governor, GovernorInput, GovernorParams, GovernorState,
+};
 use crate::health::{
     EstimatorStatus, HealthInput, HealthMode, HealthMonitor, HealthParams, HealthReason,
     HealthState, HealthTransition,
@@ -182,7 +184,7 @@ impl Pacer {
             disturbance_ratio: abs_max(tau_d) * self.inv_torque_limit,
             adaptation_ratio: abs_max(diag.rho_hat) * self.inv_rho_max,
             saturated: diag.saturated,
-            position_error_m: position_error_m(diag.error),
+            position_error_sq_m2: position_error_sq_m2(diag.error),
             estimator,
             controller_fault: diag.fault.is_some(),
         }
@@ -216,7 +218,7 @@ impl Pacer {
         };
         let g = GovernorInput {
             saturation_ratio: peak * self.inv_torque_limit,
-            position_error_m: h.position_error_m,
+            position_error_sq_m2: h.position_error_sq_m2,
             speed_cap: self.health.speed_cap(st.health.mode),
         };
         self.governor.advance(&mut st.governor, &g);
