@@ -19,7 +19,9 @@ use core::hint::black_box;
 use core::panic::PanicInfo;
 
 use controller_core::controller::{saturate, ControlLaw, ControllerState};
+use controller_core::health::EstimatorStatus;
 use controller_core::math;
+use controller_core::pacer::{Pacer, PacingConfig};
 use controller_core::trajectory::{PaperCurve, PaperHeading, Trajectory};
 use controller_core::RobotParams;
 use controller_core::{
@@ -99,6 +101,7 @@ impl SimRobot {
             fault_eps: 0.2,
             skid_scale: 0.05,
             disturbance_nm: 1.0,
+            fault_eps_end: None,
         };
         Self {
             plant: Plant::new(PlantParams::from_robot(robot, 1.0, 1.0)),
@@ -213,6 +216,8 @@ fn fail(what: &str) -> ! {
 struct RunResult {
     reference: Stat,
     step: Stat,
+    /// `Pacer::update` (governor + health machine) after the step.
+    pacer: Stat,
     stages: StageStats,
     final_error: [f32; 3],
     max_pos_error_after_10s: f32,
@@ -230,10 +235,16 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
     let mut res = RunResult {
         reference: Stat::default(),
         step: Stat::default(),
+        pacer: Stat::default(),
         stages: StageStats::default(),
         final_error: [0.0; 3],
         max_pos_error_after_10s: 0.0,
     };
+    // The governor and health machine as the runtime runs them after each
+    // step (timed on the step's diagnostics; the reference here stays the
+    // nominal one, so the closed loop is the paper's).
+    let pacer = Pacer::new(PacingConfig::on(), &cfg).unwrap_or_else(|_| fail("pacing config"));
+    let mut pace = pacer.initial_state();
     let dt = cfg.period_s;
     for k in 0..STEPS {
         let t = k as f32 * dt;
@@ -242,6 +253,17 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
         let out: StepOutput = time(c, &mut res.step, || ctrl.step(black_box(&input)));
         if out.diag.fault.is_some() {
             fail("controller rejected a step");
+        }
+        let rep = time(c, &mut res.pacer, || {
+            pacer.update(
+                black_box(&mut pace),
+                black_box(&out.diag),
+                black_box(input.eta),
+                EstimatorStatus::Ok,
+            )
+        });
+        if !(rep.scale >= 0.0 && rep.scale <= 1.0) {
+            fail("time scale out of [0, 1]");
         }
         if kind == ControllerKind::Proposed {
             // The stages, run one by one, must give exactly what the step gave.
@@ -499,6 +521,10 @@ fn main() -> ! {
             ControllerKind::Asmc => row("ASMC step", &r.step),
             ControllerKind::Proposed => {
                 row("**Proposed step**", &r.step);
+                row(
+                    "  + `Pacer::update` (governor + health machine, per tick)",
+                    &r.pacer,
+                );
                 let stages = [
                     ("  stage 1: `check_input`", &r.stages.check_input),
                     (

@@ -33,6 +33,12 @@ pub enum ConfigError {
     InvalidTrajectory,
     /// Component not enabled for this controller kind (e.g. a fault observer on SMC).
     KindMismatch,
+    /// Reference governor: thresholds must be finite, positive and ordered
+    /// (start < stop), the error floor in (0, 1], rates > 0.
+    InvalidGovernor,
+    /// Health machine: thresholds finite and > 0, exit fraction in (0, 1),
+    /// degraded speed scale in (0, 1], dwell times >= 0.
+    InvalidHealth,
 }
 
 impl core::fmt::Display for ConfigError {
@@ -52,6 +58,8 @@ impl core::fmt::Display for ConfigError {
             Self::InvalidInputLimits => "input limits must be finite and > 0",
             Self::InvalidTrajectory => "trajectory parameters must be finite and > 0",
             Self::KindMismatch => "component not available for this controller kind",
+            Self::InvalidGovernor => "invalid reference-governor parameters",
+            Self::InvalidHealth => "invalid health-machine parameters",
         };
         f.write_str(s)
     }

@@ -17,7 +17,16 @@ pub struct KinematicGains {
     /// Include the printed `2·e_y·Δω̂` term in v_c. Off by default: the
     /// derivation of (16) does not need it and it makes V̇_K sign-indefinite (D7).
     pub printed_2ey_term: bool,
+    /// Length L \[m\] of the large-error bound of the lateral term (D23):
+    /// k_y·v_s·e_y becomes k_y·g·v_s·e_y with g = 1/(1 + (e_x² + e_y²)/L²),
+    /// which is eq. (14) for |e| ≪ L, bounded by k_y·|v_s|·L/2 for any
+    /// error, and keeps V̇ ≤ 0 for V = (L²/2)·ln(1 + |e|²/L²) + (1 − cos e_θ)/k_y.
+    /// 0 = off: eq. (14) as printed (the paper's setting).
+    pub large_error_m: f32,
 }
+
+/// Default L of [`KinematicGains::large_error_m`] when the bound is on \[m\] (D23).
+pub const DEFAULT_LARGE_ERROR_M: f32 = 1.0;
 
 impl KinematicGains {
     /// Table 2 values with k_y as printed (250).
@@ -27,13 +36,34 @@ impl KinematicGains {
             k_y: 250.0,
             k_th: 5.0,
             printed_2ey_term: false,
+            large_error_m: 0.0,
+        }
+    }
+
+    /// These gains with the large-error bound of length `l_m` (0 = off).
+    pub const fn with_large_error_bound(self, l_m: f32) -> Self {
+        Self {
+            large_error_m: l_m,
+            ..self
+        }
+    }
+
+    /// g = 1/(1 + (e_x² + e_y²)/L²) and 1/L² (g = 1 when the bound is off).
+    #[inline]
+    fn lateral_weight(&self, e: [f32; 3]) -> (f32, f32) {
+        if self.large_error_m > 0.0 {
+            let inv_l2 = 1.0 / (self.large_error_m * self.large_error_m);
+            (1.0 / (1.0 + (e[0] * e[0] + e[1] * e[1]) * inv_l2), inv_l2)
+        } else {
+            (1.0, 0.0)
         }
     }
 
     /// Validates the gains.
     pub fn validate(self) -> Result<Self, ConfigError> {
         let ok = |x: f32| x.is_finite() && x > 0.0;
-        if ok(self.k_x) && ok(self.k_y) && ok(self.k_th) {
+        let bound_ok = self.large_error_m.is_finite() && self.large_error_m >= 0.0;
+        if ok(self.k_x) && ok(self.k_y) && ok(self.k_th) && bound_ok {
             Ok(self)
         } else {
             Err(ConfigError::NonPositiveGain)
@@ -49,6 +79,13 @@ impl KinematicGains {
         let mut v = v_s * ce + self.k_x * e[0] + f_hat[0];
         if self.printed_2ey_term {
             v += 2.0 * e[1] * f_hat[1];
+        }
+        if self.large_error_m > 0.0 {
+            let (g, _) = self.lateral_weight(e);
+            return [
+                v,
+                omega_s + self.k_y * g * v_s * e[1] + self.k_th * se + f_hat[1],
+            ];
         }
         [
             v,
@@ -72,6 +109,14 @@ impl KinematicGains {
         let mut vd = v_s_dot * ce - v_s * se * e_dot[2] + self.k_x * e_dot[0];
         if self.printed_2ey_term {
             vd += 2.0 * e_dot[1] * f_hat[1];
+        }
+        if self.large_error_m > 0.0 {
+            // d/dt (g·v_s·e_y), ġ = −2g²(e_x ė_x + e_y ė_y)/L².
+            let (g, inv_l2) = self.lateral_weight(e);
+            let g_dot = -2.0 * g * g * (e[0] * e_dot[0] + e[1] * e_dot[1]) * inv_l2;
+            let lat = g_dot * v_s * e[1] + g * (v_s_dot * e[1] + v_s * e_dot[1]);
+            let wd = omega_s_dot + self.k_y * lat + self.k_th * ce * e_dot[2];
+            return [vd, wd];
         }
         let wd =
             omega_s_dot + self.k_y * (v_s_dot * e[1] + v_s * e_dot[1]) + self.k_th * ce * e_dot[2];
@@ -164,5 +209,85 @@ mod tests {
             let fd = (b[i] - a[i]) / (2.0 * h);
             assert!((fd - an[i]).abs() < 1e-2, "{i}: {fd} vs {}", an[i]);
         }
+    }
+
+    /// With the large-error bound (D23), V = (L²/2)·ln(1 + |e|²/L²) +
+    /// (1 − cos e_θ)/k_y never increases along the closed kinematic loop
+    /// (d = 0, exact fault estimate), from a 3.35 m offset as in the paper's
+    /// start, for reversing and forward references; and e → 0.
+    #[test]
+    fn bounded_law_lyapunov_decreases_from_large_error() {
+        let g = KinematicGains {
+            k_y: 25.0,
+            ..KinematicGains::paper()
+        }
+        .with_large_error_bound(DEFAULT_LARGE_ERROR_M);
+        let l2 = DEFAULT_LARGE_ERROR_M * DEFAULT_LARGE_ERROR_M;
+        let lyap = |e: [f32; 3]| {
+            0.5 * l2 * libm::logf(1.0 + (e[0] * e[0] + e[1] * e[1]) / l2)
+                + (1.0 - libm::cosf(e[2])) / g.k_y
+        };
+        for sign in [1.0f32, -1.0] {
+            let fault = [0.1f32, 0.05];
+            let mut e = [1.5f32, 3.0, 1.42];
+            let dt = 1e-4f32;
+            let mut v_prev = lyap(e);
+            let v0 = v_prev;
+            for k in 0..200_000 {
+                let t = k as f32 * dt;
+                let vs = sign * (0.8 + 0.5 * libm::sinf(0.3 * t));
+                let ws = 0.2 * libm::cosf(0.5 * t);
+                let te = TrackingError::from(e);
+                let eta = g.eta_c(&te, vs, ws, fault);
+                // Bounded for any error: |k_y·g·v_s·e_y| <= k_y·|v_s|·L/2.
+                let lat = eta[1] - ws - g.k_th * te.sin_eth - fault[1];
+                assert!(lat.abs() <= g.k_y * vs.abs() * 0.5 * DEFAULT_LARGE_ERROR_M + 1e-4);
+                let de = error_rate(&te, eta, fault, vs, ws, 0.0);
+                for i in 0..3 {
+                    e[i] += de[i] * dt;
+                }
+                let v = lyap(e);
+                assert!(
+                    v <= v_prev + 1e-6,
+                    "sign {sign} t {t}: V rose {v_prev} -> {v}"
+                );
+                v_prev = v;
+            }
+            assert!(v_prev < 1e-3 * v0, "sign {sign}: V {v_prev} of {v0}");
+        }
+    }
+
+    /// The analytic η̇_c of the bounded law matches a finite difference,
+    /// at a small and at a large error; with the bound off, the law is (14).
+    #[test]
+    fn bounded_eta_c_dot_matches_finite_difference() {
+        let g = KinematicGains {
+            k_y: 25.0,
+            ..KinematicGains::paper()
+        }
+        .with_large_error_bound(DEFAULT_LARGE_ERROR_M);
+        for e in [[0.3f32, -0.2, 0.4], [1.5, 3.0, 1.4]] {
+            let de = [0.1f32, 0.05, -0.2];
+            let (vs, vsd, ws, wsd) = (-0.7f32, 0.3f32, 0.2f32, -0.1f32);
+            let f = [0.05f32, 0.02];
+            let h = 1e-3f32;
+            let step = |s: f32| {
+                let ee = [e[0] + s * de[0], e[1] + s * de[1], e[2] + s * de[2]];
+                g.eta_c(&ee.into(), vs + s * vsd, ws + s * wsd, f)
+            };
+            let (a, b) = (step(-h), step(h));
+            let an = g.eta_c_dot(&e.into(), de, vs, vsd, wsd, f);
+            for i in 0..2 {
+                let fd = (b[i] - a[i]) / (2.0 * h);
+                assert!((fd - an[i]).abs() < 1e-2, "{e:?} {i}: {fd} vs {}", an[i]);
+            }
+        }
+        let off = KinematicGains::paper();
+        let te = TrackingError::from([1.5f32, 3.0, 1.4]);
+        assert_eq!(
+            off.eta_c(&te, 0.7, 0.2, [0.0; 2]),
+            off.with_large_error_bound(0.0)
+                .eta_c(&te, 0.7, 0.2, [0.0; 2])
+        );
     }
 }

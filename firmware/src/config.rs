@@ -6,7 +6,7 @@
 use controller_core::controller::{DEFAULT_K_Y, DEFAULT_TORQUE_LIMIT_NM};
 use controller_core::eso::EsoParams;
 use controller_core::fault_observer::FaultObserverGains;
-use controller_core::kinematic::KinematicGains;
+use controller_core::kinematic::{KinematicGains, DEFAULT_LARGE_ERROR_M};
 use controller_core::runtime::{
     EncoderParams, MotorParams, RuntimeConfig, SafetyLimits, MIRRORED_LEFT,
 };
@@ -23,11 +23,13 @@ pub const TORQUE_LIMIT_NM: f32 = DEFAULT_TORQUE_LIMIT_NM;
 
 /// Kinematic-loop gains, eq. (14): Table 2's k_x = 1.2, k_th = 5 with
 /// controller-core's k_y (the printed 250 is unstable on reversals,
-/// DECISIONS D8).
+/// DECISIONS D8), and the large-error bound of the lateral term (clean
+/// start from a large offset, D23; `with_large_error_bound(0.0)` = as printed).
 pub const KINEMATIC_GAINS: KinematicGains = KinematicGains {
     k_y: DEFAULT_K_Y,
     ..KinematicGains::paper()
-};
+}
+.with_large_error_bound(DEFAULT_LARGE_ERROR_M);
 
 /// Robot body: mass, inertia, wheel radius, half track, centre-of-mass
 /// offset. Default: the paper's Table 1 (15 kg, r = 0.1 m, track 0.4 m,
@@ -97,5 +99,7 @@ pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {
         },
         motor_inverted: MOTOR_INVERTED,
         safety: SAFETY,
+        // Reference governor and health machine (DECISIONS D22, D24).
+        pacing: controller_core::pacer::PacingConfig::on(),
     }
 }

@@ -121,6 +121,12 @@ async fn control_task(
         if let Some(reason) = rep.stopped {
             error!("SAFE STOP latched: {} (motors disabled)", reason);
         }
+        if let Some(h) = rep.pace.transition {
+            warn!(
+                "health: {} -> {} ({}), transitions={=u32}",
+                h.from, h.to, h.reason, rep.pace.transitions
+            );
+        }
         if cl.state() != state {
             state = cl.state();
             match state {
@@ -174,6 +180,10 @@ fn telemetry(r: &TickReport, cycles: &mut CycleStats) {
         r.torque_nm[1],
         r.duty[0].signed(),
         r.duty[1].signed()
+    );
+    info!(
+        "pace tau={=f32} s={=f32} health={} reason={} eps_hat={=f32}",
+        r.pace.tau_s, r.pace.scale, r.pace.mode, r.pace.reason, r.pace.fault_ratio
     );
     let c = cycles.take();
     info!(

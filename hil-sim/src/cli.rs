@@ -155,6 +155,18 @@ pub struct ScenarioArgs {
     /// RK4 sub-steps per control period.
     #[arg(long)]
     pub substeps: Option<u32>,
+    /// Reference governor and health machine (beyond the paper; default on).
+    #[arg(long, value_name = "BOOL", action = clap::ArgAction::Set)]
+    pub governor: Option<bool>,
+    /// Large-error bound of the kinematic law (clean start; default on).
+    #[arg(long, value_name = "BOOL", action = clap::ArgAction::Set)]
+    pub clean_start: Option<bool>,
+    /// Growing fault: ε at the window's end, ramped from --eps at its start.
+    #[arg(long)]
+    pub eps_end: Option<f64>,
+    /// Fraction of its torque the left wheel delivers in the window (weak wheel).
+    #[arg(long, value_name = "FRACTION")]
+    pub left_torque_scale: Option<f64>,
 }
 
 impl ScenarioArgs {
@@ -196,9 +208,17 @@ impl ScenarioArgs {
             heading_noise => heading_noise_rad,
             control_period => control_period_s,
             substeps => substeps,
+            governor => governor,
+            clean_start => clean_start,
         );
         if let Some(k) = self.k_y {
             scn.k_y = Some(k);
+        }
+        if let Some(e) = self.eps_end {
+            scn.eps_end = Some(e);
+        }
+        if let Some(k) = self.left_torque_scale {
+            scn.wheel_torque_scale[1] = k;
         }
         scn.validate()?;
         Ok(scn)
@@ -292,15 +312,21 @@ pub struct CompareRow {
     pub report: RunReport,
 }
 
-/// Runs both paper cases with the three controllers in parallel (traced).
+/// Runs both paper cases with the three controllers in parallel (traced),
+/// in the paper's setting ([`Scenario::as_printed`]: no governor, no
+/// large-error bound) unless `beyond_paper`.
 pub fn compare_runs(
     seed: u64,
     beta: Option<f64>,
     eps: Option<f64>,
+    beyond_paper: bool,
 ) -> Result<Vec<CaseRuns>, String> {
     let cases: Vec<(u8, Scenario)> = [1u8, 2]
         .iter()
-        .map(|&c| (c, Scenario::paper_case(c, seed, beta, eps)))
+        .map(|&c| {
+            let s = Scenario::paper_case(c, seed, beta, eps);
+            (c, if beyond_paper { s } else { s.as_printed() })
+        })
         .collect();
     for (_, s) in &cases {
         s.validate()?;
@@ -369,15 +395,19 @@ fn case_plot_title(case: u8, scn: &Scenario) -> String {
     )
 }
 
-/// Draws every case's figures into `dir` (cases in parallel); the files
-/// written, per case.
-pub fn draw_compare_plots(dir: &Path, results: &[CaseRuns]) -> Result<Vec<Vec<PathBuf>>, String> {
+/// Draws every case's figures into `dir` (cases in parallel), file names
+/// `case<N><suffix>_<figure>`; the files written, per case.
+pub fn draw_compare_plots(
+    dir: &Path,
+    results: &[CaseRuns],
+    suffix: &str,
+) -> Result<Vec<Vec<PathBuf>>, String> {
     results
         .par_iter()
         .map(|(c, s, runs)| {
             crate::plot::write_case_plots(
                 dir,
-                &format!("case{c}"),
+                &format!("case{c}{suffix}"),
                 &case_plot_title(*c, s),
                 s,
                 runs,
@@ -430,11 +460,55 @@ settle: error stays < 0.1 m until the window;\nsat: steps at the torque limit; F
     text
 }
 
-/// `compare`: run, write metrics.json, draw the plots, print; a plot error
-/// is returned after the table has been printed.
+/// The second part of `compare`'s text: the same runs with the reference
+/// governor, the health machine and the large-error bound (the defaults
+/// beyond the paper), with their columns.
+fn beyond_paper_text(
+    rows: &[CompareRow],
+    metrics_path: &Path,
+    plot_files: Option<(&[Vec<PathBuf>], &Path)>,
+) -> String {
+    let table_rows: Vec<(Vec<String>, crate::Metrics)> = rows
+        .iter()
+        .map(|r| {
+            (
+                vec![r.case.to_string(), r.report.controller.to_string()],
+                r.report.metrics.clone(),
+            )
+        })
+        .collect();
+    let mut text = String::from(
+        "\nBeyond the paper (the simulator's and the runtime's default): reference governor, \
+health machine, large-error bound of the kinematic law; error against the governed reference\n\n",
+    );
+    text += &crate::report::metrics_table_with(
+        &["case", "controller"],
+        &table_rows,
+        &crate::report::PACE_COLUMNS,
+    );
+    text +=
+        "\nlag: t − τ at the end (how far the governed reference is behind the nominal clock); \
+s_min: smallest time scale;\ndegr: steps in a degraded health mode; h_tr: health transitions\n";
+    text += &format!("\nmetrics written to {}\n", metrics_path.display());
+    if let Some((files, dir)) = plot_files {
+        if !files.is_empty() {
+            text += &format!(
+                "{} plot files written to {} (case<N>_gov_{{xy,errors,velocities,torques,faults,pacing}}.{{png,svg}})\n",
+                files.iter().map(Vec::len).sum::<usize>(),
+                dir.display()
+            );
+        }
+    }
+    text
+}
+
+/// `compare`: run, write metrics.json, draw the plots, print (the paper's
+/// setting first, exactly as before the governor existed; then the same
+/// with the governor on, into `metrics_governor.json` and `case<N>_gov_*`);
+/// a plot error is returned after the tables have been printed.
 fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
     let t0 = std::time::Instant::now();
-    let results = compare_runs(a.seed, a.beta, a.eps)?;
+    let results = compare_runs(a.seed, a.beta, a.eps, false)?;
     let sim_time = t0.elapsed();
     let rows = compare_rows(&results);
     let json = compare_json(&rows)?;
@@ -442,16 +516,33 @@ fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
     let plots = if a.no_plots {
         Ok(Vec::new())
     } else {
-        draw_compare_plots(&a.out, &results)
+        draw_compare_plots(&a.out, &results, "")
+    };
+    // The same with the governor (the defaults beyond the paper).
+    let gov = compare_runs(a.seed, a.beta, a.eps, true)?;
+    let gov_rows = compare_rows(&gov);
+    let gov_json = compare_json(&gov_rows)?;
+    let gov_path = a.out.join("metrics_governor.json");
+    std::fs::write(&gov_path, format!("{gov_json}\n"))
+        .map_err(|e| format!("cannot write {}: {e}", gov_path.display()))?;
+    let gov_plots = if a.no_plots {
+        Ok(Vec::new())
+    } else {
+        draw_compare_plots(&a.out, &gov, "_gov")
     };
     let text = if a.json {
         format!("{json}\n")
     } else {
         let plot_files = plots.as_ref().ok().map(|p| (p.as_slice(), a.out.as_path()));
+        let gov_files = gov_plots
+            .as_ref()
+            .ok()
+            .map(|p| (p.as_slice(), a.out.as_path()));
         compare_text(&results, &rows, sim_time, &metrics_path, plot_files)
+            + &beyond_paper_text(&gov_rows, &gov_path, gov_files)
     };
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
-    plots.map(|_| ())
+    plots.and(gov_plots).map(|_| ())
 }
 
 fn run_cmd(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
@@ -839,8 +930,8 @@ mod tests {
             text.lines()
                 .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()) && l.contains("proposed"))
                 .count(),
-            2,
-            "{text}"
+            4,
+            "the paper table and the governed one: {text}"
         );
         let v: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(dir.path().join("metrics.json")).unwrap(),
@@ -849,5 +940,18 @@ mod tests {
         assert_eq!(v.as_array().unwrap().len(), 6);
         assert_eq!(v[5]["case"], 2);
         assert_eq!(v[5]["controller"], "proposed");
+        // The paper's setting: no governor, so no governor metrics.
+        assert!(v[5].get("time_lag_final_s").is_none());
+        assert_eq!(v[5]["scenario"]["governor"], false);
+        let g: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("metrics_governor.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(g.as_array().unwrap().len(), 6);
+        assert!(g[5]["time_lag_final_s"].as_f64().unwrap() >= 0.0);
+        assert!(
+            g[5]["scenario"].get("governor").is_none(),
+            "on: the default"
+        );
     }
 }

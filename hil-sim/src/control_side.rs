@@ -4,6 +4,7 @@
 //! sensing ([`crate::sim::IdealSide`]) and by the firmware runtime behind
 //! simulated encoders and an H-bridge ([`crate::hil::RuntimeSide`]).
 
+use controller_core::pacer::PaceReport;
 use controller_core::{ControllerKind, Diagnostics, Pose, RefSample};
 use sim_robot::{Drive, MotorDrive};
 
@@ -52,6 +53,11 @@ pub struct ControlOutput {
     pub eta_measured: [f64; 2],
     /// The controller's diagnostics.
     pub diag: Diagnostics,
+    /// The reference the controller tracked this step (at the governed time
+    /// τ; the sensed nominal sample when pacing is off).
+    pub reference: RefSample,
+    /// Governor and health machine after this step.
+    pub pace: PaceReport,
 }
 
 /// The controller side of the simulated loop.

@@ -84,6 +84,7 @@ impl RuntimeSide {
             motor: scn.motor(),
             motor_inverted: MIRRORED_LEFT,
             safety: opts.safety,
+            pacing: scn.pacing(),
         };
         let mut control = ControlLoop::new(cfg).map_err(|e| format!("runtime config: {e}"))?;
         let timer = LoopTimer::from_config(&cfg).map_err(|e| format!("loop timer: {e}"))?;
@@ -131,6 +132,8 @@ impl ControlSide for RuntimeSide {
             }),
             eta_measured: [rep.eta.v_mps as f64, rep.eta.omega_radps as f64],
             diag: rep.diag,
+            reference: rep.reference,
+            pace: rep.pace,
         }
     }
 

@@ -35,6 +35,22 @@ pub struct Metrics {
     /// RMS of |F̂ − F| over the window, F = ε·η the injected fault
     /// (proposed controller only, else null) \[m/s and rad/s combined\].
     pub fault_est_rmse: Option<f64>,
+    /// Reference governor (null with it off): how far the governed
+    /// reference time τ is behind t at the end, t − τ \[s\].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_lag_final_s: Option<f64>,
+    /// Smallest governor time scale s over the run (null with it off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_time_scale: Option<f64>,
+    /// Share of control steps in a degraded health mode (null with it off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub degraded_fraction: Option<f64>,
+    /// Health mode changes over the run (null with it off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub health_transitions: Option<u32>,
+    /// True when the health machine latched a safe stop (null with it off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub safe_stop: Option<bool>,
 }
 
 /// Streaming accumulator for [`Metrics`].
@@ -58,6 +74,12 @@ pub struct MetricsAcc {
     fault_sq: f64,
     n_fault: u64,
     track_fault: bool,
+    paced: bool,
+    lag_final: f64,
+    min_scale: f64,
+    n_degraded: u64,
+    transitions: u32,
+    safe_stop: bool,
 }
 
 impl MetricsAcc {
@@ -114,6 +136,27 @@ impl MetricsAcc {
         }
     }
 
+    /// Adds the governor and health state of one control step (called
+    /// only with the governor on): lag t − τ, time scale, mode, transitions.
+    pub fn push_pace(
+        &mut self,
+        lag_s: f64,
+        scale: f64,
+        mode: controller_core::health::HealthMode,
+        transitions: u32,
+    ) {
+        use controller_core::health::HealthMode;
+        if !self.paced {
+            self.paced = true;
+            self.min_scale = scale;
+        }
+        self.lag_final = lag_s;
+        self.min_scale = self.min_scale.min(scale);
+        self.n_degraded += (mode != HealthMode::Nominal) as u64;
+        self.safe_stop |= mode == HealthMode::SafeStop;
+        self.transitions = transitions;
+    }
+
     /// Final metrics for a run of `duration_s` with control period `dt_s`.
     pub fn finish(&self, duration_s: f64, dt_s: f64) -> Metrics {
         let rms = |sq: f64, n: u64| if n > 0 { (sq / n as f64).sqrt() } else { 0.0 };
@@ -142,6 +185,13 @@ impl MetricsAcc {
                 0.0
             },
             fault_est_rmse: self.track_fault.then(|| rms(self.fault_sq, self.n_fault)),
+            time_lag_final_s: self.paced.then_some(self.lag_final),
+            min_time_scale: self.paced.then_some(self.min_scale),
+            degraded_fraction: self
+                .paced
+                .then(|| self.n_degraded as f64 / self.n.max(1) as f64),
+            health_transitions: self.paced.then_some(self.transitions),
+            safe_stop: self.paced.then_some(self.safe_stop),
         }
     }
 }

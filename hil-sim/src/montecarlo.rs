@@ -466,6 +466,11 @@ mod tests {
             chatter: x,
             saturated_fraction: 0.0,
             fault_est_rmse: None,
+            time_lag_final_s: None,
+            min_time_scale: None,
+            degraded_fraction: None,
+            health_transitions: None,
+            safe_stop: None,
         };
         let rs = [
             Outcome::Metrics(m(1.0, Some(2.0))),

@@ -613,6 +613,50 @@ fn fig_faults<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, d: &CaseData) ->
     Ok(())
 }
 
+/// Reference governor and health machine (drawn only with the governor on):
+/// time scale s and health mode per controller.
+fn fig_pacing<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, d: &CaseData) -> Res {
+    let root = title_area(
+        &root,
+        &format!(
+            "{}: reference governor time scale s and health mode (beyond the paper)",
+            d.case_title
+        ),
+    )?;
+    let panels = root.split_evenly((2, 1));
+    let s = d.series(|s| s.time_scale);
+    draw_panel(
+        &panels[0],
+        &Panel {
+            title: "time scale s (1 = nominal speed, 0 = reference stopped)",
+            x_desc: "t [s]",
+            y_desc: "s",
+            x_range: d.t_range(),
+            y_range: Some(-0.05..1.08),
+            window: d.window(),
+            series: &s,
+            legend: true,
+        },
+    )?;
+    let h = d.series(|s| s.health as f64);
+    draw_panel(
+        &panels[1],
+        &Panel {
+            title: "health mode: 0 nominal, 1 degraded, 2 safe stop",
+            x_desc: "t [s]",
+            y_desc: "mode",
+            x_range: d.t_range(),
+            y_range: Some(-0.2..2.2),
+            window: d.window(),
+            series: &h,
+            legend: false,
+        },
+    )
+}
+
+/// The governor figure's name and size \[px\] (with the governor on only).
+const PACING_FIGURE: (&str, (u32, u32)) = ("pacing", (1400, 950));
+
 /// Figure names and sizes \[px\].
 const FIGURES: [(&str, (u32, u32)); 5] = [
     ("xy", (1100, 900)),
@@ -628,6 +672,7 @@ fn draw_figure<DB: DrawingBackend>(name: &str, root: DrawingArea<DB, Shift>, d: 
         "errors" => fig_errors(root, d),
         "velocities" => fig_velocities(root, d),
         "torques" => fig_torques(root, d),
+        "pacing" => fig_pacing(root, d),
         _ => fig_faults(root, d),
     }
 }
@@ -653,7 +698,8 @@ pub fn write_case_plots(
         case_title: case_title.into(),
     };
     let mut written = Vec::new();
-    for (name, size) in FIGURES {
+    let pacing = scn.governor.then_some(PACING_FIGURE);
+    for (name, size) in FIGURES.into_iter().chain(pacing) {
         let p = dir.join(format!("{prefix}_{name}.png"));
         {
             let root = BitMapBackend::new(&p, size).into_drawing_area();
@@ -704,6 +750,11 @@ mod tests {
             .collect();
         let dir = tempfile::tempdir().unwrap();
         let files = write_case_plots(dir.path(), "case2", "Case 2", &scn, &runs).unwrap();
+        // The governor is on: its pacing figure comes in addition.
+        assert_eq!(files.len(), 2 * (FIGURES.len() + 1));
+        assert!(dir.path().join("case2_pacing.png").is_file());
+        let printed = scn.clone().as_printed();
+        let files = write_case_plots(dir.path(), "paper", "Case 2", &printed, &runs).unwrap();
         assert_eq!(files.len(), 2 * FIGURES.len());
         for f in &files {
             let len = std::fs::metadata(f).unwrap().len();

@@ -42,7 +42,8 @@ impl RunReport {
 }
 
 /// The metric columns of [`metrics_table`]: header, unit, value.
-type Column = (&'static str, &'static str, fn(&Metrics) -> String);
+/// A table column: header, unit, formatter.
+pub type Column = (&'static str, &'static str, fn(&Metrics) -> String);
 
 fn opt(x: Option<f64>, prec: usize) -> String {
     x.map_or_else(|| "-".into(), |v| format!("{v:.prec$}"))
@@ -64,13 +65,36 @@ const COLUMNS: [Column; 11] = [
     ("F_rmse", "", |m| opt(m.fault_est_rmse, 4)),
 ];
 
+/// Columns of the reference governor and health machine (runs with it on).
+pub const PACE_COLUMNS: [Column; 4] = [
+    ("lag", "s", |m| opt(m.time_lag_final_s, 2)),
+    ("s_min", "", |m| opt(m.min_time_scale, 2)),
+    ("degr", "%", |m| {
+        m.degraded_fraction
+            .map_or("-".into(), |f| format!("{:.1}", 100.0 * f))
+    }),
+    ("h_tr", "", |m| {
+        m.health_transitions.map_or("-".into(), |n| n.to_string())
+    }),
+];
+
 /// A fixed-width table, one row per `(label columns…, metrics)`; `labels`
 /// names the leading label columns (e.g. `["case", "controller"]`).
 pub fn metrics_table(labels: &[&str], rows: &[(Vec<String>, Metrics)]) -> String {
+    metrics_table_with(labels, rows, &[])
+}
+
+/// [`metrics_table`] with `extra` columns after the standard ones.
+pub fn metrics_table_with(
+    labels: &[&str],
+    rows: &[(Vec<String>, Metrics)],
+    extra: &[Column],
+) -> String {
     let mut header: Vec<String> = labels.iter().map(|s| s.to_string()).collect();
     let mut units: Vec<String> = labels.iter().map(|_| String::new()).collect();
-    for (h, u, _) in COLUMNS {
-        header.push(h.into());
+    let columns: Vec<&Column> = COLUMNS.iter().chain(extra).collect();
+    for (h, u, _) in &columns {
+        header.push(h.to_string());
         units.push(if u.is_empty() {
             String::new()
         } else {
@@ -81,7 +105,7 @@ pub fn metrics_table(labels: &[&str], rows: &[(Vec<String>, Metrics)]) -> String
         .iter()
         .map(|(l, m)| {
             let mut r = l.clone();
-            r.extend(COLUMNS.iter().map(|(_, _, f)| f(m)));
+            r.extend(columns.iter().map(|(_, _, f)| f(m)));
             r
         })
         .collect();
@@ -187,7 +211,8 @@ pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutpu
 /// CSV header of [`write_trace_csv`], one name per [`TraceSample`] scalar.
 pub const CSV_HEADER: &str = "t_s,ref_x_m,ref_y_m,ref_theta_rad,x_m,y_m,theta_rad,pos_err_m,\
 err_x_m,err_y_m,e_x,e_y,e_theta,v_mps,omega_radps,v_c_mps,omega_c_radps,tau_r_nm,tau_l_nm,\
-s_v,s_omega,rho_hat_v,rho_hat_omega,d_hat_v,d_hat_omega,f_hat_v,f_hat_omega,f_true_v,f_true_omega,saturated";
+s_v,s_omega,rho_hat_v,rho_hat_omega,d_hat_v,d_hat_omega,f_hat_v,f_hat_omega,f_true_v,f_true_omega,saturated,\
+time_scale,tau_s,health,health_reason";
 
 /// Writes the header and one row per sample.
 pub fn write_trace_csv(mut w: impl Write, trace: &[TraceSample]) -> io::Result<()> {
@@ -228,7 +253,15 @@ pub fn write_trace_csv(mut w: impl Write, trace: &[TraceSample]) -> io::Result<(
         for v in vals {
             let _ = write!(line, "{v},");
         }
-        let _ = write!(line, "{}", u8::from(s.saturated));
+        let _ = write!(
+            line,
+            "{},{},{},{},{}",
+            u8::from(s.saturated),
+            s.time_scale,
+            s.tau_s,
+            s.health,
+            s.health_reason
+        );
         writeln!(w, "{line}")?;
     }
     Ok(())
@@ -248,7 +281,7 @@ mod tests {
         assert_eq!(lines.len(), 8);
         assert_eq!(lines[0], CSV_HEADER);
         let n = CSV_HEADER.split(',').count();
-        assert_eq!(n, 30);
+        assert_eq!(n, 34);
         assert!(lines[1..].iter().all(|l| l.split(',').count() == n));
     }
 
@@ -266,6 +299,11 @@ mod tests {
             chatter: 3.0,
             saturated_fraction: 0.25,
             fault_est_rmse: Some(0.03),
+            time_lag_final_s: None,
+            min_time_scale: None,
+            degraded_fraction: None,
+            health_transitions: None,
+            safe_stop: None,
         };
         let rows = vec![
             (vec!["1".into(), "smc".into()], m.clone()),

@@ -98,6 +98,14 @@ pub struct Scenario {
     pub beta: f64,
     /// Actuator fault ε (0 = none).
     pub eps: f64,
+    /// Growing fault (beyond the paper): ε at the window's end, ramped
+    /// linearly from `eps` at its start (None = constant `eps`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub eps_end: Option<f64>,
+    /// Fraction of the commanded torque each wheel `[right, left]` delivers
+    /// inside the window (beyond the paper; \[1, 1\] = healthy).
+    #[serde(skip_serializing_if = "is_healthy_wheels")]
+    pub wheel_torque_scale: [f64; 2],
     /// Scale of the lateral skid δ_sl (1 = as printed).
     pub skid_scale: f64,
     /// Disturbance amplitude A \[N·m\].
@@ -127,6 +135,14 @@ pub struct Scenario {
     pub seed: u64,
     /// Override of the kinematic gain k_y (None = controller default).
     pub k_y: Option<f64>,
+    /// Reference governor and health machine (`controller_core::pacer`),
+    /// beyond the paper; on by default, off in [`Self::as_printed`].
+    #[serde(skip_serializing_if = "is_true")]
+    pub governor: bool,
+    /// Large-error bound of the kinematic law's lateral term (D23), beyond
+    /// the paper; on by default, off in [`Self::as_printed`].
+    #[serde(skip_serializing_if = "is_true")]
+    pub clean_start: bool,
 }
 
 impl Default for Scenario {
@@ -141,6 +157,8 @@ impl Default for Scenario {
             trajectory: TrajectoryKind::Paper,
             beta: 0.1,
             eps: 0.0,
+            eps_end: None,
+            wheel_torque_scale: [1.0, 1.0],
             skid_scale: 0.05,
             disturbance_nm: 1.0,
             mass_scale: 1.0,
@@ -154,8 +172,18 @@ impl Default for Scenario {
             heading_noise_rad: 0.0,
             seed: 1,
             k_y: None,
+            governor: true,
+            clean_start: true,
         }
     }
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
+}
+
+fn is_healthy_wheels(s: &[f64; 2]) -> bool {
+    *s == [1.0, 1.0]
 }
 
 /// β range of the paper, (0, 0.2) rad/s.
@@ -179,12 +207,29 @@ impl Scenario {
         }
     }
 
+    /// This scenario in the paper's setting: no governor, no health machine
+    /// (what `compare`'s first table runs).
+    pub fn as_printed(mut self) -> Self {
+        self.governor = false;
+        self.clean_start = false;
+        self
+    }
+
+    /// The runtime/simulator pacing configuration for this scenario.
+    pub fn pacing(&self) -> controller_core::pacer::PacingConfig {
+        if self.governor {
+            controller_core::pacer::PacingConfig::on()
+        } else {
+            controller_core::pacer::PacingConfig::off()
+        }
+    }
+
     /// Checks the knobs; a clear message for the first bad one.
     pub fn validate(&self) -> Result<(), String> {
         let pos = |x: f64| x.is_finite() && x > 0.0;
         let nonneg = |x: f64| x.is_finite() && x >= 0.0;
         let ideal = self.sensing == Sensing::Ideal;
-        let checks: [(bool, &str); 14] = [
+        let checks: [(bool, &str); 16] = [
             (pos(self.duration_s), "duration_s must be > 0"),
             (
                 pos(self.control_period_s) && self.control_period_s <= 0.1,
@@ -201,6 +246,14 @@ impl Scenario {
             ),
             (nonneg(self.beta), "beta must be >= 0"),
             (nonneg(self.eps) && self.eps < 1.0, "eps must be in [0, 1)"),
+            (
+                self.eps_end.is_none_or(|e| nonneg(e) && e < 1.0),
+                "eps_end must be in [0, 1)",
+            ),
+            (
+                self.wheel_torque_scale.iter().all(|&k| nonneg(k) && k <= 1.0),
+                "wheel_torque_scale must be in [0, 1]",
+            ),
             (
                 nonneg(self.skid_scale) && nonneg(self.disturbance_nm),
                 "skid_scale and disturbance_nm must be >= 0",
@@ -238,6 +291,7 @@ impl Scenario {
             fault_eps: self.eps,
             skid_scale: self.skid_scale,
             disturbance_nm: self.disturbance_nm,
+            fault_eps_end: self.eps_end,
         }
     }
 

@@ -98,6 +98,10 @@ mod tests {
         let doc = std::fs::read_to_string(repo_file("docs/scenario.md")).unwrap();
         let full = Scenario {
             k_y: Some(1.0),
+            eps_end: Some(0.5),
+            wheel_torque_scale: [1.0, 0.5],
+            governor: false,
+            clean_start: false,
             ..Scenario::default()
         };
         let table: toml::Table = toml::from_str(&to_toml(&full)).unwrap();

@@ -503,6 +503,11 @@ mod tests {
                         chatter: any(),
                         saturated_fraction: any(),
                         fault_est_rmse: Some(any()),
+                        time_lag_final_s: None,
+                        min_time_scale: None,
+                        degraded_fraction: None,
+                        health_transitions: None,
+                        safe_stop: None,
                     })
                 },
             })

@@ -12,7 +12,9 @@ use crate::control_side::{Actuation, ControlOutput, ControlSide, Sensed};
 use crate::metrics::{Metrics, MetricsAcc};
 use crate::rng::Rng;
 use crate::scenario::{Scenario, Sensing};
-use controller_core::trajectory::Trajectory;
+use controller_core::health::{EstimatorStatus, HealthMode};
+use controller_core::pacer::{PacerState, PacingConfig};
+use controller_core::trajectory::{Reference, Trajectory};
 use controller_core::{Controller, ControllerConfig, ControllerKind, Pose, RobotParams, StepInput};
 use serde::Serialize;
 use sim_robot::{PerturbationGrid, Plant, PlantParams, PlantState};
@@ -58,6 +60,17 @@ pub struct TraceSample {
     pub f_true: [f64; 2],
     /// Saturation flag.
     pub saturated: bool,
+    /// Governor time scale s (1 = nominal speed; 1 throughout with pacing off).
+    pub time_scale: f64,
+    /// Reference time τ \[s\] the step tracked (t with pacing off).
+    pub tau_s: f64,
+    /// Health mode: 0 nominal, 1 degraded, 2 safe stop.
+    pub health: u8,
+    /// Reason published with the health mode (`HealthReason` as its index:
+    /// 0 none, 1 saturation, 2 tracking error, 3 actuator fault,
+    /// 4 disturbance, 5 adaptation limit, 6 estimator, 7 lost path,
+    /// 8 controller fault).
+    pub health_reason: u8,
 }
 
 /// Result of one run.
@@ -82,6 +95,9 @@ pub fn controller_config(scn: &Scenario, kind: ControllerKind) -> ControllerConf
     if let Some(k_y) = scn.k_y {
         cfg.kinematic.k_y = k_y as f32;
     }
+    if scn.clean_start {
+        cfg.kinematic.large_error_m = controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
+    }
     cfg
 }
 
@@ -89,19 +105,45 @@ pub fn controller_config(scn: &Scenario, kind: ControllerKind) -> ControllerConf
 /// paper's setting): the measured pose, η from the exact wheel-angle change
 /// over the last period through eq. (3)
 /// ([`RobotParams::eta_from_wheel_rates`]), torque applied exactly.
+///
+/// With pacing on, the reference governor and the health machine
+/// ([`controller_core::pacer`]) choose the reference time τ and the
+/// controller tracks `reference` at τ (the sensed nominal sample is
+/// ignored); a safe stop outputs zero torque from then on.
 pub struct IdealSide {
     ctrl: Controller,
     period_s: f64,
     wheel_angle_prev_rad: Option<[f64; 2]>,
+    pacer: controller_core::pacer::Pacer,
+    pace: PacerState,
+    reference: Reference,
 }
 
 impl IdealSide {
-    /// The controller of `cfg` at `cfg.period_s`.
+    /// The controller of `cfg` at `cfg.period_s`, pacing off (the paper's setting).
     pub fn new(cfg: ControllerConfig) -> Result<Self, String> {
+        let dummy = Reference::Line(controller_core::trajectory::Line {
+            start: Pose::new(0.0, 0.0, 0.0),
+            speed_mps: 1.0,
+        });
+        Self::with_pacing(cfg, PacingConfig::off(), dummy)
+    }
+
+    /// The controller of `cfg`, paced by `pacing` along `reference`.
+    pub fn with_pacing(
+        cfg: ControllerConfig,
+        pacing: PacingConfig,
+        reference: Reference,
+    ) -> Result<Self, String> {
+        let pacer = controller_core::pacer::Pacer::new(pacing, &cfg)
+            .map_err(|e| format!("pacing config: {e}"))?;
         Ok(Self {
             ctrl: Controller::new(cfg).map_err(|e| format!("controller config: {e}"))?,
             period_s: cfg.period_s as f64,
             wheel_angle_prev_rad: None,
+            pace: pacer.initial_state(),
+            pacer,
+            reference,
         })
     }
 }
@@ -121,15 +163,30 @@ impl ControlSide for IdealSide {
             None => [0.0; 2],
         };
         let eta = self.ctrl.config().robot.eta_from_wheel_rates(rates);
+        let reference = if self.pacer.enabled() {
+            self.pacer.reference(&self.pace, &self.reference, 0.0)
+        } else {
+            sensed.reference
+        };
         let out = self.ctrl.step(&StepInput {
-            reference: sensed.reference,
+            reference,
             pose: sensed.pose,
             eta,
         });
+        let pace = self
+            .pacer
+            .update(&mut self.pace, &out.diag, eta, EstimatorStatus::Ok);
+        let torque = if pace.mode == HealthMode::SafeStop {
+            [0.0; 2]
+        } else {
+            out.torque_nm.map(f64::from)
+        };
         ControlOutput {
-            actuation: Actuation::Torque(out.torque_nm.map(f64::from)),
+            actuation: Actuation::Torque(torque),
             eta_measured: [eta.v_mps as f64, eta.omega_radps as f64],
             diag: out.diag,
+            reference,
+            pace,
         }
     }
 
@@ -147,7 +204,10 @@ pub fn run_with(
 ) -> Result<SimOutput, String> {
     scn.validate()?;
     match scn.sensing {
-        Sensing::Ideal => run_loop(scn, &cfg.robot, IdealSide::new(cfg)?, trace_every),
+        Sensing::Ideal => {
+            let side = IdealSide::with_pacing(cfg, scn.pacing(), scn.trajectory.reference())?;
+            run_loop(scn, &cfg.robot, side, trace_every)
+        }
         Sensing::Odometry | Sensing::ExternalPose => {
             let opts = crate::hil::HilOptions::default();
             crate::hil::run_runtime(scn, cfg, opts, trace_every).map(|o| o.sim)
@@ -195,6 +255,7 @@ pub fn run_loop(
     // RK4 asks at t, t + h/2 and t + h of each sub-step h: a grid of h/2.
     let mut perturb = PerturbationGrid::new(perturbations, 0.5 * substep_s);
     let noisy = scn.pose_noise_m != 0.0 || scn.heading_noise_rad != 0.0;
+    let (mut last_tau_s, mut last_scale) = (0.0f64, 1.0f64);
 
     for k in 0..n {
         let t = k as f64 * dt;
@@ -210,6 +271,8 @@ pub fn run_loop(
         };
         let p_now = perturb.at(t);
         let rs = reference.sample(t as f32);
+        // The governed clock the step used (before its own update).
+        let (rs_tau_s, scale_before) = (last_tau_s, last_scale);
         let sensed = Sensed {
             step: k,
             t_s: t,
@@ -226,6 +289,8 @@ pub fn run_loop(
             actuation,
             eta_measured,
             diag: d,
+            reference: rs,
+            pace,
         } = side.step(&sensed);
         let tau = sim_robot::Drive::torque_nm(&actuation, sensed.wheel_rate_radps);
 
@@ -245,6 +310,9 @@ pub fn run_loop(
             d.saturated,
             fe,
         );
+        if scn.governor {
+            acc.push_pace(t - rs_tau_s, pace.scale as f64, pace.mode, pace.transitions);
+        }
         if trace_every > 0 && k % trace_every == 0 {
             let f2 = |a: [f32; 2]| [a[0] as f64, a[1] as f64];
             trace.push(TraceSample {
@@ -267,12 +335,27 @@ pub fn run_loop(
                 f_hat: f2(d.f_hat),
                 f_true,
                 saturated: d.saturated,
+                time_scale: if scn.governor { scale_before } else { 1.0 },
+                tau_s: if scn.governor { rs_tau_s } else { t },
+                health: pace.mode.level(),
+                health_reason: pace.reason as u8,
             });
         }
-        // Plant over [t, t + dt]: actuation held (zero-order hold).
+        last_tau_s = pace.tau_s as f64;
+        last_scale = pace.scale as f64;
+        // Plant over [t, t + dt]: actuation held (zero-order hold), each
+        // wheel delivering its share of the torque (a weak wheel in the window).
+        let drive = sim_robot::TorqueScaled {
+            drive: &actuation,
+            scale: if perturbations.in_window(t) {
+                scn.wheel_torque_scale
+            } else {
+                [1.0, 1.0]
+            },
+        };
         for j in 0..scn.substeps {
             let t_j = t + j as f64 * substep_s;
-            st = plant.rk4_step(&st, t_j, substep_s, &actuation, &mut |t| perturb.at(t));
+            st = plant.rk4_step(&st, t_j, substep_s, &drive, &mut |t| perturb.at(t));
         }
         if !Plant::state_is_finite(&st) {
             return Err(format!("plant state diverged at t = {t:.3} s"));

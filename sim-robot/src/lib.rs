@@ -25,4 +25,4 @@ pub mod plant;
 
 pub use hardware::{MotorDrive, SimDriver, SimEncoders};
 pub use perturbation::{PerturbationGrid, PerturbationProfile};
-pub use plant::{Drive, Perturbation, Plant, PlantParams, PlantState};
+pub use plant::{Drive, Perturbation, Plant, PlantParams, PlantState, TorqueScaled};

@@ -7,7 +7,9 @@
 //! * wheel slip ϖ_R = β sin t, ϖ_L = β cos t \[rad/s\], β ∈ (0, 0.2),
 //! * external disturbance τ_d (not given by the paper: D17), amplitude A \[N·m\]:
 //!   τ_θ = 0.5A·sin(0.9t), τ_dR = A(0.6 + 0.4 sin 2t), τ_dL = A(−0.3 + 0.5 cos 1.7t),
-//! * actuator fault (Case 2): the body moves at (1 − ε)·η.
+//! * actuator fault (Case 2): the body moves at (1 − ε)·η; beyond the paper,
+//!   ε may ramp linearly from `fault_eps` at the window's start to
+//!   `fault_eps_end` at its end (a growing fault).
 
 use crate::math::{round, sin_cos};
 use crate::plant::Perturbation;
@@ -25,6 +27,9 @@ pub struct PerturbationProfile {
     pub skid_scale: f64,
     /// Disturbance amplitude A \[N·m\].
     pub disturbance_nm: f64,
+    /// ε at the window's end, ramped linearly from `fault_eps` at its start
+    /// (None = constant `fault_eps`, the paper's setting).
+    pub fault_eps_end: Option<f64>,
 }
 
 impl PerturbationProfile {
@@ -35,7 +40,21 @@ impl PerturbationProfile {
         fault_eps: 0.0,
         skid_scale: 0.0,
         disturbance_nm: 0.0,
+        fault_eps_end: None,
     };
+
+    /// ε at `t_s` inside the window: `fault_eps`, or the ramp to
+    /// `fault_eps_end`.
+    pub fn fault_eps_at(&self, t_s: f64) -> f64 {
+        match self.fault_eps_end {
+            None => self.fault_eps,
+            Some(end) => {
+                let [w0, w1] = self.window_s;
+                let u = if w1 > w0 { (t_s - w0) / (w1 - w0) } else { 0.0 };
+                self.fault_eps + (end - self.fault_eps) * u.clamp(0.0, 1.0)
+            }
+        }
+    }
 
     /// True inside the window.
     pub fn in_window(&self, t_s: f64) -> bool {
@@ -47,7 +66,9 @@ impl PerturbationProfile {
         if !self.in_window(t_s) {
             return Perturbation::default();
         }
-        self.at_phasors(FREQUENCIES_RADPS.map(|w| sin_cos(w * t_s)))
+        let mut p = self.at_phasors(FREQUENCIES_RADPS.map(|w| sin_cos(w * t_s)));
+        p.fault_eps = self.fault_eps_at(t_s);
+        p
     }
 
     /// The perturbations from (sin, cos) of t, 0.9t and 1.7t (in the window).
@@ -124,7 +145,9 @@ impl PerturbationGrid {
         }
         let p = if self.profile.in_window(t_s) {
             let ph = self.phasors(t_s);
-            self.profile.at_phasors(ph)
+            let mut p = self.profile.at_phasors(ph);
+            p.fault_eps = self.profile.fault_eps_at(t_s);
+            p
         } else {
             Perturbation::default()
         };
@@ -169,6 +192,7 @@ mod tests {
             fault_eps: 0.2,
             skid_scale: 0.5,
             disturbance_nm: 1.0,
+            fault_eps_end: None,
         };
         let h = 1e-6;
         for i in 1..200 {
@@ -194,6 +218,7 @@ mod tests {
             fault_eps: 0.2,
             skid_scale: 0.05,
             disturbance_nm: 1.0,
+            fault_eps_end: None,
         };
         let h = 1e-3;
         let mut g = PerturbationGrid::new(p, 0.5 * h);
@@ -231,9 +256,31 @@ mod tests {
             fault_eps: 0.2,
             skid_scale: 0.05,
             disturbance_nm: 1.0,
+            fault_eps_end: None,
         };
         assert_eq!(p.at(9.999), Perturbation::default());
         assert_eq!(p.at(35.0), Perturbation::default());
         assert_eq!(p.at(10.0).fault_eps, 0.2);
+    }
+
+    /// The ramp: ε = fault_eps at the window's start, fault_eps_end at its
+    /// end, linear between (the grid evaluator agrees), none outside.
+    #[test]
+    fn fault_ramp_is_linear_over_the_window() {
+        let p = PerturbationProfile {
+            window_s: [10.0, 35.0],
+            fault_eps: 0.0,
+            fault_eps_end: Some(0.6),
+            ..PerturbationProfile::NONE
+        };
+        assert_eq!(p.at(10.0).fault_eps, 0.0);
+        assert!((p.at(22.5).fault_eps - 0.3).abs() < 1e-12);
+        assert!((p.at(34.999).fault_eps - 0.6).abs() < 1e-4);
+        assert_eq!(p.at(35.0).fault_eps, 0.0);
+        let mut g = PerturbationGrid::new(p, 5e-4);
+        for k in 0..80_000 {
+            let t = k as f64 * 5e-4;
+            assert_eq!(g.at(t).fault_eps, p.at(t).fault_eps);
+        }
     }
 }

@@ -118,6 +118,24 @@ impl Drive for [f64; 2] {
     }
 }
 
+/// A drive whose wheels deliver only `scale` of the inner drive's torque
+/// (an actuator losing torque: a weak motor, a slipping gearbox), beyond
+/// the paper. `scale = [1, 1]` gives the inner torques exactly.
+#[derive(Clone, Copy, Debug)]
+pub struct TorqueScaled<'a, D: Drive> {
+    /// The commanded drive.
+    pub drive: &'a D,
+    /// Fraction of torque each wheel `[right, left]` delivers.
+    pub scale: [f64; 2],
+}
+
+impl<D: Drive> Drive for TorqueScaled<'_, D> {
+    fn torque_nm(&self, wheel_rates_radps: [f64; 2]) -> [f64; 2] {
+        let t = self.drive.torque_nm(wheel_rates_radps);
+        [t[0] * self.scale[0], t[1] * self.scale[1]]
+    }
+}
+
 /// |δ| \[rad\] up to which sin/cos(θ + δ) are formed from sin/cos θ and
 /// series in δ to δ⁷: the first omitted terms, δ⁸/8! and δ⁹/9!, stay below
 /// 10⁻¹⁷ (under a tenth of an f64 ulp of 1). Beyond it: sin/cos.

@@ -7,6 +7,7 @@ use super::error::RuntimeConfigError;
 use super::hardware::MIRRORED_LEFT;
 use super::motor::MotorParams;
 use crate::controller::{ControllerConfig, ControllerKind};
+use crate::pacer::PacingConfig;
 use crate::trajectory::{PaperCurve, PaperHeading, Reference, Trajectory};
 use crate::types::Pose;
 
@@ -85,6 +86,9 @@ pub struct RuntimeConfig {
     pub motor_inverted: [bool; 2],
     /// Safety thresholds.
     pub safety: SafetyLimits,
+    /// Reference governor and health machine ([`crate::pacer`]); on in
+    /// [`Self::example`].
+    pub pacing: PacingConfig,
 }
 
 impl RuntimeConfig {
@@ -101,6 +105,7 @@ impl RuntimeConfig {
             motor: MotorParams::EXAMPLE,
             motor_inverted: MIRRORED_LEFT,
             safety: SafetyLimits::EXAMPLE,
+            pacing: PacingConfig::on(),
         }
     }
 }

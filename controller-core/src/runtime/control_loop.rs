@@ -11,7 +11,8 @@ use super::odometry::Odometry;
 use super::state::{ArmError, RunState, Status, StopReason, TickReport};
 use super::timing::TickTiming;
 use crate::controller::{Controller, Diagnostics, StepInput};
-use crate::trajectory::Trajectory;
+use crate::health::{EstimatorStatus, HealthMode};
+use crate::pacer::{Pacer, PacerState};
 use crate::types::Pose;
 
 /// The runtime: encoders, odometry, controller, motor model and supervisor.
@@ -26,6 +27,8 @@ pub struct ControlLoop {
     stall_ticks: [u16; 2],
     consecutive_input_faults: u16,
     last_torque_nm: [f32; 2],
+    pacer: Pacer,
+    pace: PacerState,
 }
 
 impl ControlLoop {
@@ -40,7 +43,10 @@ impl ControlLoop {
         let counts = WheelCounts::new(cfg.encoder)?;
         cfg.safety.validate()?;
         let odometry = Odometry::new(cfg.controller.robot, cfg.initial_pose);
+        let pacer = Pacer::new(cfg.pacing, &cfg.controller)?;
         Ok(Self {
+            pace: pacer.initial_state(),
+            pacer,
             cfg,
             controller,
             motor,
@@ -115,6 +121,7 @@ impl ControlLoop {
                 self.consecutive_input_faults = 0;
                 self.status.consecutive_overruns = 0;
                 self.last_torque_nm = [0.0; 2];
+                self.pace = self.pacer.initial_state();
                 self.status.state = RunState::Running;
                 Ok(())
             }
@@ -190,11 +197,12 @@ impl ControlLoop {
         let (pose, external_pose) = self.measure_pose(sample.dphi_rad, pose_source);
         // 4. Reference and controller, 5. torque -> duty.
         let t_s = self.status.run_ticks as f32 * self.cfg.controller.period_s;
-        let reference = self.cfg.reference.sample(t_s);
+        let reference = self.pacer.reference(&self.pace, &self.cfg.reference, t_s);
         let mut diag = Diagnostics::default();
         let mut torque = [0.0f32; 2];
         let mut duty = [DutyCommand::ZERO; 2];
         let mut enabled = false;
+        let mut pace = self.pacer.status(&self.pace);
         if self.running() && stop.is_none() {
             let out = self.controller.step(&StepInput {
                 reference,
@@ -203,6 +211,13 @@ impl ControlLoop {
             });
             diag = out.diag;
             stop = self.supervise_step(&diag).or(self.check_stall(&sample));
+            // Governor and health (crate::pacer): a hard fault stops.
+            pace = self
+                .pacer
+                .update(&mut self.pace, &diag, eta, EstimatorStatus::Ok);
+            if pace.mode == HealthMode::SafeStop {
+                stop = stop.or(Some(StopReason::Health(pace.reason)));
+            }
             if stop.is_none() {
                 torque = out.torque_nm;
                 duty = self.duty_for(torque, &sample);
@@ -234,6 +249,7 @@ impl ControlLoop {
             duty,
             motors_enabled: enabled,
             diag,
+            pace,
         }
     }
 

@@ -109,10 +109,13 @@ fn motors_disabled_until_armed() {
     assert!(!r.tick().motors_enabled);
 }
 
-/// Reference time is ticks since arming × period.
+/// Reference time is ticks since arming × period (governor off).
 #[test]
 fn reference_time_counts_from_arming() {
-    let mut r = Rig::new(line_cfg(0.5));
+    let mut r = Rig::new(RuntimeConfig {
+        pacing: crate::pacer::PacingConfig::off(),
+        ..line_cfg(0.5)
+    });
     for _ in 0..10 {
         r.tick();
     }
@@ -124,6 +127,32 @@ fn reference_time_counts_from_arming() {
     }
     assert!((last.t_s - 0.099).abs() < 1e-6);
     assert!((last.reference.pose.x_m - 0.5 * 0.099).abs() < 1e-5);
+}
+
+/// Governor on, wheels that never turn (no plant), for less than the stall
+/// time: the torque saturates, so the governed reference slows, never
+/// ahead of the nominal clock; τ in the report is where the next
+/// reference is; the health machine degrades (saturation) and does not stop.
+#[test]
+fn governor_slows_the_reference_of_a_robot_that_does_not_move() {
+    let mut r = Rig::new(line_cfg(2.0));
+    r.cl.arm().unwrap();
+    let mut last = r.tick();
+    let mut tau_prev = last.pace.tau_s;
+    for k in 1..240 {
+        last = r.tick();
+        let x = last.reference.pose.x_m;
+        assert!(x <= 2.0 * last.t_s + 1e-5, "ahead of nominal at tick {k}");
+        assert!(
+            (x - 2.0 * tau_prev).abs() < 1e-5,
+            "tick {k}: x {x} τ {tau_prev}"
+        );
+        tau_prev = last.pace.tau_s;
+    }
+    assert!(last.pace.scale < 0.9, "{:?}", last.pace);
+    assert!(last.pace.tau_s < 0.95 * last.t_s);
+    assert_eq!(last.state, RunState::Running);
+    assert_eq!(last.pace.mode, crate::health::HealthMode::Degraded);
 }
 
 fn assert_latched(r: &mut Rig, reason: StopReason) {

@@ -6,6 +6,8 @@ use super::hardware::Wheel;
 use super::motor::DutyCommand;
 use crate::controller::Diagnostics;
 use crate::error::InputFault;
+use crate::health::HealthReason;
+use crate::pacer::PaceReport;
 use crate::trajectory::RefSample;
 use crate::types::{Pose, Vel2};
 
@@ -38,6 +40,8 @@ pub enum StopReason {
     },
     /// Stopped on request ([`ControlLoop::stop`](super::ControlLoop::stop)).
     Commanded,
+    /// The health machine found a hard fault ([`crate::health`]).
+    Health(HealthReason),
 }
 
 /// Supervisor state.
@@ -123,4 +127,6 @@ pub struct TickReport {
     pub motors_enabled: bool,
     /// Controller diagnostics (default when the controller did not run).
     pub diag: Diagnostics,
+    /// Reference governor (time scale, τ) and health mode after this tick.
+    pub pace: PaceReport,
 }
