@@ -16,7 +16,7 @@ use hil_sim::{run, Scenario};
 fn one_substep_matches_four_within_tolerance() {
     for seed in [1, 2] {
         for case in [1, 2] {
-            let fast = Scenario::paper_case(case, seed, None, None);
+            let fast = Scenario::paper_case(case, seed, None, None).as_printed();
             assert_eq!(fast.substeps, 1, "the default is what is checked");
             let fine = Scenario {
                 substeps: 4,

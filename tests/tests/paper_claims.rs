@@ -1,5 +1,6 @@
 //! The paper's section-4 claims as assertions with stated margins, against the
-//! simulated plant (not golden traces).
+//! simulated plant (not golden traces), in the paper's setting
+//! (`Scenario::as_printed`: no governor, no health machine, law (14) as printed).
 
 use controller_core::ControllerKind;
 use hil_sim::sim::{controller_config, run_with};
@@ -16,7 +17,7 @@ fn window_rms(scn: &Scenario, kind: ControllerKind) -> f64 {
 #[test]
 fn case2_proposed_below_half_of_both_baselines() {
     for seed in SEEDS {
-        let scn = Scenario::paper_case(2, seed, None, None);
+        let scn = Scenario::paper_case(2, seed, None, None).as_printed();
         let p = window_rms(&scn, ControllerKind::Proposed);
         let s = window_rms(&scn, ControllerKind::Smc);
         let a = window_rms(&scn, ControllerKind::Asmc);
@@ -32,7 +33,7 @@ fn case2_proposed_below_half_of_both_baselines() {
 #[test]
 fn case1_proposed_not_worse_than_baselines() {
     for seed in SEEDS {
-        let scn = Scenario::paper_case(1, seed, None, None);
+        let scn = Scenario::paper_case(1, seed, None, None).as_printed();
         let p = window_rms(&scn, ControllerKind::Proposed);
         let s = window_rms(&scn, ControllerKind::Smc);
         let a = window_rms(&scn, ControllerKind::Asmc);
@@ -50,7 +51,7 @@ fn case1_proposed_not_worse_than_baselines() {
 #[test]
 fn fault_estimate_follows_injected_fault() {
     for seed in SEEDS {
-        let scn = Scenario::paper_case(2, seed, None, None);
+        let scn = Scenario::paper_case(2, seed, None, None).as_printed();
         let out = run(&scn, ControllerKind::Proposed).unwrap();
         let (mut res, mut sig, mut cross, mut n) = (0.0, 0.0, 0.0, 0);
         for s in out.trace.iter().filter(|s| s.t_s >= 11.0 && s.t_s < 35.0) {
@@ -87,7 +88,7 @@ fn fault_estimate_follows_injected_fault() {
 #[test]
 fn all_controllers_bounded_over_monte_carlo_sample() {
     for seed in 100..112u64 {
-        let scn = Scenario::paper_case(2, seed, None, None);
+        let scn = Scenario::paper_case(2, seed, None, None).as_printed();
         for kind in ControllerKind::ALL {
             let out = run(&scn, kind).unwrap();
             let m = &out.metrics;
@@ -110,7 +111,7 @@ fn all_controllers_bounded_over_monte_carlo_sample() {
 fn deterministic_for_a_seed() {
     let scn = Scenario {
         pose_noise_m: 0.002,
-        ..Scenario::paper_case(2, 9, None, None)
+        ..Scenario::paper_case(2, 9, None, None).as_printed()
     };
     let a = run(&scn, ControllerKind::Proposed).unwrap();
     let b = run(&scn, ControllerKind::Proposed).unwrap();
@@ -126,7 +127,7 @@ fn deterministic_for_a_seed() {
 fn nominal_plant_all_converge() {
     let scn = Scenario {
         window_s: [0.0, 0.0],
-        ..Scenario::paper_case(1, 1, None, None)
+        ..Scenario::paper_case(1, 1, None, None).as_printed()
     };
     for kind in ControllerKind::ALL {
         let m = run(&scn, kind).unwrap().metrics;
@@ -142,7 +143,7 @@ fn nominal_plant_all_converge() {
 fn proposed_and_asmc_agree_on_nominal_plant() {
     let scn = Scenario {
         window_s: [0.0, 0.0],
-        ..Scenario::paper_case(1, 1, None, None)
+        ..Scenario::paper_case(1, 1, None, None).as_printed()
     };
     let p = run_with(&scn, controller_config(&scn, ControllerKind::Proposed), 10).unwrap();
     let mut cfg = controller_config(&scn, ControllerKind::Asmc);
@@ -167,7 +168,7 @@ fn p_ks(scn: &Scenario) -> f32 {
 /// loop: trace −d·k_y·v_s − k_th > 0), while the default k_y = 25 tracks.
 #[test]
 fn printed_k_y_is_unstable_on_the_reversing_reference() {
-    let base = Scenario::paper_case(2, 1, None, None);
+    let base = Scenario::paper_case(2, 1, None, None).as_printed();
     let printed = Scenario {
         k_y: Some(250.0),
         ..base.clone()
