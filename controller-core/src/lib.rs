@@ -23,6 +23,7 @@
 pub mod asmc;
 pub mod controller;
 pub mod error;
+pub mod estimator;
 pub mod eso;
 pub mod fault_observer;
 pub mod kinematic;
