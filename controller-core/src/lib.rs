@@ -23,8 +23,8 @@
 pub mod asmc;
 pub mod controller;
 pub mod error;
-pub mod estimator;
 pub mod eso;
+pub mod estimator;
 pub mod fault_observer;
 pub mod kinematic;
 pub mod math;

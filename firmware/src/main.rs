@@ -12,7 +12,7 @@ mod board;
 mod config;
 
 use controller_core::runtime::{
-    ArmingButton, ArmingEvent, ControlLoop, CycleStats, LoopTimer, RunState, TickReport,
+    ArmingButton, ArmingEvent, ControlLoop, CycleStats, LoopTimer, NoGyro, RunState, TickReport,
     WheelOdometryOnly,
 };
 use cortex_m::peripheral::DWT;
@@ -64,7 +64,8 @@ async fn main(spawner: Spawner) {
     info!("encoder: {}", cfg.encoder);
     info!("motor: {} inverted {}", cfg.motor, cfg.motor_inverted);
     info!("safety: {}", cfg.safety);
-    info!("pose source: wheel odometry only (slip and actuator faults are invisible to it)");
+    info!("gyro: none (the IMU driver is a later step): heading from the wheels");
+    info!("pose source: none yet (host link pending): wheel odometry only, blind to slip and actuator faults");
 
     let (control, timer, button) = match (
         ControlLoop::new(cfg),
@@ -106,6 +107,7 @@ async fn control_task(
         let rep = cl.tick(
             &mut b.encoders,
             &mut b.motors,
+            &mut NoGyro,
             &mut WheelOdometryOnly,
             timing,
         );

@@ -217,12 +217,8 @@ impl PoseEstimator {
         let gyro_state = match gyro {
             None => GyroState::Absent,
             Some(g) if !g.rate_radps.is_finite() => GyroState::NonFinite,
-            Some(g) if g.rate_radps.abs() >= self.cfg.gyro_saturation_radps => {
-                GyroState::Saturated
-            }
-            Some(g) if now_us.wrapping_sub(g.stamp_us) > self.cfg.gyro_stale_us => {
-                GyroState::Stale
-            }
+            Some(g) if g.rate_radps.abs() >= self.cfg.gyro_saturation_radps => GyroState::Saturated,
+            Some(g) if now_us.wrapping_sub(g.stamp_us) > self.cfg.gyro_stale_us => GyroState::Stale,
             Some(_) => GyroState::Ok,
         };
         let gyro_used = gyro_state == GyroState::Ok;
@@ -625,10 +621,7 @@ fn invert3(m: &[[f32; 3]; 3]) -> Option<[[f32; 3]; 3]> {
             (m[0][0] * m[1][1] - m[0][1] * m[1][0]) * id,
         ],
     ];
-    inv.iter()
-        .flatten()
-        .all(|v| v.is_finite())
-        .then_some(inv)
+    inv.iter().flatten().all(|v| v.is_finite()).then_some(inv)
 }
 
 #[cfg(test)]

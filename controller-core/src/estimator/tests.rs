@@ -117,7 +117,11 @@ fn bias_found_at_standstill() {
     assert!((st.gyro_bias_radps - bias).abs() < 1e-3, "{st:?}");
     assert!(st.standstill_updates > 2000);
     // Without estimation the heading would be off by 0.06 rad.
-    assert!(e.estimate().pose.theta_rad.abs() < 0.01, "{:?}", e.estimate());
+    assert!(
+        e.estimate().pose.theta_rad.abs() < 0.01,
+        "{:?}",
+        e.estimate()
+    );
 }
 
 /// Driving a circle for 40 s with a biased gyro and heading-free position
@@ -326,10 +330,7 @@ fn rejections_have_reasons() {
         Err(RejectReason::OutOfOrder)
     );
     let far = Pose::new(1.05, 0.0, 0.0);
-    assert_eq!(
-        e.correct(&meas(now, far, true)),
-        Err(RejectReason::Outlier)
-    );
+    assert_eq!(e.correct(&meas(now, far, true)), Err(RejectReason::Outlier));
     let r = e.status().rejected;
     assert_eq!(
         (r.too_old, r.from_future, r.non_finite, r.bad_std_dev),
@@ -378,7 +379,10 @@ fn drifted_estimate_recovers_after_consecutive_outliers() {
     }
     assert_eq!(e.status().resets, 1);
     let p = e.estimate().pose;
-    assert!((p.x_m - 2.0).abs() < 0.01 && (p.y_m - 1.0).abs() < 0.01, "{p:?}");
+    assert!(
+        (p.x_m - 2.0).abs() < 0.01 && (p.y_m - 1.0).abs() < 0.01,
+        "{p:?}"
+    );
 }
 
 #[derive(Clone, Debug)]

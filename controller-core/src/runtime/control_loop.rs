@@ -5,12 +5,13 @@ use super::config::RuntimeConfig;
 use super::encoder::{CountSample, WheelCounts};
 use super::error::RuntimeConfigError;
 use super::hardware::Wheel;
-use super::hardware::{MotorDriver, PoseSource, WheelEncoders};
+use super::hardware::{Gyro, MotorDriver, PoseSource, WheelEncoders, MAX_POSES_PER_TICK};
 use super::motor::{DutyCommand, MotorModel};
 use super::odometry::Odometry;
 use super::state::{ArmError, RunState, Status, StopReason, TickReport};
 use super::timing::TickTiming;
 use crate::controller::{Controller, Diagnostics, StepInput};
+use crate::estimator::{EstimatorConfig, EstimatorStatus, PoseEstimator};
 use crate::trajectory::Trajectory;
 use crate::types::Pose;
 
@@ -22,6 +23,7 @@ pub struct ControlLoop {
     motor: MotorModel,
     counts: WheelCounts,
     odometry: Odometry,
+    estimator: PoseEstimator,
     status: Status,
     stall_ticks: [u16; 2],
     consecutive_input_faults: u16,
@@ -29,8 +31,18 @@ pub struct ControlLoop {
 }
 
 impl ControlLoop {
-    /// Validates `cfg` and builds a disarmed loop.
+    /// Validates `cfg` and builds a disarmed loop with the example pose
+    /// estimator ([`EstimatorConfig::example`] at the initial pose).
     pub fn new(cfg: RuntimeConfig) -> Result<Self, RuntimeConfigError> {
+        let est = EstimatorConfig::example(cfg.controller.robot.com_offset_m, cfg.initial_pose);
+        Self::with_estimator(cfg, est)
+    }
+
+    /// Validates `cfg` and `estimator` and builds a disarmed loop.
+    pub fn with_estimator(
+        cfg: RuntimeConfig,
+        estimator: EstimatorConfig,
+    ) -> Result<Self, RuntimeConfigError> {
         let controller = Controller::new(cfg.controller)?;
         cfg.reference.validate()?;
         if !cfg.initial_pose.is_finite() {
@@ -40,12 +52,14 @@ impl ControlLoop {
         let counts = WheelCounts::new(cfg.encoder)?;
         cfg.safety.validate()?;
         let odometry = Odometry::new(cfg.controller.robot, cfg.initial_pose);
+        let estimator = PoseEstimator::new(estimator)?;
         Ok(Self {
             cfg,
             controller,
             motor,
             counts,
             odometry,
+            estimator,
             status: Status {
                 state: RunState::Disarmed,
                 ticks: 0,
@@ -91,14 +105,26 @@ impl ControlLoop {
         self.status.state
     }
 
-    /// Current wheel-odometry pose of G.
+    /// Current plain wheel-odometry pose of G (never corrected).
     pub fn odometry(&self) -> Pose {
         self.odometry.pose()
     }
 
-    /// Re-anchors the odometry at `pose` (ignored when not finite).
+    /// Re-anchors the plain wheel odometry at `pose` (ignored when not
+    /// finite); the estimate is not affected.
     pub fn set_odometry(&mut self, pose: Pose) {
         self.odometry.set_pose(pose);
+    }
+
+    /// The pose estimator (its estimate, covariance and configuration).
+    pub fn estimator(&self) -> &PoseEstimator {
+        &self.estimator
+    }
+
+    /// The estimator's status: covariance, innovations, accepted and
+    /// rejected measurements, gyro state and bias.
+    pub fn estimator_status(&self) -> &EstimatorStatus {
+        self.estimator.status()
     }
 
     /// Starts the controller: from [`RunState::Disarmed`], resets the
@@ -164,7 +190,11 @@ impl ControlLoop {
     /// One control period. `timing` is this tick's measurement by the
     /// loop's [`LoopTimer`](super::LoopTimer): its true elapsed time feeds
     /// the wheel-rate estimate and scales the encoder-jump limit, its
-    /// lateness against the schedule drives the overrun check.
+    /// lateness against the schedule drives the overrun check, and its
+    /// `now_us` is the robot time that gyro samples and pose measurements
+    /// are matched against. `gyro` ([`NoGyro`](super::NoGyro)) and
+    /// `pose_source` ([`WheelOdometryOnly`](super::WheelOdometryOnly)) may
+    /// be absent: the loop runs on the wheels alone.
     ///
     /// Never panics; on any safety violation while running it latches a
     /// stop, disables `motors` and reports the reason in
@@ -173,6 +203,7 @@ impl ControlLoop {
         &mut self,
         encoders: &mut impl WheelEncoders,
         motors: &mut impl MotorDriver,
+        gyro: &mut impl Gyro,
         pose_source: &mut impl PoseSource,
         timing: TickTiming,
     ) -> TickReport {
@@ -186,8 +217,8 @@ impl ControlLoop {
             .controller
             .robot
             .eta_from_wheel_rates(sample.rate_radps);
-        // 3. Pose.
-        let (pose, external_pose) = self.measure_pose(sample.dphi_rad, pose_source);
+        // 3. Pose: the estimator's fusion of wheels, gyro and external poses.
+        let (pose, external_pose) = self.measure_pose(sample.dphi_rad, gyro, pose_source, &timing);
         // 4. Reference and controller, 5. torque -> duty.
         let t_s = self.status.run_ticks as f32 * self.cfg.controller.period_s;
         let reference = self.cfg.reference.sample(t_s);
@@ -227,6 +258,8 @@ impl ControlLoop {
             pose,
             odometry: self.odometry.pose(),
             external_pose,
+            estimate: *self.estimator.estimate(),
+            gyro: self.estimator.status().gyro,
             counts: sample,
             eta,
             reference,
@@ -281,23 +314,39 @@ impl ControlLoop {
         }
     }
 
-    /// Step 3: wheel odometry, replaced (and re-anchored) by an external
-    /// measurement when the source has one. Returns the pose and whether it
-    /// was external.
+    /// Step 3: the estimator predicts from this tick's wheel increments
+    /// and the gyro, then takes up to [`MAX_POSES_PER_TICK`] measurements
+    /// from the pose source (late ones are re-propagated to now). Plain
+    /// odometry runs beside it. Returns the fused pose of G and whether a
+    /// measurement was accepted. The controller's η stays the wheel-derived
+    /// one (D23).
     fn measure_pose(
         &mut self,
         dphi_rad: [f32; 2],
+        gyro: &mut impl Gyro,
         pose_source: &mut impl PoseSource,
+        timing: &TickTiming,
     ) -> (Pose, bool) {
         self.odometry.update(dphi_rad);
-        match pose_source.pose() {
-            Some(p) => {
+        let inc = self.cfg.controller.robot.eta_from_wheel_rates(dphi_rad);
+        self.estimator.predict(
+            timing.now_us,
+            timing.elapsed_s(),
+            inc.v_mps,
+            inc.omega_radps,
+            gyro.sample(),
+        );
+        let mut accepted = false;
+        for _ in 0..MAX_POSES_PER_TICK {
+            let Some(m) = pose_source.measurement() else {
+                break;
+            };
+            if self.estimator.correct(&m).is_ok() {
+                accepted = true;
                 self.status.external_poses = self.status.external_poses.saturating_add(1);
-                self.odometry.set_pose(p);
-                (p, true)
             }
-            None => (self.odometry.pose(), false),
         }
+        (self.estimator.estimate().pose, accepted)
     }
 
     /// Step 4 supervision: input faults (latching after
