@@ -54,6 +54,11 @@ pub struct EstimatorConfig {
     pub initial_heading_std_rad: f32,
     /// Initial std. dev. of the gyro bias \[rad/s\].
     pub initial_bias_std_radps: f32,
+    /// Initial std. dev. of the speed scale (body / wheel speed, starts at 1).
+    pub initial_speed_scale_std: f32,
+    /// Random walk of the speed scale \[1/√s\] (how fast slip and faults
+    /// may change it).
+    pub speed_scale_walk: f32,
     /// White noise on the wheel-derived speed \[m/s/√Hz\].
     pub speed_noise_mps_per_sqrt_hz: f32,
     /// Relative wheel-odometry error from slip and actuator faults (a
@@ -76,6 +81,10 @@ pub struct EstimatorConfig {
     /// After this many gated measurements in a row the estimate is taken
     /// to have drifted: the covariance is reset and the next is used.
     pub max_consecutive_outliers: u16,
+    /// Time constant \[s\] over which a correction's jump reaches the
+    /// output pose ([`Estimate::pose`](super::Estimate::pose)); 0 = jumps
+    /// pass straight through.
+    pub output_smoothing_s: f32,
     /// Ticks with both wheels still before the gyro's reading is taken as
     /// its bias (zero-rate update).
     pub standstill_ticks: u16,
@@ -91,8 +100,10 @@ impl EstimatorConfig {
             initial_position_std_m: 0.05,
             initial_heading_std_rad: 0.05,
             initial_bias_std_radps: 0.02,
+            initial_speed_scale_std: 0.1,
+            speed_scale_walk: 0.05,
             speed_noise_mps_per_sqrt_hz: 0.02,
-            slip_fraction: 0.3,
+            slip_fraction: 0.05,
             gyro_noise_density: 0.005,
             gyro_bias_walk: 0.0005,
             wheel_yaw_noise: 0.05,
@@ -102,6 +113,7 @@ impl EstimatorConfig {
             chi2_gate_3dof: CHI2_999_3DOF,
             max_consecutive_outliers: 10,
             standstill_ticks: 200,
+            output_smoothing_s: 0.1,
         }
     }
 
@@ -115,6 +127,8 @@ impl EstimatorConfig {
             self.initial_position_std_m,
             self.initial_heading_std_rad,
             self.initial_bias_std_radps,
+            self.initial_speed_scale_std,
+            self.speed_scale_walk,
             self.speed_noise_mps_per_sqrt_hz,
             self.gyro_noise_density,
             self.gyro_bias_walk,
@@ -123,6 +137,9 @@ impl EstimatorConfig {
         if !noises.iter().all(|&x| pos(x))
             || !(self.slip_fraction.is_finite() && self.slip_fraction >= 0.0)
         {
+            return Err(EstimatorConfigError::InvalidNoise);
+        }
+        if !(self.output_smoothing_s.is_finite() && self.output_smoothing_s >= 0.0) {
             return Err(EstimatorConfigError::InvalidNoise);
         }
         if !(pos(self.chi2_gate_2dof) && pos(self.chi2_gate_3dof)) {

@@ -1,14 +1,15 @@
 //! Pose estimator: wheel odometry and a z-gyro fused with delayed external
 //! pose measurements (an extended Kalman filter with a history buffer).
 //!
-//! State: the axle midpoint O_B = (x, y), the heading θ and the gyro bias
-//! b; the pose of G is O_B + d·\[cos θ, sin θ\] (the same geometry as
+//! State: the axle midpoint O_B = (x, y), the heading θ, the gyro bias
+//! b and the speed scale k (body speed / wheel-derived speed: below 1 when
+//! the wheels slip or an actuator fault holds the body back); the pose of G is O_B + d·\[cos θ, sin θ\] (the same geometry as
 //! [`Odometry`](crate::runtime::Odometry)).
 //!
 //! * **Prediction, every tick** ([`PoseEstimator::predict`]): the distance
 //!   Δs the wheels rolled and the heading change Δθ = (gyro − b)·Δt, or
 //!   the wheels' Δθ when the gyro is absent, stale, saturated or not
-//!   finite ([`GyroState`]); O_B moves by Δs along θ + Δθ/2. After
+//!   finite ([`GyroState`]); O_B moves by k·Δs along θ + Δθ/2. After
 //!   `standstill_ticks` with both wheels still, the gyro's reading is a
 //!   measurement of its bias (zero-rate update).
 //! * **Correction** ([`PoseEstimator::correct`]): a pose of G taken at
@@ -22,8 +23,12 @@
 //!   Mahalanobis distance (chi-square); the heading innovation is wrapped.
 //!   Measurements are used in timestamp order: one older than the last
 //!   accepted is refused ([`RejectReason::OutOfOrder`]).
+//! * **Output** ([`Estimate`]): `filter_pose` is the filter's estimate of G;
+//!   `pose`, for the controller, is the same with each correction's jump
+//!   spread over `output_smoothing_s` (a decaying offset), so that a
+//!   low-rate source (UWB at 10 Hz) does not hand the controller steps.
 //!
-//! `no_std`, f32, fixed memory (about 21 KB for [`HISTORY_LEN`] = 256
+//! `no_std`, f32, fixed memory (about 25 KB for [`HISTORY_LEN`] = 256
 //! entries), no panics: any non-finite input is refused or replaced, and
 //! a correction that would make the state non-finite is rolled back.
 
@@ -42,9 +47,15 @@ use crate::types::Pose;
 /// this many ticks old (256 ms at 1 kHz, above the 250 ms latency bound).
 pub const HISTORY_LEN: usize = 256;
 
-/// Largest variances kept \[m², m², rad², (rad/s)²\]: without corrections
-/// the covariance grows; beyond these it is scaled down (stays finite).
-const MAX_VAR: [f32; 4] = [1.0e6, 1.0e6, 10.0, 1.0];
+/// State dimension: x, y of O_B, θ, gyro bias, speed scale.
+const N: usize = 5;
+/// Largest variances kept \[m², m², rad², (rad/s)², 1\]: without
+/// corrections the covariance grows; beyond these it is scaled down.
+const MAX_VAR: [f32; N] = [1.0e6, 1.0e6, 10.0, 1.0, 0.25];
+/// The speed scale is kept in this range (a wheel-speed ratio).
+const SPEED_SCALE_RANGE: (f32, f32) = (0.2, 1.5);
+/// Packed upper-triangle size.
+const NP: usize = N * (N + 1) / 2;
 /// Smallest diagonal variance kept after a correction (f32 round-off).
 const MIN_VAR: f32 = 1.0e-12;
 /// Largest plausible wheel speed \[m/s\] and yaw rate \[rad/s\]: larger
@@ -55,10 +66,13 @@ const MAX_YAW_RATE_RADPS: f32 = 200.0;
 /// measurement (beyond: implausible, refused).
 const MAX_COORD_M: f32 = 1.0e5;
 const MAX_STD: f32 = 1.0e3;
+/// A correction moving G by more than this (|Δx| + |Δy| \[m\]) is not
+/// smoothed: the output jumps with the filter (a reset, a long outage).
+const MAX_SMOOTHED_JUMP_M: f32 = 0.5;
 /// Longest tick the prediction integrates \[s\].
 const MAX_DT_S: f32 = 0.1;
 
-type Mat4 = [[f32; 4]; 4];
+type Mat = [[f32; N]; N];
 
 /// One tick's inputs to the prediction, kept for re-propagation.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -75,39 +89,38 @@ struct Input {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Entry {
     stamp_us: u32,
-    x: [f32; 4],
-    /// Upper triangle of the covariance, row-major (00 01 02 03 11 12 13 22 23 33).
-    p: [f32; 10],
+    x: [f32; N],
+    /// Upper triangle of the covariance, row-major.
+    p: [f32; NP],
     input: Input,
 }
 
-const TRI: [(usize, usize); 10] = [
-    (0, 0),
-    (0, 1),
-    (0, 2),
-    (0, 3),
-    (1, 1),
-    (1, 2),
-    (1, 3),
-    (2, 2),
-    (2, 3),
-    (3, 3),
-];
-
-fn pack(p: &Mat4) -> [f32; 10] {
-    core::array::from_fn(|k| p[TRI[k].0][TRI[k].1])
+fn pack(p: &Mat) -> [f32; NP] {
+    let mut t = [0.0; NP];
+    let mut k = 0;
+    for i in 0..N {
+        for j in i..N {
+            t[k] = p[i][j];
+            k += 1;
+        }
+    }
+    t
 }
 
-fn unpack(t: &[f32; 10]) -> Mat4 {
-    let mut p = [[0.0; 4]; 4];
-    for (k, &(i, j)) in TRI.iter().enumerate() {
-        p[i][j] = t[k];
-        p[j][i] = t[k];
+fn unpack(t: &[f32; NP]) -> Mat {
+    let mut p = [[0.0; N]; N];
+    let mut k = 0;
+    for i in 0..N {
+        for j in i..N {
+            p[i][j] = t[k];
+            p[j][i] = t[k];
+            k += 1;
+        }
     }
     p
 }
 
-fn all_finite(x: &[f32; 4], p: &Mat4) -> bool {
+fn all_finite(x: &[f32; N], p: &Mat) -> bool {
     x.iter().all(|v| v.is_finite()) && p.iter().flatten().all(|v| v.is_finite())
 }
 
@@ -116,8 +129,8 @@ fn all_finite(x: &[f32; 4], p: &Mat4) -> bool {
 #[derive(Clone, Debug)]
 pub struct PoseEstimator {
     cfg: EstimatorConfig,
-    x: [f32; 4],
-    p: Mat4,
+    x: [f32; N],
+    p: Mat,
     hist: [Entry; HISTORY_LEN],
     /// Index of the newest entry.
     head: usize,
@@ -128,6 +141,8 @@ pub struct PoseEstimator {
     still_ticks: u16,
     estimate: Estimate,
     status: EstimatorStatus,
+    /// Output offset \[m, m, rad\]: `filter_pose − pose`, decaying.
+    offset: [f32; 3],
 }
 
 impl PoseEstimator {
@@ -138,12 +153,13 @@ impl PoseEstimator {
         let th = wrap_angle(g.theta_rad);
         let (s, c) = sin_cos(th);
         let d = cfg.com_offset_m;
-        let x = [g.x_m - d * c, g.y_m - d * s, th, 0.0];
-        let mut p = [[0.0; 4]; 4];
+        let x = [g.x_m - d * c, g.y_m - d * s, th, 0.0, 1.0];
+        let mut p = [[0.0; N]; N];
         p[0][0] = cfg.initial_position_std_m * cfg.initial_position_std_m;
         p[1][1] = p[0][0];
         p[2][2] = cfg.initial_heading_std_rad * cfg.initial_heading_std_rad;
         p[3][3] = cfg.initial_bias_std_radps * cfg.initial_bias_std_radps;
+        p[4][4] = cfg.initial_speed_scale_std * cfg.initial_speed_scale_std;
         let mut e = Self {
             cfg,
             x,
@@ -156,6 +172,7 @@ impl PoseEstimator {
             consecutive_outliers: 0,
             still_ticks: 0,
             estimate: Estimate::default(),
+            offset: [0.0; 3],
             status: EstimatorStatus {
                 since_accepted_us: u32::MAX,
                 ..EstimatorStatus::default()
@@ -185,8 +202,9 @@ impl PoseEstimator {
         self.now_us
     }
 
-    /// The full covariance at the latest tick (x, y of O_B, θ, bias).
-    pub fn covariance(&self) -> [[f32; 4]; 4] {
+    /// The full covariance at the latest tick (x, y of O_B, θ, bias,
+    /// speed scale).
+    pub fn covariance(&self) -> [[f32; N]; N] {
         self.p
     }
 
@@ -236,6 +254,16 @@ impl PoseEstimator {
             still: gyro_used && self.still_ticks >= self.cfg.standstill_ticks,
         };
         self.propagate(&input);
+        // The output offset decays with time constant output_smoothing_s.
+        let tau = self.cfg.output_smoothing_s;
+        let decay = if tau > 0.0 {
+            1.0 / (1.0 + dt_s / tau)
+        } else {
+            0.0
+        };
+        for o in &mut self.offset {
+            *o *= decay;
+        }
         if input.still {
             self.status.standstill_updates = self.status.standstill_updates.saturating_add(1);
         }
@@ -311,7 +339,9 @@ impl PoseEstimator {
         }
         let idx = (self.head + HISTORY_LEN - back) % HISTORY_LEN;
         let e = self.hist[idx];
+        let before = self.filter_pose();
         let (mut x, mut p) = (e.x, unpack(&e.p));
+        let resets = self.status.resets;
         match self.update(&mut x, &mut p, m, true) {
             Ok(()) => self.consecutive_outliers = 0,
             Err(RejectReason::Outlier) => {
@@ -346,6 +376,21 @@ impl PoseEstimator {
         self.p = p;
         self.last_accepted_stamp_us = Some(m.stamp_us);
         self.status.accepted = self.status.accepted.saturating_add(1);
+        let after = self.filter_pose();
+        let jump = [
+            after.x_m - before.x_m,
+            after.y_m - before.y_m,
+            wrap_angle(after.theta_rad - before.theta_rad),
+        ];
+        let big = jump[0].abs() + jump[1].abs() > MAX_SMOOTHED_JUMP_M;
+        if self.cfg.output_smoothing_s > 0.0 && !big && self.status.resets == resets {
+            for (o, j) in self.offset.iter_mut().zip(jump) {
+                *o += j;
+            }
+            self.offset[2] = wrap_angle(self.offset[2]);
+        } else {
+            self.offset = [0.0; 3];
+        }
         let input = self.hist[self.head].input;
         self.refresh(&input);
         Ok(())
@@ -353,10 +398,10 @@ impl PoseEstimator {
 
     /// Position and heading variances to a wide prior, their correlations
     /// dropped (after `max_consecutive_outliers` gated measurements).
-    fn reset_pose_covariance(&self, p: &mut Mat4) {
+    fn reset_pose_covariance(&self, p: &mut Mat) {
         let big = [1.0e4, 1.0e4, 10.0];
         for i in 0..3 {
-            for j in 0..4 {
+            for j in 0..N {
                 if i != j {
                     p[i][j] = 0.0;
                     p[j][i] = 0.0;
@@ -392,12 +437,13 @@ impl PoseEstimator {
         };
         let (s, c) = sin_cos(x[2] + 0.5 * dth);
         let ds = u.ds_m;
-        x[0] += ds * c;
-        x[1] += ds * s;
+        let dsk = x[4] * ds;
+        x[0] += dsk * c;
+        x[1] += dsk * s;
         x[2] = wrap_angle(x[2] + dth);
         // F = I + the partial derivatives below.
-        let (a, b) = (-ds * s, ds * c);
-        let mut f: Mat4 = [[0.0; 4]; 4];
+        let (a, b) = (-dsk * s, dsk * c);
+        let mut f: Mat = [[0.0; N]; N];
         for (i, row) in f.iter_mut().enumerate() {
             row[i] = 1.0;
         }
@@ -406,17 +452,19 @@ impl PoseEstimator {
         f[0][3] = 0.5 * g * a;
         f[1][3] = 0.5 * g * b;
         f[2][3] = g;
+        f[0][4] = ds * c;
+        f[1][4] = ds * s;
         let p = &self.p;
-        let mut fp = [[0.0f32; 4]; 4];
-        for i in 0..4 {
-            for j in 0..4 {
-                fp[i][j] = (0..4).map(|k| f[i][k] * p[k][j]).sum();
+        let mut fp = [[0.0f32; N]; N];
+        for i in 0..N {
+            for j in 0..N {
+                fp[i][j] = (0..N).map(|k| f[i][k] * p[k][j]).sum();
             }
         }
-        let mut np = [[0.0f32; 4]; 4];
-        for i in 0..4 {
-            for j in i..4 {
-                let v: f32 = (0..4).map(|k| fp[i][k] * f[j][k]).sum();
+        let mut np = [[0.0f32; N]; N];
+        for i in 0..N {
+            for j in i..N {
+                let v: f32 = (0..N).map(|k| fp[i][k] * f[j][k]).sum();
                 np[i][j] = v;
                 np[j][i] = v;
             }
@@ -429,15 +477,16 @@ impl PoseEstimator {
         np[1][1] += q_p;
         np[2][2] += q_th;
         np[3][3] += cfg.gyro_bias_walk * cfg.gyro_bias_walk * dt;
+        np[4][4] += cfg.speed_scale_walk * cfg.speed_scale_walk * dt;
         // Bounded growth: scale a row and column whose variance is too big.
-        for i in 0..4 {
+        for i in 0..N {
             if !(np[i][i] <= MAX_VAR[i]) {
                 let k = if np[i][i].is_finite() {
                     crate::math::sqrt(MAX_VAR[i] / np[i][i])
                 } else {
                     0.0
                 };
-                for j in 0..4 {
+                for j in 0..N {
                     np[i][j] *= k;
                     np[j][i] *= k;
                 }
@@ -451,15 +500,16 @@ impl PoseEstimator {
             let r = n * n / dt;
             let s33 = self.p[3][3] + r;
             let innov = u.gyro_radps - self.x[3];
-            let k: [f32; 4] = core::array::from_fn(|i| self.p[i][3] / s33);
+            let k: [f32; N] = core::array::from_fn(|i| self.p[i][3] / s33);
             let row3 = self.p[3];
-            for i in 0..4 {
+            for i in 0..N {
                 self.x[i] += k[i] * innov;
-                for j in 0..4 {
+                for j in 0..N {
                     self.p[i][j] -= k[i] * row3[j];
                 }
             }
             self.x[2] = wrap_angle(self.x[2]);
+            self.x[4] = self.x[4].clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
             symmetrise(&mut self.p);
         }
     }
@@ -468,8 +518,8 @@ impl PoseEstimator {
     /// innovation beyond the chi-square gate. `(x, p)` are untouched on error.
     fn update(
         &mut self,
-        x: &mut [f32; 4],
-        p: &mut Mat4,
+        x: &mut [f32; N],
+        p: &mut Mat,
         m: &PoseMeasurement,
         gate: bool,
     ) -> Result<(), RejectReason> {
@@ -485,22 +535,22 @@ impl PoseEstimator {
                 0.0
             },
         ];
-        // H rows: [1, 0, −d s, 0], [0, 1, d c, 0], [0, 0, 1, 0].
-        let h: [[f32; 4]; 3] = [
-            [1.0, 0.0, -d * s, 0.0],
-            [0.0, 1.0, d * c, 0.0],
-            [0.0, 0.0, 1.0, 0.0],
+        // H rows: [1, 0, −d s, 0, 0], [0, 1, d c, 0, 0], [0, 0, 1, 0, 0].
+        let h: [[f32; N]; 3] = [
+            [1.0, 0.0, -d * s, 0.0, 0.0],
+            [0.0, 1.0, d * c, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0, 0.0],
         ];
-        let mut pht = [[0.0f32; 3]; 4];
-        for i in 0..4 {
+        let mut pht = [[0.0f32; 3]; N];
+        for i in 0..N {
             for a in 0..n {
-                pht[i][a] = (0..4).map(|k| p[i][k] * h[a][k]).sum();
+                pht[i][a] = (0..N).map(|k| p[i][k] * h[a][k]).sum();
             }
         }
         let mut sm = [[0.0f32; 3]; 3];
         for a in 0..n {
             for b in 0..n {
-                sm[a][b] = (0..4).map(|k| h[a][k] * pht[k][b]).sum();
+                sm[a][b] = (0..N).map(|k| h[a][k] * pht[k][b]).sum();
             }
         }
         let rp = m.position_std_m * m.position_std_m;
@@ -532,22 +582,23 @@ impl PoseEstimator {
         if gate && d2 > limit {
             return Err(RejectReason::Outlier);
         }
-        let mut k = [[0.0f32; 3]; 4];
-        for i in 0..4 {
+        let mut k = [[0.0f32; 3]; N];
+        for i in 0..N {
             for a in 0..n {
                 k[i][a] = (0..n).map(|b| pht[i][b] * si[b][a]).sum();
             }
         }
         let mut nx = *x;
         let mut np = *p;
-        for i in 0..4 {
+        for i in 0..N {
             nx[i] += (0..n).map(|a| k[i][a] * nu[a]).sum::<f32>();
-            for j in 0..4 {
+            for j in 0..N {
                 // P − K·(P Hᵀ)ᵀ
                 np[i][j] -= (0..n).map(|a| k[i][a] * pht[j][a]).sum::<f32>();
             }
         }
         nx[2] = wrap_angle(nx[2]);
+        nx[4] = nx[4].clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
         symmetrise(&mut np);
         for (i, row) in np.iter_mut().enumerate() {
             row[i] = row[i].max(MIN_VAR);
@@ -560,10 +611,17 @@ impl PoseEstimator {
         Ok(())
     }
 
-    /// The estimate and status from the live state.
-    fn refresh(&mut self, input: &Input) {
+    /// The filter's pose of G.
+    fn filter_pose(&self) -> Pose {
         let d = self.cfg.com_offset_m;
         let (s, c) = sin_cos(self.x[2]);
+        Pose::new(self.x[0] + d * c, self.x[1] + d * s, self.x[2])
+    }
+
+    /// The estimate and status from the live state.
+    fn refresh(&mut self, input: &Input) {
+        let g = self.filter_pose();
+        let o = self.offset;
         let dt = if input.dt_s > 0.0 { input.dt_s } else { 1.0 };
         let yaw = if input.gyro_used {
             input.gyro_radps - self.x[3]
@@ -571,12 +629,14 @@ impl PoseEstimator {
             input.dtheta_wheel_rad / dt
         };
         self.estimate = Estimate {
-            pose: Pose::new(self.x[0] + d * c, self.x[1] + d * s, self.x[2]),
+            pose: Pose::new(g.x_m - o[0], g.y_m - o[1], wrap_angle(g.theta_rad - o[2])),
+            filter_pose: g,
             v_mps: input.ds_m / dt,
             yaw_rate_radps: yaw,
         };
         self.status.covariance_diag = core::array::from_fn(|i| self.p[i][i]);
         self.status.gyro_bias_radps = self.x[3];
+        self.status.speed_scale = self.x[4];
         self.status.since_accepted_us = match self.last_accepted_stamp_us {
             Some(t) => self.now_us.wrapping_sub(t),
             None => u32::MAX,
@@ -584,9 +644,9 @@ impl PoseEstimator {
     }
 }
 
-fn symmetrise(p: &mut Mat4) {
-    for i in 0..4 {
-        for j in (i + 1)..4 {
+fn symmetrise(p: &mut Mat) {
+    for i in 0..N {
+        for j in (i + 1)..N {
             let v = 0.5 * (p[i][j] + p[j][i]);
             p[i][j] = v;
             p[j][i] = v;

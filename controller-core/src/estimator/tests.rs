@@ -259,7 +259,7 @@ fn late_measurements_equal_on_time_ones() {
         let ticks = 3000 + delay; // the last late ones have arrived
         let on_time = s_curve_until(every, 0, ticks, 3000);
         let late = s_curve_until(every, delay, ticks, 3000);
-        let (a, b) = (on_time.estimate().pose, late.estimate().pose);
+        let (a, b) = (on_time.estimate().filter_pose, late.estimate().filter_pose);
         assert!(
             (a.x_m - b.x_m).abs() < 1e-6 && (a.y_m - b.y_m).abs() < 1e-6,
             "{every}/{delay}: {a:?} vs {b:?}"
@@ -292,6 +292,38 @@ fn fused_estimate_tracks_truth_through_slip() {
     let err = |p: Pose| (p.x_m - x - D * th.cos()).hypot(p.y_m - y - D * th.sin());
     assert!(err(e.estimate().pose) < 0.005, "{}", err(e.estimate().pose));
     assert!(err(odo_only.estimate().pose) > 0.2);
+}
+
+/// The controller's pose takes a correction's jump with the time
+/// constant output_smoothing_s: after τ, 1/e of the jump remains (to 1 %,
+/// the per-tick factor 1/(1 + dt/τ) against exp(−dt/τ)); the filter's pose
+/// jumps at once.
+#[test]
+fn output_smoothing_spreads_a_jump_over_its_time_constant() {
+    let mut e = est();
+    let tau = e.config().output_smoothing_s;
+    e.predict(1000, DT, 0.0, 0.0, None);
+    let before = e.estimate().pose;
+    e.correct(&meas(1000, Pose::new(0.09, 0.02, 0.0), true))
+        .unwrap();
+    let jump = e.estimate().filter_pose.x_m - before.x_m;
+    assert!(jump > 0.03, "{jump}");
+    assert_eq!(e.estimate().pose, before);
+    let n = (tau / DT).round() as u32;
+    for k in 2..=(n + 1) {
+        e.predict(k * 1000, DT, 0.0, 0.0, None);
+    }
+    let left = (e.estimate().filter_pose.x_m - e.estimate().pose.x_m) / jump;
+    assert!((left - (-1.0f32).exp()).abs() < 0.01 * 0.37, "{left}");
+}
+
+/// With wheels over-reporting the distance by 20 % and mocap at 100 Hz,
+/// the speed scale converges to 1/1.2.
+#[test]
+fn speed_scale_learns_wheel_over_reporting() {
+    let e = s_curve(10, 0, 10_000);
+    let k = e.status().speed_scale;
+    assert!((k - 1.0 / 1.2).abs() < 0.02, "{k}");
 }
 
 #[test]

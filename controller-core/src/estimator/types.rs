@@ -115,8 +115,12 @@ pub enum GyroState {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Estimate {
-    /// Fused pose of G.
+    /// Fused pose of G for the controller: `filter_pose` with each
+    /// correction's jump spread over `output_smoothing_s`.
     pub pose: Pose,
+    /// The filter's estimate of the pose of G (what a late measurement
+    /// leaves exactly as an on-time one would).
+    pub filter_pose: Pose,
     /// Wheel-derived linear velocity of the axle midpoint \[m/s\].
     pub v_mps: f32,
     /// Body yaw rate used in the prediction \[rad/s\] (gyro minus the
@@ -129,8 +133,9 @@ pub struct Estimate {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct EstimatorStatus {
     /// Diagonal of the covariance at the latest tick: var(x), var(y) of the
-    /// axle midpoint \[m²\], var(θ) \[rad²\], var(gyro bias) \[(rad/s)²\].
-    pub covariance_diag: [f32; 4],
+    /// axle midpoint \[m²\], var(θ) \[rad²\], var(gyro bias) \[(rad/s)²\],
+    /// var(speed scale).
+    pub covariance_diag: [f32; 5],
     /// Innovation of the last accepted or gated measurement
     /// \[m, m, rad\] (heading 0 without heading).
     pub last_innovation: [f32; 3],
@@ -151,6 +156,9 @@ pub struct EstimatorStatus {
     pub gyro: GyroState,
     /// Estimated gyro bias \[rad/s\].
     pub gyro_bias_radps: f32,
+    /// Estimated speed scale: body speed / wheel-derived speed (1 = no
+    /// slip; 0.8 = the body moves 20 % slower than the wheels say).
+    pub speed_scale: f32,
     /// Zero-rate updates of the bias while standing still.
     pub standstill_updates: u32,
 }
