@@ -35,6 +35,9 @@ pub struct HilOptions {
     /// Fault injection: from this time \[s\] on, the encoder of wheel
     /// `.0` (0 = right, 1 = left) stops counting (broken wire).
     pub dead_encoder: Option<(usize, f64)>,
+    /// Estimator tuning (None = [`sensing_estimator_config`]); its initial
+    /// pose and centre-of-mass offset are taken from the scenario.
+    pub estimator: Option<EstimatorConfig>,
 }
 
 impl Default for HilOptions {
@@ -42,6 +45,7 @@ impl Default for HilOptions {
         Self {
             safety: SafetyLimits::EXAMPLE,
             dead_encoder: None,
+            estimator: None,
         }
     }
 }
@@ -76,6 +80,17 @@ pub struct SensingReport {
     pub estimator: EstimatorStatus,
     /// The simulated pose source's counters (None without one).
     pub pose_source: Option<PoseSourceStats>,
+}
+
+/// The estimator tuning for a set of simulated sensors, as a user would
+/// set it from the data sheets: [`EstimatorConfig::example`] with the
+/// gyro's full scale.
+pub fn sensing_estimator_config(sensors: &SensorSetup) -> EstimatorConfig {
+    let mut est = EstimatorConfig::example(0.0, Pose::default());
+    if let Some(g) = sensors.gyro {
+        est.gyro_saturation_radps = g.saturation_radps as f32;
+    }
+    est
 }
 
 /// The runtime as the controller side of [`run_loop`].
@@ -127,10 +142,11 @@ impl RuntimeSide {
             motor_inverted: MIRRORED_LEFT,
             safety: opts.safety,
         };
-        let mut est = EstimatorConfig::example(controller.robot.com_offset_m, cfg.initial_pose);
-        if let Some(g) = sensors.gyro {
-            est.gyro_saturation_radps = g.saturation_radps as f32;
-        }
+        let mut est = opts
+            .estimator
+            .unwrap_or_else(|| sensing_estimator_config(&sensors));
+        est.com_offset_m = controller.robot.com_offset_m;
+        est.initial_pose = cfg.initial_pose;
         let mut control =
             ControlLoop::with_estimator(cfg, est).map_err(|e| format!("runtime config: {e}"))?;
         let timer = LoopTimer::from_config(&cfg).map_err(|e| format!("loop timer: {e}"))?;

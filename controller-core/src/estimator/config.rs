@@ -81,9 +81,10 @@ pub struct EstimatorConfig {
     /// After this many gated measurements in a row the estimate is taken
     /// to have drifted: the covariance is reset and the next is used.
     pub max_consecutive_outliers: u16,
-    /// Time constant \[s\] over which a correction's jump reaches the
-    /// output pose ([`Estimate::pose`](super::Estimate::pose)); 0 = jumps
-    /// pass straight through.
+    /// Longest time constant \[s\] over which a correction's jump reaches
+    /// the output pose ([`Estimate::pose`](super::Estimate::pose)); the
+    /// time constant is two mean measurement intervals up to this; 0 =
+    /// jumps pass straight through.
     pub output_smoothing_s: f32,
     /// Ticks with both wheels still before the gyro's reading is taken as
     /// its bias (zero-rate update).
@@ -103,8 +104,8 @@ impl EstimatorConfig {
             initial_speed_scale_std: 0.1,
             speed_scale_walk: 0.05,
             speed_noise_mps_per_sqrt_hz: 0.02,
-            slip_fraction: 0.05,
-            gyro_noise_density: 0.005,
+            slip_fraction: 0.02,
+            gyro_noise_density: 0.001,
             gyro_bias_walk: 0.0005,
             wheel_yaw_noise: 0.05,
             gyro_saturation_radps: 34.0,
@@ -113,7 +114,7 @@ impl EstimatorConfig {
             chi2_gate_3dof: CHI2_999_3DOF,
             max_consecutive_outliers: 10,
             standstill_ticks: 200,
-            output_smoothing_s: 0.1,
+            output_smoothing_s: 0.2,
         }
     }
 

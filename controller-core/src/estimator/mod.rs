@@ -25,8 +25,9 @@
 //!   accepted is refused ([`RejectReason::OutOfOrder`]).
 //! * **Output** ([`Estimate`]): `filter_pose` is the filter's estimate of G;
 //!   `pose`, for the controller, is the same with each correction's jump
-//!   spread over `output_smoothing_s` (a decaying offset), so that a
-//!   low-rate source (UWB at 10 Hz) does not hand the controller steps.
+//!   spread over about two measurement intervals (a decaying offset, time
+//!   constant at most `output_smoothing_s`), so that a low-rate source (UWB
+//!   at 10 Hz) does not hand the controller steps.
 //!
 //! `no_std`, f32, fixed memory (about 25 KB for [`HISTORY_LEN`] = 256
 //! entries), no panics: any non-finite input is refused or replaced, and
@@ -69,6 +70,10 @@ const MAX_STD: f32 = 1.0e3;
 /// A correction moving G by more than this (|Δx| + |Δy| \[m\]) is not
 /// smoothed: the output jumps with the filter (a reset, a long outage).
 const MAX_SMOOTHED_JUMP_M: f32 = 0.5;
+/// The output smoothing's time constant in mean measurement intervals.
+const SMOOTHING_INTERVALS: f32 = 2.0;
+/// Gain of the running mean of the measurement interval.
+const INTERVAL_GAIN: f32 = 0.1;
 /// Longest tick the prediction integrates \[s\].
 const MAX_DT_S: f32 = 0.1;
 
@@ -143,6 +148,8 @@ pub struct PoseEstimator {
     status: EstimatorStatus,
     /// Output offset \[m, m, rad\]: `filter_pose − pose`, decaying.
     offset: [f32; 3],
+    /// Running mean of the time between accepted measurements \[s\].
+    mean_interval_s: Option<f32>,
 }
 
 impl PoseEstimator {
@@ -173,6 +180,7 @@ impl PoseEstimator {
             still_ticks: 0,
             estimate: Estimate::default(),
             offset: [0.0; 3],
+            mean_interval_s: None,
             status: EstimatorStatus {
                 since_accepted_us: u32::MAX,
                 ..EstimatorStatus::default()
@@ -254,8 +262,13 @@ impl PoseEstimator {
             still: gyro_used && self.still_ticks >= self.cfg.standstill_ticks,
         };
         self.propagate(&input);
-        // The output offset decays with time constant output_smoothing_s.
-        let tau = self.cfg.output_smoothing_s;
+        // The output offset decays with time constant
+        // min(output_smoothing_s, SMOOTHING_INTERVALS × the mean interval
+        // between measurements): a jump is spread over about two intervals.
+        let tau = match self.mean_interval_s {
+            Some(i) => self.cfg.output_smoothing_s.min(SMOOTHING_INTERVALS * i),
+            None => self.cfg.output_smoothing_s,
+        };
         let decay = if tau > 0.0 {
             1.0 / (1.0 + dt_s / tau)
         } else {
@@ -374,6 +387,13 @@ impl PoseEstimator {
         }
         self.x = x;
         self.p = p;
+        if let Some(last) = self.last_accepted_stamp_us {
+            let dt = m.stamp_us.wrapping_sub(last) as f32 * 1e-6;
+            self.mean_interval_s = Some(match self.mean_interval_s {
+                Some(i) => i + INTERVAL_GAIN * (dt.min(1.0) - i),
+                None => dt.min(1.0),
+            });
+        }
         self.last_accepted_stamp_us = Some(m.stamp_us);
         self.status.accepted = self.status.accepted.saturating_add(1);
         let after = self.filter_pose();
