@@ -129,9 +129,11 @@ impl SensorSetup {
                 }
                 Some(p)
             }
-            None if pose_set => return Err(format!(
+            None if pose_set => {
+                return Err(format!(
                 "pose_* keys need a sensing preset with an external pose (mocap, uwb), not {name}"
-            )),
+            ))
+            }
             None => None,
         };
         Ok(Self { gyro, pose })
