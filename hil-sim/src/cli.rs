@@ -307,6 +307,9 @@ pub struct McArgs {
     /// Run length [s] [default: the paper's 40 s].
     #[arg(long, value_name = "s")]
     pub duration: Option<f64>,
+    /// Sensing preset of every run (docs/scenario.md).
+    #[arg(long, value_enum, default_value = "ideal")]
+    pub sensing: Sensing,
     /// Run only shard I of N (0-based: 0/N … N-1/N), a contiguous block of the run
     /// indices with the same seeds as the unsharded run; write its raw results to
     /// --out (default mc-case<C>-seed<S>-runs<R>-shard<I>of<N>.jsonl) for `merge`.
@@ -494,25 +497,115 @@ settle: error stays < 0.1 m until the window;\nsat: steps at the torque limit; F
     text
 }
 
+/// The sensing presets `compare` also shows (Case 2 through the firmware
+/// runtime), after the paper's ideal table.
+pub const COMPARE_SENSING: [Sensing; 2] = [Sensing::Mocap, Sensing::Odometry];
+
+/// Case 2 of `compare` under each of [`COMPARE_SENSING`], the three
+/// controllers in parallel (traced): (preset, scenario, outputs).
+pub fn compare_sensing_runs(
+    seed: u64,
+    beta: Option<f64>,
+    eps: Option<f64>,
+) -> Result<Vec<(Sensing, Scenario, Vec<SimOutput>)>, String> {
+    let scns: Vec<Scenario> = COMPARE_SENSING
+        .iter()
+        .map(|&sensing| Scenario {
+            sensing,
+            ..Scenario::paper_case(2, seed, beta, eps)
+        })
+        .collect();
+    let jobs: Vec<(usize, ControllerKind)> = (0..scns.len())
+        .flat_map(|i| ControllerKind::ALL.map(|k| (i, k)))
+        .collect();
+    let outs: Vec<Result<SimOutput, String>> = jobs
+        .par_iter()
+        .map(|&(i, k)| crate::sim::run(&scns[i], k))
+        .collect();
+    let mut outs = outs.into_iter();
+    let mut res = Vec::new();
+    for scn in scns {
+        let runs = outs
+            .by_ref()
+            .take(ControllerKind::ALL.len())
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| format!("case 2, sensing {}: {e}", scn.sensing.name()))?;
+        res.push((scn.sensing, scn, runs));
+    }
+    Ok(res)
+}
+
+/// The sensing block of `compare`: one table of Case 2 per preset and
+/// controller, with the estimator's counts.
+fn compare_sensing_text(results: &[(Sensing, Scenario, Vec<SimOutput>)]) -> String {
+    let rows: Vec<(Vec<String>, crate::Metrics)> = results
+        .iter()
+        .flat_map(|(sensing, _, runs)| {
+            runs.iter().map(move |o| {
+                (
+                    vec![sensing.name().to_string(), o.kind.name().to_string()],
+                    o.metrics.clone(),
+                )
+            })
+        })
+        .collect();
+    let mut text = String::from(
+        "\ncase 2 through the firmware runtime (what to expect on a robot; docs/scenario.md):\n",
+    );
+    text += &metrics_table(&["sensing", "controller"], &rows);
+    text += "mocap: encoders, gyro, pose at 100 Hz 10 ms late 2 mm / 0.005 rad; odometry: encoders only\n";
+    text
+}
+
 /// `compare`: run, write metrics.json, draw the plots, print; a plot error
 /// is returned after the table has been printed.
 fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
     let t0 = std::time::Instant::now();
     let results = compare_runs(a.seed, a.beta, a.eps)?;
     let sim_time = t0.elapsed();
+    let sensing = compare_sensing_runs(a.seed, a.beta, a.eps)?;
     let rows = compare_rows(&results);
     let json = compare_json(&rows)?;
     let metrics_path = write_metrics_json(&a.out, &json)?;
+    let sensing_rows: Vec<serde_json::Value> = sensing
+        .iter()
+        .flat_map(|(s, scn, runs)| {
+            runs.iter().map(move |o| {
+                serde_json::json!({
+                    "case": 2,
+                    "sensing": s.name(),
+                    "report": RunReport::new(o.kind, scn, o),
+                })
+            })
+        })
+        .collect();
+    let sensing_json = serde_json::to_string_pretty(&sensing_rows).map_err(|e| e.to_string())?;
+    let sensing_path = a.out.join("metrics_sensing.json");
+    std::fs::write(&sensing_path, format!("{sensing_json}\n"))
+        .map_err(|e| format!("cannot write {}: {e}", sensing_path.display()))?;
     let plots = if a.no_plots {
         Ok(Vec::new())
     } else {
-        draw_compare_plots(&a.out, &results)
+        draw_compare_plots(&a.out, &results).and_then(|mut p| {
+            for (s, scn, runs) in &sensing {
+                p.push(crate::plot::write_case_plots(
+                    &a.out,
+                    &format!("case2_{}", s.name()),
+                    &format!("{}, sensing {}", case_plot_title(2, scn), s.name()),
+                    scn,
+                    runs,
+                )?);
+            }
+            Ok(p)
+        })
     };
     let text = if a.json {
         format!("{json}\n")
     } else {
         let plot_files = plots.as_ref().ok().map(|p| (p.as_slice(), a.out.as_path()));
         compare_text(&results, &rows, sim_time, &metrics_path, plot_files)
+            + &compare_sensing_text(&sensing)
+            + &format!("sensing metrics written to {}\n", sensing_path.display())
     };
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
     plots.map(|_| ())
@@ -654,6 +747,7 @@ fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
         seed: a.seed,
         vary_mass: a.vary_mass,
         duration_s: a.duration,
+        sensing: a.sensing,
     };
     cfg.validate()?;
     let shard = a.shard.unwrap_or(Shard::WHOLE);
