@@ -11,6 +11,7 @@
 mod board;
 mod config;
 
+use controller_core::estimator::EstimatorConfig;
 use controller_core::runtime::{
     ArmingButton, ArmingEvent, ControlLoop, CycleStats, LoopTimer, NoGyro, RunState, TickReport,
     WheelOdometryOnly,
@@ -20,6 +21,9 @@ use defmt::{error, info, unwrap, warn};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_time::{Duration, Instant, Ticker};
+
+/// The runtime with the firmware's pose history.
+type Loop = ControlLoop<{ config::POSE_HISTORY_TICKS }>;
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
@@ -67,8 +71,9 @@ async fn main(spawner: Spawner) {
     info!("gyro: none (the IMU driver is a later step): heading from the wheels");
     info!("pose source: none yet (host link pending): wheel odometry only, blind to slip and actuator faults");
 
+    let estimator = EstimatorConfig::example(cfg.controller.robot.com_offset_m, cfg.initial_pose);
     let (control, timer, button) = match (
-        ControlLoop::new(cfg),
+        Loop::with_estimator(cfg, estimator),
         LoopTimer::from_config(&cfg),
         ArmingButton::new(board::BUTTON_DEBOUNCE_TICKS),
     ) {
@@ -88,7 +93,7 @@ async fn main(spawner: Spawner) {
 #[embassy_executor::task]
 async fn control_task(
     mut b: board::Board,
-    mut cl: ControlLoop,
+    mut cl: Loop,
     mut timer: LoopTimer,
     mut button: ArmingButton,
 ) {

@@ -16,7 +16,8 @@ pub enum EstimatorConfigError {
     InvalidGate,
     /// `gyro_saturation_radps` must be finite and > 0, `gyro_stale_us` > 0.
     InvalidGyroLimit,
-    /// `max_consecutive_outliers` and `standstill_ticks` must be >= 1.
+    /// `max_consecutive_outliers` and `standstill_ticks` must be >= 1, and
+    /// the history at least one tick long.
     InvalidCount,
 }
 
@@ -135,9 +136,8 @@ impl EstimatorConfig {
             self.gyro_bias_walk,
             self.wheel_yaw_noise,
         ];
-        if !noises.iter().all(|&x| pos(x))
-            || !(self.slip_fraction.is_finite() && self.slip_fraction >= 0.0)
-        {
+        let slip_ok = self.slip_fraction.is_finite() && self.slip_fraction >= 0.0;
+        if !(noises.iter().all(|&x| pos(x)) && slip_ok) {
             return Err(EstimatorConfigError::InvalidNoise);
         }
         if !(self.output_smoothing_s.is_finite() && self.output_smoothing_s >= 0.0) {

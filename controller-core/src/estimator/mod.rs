@@ -29,9 +29,12 @@
 //!   constant at most `output_smoothing_s`), so that a low-rate source (UWB
 //!   at 10 Hz) does not hand the controller steps.
 //!
-//! `no_std`, f32, fixed memory (about 25 KB for [`HISTORY_LEN`] = 256
-//! entries), no panics: any non-finite input is refused or replaced, and
+//! `no_std`, f32, fixed memory: 104 bytes per tick of history, chosen at
+//! compile time (`PoseEstimator<H>`; by default [`HISTORY_LEN`] = 256
+//! ticks, 26.6 KB), no panics: any non-finite input is refused or replaced, and
 //! a correction that would make the state non-finite is rolled back.
+
+#![allow(clippy::needless_range_loop)] // small matrices read best indexed
 
 mod config;
 mod types;
@@ -44,8 +47,8 @@ pub use types::{
 use crate::math::{sin_cos, wrap_angle};
 use crate::types::Pose;
 
-/// Ticks of history: the oldest measurement that can still be used is
-/// this many ticks old (256 ms at 1 kHz, above the 250 ms latency bound).
+/// Default ticks of history: the oldest measurement that can still be
+/// used is this many ticks old (256 ms at 1 kHz, above the 250 ms latency bound).
 pub const HISTORY_LEN: usize = 256;
 
 /// State dimension: x, y of O_B, θ, gyro bias, speed scale.
@@ -132,11 +135,11 @@ fn all_finite(x: &[f32; N], p: &Mat) -> bool {
 /// Wheel odometry, a z-gyro and delayed external poses fused in an EKF
 /// with a history buffer; see the [module docs](self).
 #[derive(Clone, Debug)]
-pub struct PoseEstimator {
+pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
     cfg: EstimatorConfig,
     x: [f32; N],
     p: Mat,
-    hist: [Entry; HISTORY_LEN],
+    hist: [Entry; H],
     /// Index of the newest entry.
     head: usize,
     len: usize,
@@ -153,8 +156,20 @@ pub struct PoseEstimator {
 }
 
 impl PoseEstimator {
-    /// Validates `cfg` and starts at its initial pose, bias 0.
+    /// Validates `cfg` and starts at its initial pose, bias 0, with
+    /// [`HISTORY_LEN`] ticks of history.
     pub fn new(cfg: EstimatorConfig) -> Result<Self, EstimatorConfigError> {
+        Self::with_history(cfg)
+    }
+}
+
+impl<const H: usize> PoseEstimator<H> {
+    /// Validates `cfg` and starts at its initial pose, bias 0, with `H`
+    /// (>= 1) ticks of history.
+    pub fn with_history(cfg: EstimatorConfig) -> Result<Self, EstimatorConfigError> {
+        if H == 0 {
+            return Err(EstimatorConfigError::InvalidCount);
+        }
         let cfg = cfg.validate()?;
         let g = cfg.initial_pose;
         let th = wrap_angle(g.theta_rad);
@@ -171,7 +186,7 @@ impl PoseEstimator {
             cfg,
             x,
             p,
-            hist: [Entry::default(); HISTORY_LEN],
+            hist: [Entry::default(); H],
             head: 0,
             len: 0,
             now_us: 0,
@@ -284,9 +299,9 @@ impl PoseEstimator {
         self.head = if self.len == 0 {
             0
         } else {
-            (self.head + 1) % HISTORY_LEN
+            (self.head + 1) % H
         };
-        self.len = (self.len + 1).min(HISTORY_LEN);
+        self.len = (self.len + 1).min(H);
         self.hist[self.head] = Entry {
             stamp_us: now_us,
             x: self.x,
@@ -324,7 +339,7 @@ impl PoseEstimator {
         if (self.now_us.wrapping_sub(m.stamp_us) as i32) < 0 {
             return Err(RejectReason::FromFuture);
         }
-        let oldest = (self.head + HISTORY_LEN + 1 - self.len) % HISTORY_LEN;
+        let oldest = (self.head + H + 1 - self.len) % H;
         if (m.stamp_us.wrapping_sub(self.hist[oldest].stamp_us) as i32) < 0 {
             return Err(RejectReason::TooOld);
         }
@@ -337,20 +352,20 @@ impl PoseEstimator {
         // entry at or before the stamp, then take the closer neighbour.
         let mut back = 0;
         while back + 1 < self.len {
-            let e = &self.hist[(self.head + HISTORY_LEN - back) % HISTORY_LEN];
+            let e = &self.hist[(self.head + H - back) % H];
             if (e.stamp_us.wrapping_sub(m.stamp_us) as i32) <= 0 {
                 break;
             }
             back += 1;
         }
         if back > 0 {
-            let before = self.hist[(self.head + HISTORY_LEN - back) % HISTORY_LEN].stamp_us;
-            let after = self.hist[(self.head + HISTORY_LEN - back + 1) % HISTORY_LEN].stamp_us;
+            let before = self.hist[(self.head + H - back) % H].stamp_us;
+            let after = self.hist[(self.head + H - back + 1) % H].stamp_us;
             if after.wrapping_sub(m.stamp_us) < m.stamp_us.wrapping_sub(before) {
                 back -= 1;
             }
         }
-        let idx = (self.head + HISTORY_LEN - back) % HISTORY_LEN;
+        let idx = (self.head + H - back) % H;
         let e = self.hist[idx];
         let before = self.filter_pose();
         let (mut x, mut p) = (e.x, unpack(&e.p));
@@ -375,7 +390,7 @@ impl PoseEstimator {
         self.hist[idx].p = pack(&p);
         // Re-propagate the later ticks from their stored inputs.
         for k in (0..back).rev() {
-            let i = (self.head + HISTORY_LEN - k) % HISTORY_LEN;
+            let i = (self.head + H - k) % H;
             let input = self.hist[i].input;
             self.x = x;
             self.p = p;
@@ -500,7 +515,7 @@ impl PoseEstimator {
         np[4][4] += cfg.speed_scale_walk * cfg.speed_scale_walk * dt;
         // Bounded growth: scale a row and column whose variance is too big.
         for i in 0..N {
-            if !(np[i][i] <= MAX_VAR[i]) {
+            if np[i][i].is_nan() || np[i][i] > MAX_VAR[i] {
                 let k = if np[i][i].is_finite() {
                     crate::math::sqrt(MAX_VAR[i] / np[i][i])
                 } else {

@@ -65,10 +65,10 @@ impl ArmingButton {
 
     /// One sample of the button (`pressed` = held down now): on a completed
     /// press, applies the policy to `cl` (disarming turns `motors` off).
-    pub fn update(
+    pub fn update<const H: usize>(
         &mut self,
         pressed: bool,
-        cl: &mut ControlLoop,
+        cl: &mut ControlLoop<H>,
         motors: &mut impl MotorDriver,
     ) -> ArmingEvent {
         if !self.press(pressed) {

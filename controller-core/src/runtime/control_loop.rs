@@ -11,19 +11,22 @@ use super::odometry::Odometry;
 use super::state::{ArmError, RunState, Status, StopReason, TickReport};
 use super::timing::TickTiming;
 use crate::controller::{Controller, Diagnostics, StepInput};
-use crate::estimator::{EstimatorConfig, EstimatorStatus, PoseEstimator};
+use crate::estimator::{EstimatorConfig, EstimatorStatus, PoseEstimator, HISTORY_LEN};
 use crate::trajectory::Trajectory;
 use crate::types::Pose;
 
-/// The runtime: encoders, odometry, controller, motor model and supervisor.
+/// The runtime: encoders, pose estimator, controller, motor model and
+/// supervisor. `H` is the estimator's history in ticks (the oldest usable
+/// pose measurement; 104 bytes per tick): [`HISTORY_LEN`] by default, 1
+/// for a robot without an external pose source.
 #[derive(Clone, Debug)]
-pub struct ControlLoop {
+pub struct ControlLoop<const H: usize = HISTORY_LEN> {
     cfg: RuntimeConfig,
     controller: Controller,
     motor: MotorModel,
     counts: WheelCounts,
     odometry: Odometry,
-    estimator: PoseEstimator,
+    estimator: PoseEstimator<H>,
     status: Status,
     stall_ticks: [u16; 2],
     consecutive_input_faults: u16,
@@ -32,12 +35,15 @@ pub struct ControlLoop {
 
 impl ControlLoop {
     /// Validates `cfg` and builds a disarmed loop with the example pose
-    /// estimator ([`EstimatorConfig::example`] at the initial pose).
+    /// estimator ([`EstimatorConfig::example`] at the initial pose) and
+    /// [`HISTORY_LEN`] ticks of history.
     pub fn new(cfg: RuntimeConfig) -> Result<Self, RuntimeConfigError> {
         let est = EstimatorConfig::example(cfg.controller.robot.com_offset_m, cfg.initial_pose);
         Self::with_estimator(cfg, est)
     }
+}
 
+impl<const H: usize> ControlLoop<H> {
     /// Validates `cfg` and `estimator` and builds a disarmed loop.
     pub fn with_estimator(
         cfg: RuntimeConfig,
@@ -52,7 +58,7 @@ impl ControlLoop {
         let counts = WheelCounts::new(cfg.encoder)?;
         cfg.safety.validate()?;
         let odometry = Odometry::new(cfg.controller.robot, cfg.initial_pose);
-        let estimator = PoseEstimator::new(estimator)?;
+        let estimator = PoseEstimator::with_history(estimator)?;
         Ok(Self {
             cfg,
             controller,
@@ -117,7 +123,7 @@ impl ControlLoop {
     }
 
     /// The pose estimator (its estimate, covariance and configuration).
-    pub fn estimator(&self) -> &PoseEstimator {
+    pub fn estimator(&self) -> &PoseEstimator<H> {
         &self.estimator
     }
 
