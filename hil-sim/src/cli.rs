@@ -170,7 +170,12 @@ pub struct ScenarioArgs {
     #[arg(long)]
     pub pose_dropout: Option<f64>,
     /// Outage of the external pose from START to END [s] (e.g. 20,22).
-    #[arg(long, value_name = "START,END", value_delimiter = ',', num_args = 2)]
+    #[arg(
+        long,
+        value_name = "START,END",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     pub pose_outage: Option<Vec<f64>>,
     /// Fraction of external poses that are outliers.
     #[arg(long)]
@@ -259,7 +264,10 @@ impl ScenarioArgs {
             pose_outlier => pose_outlier_m,
         );
         if let Some(w) = &self.pose_outage {
-            scn.pose_outage_s = Some([w[0], w[1]]);
+            match w[..] {
+                [a, b] => scn.pose_outage_s = Some([a, b]),
+                _ => return Err("--pose-outage takes START,END (two numbers)".into()),
+            }
         }
         if let Some(k) = self.k_y {
             scn.k_y = Some(k);
@@ -929,6 +937,51 @@ mod tests {
         };
         let s = a.build().unwrap();
         assert_eq!((s.name.as_str(), s.beta, s.pwm_levels), ("file", 0.02, 255));
+    }
+
+    #[test]
+    fn sensing_flags_override_the_preset() {
+        let cli = parse(&[
+            "run",
+            "--sensing",
+            "uwb",
+            "--pose-rate",
+            "20",
+            "--pose-outage",
+            "20,22",
+            "--gyro-bias",
+            "-0.01",
+        ])
+        .unwrap();
+        let Command::Run(a) = cli.command else {
+            panic!()
+        };
+        let s = a.scenario.build().unwrap();
+        assert_eq!(s.sensing, Sensing::Uwb);
+        assert_eq!(s.pose_rate_hz, Some(20.0));
+        assert_eq!(s.pose_outage_s, Some([20.0, 22.0]));
+        assert_eq!(s.gyro_bias_radps, Some(-0.01));
+        let cli = parse(&["run", "--sensing", "mocap", "--pose-outage", "20"]).unwrap();
+        let Command::Run(a) = cli.command else {
+            panic!()
+        };
+        assert!(a.scenario.build().unwrap_err().contains("START,END"));
+        let e = run_to_string(&["run", "--sensing", "odometry", "--pose-rate", "5"]).unwrap_err();
+        assert!(e.contains("pose_*"), "{e}");
+        let text = run_to_string(&[
+            "run",
+            "--sensing",
+            "mocap",
+            "--duration",
+            "2",
+            "--pose-outlier-fraction",
+            "0.2",
+        ])
+        .unwrap();
+        assert!(
+            text.contains("sensing mocap") && text.contains("outliers injected"),
+            "{text}"
+        );
     }
 
     #[test]
