@@ -476,34 +476,10 @@ impl<const H: usize> PoseEstimator<H> {
         x[0] += dsk * c;
         x[1] += dsk * s;
         x[2] = wrap_angle(x[2] + dth);
-        // F = I + the partial derivatives below.
+        // F = I + the partial derivatives ∂(x, y)/∂θ = (a, b),
+        // ∂(x, y)/∂b = g/2·(a, b), ∂θ/∂b = g, ∂(x, y)/∂k = Δs·(cos, sin).
         let (a, b) = (-dsk * s, dsk * c);
-        let mut f: Mat = [[0.0; N]; N];
-        for (i, row) in f.iter_mut().enumerate() {
-            row[i] = 1.0;
-        }
-        f[0][2] = a;
-        f[1][2] = b;
-        f[0][3] = 0.5 * g * a;
-        f[1][3] = 0.5 * g * b;
-        f[2][3] = g;
-        f[0][4] = ds * c;
-        f[1][4] = ds * s;
-        let p = &self.p;
-        let mut fp = [[0.0f32; N]; N];
-        for i in 0..N {
-            for j in 0..N {
-                fp[i][j] = (0..N).map(|k| f[i][k] * p[k][j]).sum();
-            }
-        }
-        let mut np = [[0.0f32; N]; N];
-        for i in 0..N {
-            for j in i..N {
-                let v: f32 = (0..N).map(|k| fp[i][k] * f[j][k]).sum();
-                np[i][j] = v;
-                np[j][i] = v;
-            }
-        }
+        let mut np = propagate_covariance(&self.p, a, b, g, ds * c, ds * s);
         let v = ds / dt;
         let kv = cfg.slip_fraction * v;
         let nv = cfg.speed_noise_mps_per_sqrt_hz;
@@ -677,6 +653,35 @@ impl<const H: usize> PoseEstimator<H> {
             None => u32::MAX,
         };
     }
+}
+
+/// F·P·Fᵀ for the prediction's F = I + E, E's only non-zero entries being
+/// E\[0\]\[2\] = a, E\[1\]\[2\] = b, E\[0\]\[3\] = g·a/2, E\[1\]\[3\] = g·b/2,
+/// E\[2\]\[3\] = g, E\[0\]\[4\] = kc, E\[1\]\[4\] = ks: rows 0-2 of F·P, then
+/// columns 0-2 of (F·P)·Fᵀ (about 80 multiply-adds instead of 250); the
+/// result is made exactly symmetric.
+fn propagate_covariance(p: &Mat, a: f32, b: f32, g: f32, kc: f32, ks: f32) -> Mat {
+    let (ga, gb) = (0.5 * g * a, 0.5 * g * b);
+    let mut fp = *p;
+    for j in 0..N {
+        let (p2, p3, p4) = (p[2][j], p[3][j], p[4][j]);
+        fp[0][j] = p[0][j] + a * p2 + ga * p3 + kc * p4;
+        fp[1][j] = p[1][j] + b * p2 + gb * p3 + ks * p4;
+        fp[2][j] = p2 + g * p3;
+    }
+    let mut np = fp;
+    for row in np.iter_mut() {
+        let (q2, q3, q4) = (row[2], row[3], row[4]);
+        row[0] += a * q2 + ga * q3 + kc * q4;
+        row[1] += b * q2 + gb * q3 + ks * q4;
+        row[2] = q2 + g * q3;
+    }
+    for i in 0..N {
+        for j in (i + 1)..N {
+            np[j][i] = np[i][j];
+        }
+    }
+    np
 }
 
 fn symmetrise(p: &mut Mat) {
