@@ -23,7 +23,7 @@ fn main() {
         black_box(e.predict(k * 1000, 1e-3, 5e-4, 3e-4, black_box(g)));
     }
     let predict_ns = t0.elapsed().as_nanos() as f64 / n as f64;
-    let mut correct = |latency_ticks: u32, reps: u32| {
+    let correct = |latency_ticks: u32, reps: u32| {
         let mut e = PoseEstimator::new(cfg).unwrap();
         let mut k = 0u32;
         let mut spent = 0u128;
