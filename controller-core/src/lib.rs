@@ -24,6 +24,7 @@ pub mod asmc;
 pub mod controller;
 pub mod error;
 pub mod eso;
+pub mod estimator;
 pub mod fault_observer;
 pub mod governor;
 pub mod health;

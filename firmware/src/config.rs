@@ -67,6 +67,12 @@ pub const MOTOR_INVERTED: [bool; 2] = MIRRORED_LEFT;
 /// latch, first bad input latching.
 pub const SAFETY: SafetyLimits = SafetyLimits::EXAMPLE;
 
+/// Ticks of pose-estimator history (104 bytes each): the oldest external
+/// pose the runtime can still use. 1 while the pose source is empty (the
+/// host link is a later step); 256 (256 ms at 1 kHz) for a source up to
+/// 250 ms late.
+pub const POSE_HISTORY_TICKS: usize = 1;
+
 /// The full runtime configuration; `pwm_full_scale` is the PWM timer's
 /// counts at 100 % duty.
 pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {

@@ -11,8 +11,9 @@
 mod board;
 mod config;
 
+use controller_core::estimator::EstimatorConfig;
 use controller_core::runtime::{
-    ArmingButton, ArmingEvent, ControlLoop, CycleStats, LoopTimer, RunState, TickReport,
+    ArmingButton, ArmingEvent, ControlLoop, CycleStats, LoopTimer, NoGyro, RunState, TickReport,
     WheelOdometryOnly,
 };
 use cortex_m::peripheral::DWT;
@@ -20,6 +21,9 @@ use defmt::{error, info, unwrap, warn};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_time::{Duration, Instant, Ticker};
+
+/// The runtime with the firmware's pose history.
+type Loop = ControlLoop<{ config::POSE_HISTORY_TICKS }>;
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
@@ -64,10 +68,12 @@ async fn main(spawner: Spawner) {
     info!("encoder: {}", cfg.encoder);
     info!("motor: {} inverted {}", cfg.motor, cfg.motor_inverted);
     info!("safety: {}", cfg.safety);
-    info!("pose source: wheel odometry only (slip and actuator faults are invisible to it)");
+    info!("gyro: none (the IMU driver is a later step): heading from the wheels");
+    info!("pose source: none yet (host link pending): wheel odometry only, blind to slip and actuator faults");
 
+    let estimator = EstimatorConfig::example(cfg.controller.robot.com_offset_m, cfg.initial_pose);
     let (control, timer, button) = match (
-        ControlLoop::new(cfg),
+        Loop::with_estimator(cfg, estimator),
         LoopTimer::from_config(&cfg),
         ArmingButton::new(board::BUTTON_DEBOUNCE_TICKS),
     ) {
@@ -87,7 +93,7 @@ async fn main(spawner: Spawner) {
 #[embassy_executor::task]
 async fn control_task(
     mut b: board::Board,
-    mut cl: ControlLoop,
+    mut cl: Loop,
     mut timer: LoopTimer,
     mut button: ArmingButton,
 ) {
@@ -106,6 +112,7 @@ async fn control_task(
         let rep = cl.tick(
             &mut b.encoders,
             &mut b.motors,
+            &mut NoGyro,
             &mut WheelOdometryOnly,
             timing,
         );

@@ -190,6 +190,7 @@ pub fn run_bench(cfg: &BenchConfig) -> BenchReport {
             seed: 1,
             vary_mass: false,
             duration_s: None,
+            sensing: Default::default(),
         },
         &|| {},
     );

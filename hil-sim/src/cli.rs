@@ -127,10 +127,62 @@ pub struct ScenarioArgs {
     /// Run length [s].
     #[arg(long, value_name = "s")]
     pub duration: Option<f64>,
-    /// Between plant and controller: the paper's ideal measurements, or the
-    /// firmware runtime behind simulated encoders and PWM.
+    /// Sensor preset between plant and controller: the paper's ideal
+    /// measurements, or the firmware runtime behind simulated encoders and
+    /// PWM with a gyro (imu) and an external pose (mocap, uwb); the
+    /// --gyro-* and --pose-* flags override the preset (docs/scenario.md).
     #[arg(long, value_enum)]
     pub sensing: Option<Sensing>,
+    /// Gyro noise density [rad/s/√Hz].
+    #[arg(long)]
+    pub gyro_noise_density: Option<f64>,
+    /// Gyro initial bias [rad/s].
+    #[arg(long, value_name = "rad/s", allow_negative_numbers = true)]
+    pub gyro_bias: Option<f64>,
+    /// Gyro bias random walk [rad/s/√s].
+    #[arg(long)]
+    pub gyro_bias_walk: Option<f64>,
+    /// Gyro scale-factor error (0.01 = 1 % high).
+    #[arg(long, allow_negative_numbers = true)]
+    pub gyro_scale_error: Option<f64>,
+    /// Gyro full scale [rad/s].
+    #[arg(long, value_name = "rad/s")]
+    pub gyro_saturation: Option<f64>,
+    /// Gyro output rate [Hz].
+    #[arg(long, value_name = "Hz")]
+    pub gyro_rate: Option<f64>,
+    /// External pose rate [Hz].
+    #[arg(long, value_name = "Hz")]
+    pub pose_rate: Option<f64>,
+    /// External pose latency [s].
+    #[arg(long, value_name = "s")]
+    pub pose_latency: Option<f64>,
+    /// External pose extra latency, uniform in [0, jitter] [s].
+    #[arg(long, value_name = "s")]
+    pub pose_jitter: Option<f64>,
+    /// External pose position noise std. dev. [m].
+    #[arg(long, value_name = "m")]
+    pub pose_std: Option<f64>,
+    /// External pose heading noise std. dev. [rad] (0 = no heading).
+    #[arg(long, value_name = "rad")]
+    pub pose_heading_std: Option<f64>,
+    /// Probability that an external pose is lost.
+    #[arg(long)]
+    pub pose_dropout: Option<f64>,
+    /// Outage of the external pose from START to END [s] (e.g. 20,22).
+    #[arg(
+        long,
+        value_name = "START,END",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    pub pose_outage: Option<Vec<f64>>,
+    /// Fraction of external poses that are outliers.
+    #[arg(long)]
+    pub pose_outlier_fraction: Option<f64>,
+    /// Position error of an outlier [m].
+    #[arg(long, value_name = "m")]
+    pub pose_outlier: Option<f64>,
     /// Firmware sensing: encoder counts per wheel revolution (0 = example's 24000).
     #[arg(long)]
     pub encoder_cpr: Option<u32>,
@@ -210,7 +262,27 @@ impl ScenarioArgs {
             substeps => substeps,
             governor => governor,
             clean_start => clean_start,
+            gyro_noise_density => gyro_noise_density,
+            gyro_bias => gyro_bias_radps,
+            gyro_bias_walk => gyro_bias_walk,
+            gyro_scale_error => gyro_scale_error,
+            gyro_saturation => gyro_saturation_radps,
+            gyro_rate => gyro_rate_hz,
+            pose_rate => pose_rate_hz,
+            pose_latency => pose_latency_s,
+            pose_jitter => pose_jitter_s,
+            pose_std => pose_std_m,
+            pose_heading_std => pose_heading_std_rad,
+            pose_dropout => pose_dropout,
+            pose_outlier_fraction => pose_outlier_fraction,
+            pose_outlier => pose_outlier_m,
         );
+        if let Some(w) = &self.pose_outage {
+            match w[..] {
+                [a, b] => scn.pose_outage_s = Some([a, b]),
+                _ => return Err("--pose-outage takes START,END (two numbers)".into()),
+            }
+        }
         if let Some(k) = self.k_y {
             scn.k_y = Some(k);
         }
@@ -263,6 +335,9 @@ pub struct McArgs {
     /// Run length [s] [default: the paper's 40 s].
     #[arg(long, value_name = "s")]
     pub duration: Option<f64>,
+    /// Sensing preset of every run (docs/scenario.md).
+    #[arg(long, value_enum, default_value = "ideal")]
+    pub sensing: Sensing,
     /// Run only shard I of N (0-based: 0/N … N-1/N), a contiguous block of the run
     /// indices with the same seeds as the unsharded run; write its raw results to
     /// --out (default mc-case<C>-seed<S>-runs<R>-shard<I>of<N>.jsonl) for `merge`.
@@ -502,6 +577,66 @@ s_min: smallest time scale;\ndegr: steps in a degraded health mode; h_tr: health
     text
 }
 
+/// The sensing presets `compare` also shows (Case 2 through the firmware
+/// runtime), after the paper's ideal table.
+pub const COMPARE_SENSING: [Sensing; 2] = [Sensing::Mocap, Sensing::Odometry];
+
+/// Case 2 of `compare` under each of [`COMPARE_SENSING`], the three
+/// controllers in parallel (traced): (preset, scenario, outputs).
+pub fn compare_sensing_runs(
+    seed: u64,
+    beta: Option<f64>,
+    eps: Option<f64>,
+) -> Result<Vec<(Sensing, Scenario, Vec<SimOutput>)>, String> {
+    let scns: Vec<Scenario> = COMPARE_SENSING
+        .iter()
+        .map(|&sensing| Scenario {
+            sensing,
+            ..Scenario::paper_case(2, seed, beta, eps).as_printed()
+        })
+        .collect();
+    let jobs: Vec<(usize, ControllerKind)> = (0..scns.len())
+        .flat_map(|i| ControllerKind::ALL.map(|k| (i, k)))
+        .collect();
+    let outs: Vec<Result<SimOutput, String>> = jobs
+        .par_iter()
+        .map(|&(i, k)| crate::sim::run(&scns[i], k))
+        .collect();
+    let mut outs = outs.into_iter();
+    let mut res = Vec::new();
+    for scn in scns {
+        let runs = outs
+            .by_ref()
+            .take(ControllerKind::ALL.len())
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| format!("case 2, sensing {}: {e}", scn.sensing.name()))?;
+        res.push((scn.sensing, scn, runs));
+    }
+    Ok(res)
+}
+
+/// The sensing block of `compare`: one table of Case 2 per preset and
+/// controller, with the estimator's counts.
+fn compare_sensing_text(results: &[(Sensing, Scenario, Vec<SimOutput>)]) -> String {
+    let rows: Vec<(Vec<String>, crate::Metrics)> = results
+        .iter()
+        .flat_map(|(sensing, _, runs)| {
+            runs.iter().map(move |o| {
+                (
+                    vec![sensing.name().to_string(), o.kind.name().to_string()],
+                    o.metrics.clone(),
+                )
+            })
+        })
+        .collect();
+    let mut text = String::from(
+        "\ncase 2 through the firmware runtime, paper setting (what sensing costs on a robot; docs/scenario.md):\n",
+    );
+    text += &metrics_table(&["sensing", "controller"], &rows);
+    text += "mocap: encoders, gyro, pose at 100 Hz 10 ms late 2 mm / 0.005 rad; odometry: encoders only\n";
+    text
+}
+
 /// `compare`: run, write metrics.json, draw the plots, print (the paper's
 /// setting first, exactly as before the governor existed; then the same
 /// with the governor on, into `metrics_governor.json` and `case<N>_gov_*`);
@@ -510,13 +645,41 @@ fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
     let t0 = std::time::Instant::now();
     let results = compare_runs(a.seed, a.beta, a.eps, false)?;
     let sim_time = t0.elapsed();
+    let sensing = compare_sensing_runs(a.seed, a.beta, a.eps)?;
     let rows = compare_rows(&results);
     let json = compare_json(&rows)?;
     let metrics_path = write_metrics_json(&a.out, &json)?;
+    let sensing_rows: Vec<serde_json::Value> = sensing
+        .iter()
+        .flat_map(|(s, scn, runs)| {
+            runs.iter().map(move |o| {
+                serde_json::json!({
+                    "case": 2,
+                    "sensing": s.name(),
+                    "report": RunReport::new(o.kind, scn, o),
+                })
+            })
+        })
+        .collect();
+    let sensing_json = serde_json::to_string_pretty(&sensing_rows).map_err(|e| e.to_string())?;
+    let sensing_path = a.out.join("metrics_sensing.json");
+    std::fs::write(&sensing_path, format!("{sensing_json}\n"))
+        .map_err(|e| format!("cannot write {}: {e}", sensing_path.display()))?;
     let plots = if a.no_plots {
         Ok(Vec::new())
     } else {
-        draw_compare_plots(&a.out, &results, "")
+        draw_compare_plots(&a.out, &results, "").and_then(|mut p| {
+            for (s, scn, runs) in &sensing {
+                p.push(crate::plot::write_case_plots(
+                    &a.out,
+                    &format!("case2_{}", s.name()),
+                    &format!("{}, sensing {}", case_plot_title(2, scn), s.name()),
+                    scn,
+                    runs,
+                )?);
+            }
+            Ok(p)
+        })
     };
     // The same with the governor (the defaults beyond the paper).
     let gov = compare_runs(a.seed, a.beta, a.eps, true)?;
@@ -539,6 +702,8 @@ fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
             .ok()
             .map(|p| (p.as_slice(), a.out.as_path()));
         compare_text(&results, &rows, sim_time, &metrics_path, plot_files)
+            + &compare_sensing_text(&sensing)
+            + &format!("sensing metrics written to {}\n", sensing_path.display())
             + &beyond_paper_text(&gov_rows, &gov_path, gov_files)
     };
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
@@ -681,6 +846,7 @@ fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
         seed: a.seed,
         vary_mass: a.vary_mass,
         duration_s: a.duration,
+        sensing: a.sensing,
     };
     cfg.validate()?;
     let shard = a.shard.unwrap_or(Shard::WHOLE);
@@ -852,7 +1018,7 @@ mod tests {
         let f = dir.path().join("s.toml");
         std::fs::write(
             &f,
-            "name = \"file\"\nbeta = 0.01\nsensing = \"external-pose\"\npwm_levels = 255\n",
+            "name = \"file\"\nbeta = 0.01\nsensing = \"mocap\"\npwm_levels = 255\npose_rate_hz = 50.0\n",
         )
         .unwrap();
         let a = ScenarioArgs {
@@ -862,6 +1028,51 @@ mod tests {
         };
         let s = a.build().unwrap();
         assert_eq!((s.name.as_str(), s.beta, s.pwm_levels), ("file", 0.02, 255));
+    }
+
+    #[test]
+    fn sensing_flags_override_the_preset() {
+        let cli = parse(&[
+            "run",
+            "--sensing",
+            "uwb",
+            "--pose-rate",
+            "20",
+            "--pose-outage",
+            "20,22",
+            "--gyro-bias",
+            "-0.01",
+        ])
+        .unwrap();
+        let Command::Run(a) = cli.command else {
+            panic!()
+        };
+        let s = a.scenario.build().unwrap();
+        assert_eq!(s.sensing, Sensing::Uwb);
+        assert_eq!(s.pose_rate_hz, Some(20.0));
+        assert_eq!(s.pose_outage_s, Some([20.0, 22.0]));
+        assert_eq!(s.gyro_bias_radps, Some(-0.01));
+        let cli = parse(&["run", "--sensing", "mocap", "--pose-outage", "20"]).unwrap();
+        let Command::Run(a) = cli.command else {
+            panic!()
+        };
+        assert!(a.scenario.build().unwrap_err().contains("START,END"));
+        let e = run_to_string(&["run", "--sensing", "odometry", "--pose-rate", "5"]).unwrap_err();
+        assert!(e.contains("pose_*"), "{e}");
+        let text = run_to_string(&[
+            "run",
+            "--sensing",
+            "mocap",
+            "--duration",
+            "2",
+            "--pose-outlier-fraction",
+            "0.2",
+        ])
+        .unwrap();
+        assert!(
+            text.contains("sensing mocap") && text.contains("outliers injected"),
+            "{text}"
+        );
     }
 
     #[test]

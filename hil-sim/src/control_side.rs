@@ -15,8 +15,13 @@ pub struct Sensed {
     pub step: usize,
     /// Time of the step \[s\].
     pub t_s: f64,
-    /// Pose of G with measurement noise.
+    /// Pose of G with measurement noise (ideal sensing's `pose_noise_m`).
     pub pose: Pose,
+    /// True pose of G \[x m, y m, θ rad\] (for the simulated external
+    /// pose source).
+    pub true_pose: [f64; 3],
+    /// True body yaw rate θ̇ \[rad/s\] (for the simulated gyro).
+    pub yaw_rate_radps: f64,
     /// True wheel angles φ `[right, left]` \[rad\] (for encoders).
     pub wheel_angle_rad: [f64; 2],
     /// True wheel rates φ̇ `[right, left]` \[rad/s\].

@@ -5,18 +5,26 @@
 //! taking integer duty at the scenario's PWM resolution into the runtime's own
 //! DC-motor model, whose torque depends on the wheel speed (back-EMF).
 //!
+//! With the `imu`, `mocap` and `uwb` presets the runtime also gets the
+//! simulated gyro and external pose source of [`sim_robot::sensors`]
+//! ([`crate::sensing`] sets them up).
+//!
 //! Only sensors and actuators are simulated: encoder decoding, speed
-//! estimation, odometry, the controller, torque-to-duty mapping and the
-//! safety supervisor are the code the firmware runs.
+//! estimation, the pose estimator, the controller, torque-to-duty mapping
+//! and the safety supervisor are the code the firmware runs.
 
 use crate::control_side::{Actuation, ControlOutput, ControlSide, Sensed};
 use crate::scenario::{Scenario, Sensing};
+use crate::sensing::SensorSetup;
 use crate::sim::{run_loop, trace_every, SimOutput};
+use controller_core::estimator::{EstimatorConfig, EstimatorStatus, GyroSample, PoseMeasurement};
 use controller_core::runtime::{
-    ControlLoop, LoopTimer, PoseSource, RuntimeConfig, SafetyLimits, StopReason, MIRRORED_LEFT,
+    ControlLoop, Gyro, LoopTimer, PoseSource, RuntimeConfig, SafetyLimits, StopReason,
+    MIRRORED_LEFT,
 };
 use controller_core::{ControllerConfig, ControllerKind, Pose};
-use sim_robot::{MotorDrive, SimDriver, SimEncoders};
+use sim_robot::sensors::PoseSourceStats;
+use sim_robot::{MotorDrive, SimDriver, SimEncoders, SimGyro, SimPoseSource};
 
 /// Options of a HIL run beyond the scenario: safety thresholds and fault
 /// injection. Resolution, sensing and motors come from the [`Scenario`].
@@ -27,6 +35,9 @@ pub struct HilOptions {
     /// Fault injection: from this time \[s\] on, the encoder of wheel
     /// `.0` (0 = right, 1 = left) stops counting (broken wire).
     pub dead_encoder: Option<(usize, f64)>,
+    /// Estimator tuning (None = [`sensing_estimator_config`]); its initial
+    /// pose and centre-of-mass offset are taken from the scenario.
+    pub estimator: Option<EstimatorConfig>,
 }
 
 impl Default for HilOptions {
@@ -34,17 +45,52 @@ impl Default for HilOptions {
         Self {
             safety: SafetyLimits::EXAMPLE,
             dead_encoder: None,
+            estimator: None,
         }
     }
 }
 
-/// The pose measurement of one tick, taken once.
-struct ExternalPose(Option<Pose>);
+/// The preset's gyro, if it has one.
+struct MaybeGyro(Option<SimGyro>);
 
-impl PoseSource for ExternalPose {
-    fn pose(&mut self) -> Option<Pose> {
-        self.0.take()
+impl Gyro for MaybeGyro {
+    fn sample(&mut self) -> Option<GyroSample> {
+        self.0.as_mut().and_then(|g| g.sample())
     }
+}
+
+/// The preset's external pose source, if it has one.
+struct MaybePose(Option<SimPoseSource>);
+
+impl PoseSource for MaybePose {
+    fn measurement(&mut self) -> Option<PoseMeasurement> {
+        self.0.as_mut().and_then(|p| p.measurement())
+    }
+}
+
+/// Seeds of the gyro and pose-source noise, derived from the scenario's.
+const GYRO_SEED_SALT: u64 = 0x6779_726F;
+const POSE_SEED_SALT: u64 = 0x706F_7365;
+
+/// What the sensing did over a run: the estimator's final status and the
+/// pose source's counters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SensingReport {
+    /// The estimator's status at the end of the run.
+    pub estimator: EstimatorStatus,
+    /// The simulated pose source's counters (None without one).
+    pub pose_source: Option<PoseSourceStats>,
+}
+
+/// The estimator tuning for a set of simulated sensors, as a user would
+/// set it from the data sheets: [`EstimatorConfig::example`] with the
+/// gyro's full scale.
+pub fn sensing_estimator_config(sensors: &SensorSetup) -> EstimatorConfig {
+    let mut est = EstimatorConfig::example(0.0, Pose::default());
+    if let Some(g) = sensors.gyro {
+        est.gyro_saturation_radps = g.saturation_radps as f32;
+    }
+    est
 }
 
 /// The runtime as the controller side of [`run_loop`].
@@ -55,7 +101,8 @@ pub struct RuntimeSide {
     timer: LoopTimer,
     encoders: SimEncoders,
     bridge: SimDriver,
-    external_pose: bool,
+    gyro: MaybeGyro,
+    pose_source: MaybePose,
     opts: HilOptions,
     /// First safe stop latched, with the step it happened at.
     pub stop: Option<(usize, StopReason)>,
@@ -68,12 +115,22 @@ impl RuntimeSide {
         controller: ControllerConfig,
         opts: HilOptions,
     ) -> Result<Self, String> {
-        let external_pose = match scn.sensing {
-            Sensing::Ideal => {
-                return Err("the firmware runtime needs sensing = odometry or external-pose".into())
+        if scn.sensing == Sensing::Ideal {
+            return Err("the firmware runtime needs a firmware sensing preset, not ideal".into());
+        }
+        let sensors = SensorSetup::of(scn)?;
+        let gyro = match sensors.gyro {
+            Some(m) => {
+                Some(SimGyro::new(m, scn.seed ^ GYRO_SEED_SALT).map_err(|e| format!("gyro: {e}"))?)
             }
-            Sensing::Odometry => false,
-            Sensing::ExternalPose => true,
+            None => None,
+        };
+        let pose_source = match sensors.pose {
+            Some(m) => Some(
+                SimPoseSource::new(m, scn.seed ^ POSE_SEED_SALT)
+                    .map_err(|e| format!("pose source: {e}"))?,
+            ),
+            None => None,
         };
         let p0 = scn.initial_pose;
         let cfg = RuntimeConfig {
@@ -86,7 +143,13 @@ impl RuntimeSide {
             safety: opts.safety,
             pacing: scn.pacing(),
         };
-        let mut control = ControlLoop::new(cfg).map_err(|e| format!("runtime config: {e}"))?;
+        let mut est = opts
+            .estimator
+            .unwrap_or_else(|| sensing_estimator_config(&sensors));
+        est.com_offset_m = controller.robot.com_offset_m;
+        est.initial_pose = cfg.initial_pose;
+        let mut control =
+            ControlLoop::with_estimator(cfg, est).map_err(|e| format!("runtime config: {e}"))?;
         let timer = LoopTimer::from_config(&cfg).map_err(|e| format!("loop timer: {e}"))?;
         control.arm().map_err(|e| format!("arm: {e:?}"))?;
         Ok(Self {
@@ -94,10 +157,21 @@ impl RuntimeSide {
             timer,
             encoders: SimEncoders::new(&cfg.encoder),
             bridge: SimDriver::default(),
-            external_pose,
+            gyro: MaybeGyro(gyro),
+            pose_source: MaybePose(pose_source),
             opts,
             stop: None,
         })
+    }
+}
+
+impl RuntimeSide {
+    /// What the sensing did so far.
+    pub fn sensing_report(&self) -> SensingReport {
+        SensingReport {
+            estimator: *self.control.estimator_status(),
+            pose_source: self.pose_source.0.as_ref().map(|p| p.stats),
+        }
     }
 }
 
@@ -113,13 +187,23 @@ impl ControlSide for RuntimeSide {
                 self.encoders.kill(wheel);
             }
         }
-        let mut pose = ExternalPose(self.external_pose.then_some(sensed.pose));
-        // A µs counter that wraps, like the firmware's.
+        if let Some(g) = &mut self.gyro.0 {
+            g.update(sensed.t_s, sensed.yaw_rate_radps);
+        }
+        if let Some(p) = &mut self.pose_source.0 {
+            p.update(sensed.t_s, sensed.true_pose);
+        }
+        // A µs counter that wraps, like the firmware's (the sensors stamp
+        // their samples in the same clock).
         let now_us = (sensed.step as u64 * self.timer.period_us() as u64) as u32;
         let timing = self.timer.tick(now_us);
-        let rep = self
-            .control
-            .tick(&mut self.encoders, &mut self.bridge, &mut pose, timing);
+        let rep = self.control.tick(
+            &mut self.encoders,
+            &mut self.bridge,
+            &mut self.gyro,
+            &mut self.pose_source,
+            timing,
+        );
         if let (Some(reason), None) = (rep.stopped, self.stop) {
             self.stop = Some((sensed.step, reason));
         }
@@ -149,9 +233,11 @@ pub struct HilOutput {
     pub sim: SimOutput,
     /// The first safe stop the runtime latched, if any: (step, reason).
     pub stop: Option<(usize, StopReason)>,
+    /// The estimator's status and the pose source's counters at the end.
+    pub sensing: SensingReport,
 }
 
-/// Runs `scn` (firmware sensing) with `controller` through the firmware
+/// Runs `scn` (a firmware sensing preset) with `controller` through the firmware
 /// runtime; a trace every `trace_every` steps (0 = none).
 pub fn run_runtime(
     scn: &Scenario,
@@ -161,14 +247,16 @@ pub fn run_runtime(
 ) -> Result<HilOutput, String> {
     scn.validate()?;
     let mut side = RuntimeSide::new(scn, controller, opts)?;
-    let sim = run_loop(scn, &controller.robot, &mut side, trace_every)?;
+    let mut sim = run_loop(scn, &controller.robot, &mut side, trace_every)?;
+    sim.sensing = Some(side.sensing_report());
     Ok(HilOutput {
         sim,
         stop: side.stop,
+        sensing: side.sensing_report(),
     })
 }
 
-/// Runs `scn` (firmware sensing) with `kind` at the scenario's gains through
+/// Runs `scn` (a firmware sensing preset) with `kind` at the scenario's gains through
 /// the firmware runtime; trace every [`crate::sim::TRACE_PERIOD_S`].
 pub fn run_hil(
     scn: &Scenario,

@@ -20,6 +20,7 @@ pub mod report;
 pub mod rng;
 pub mod scenario;
 pub mod scenario_file;
+pub mod sensing;
 pub mod shard;
 pub mod sim;
 

@@ -11,7 +11,7 @@
 
 use crate::metrics::Metrics;
 use crate::rng::Rng;
-use crate::scenario::Scenario;
+use crate::scenario::{Scenario, Sensing};
 use crate::sim::{controller_config, run_with};
 use controller_core::ControllerKind;
 use rayon::prelude::*;
@@ -223,6 +223,14 @@ pub struct McConfig {
     pub vary_mass: bool,
     /// Run length \[s\]; None = the paper's.
     pub duration_s: Option<f64>,
+    /// Sensing preset of every run (absent from shard files of ideal sweeps,
+    /// so their format is unchanged).
+    #[serde(default, skip_serializing_if = "is_ideal")]
+    pub sensing: Sensing,
+}
+
+fn is_ideal(s: &Sensing) -> bool {
+    *s == Sensing::Ideal
 }
 
 impl McConfig {
@@ -233,6 +241,7 @@ impl McConfig {
         if let Some(d) = self.duration_s {
             scn.duration_s = d;
         }
+        scn.sensing = self.sensing;
         scn
     }
 
@@ -249,12 +258,17 @@ impl McConfig {
     /// seed 1` (printed by `montecarlo` and `merge`).
     pub fn describe(&self) -> String {
         format!(
-            "Monte-Carlo: case {}, {} runs per controller, beta in (0, 0.2) rad/s{}{}{}, base seed {}",
+            "Monte-Carlo: case {}, {} runs per controller, beta in (0, 0.2) rad/s{}{}{}{}, base seed {}",
             self.case,
             self.runs,
             if self.case >= 2 { ", eps in (0.125, 0.25)" } else { "" },
             if self.vary_mass { ", mass scale in [0.8, 1.2]" } else { "" },
             self.duration_s.map_or(String::new(), |d| format!(", {d} s runs")),
+            if self.sensing == Sensing::Ideal {
+                String::new()
+            } else {
+                format!(", sensing {}", self.sensing.name())
+            },
             self.seed,
         )
     }

@@ -198,6 +198,31 @@ pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutpu
     if let Some(f) = m.fault_est_rmse {
         let _ = writeln!(s, "  fault estimate rmse over the window: {f:.4}");
     }
+    if let Some(r) = &out.sensing {
+        let e = &r.estimator;
+        let _ = writeln!(
+            s,
+            "  sensing {}: {} external poses accepted, {} rejected ({} outliers, {} too old, {} out of order), {} resets; gyro {:?}, bias {:.4} rad/s; final std x {:.4} m, θ {:.4} rad",
+            scn.sensing.name(),
+            e.accepted,
+            e.rejected.total(),
+            e.rejected.outlier,
+            e.rejected.too_old,
+            e.rejected.out_of_order,
+            e.resets,
+            e.gyro,
+            e.gyro_bias_radps,
+            e.covariance_diag[0].sqrt(),
+            e.covariance_diag[2].sqrt()
+        );
+        if let Some(p) = &r.pose_source {
+            let _ = writeln!(
+                s,
+                "  pose source: {} taken, {} dropped, {} outliers injected, {} delivered",
+                p.taken, p.dropped, p.outliers, p.delivered
+            );
+        }
+    }
     if out.rejected_steps > 0 {
         let _ = writeln!(
             s,

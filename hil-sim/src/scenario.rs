@@ -6,7 +6,8 @@
 //!
 //! [`Sensing`] chooses what sits between the plant and the controller: the
 //! paper's ideal measurements, or the firmware's runtime behind simulated
-//! encoders and an H-bridge.
+//! encoders, an H-bridge and the preset's gyro and external pose source
+//! ([`crate::sensing`]).
 
 use crate::rng::Rng;
 use controller_core::runtime::{EncoderParams, MotorParams};
@@ -56,7 +57,9 @@ impl TrajectoryKind {
     }
 }
 
-/// What the controller gets from the simulated robot, and how it drives it.
+/// What the controller gets from the simulated robot, and how it drives it:
+/// a named sensor preset (values in [`crate::sensing`] and docs/scenario.md;
+/// each field overridable by the `gyro_*` and `pose_*` keys).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
 pub enum Sensing {
@@ -68,12 +71,40 @@ pub enum Sensing {
     Ideal,
     /// The firmware's runtime behind simulated 16-bit encoders
     /// (`encoder_cpr`, `speed_window_ticks`) and an H-bridge with integer duty
-    /// (`pwm_levels`) into the DC-motor model; pose from wheel odometry only
-    /// (blind to slip and to the actuator fault).
+    /// (`pwm_levels`) into the DC-motor model; the pose from wheel odometry
+    /// only (blind to slip and to the actuator fault).
     Odometry,
-    /// As `odometry`, plus the (noisy) true pose as an external measurement
-    /// every tick.
-    ExternalPose,
+    /// As `odometry`, plus a z-gyro (heading sees skid and slip; position
+    /// still from the wheels).
+    Imu,
+    /// As `imu`, plus motion capture: pose of G at 100 Hz, 10 ms latency,
+    /// 2 mm and 0.005 rad noise.
+    Mocap,
+    /// As `imu`, plus UWB: position at 10 Hz, 100 ms latency, 5 cm noise,
+    /// no heading.
+    Uwb,
+}
+
+impl Sensing {
+    /// Every preset, in the order of the docs.
+    pub const ALL: [Sensing; 5] = [
+        Sensing::Ideal,
+        Sensing::Odometry,
+        Sensing::Imu,
+        Sensing::Mocap,
+        Sensing::Uwb,
+    ];
+
+    /// The preset's name as on the command line and in TOML.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ideal => "ideal",
+            Self::Odometry => "odometry",
+            Self::Imu => "imu",
+            Self::Mocap => "mocap",
+            Self::Uwb => "uwb",
+        }
+    }
 }
 
 /// A complete description of one simulated run (except the controller kind).
@@ -131,6 +162,36 @@ pub struct Scenario {
     pub pose_noise_m: f64,
     /// Std. dev. of the heading measurement noise \[rad\].
     pub heading_noise_rad: f64,
+    /// Gyro noise density \[rad/s/√Hz\] (None = the sensing preset's).
+    pub gyro_noise_density: Option<f64>,
+    /// Gyro initial bias \[rad/s\].
+    pub gyro_bias_radps: Option<f64>,
+    /// Gyro bias random walk \[rad/s/√s\].
+    pub gyro_bias_walk: Option<f64>,
+    /// Gyro scale-factor error (0.01 = 1 % high).
+    pub gyro_scale_error: Option<f64>,
+    /// Gyro full scale \[rad/s\].
+    pub gyro_saturation_radps: Option<f64>,
+    /// Gyro output rate \[Hz\].
+    pub gyro_rate_hz: Option<f64>,
+    /// External pose rate \[Hz\].
+    pub pose_rate_hz: Option<f64>,
+    /// External pose latency \[s\].
+    pub pose_latency_s: Option<f64>,
+    /// External pose extra latency, uniform in \[0, jitter\] \[s\].
+    pub pose_jitter_s: Option<f64>,
+    /// External pose position noise std. dev. \[m\].
+    pub pose_std_m: Option<f64>,
+    /// External pose heading noise std. dev. \[rad\]; 0 = no heading.
+    pub pose_heading_std_rad: Option<f64>,
+    /// Probability that an external pose is lost.
+    pub pose_dropout: Option<f64>,
+    /// No external poses are taken in \[start, end) \[s\].
+    pub pose_outage_s: Option<[f64; 2]>,
+    /// Fraction of external poses that are outliers.
+    pub pose_outlier_fraction: Option<f64>,
+    /// Position error of an outlier \[m\].
+    pub pose_outlier_m: Option<f64>,
     /// Seed for the measurement noise (and for β, ε in the presets).
     pub seed: u64,
     /// Override of the kinematic gain k_y (None = controller default).
@@ -170,6 +231,21 @@ impl Default for Scenario {
             pwm_levels: 0,
             pose_noise_m: 0.0,
             heading_noise_rad: 0.0,
+            gyro_noise_density: None,
+            gyro_bias_radps: None,
+            gyro_bias_walk: None,
+            gyro_scale_error: None,
+            gyro_saturation_radps: None,
+            gyro_rate_hz: None,
+            pose_rate_hz: None,
+            pose_latency_s: None,
+            pose_jitter_s: None,
+            pose_std_m: None,
+            pose_heading_std_rad: None,
+            pose_dropout: None,
+            pose_outage_s: None,
+            pose_outlier_fraction: None,
+            pose_outlier_m: None,
             seed: 1,
             k_y: None,
             governor: true,
@@ -229,7 +305,7 @@ impl Scenario {
         let pos = |x: f64| x.is_finite() && x > 0.0;
         let nonneg = |x: f64| x.is_finite() && x >= 0.0;
         let ideal = self.sensing == Sensing::Ideal;
-        let checks: [(bool, &str); 16] = [
+        let checks: [(bool, &str); 17] = [
             (pos(self.duration_s), "duration_s must be > 0"),
             (
                 pos(self.control_period_s) && self.control_period_s <= 0.1,
@@ -270,7 +346,11 @@ impl Scenario {
             (self.k_y.is_none_or(pos), "k_y must be > 0"),
             (
                 !ideal || (self.encoder_cpr == 0 && self.pwm_levels == 0 && self.speed_window_ticks == 0),
-                "encoder_cpr, pwm_levels and speed_window_ticks need sensing = odometry or external-pose (ideal sensing has no encoders or PWM)",
+                "encoder_cpr, pwm_levels and speed_window_ticks need a firmware sensing preset (ideal sensing has no encoders or PWM)",
+            ),
+            (
+                ideal || (self.pose_noise_m == 0.0 && self.heading_noise_rad == 0.0),
+                "pose_noise_m and heading_noise_rad are the noise of ideal sensing; the external pose of mocap/uwb takes pose_std_m and pose_heading_std_rad",
             ),
             (
                 self.pwm_levels <= u16::MAX as u32,
@@ -279,7 +359,9 @@ impl Scenario {
         ];
         match checks.iter().find(|(ok, _)| !ok) {
             Some((_, msg)) => Err(format!("scenario '{}': {msg}", self.name)),
-            None => Ok(()),
+            None => crate::sensing::SensorSetup::of(self)
+                .map(|_| ())
+                .map_err(|e| format!("scenario '{}': {e}", self.name)),
         }
     }
 

@@ -102,6 +102,21 @@ mod tests {
             wheel_torque_scale: [1.0, 0.5],
             governor: false,
             clean_start: false,
+            gyro_noise_density: Some(1.0),
+            gyro_bias_radps: Some(1.0),
+            gyro_bias_walk: Some(1.0),
+            gyro_scale_error: Some(1.0),
+            gyro_saturation_radps: Some(1.0),
+            gyro_rate_hz: Some(1.0),
+            pose_rate_hz: Some(1.0),
+            pose_latency_s: Some(1.0),
+            pose_jitter_s: Some(1.0),
+            pose_std_m: Some(1.0),
+            pose_heading_std_rad: Some(1.0),
+            pose_dropout: Some(1.0),
+            pose_outage_s: Some([1.0, 2.0]),
+            pose_outlier_fraction: Some(1.0),
+            pose_outlier_m: Some(1.0),
             ..Scenario::default()
         };
         let table: toml::Table = toml::from_str(&to_toml(&full)).unwrap();
@@ -109,6 +124,13 @@ mod tests {
             assert!(
                 doc.contains(&format!("`{key}`")),
                 "docs/scenario.md lacks `{key}`"
+            );
+        }
+        for p in crate::scenario::Sensing::ALL {
+            assert!(
+                doc.contains(&format!("`\"{}\"`", p.name())),
+                "docs lack sensing preset {}",
+                p.name()
             );
         }
         for t in [

@@ -140,8 +140,12 @@ impl ShardHeader {
 
 /// Default shard file name, e.g. `mc-case2-seed1-runs200-shard3of8.jsonl`.
 pub fn default_shard_path(sweep: &McConfig, shard: Shard) -> PathBuf {
+    let sensing = match sweep.sensing {
+        crate::scenario::Sensing::Ideal => String::new(),
+        s => format!("-{}", s.name()),
+    };
     PathBuf::from(format!(
-        "mc-case{}-seed{}-runs{}-shard{}of{}.jsonl",
+        "mc-case{}{sensing}-seed{}-runs{}-shard{}of{}.jsonl",
         sweep.case, sweep.seed, sweep.runs, shard.index, shard.count
     ))
 }
@@ -474,6 +478,7 @@ mod tests {
             seed: 3,
             vary_mass: false,
             duration_s: None,
+            sensing: Default::default(),
         };
         let mut rng = Rng::new(9);
         let mut any = || loop {

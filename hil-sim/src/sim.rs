@@ -84,6 +84,9 @@ pub struct SimOutput {
     pub metrics: Metrics,
     /// Steps the controller rejected (bad input).
     pub rejected_steps: u32,
+    /// Firmware sensing: the estimator's status and the pose source's
+    /// counters at the end (None with ideal sensing).
+    pub sensing: Option<crate::hil::SensingReport>,
 }
 
 /// Controller configuration for a scenario: Table 2 gains plus the scenario's
@@ -208,7 +211,7 @@ pub fn run_with(
             let side = IdealSide::with_pacing(cfg, scn.pacing(), scn.trajectory.reference())?;
             run_loop(scn, &cfg.robot, side, trace_every)
         }
-        Sensing::Odometry | Sensing::ExternalPose => {
+        Sensing::Odometry | Sensing::Imu | Sensing::Mocap | Sensing::Uwb => {
             let opts = crate::hil::HilOptions::default();
             crate::hil::run_runtime(scn, cfg, opts, trace_every).map(|o| o.sim)
         }
@@ -256,6 +259,7 @@ pub fn run_loop(
     let mut perturb = PerturbationGrid::new(perturbations, 0.5 * substep_s);
     let noisy = scn.pose_noise_m != 0.0 || scn.heading_noise_rad != 0.0;
     let (mut last_tau_s, mut last_scale) = (0.0f64, 1.0f64);
+    let ideal = scn.sensing == Sensing::Ideal;
 
     for k in 0..n {
         let t = k as f64 * dt;
@@ -281,6 +285,13 @@ pub fn run_loop(
                 (st.q[1] + noise[1]) as f32,
                 (st.q[2] + noise[2]) as f32,
             ),
+            true_pose: [st.q[0], st.q[1], st.q[2]],
+            // Only the firmware side's gyro needs θ̇ (ideal runs skip the cost).
+            yaw_rate_radps: if ideal {
+                0.0
+            } else {
+                plant.q_dot(&st, &p_now)[2]
+            },
             wheel_angle_rad: [st.q[3], st.q[4]],
             wheel_rate_radps: plant.wheel_rates_radps(&st, &p_now),
             reference: rs,
@@ -366,6 +377,7 @@ pub fn run_loop(
         trace,
         metrics: acc.finish(scn.duration_s, dt),
         rejected_steps: side.rejected_steps(),
+        sensing: None,
     })
 }
 

@@ -4,8 +4,9 @@
 //! (f64 through `libm`; the `std` feature uses the platform's faster
 //! trigonometry): the paper's plant ([`Plant`]: kinematics (3) with slip and
 //! skid, reduced dynamics (6), the actuator fault (10)), the section-4
-//! perturbations ([`PerturbationProfile`]), and the simulated hardware in raw
-//! units ([`SimEncoders`], [`SimDriver`], [`MotorDrive`]).
+//! perturbations ([`PerturbationProfile`]), the simulated hardware in raw
+//! units ([`SimEncoders`], [`SimDriver`], [`MotorDrive`]) and the simulated
+//! gyro and external pose source ([`SimGyro`], [`SimPoseSource`]).
 //!
 //! The host simulator (`hil-sim`), the closed-loop tests, the Cortex-M4F
 //! benchmark and an emulated board drive this same plant. Only sensors and
@@ -22,7 +23,9 @@ pub mod hardware;
 pub mod math;
 pub mod perturbation;
 pub mod plant;
+pub mod sensors;
 
 pub use hardware::{MotorDrive, SimDriver, SimEncoders};
 pub use perturbation::{PerturbationGrid, PerturbationProfile};
 pub use plant::{Drive, Perturbation, Plant, PlantParams, PlantState, TorqueScaled};
+pub use sensors::{GyroModel, PoseSourceModel, SimGyro, SimPoseSource};

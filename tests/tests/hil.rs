@@ -9,13 +9,14 @@ use hil_sim::scenario::Sensing;
 use hil_sim::{run, Scenario};
 
 /// The quantised loop (24 000 counts/rev, 4-tick speed window, 4 800 duty
-/// counts, back-EMF-limited motor) still tracks the paper's Case 1: no safe
-/// stop, window RMS below 10 cm and within 1.5x of the ideal-sensor run.
+/// counts, back-EMF-limited motor) with motion capture (100 Hz, 10 ms late,
+/// 2 mm) and a gyro still tracks the paper's Case 1: no safe stop, window
+/// RMS below 10 cm and within 1.5x of the ideal-sensor run.
 #[test]
 fn quantised_loop_tracks_case1() {
     let ideal_scn = Scenario::paper_case(1, 1, None, None);
     let scn = Scenario {
-        sensing: Sensing::ExternalPose,
+        sensing: Sensing::Mocap,
         ..ideal_scn.clone()
     };
     for kind in ControllerKind::ALL {
@@ -41,11 +42,11 @@ fn quantised_loop_tracks_case1() {
 /// Wheel odometry cannot see the actuator fault (the wheels turn as
 /// commanded; the body does not follow): with odometry only, the proposed
 /// controller's fault estimate stays near zero and the true tracking error in
-/// Case 2 is much larger than with an external pose measurement.
+/// Case 2 is much larger than with motion capture.
 #[test]
 fn odometry_cannot_see_the_actuator_fault() {
     let scn = Scenario {
-        sensing: Sensing::ExternalPose,
+        sensing: Sensing::Mocap,
         ..Scenario::paper_case(2, 1, None, None)
     };
     let ext = run_hil(&scn, ControllerKind::Proposed, HilOptions::default()).unwrap();
@@ -90,7 +91,7 @@ fn odometry_cannot_see_the_actuator_fault() {
 #[test]
 fn dead_encoder_latches_a_safe_stop() {
     let scn = Scenario {
-        sensing: Sensing::ExternalPose,
+        sensing: Sensing::Mocap,
         ..Scenario::paper_case(1, 1, None, None)
     };
     let opts = HilOptions {

@@ -5,7 +5,7 @@
 //! wheel odometry agrees with the truth when nothing slips.
 
 use controller_core::runtime::{
-    ControlLoop, RunState, RuntimeConfig, TickTiming, WheelOdometryOnly,
+    ControlLoop, NoGyro, RunState, RuntimeConfig, TickTiming, WheelOdometryOnly,
 };
 use controller_core::trajectory::{Circle, Reference, Trajectory};
 use controller_core::ControllerKind;
@@ -51,7 +51,13 @@ fn quantized_closed_loop_tracks_a_circle() {
     for k in 0..steps {
         enc.set_angles([st.q[3], st.q[4]]);
         let on_time = TickTiming::on_schedule(1000);
-        let rep = cl.tick(&mut enc, &mut bridge, &mut WheelOdometryOnly, on_time);
+        let rep = cl.tick(
+            &mut enc,
+            &mut bridge,
+            &mut NoGyro,
+            &mut WheelOdometryOnly,
+            on_time,
+        );
         assert_eq!(rep.stopped, None, "tick {k}: {rep:?}");
         let drive = MotorDrive {
             model: *cl.motor_model(),

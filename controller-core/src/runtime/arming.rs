@@ -65,10 +65,10 @@ impl ArmingButton {
 
     /// One sample of the button (`pressed` = held down now): on a completed
     /// press, applies the policy to `cl` (disarming turns `motors` off).
-    pub fn update(
+    pub fn update<const H: usize>(
         &mut self,
         pressed: bool,
-        cl: &mut ControlLoop,
+        cl: &mut ControlLoop<H>,
         motors: &mut impl MotorDriver,
     ) -> ArmingEvent {
         if !self.press(pressed) {
@@ -95,7 +95,9 @@ impl ArmingButton {
 mod tests {
     use super::*;
     use crate::controller::ControllerKind;
-    use crate::runtime::{DutyCommand, RuntimeConfig, StopReason, TickTiming, WheelOdometryOnly};
+    use crate::runtime::{
+        DutyCommand, NoGyro, RuntimeConfig, StopReason, TickTiming, WheelOdometryOnly,
+    };
 
     const N: u16 = 20;
 
@@ -184,14 +186,14 @@ mod tests {
         hold(&mut b, N as u32, &mut cl, &mut d);
         let t = TickTiming::on_schedule(1000);
         let mut enc = [Enc; 2];
-        cl.tick(&mut enc, &mut d, &mut WheelOdometryOnly, t);
+        cl.tick(&mut enc, &mut d, &mut NoGyro, &mut WheelOdometryOnly, t);
         assert!(d.enabled, "armed loop drives the motors");
         assert_eq!(
             hold(&mut b, N as u32, &mut cl, &mut d),
             [(N as u32 - 1, ArmingEvent::Disarmed)]
         );
         assert!(!d.enabled, "disarm turns the driver off at once");
-        cl.tick(&mut enc, &mut d, &mut WheelOdometryOnly, t);
+        cl.tick(&mut enc, &mut d, &mut NoGyro, &mut WheelOdometryOnly, t);
         assert!(!d.enabled);
     }
 

@@ -5,24 +5,29 @@ use super::config::RuntimeConfig;
 use super::encoder::{CountSample, WheelCounts};
 use super::error::RuntimeConfigError;
 use super::hardware::Wheel;
-use super::hardware::{MotorDriver, PoseSource, WheelEncoders};
+use super::hardware::{Gyro, MotorDriver, PoseSource, WheelEncoders, MAX_POSES_PER_TICK};
 use super::motor::{DutyCommand, MotorModel};
 use super::odometry::Odometry;
 use super::state::{ArmError, RunState, Status, StopReason, TickReport};
 use super::timing::TickTiming;
 use crate::controller::{Controller, Diagnostics, StepInput};
-use crate::health::{EstimatorStatus, HealthMode};
+use crate::estimator::{EstimatorConfig, EstimatorStatus, PoseEstimator, HISTORY_LEN};
+use crate::health::{EstimatorStatus as SensingHealth, HealthMode};
 use crate::pacer::{Pacer, PacerState};
 use crate::types::Pose;
 
-/// The runtime: encoders, odometry, controller, motor model and supervisor.
+/// The runtime: encoders, pose estimator, controller, motor model and
+/// supervisor. `H` is the estimator's history in ticks (the oldest usable
+/// pose measurement; 104 bytes per tick): [`HISTORY_LEN`] by default, 1
+/// for a robot without an external pose source.
 #[derive(Clone, Debug)]
-pub struct ControlLoop {
+pub struct ControlLoop<const H: usize = HISTORY_LEN> {
     cfg: RuntimeConfig,
     controller: Controller,
     motor: MotorModel,
     counts: WheelCounts,
     odometry: Odometry,
+    estimator: PoseEstimator<H>,
     status: Status,
     stall_ticks: [u16; 2],
     consecutive_input_faults: u16,
@@ -32,8 +37,21 @@ pub struct ControlLoop {
 }
 
 impl ControlLoop {
-    /// Validates `cfg` and builds a disarmed loop.
+    /// Validates `cfg` and builds a disarmed loop with the example pose
+    /// estimator ([`EstimatorConfig::example`] at the initial pose) and
+    /// [`HISTORY_LEN`] ticks of history.
     pub fn new(cfg: RuntimeConfig) -> Result<Self, RuntimeConfigError> {
+        let est = EstimatorConfig::example(cfg.controller.robot.com_offset_m, cfg.initial_pose);
+        Self::with_estimator(cfg, est)
+    }
+}
+
+impl<const H: usize> ControlLoop<H> {
+    /// Validates `cfg` and `estimator` and builds a disarmed loop.
+    pub fn with_estimator(
+        cfg: RuntimeConfig,
+        estimator: EstimatorConfig,
+    ) -> Result<Self, RuntimeConfigError> {
         let controller = Controller::new(cfg.controller)?;
         cfg.reference.validate()?;
         if !cfg.initial_pose.is_finite() {
@@ -44,6 +62,7 @@ impl ControlLoop {
         cfg.safety.validate()?;
         let odometry = Odometry::new(cfg.controller.robot, cfg.initial_pose);
         let pacer = Pacer::new(cfg.pacing, &cfg.controller)?;
+        let estimator = PoseEstimator::with_history(estimator)?;
         Ok(Self {
             pace: pacer.initial_state(),
             pacer,
@@ -52,6 +71,7 @@ impl ControlLoop {
             motor,
             counts,
             odometry,
+            estimator,
             status: Status {
                 state: RunState::Disarmed,
                 ticks: 0,
@@ -97,14 +117,26 @@ impl ControlLoop {
         self.status.state
     }
 
-    /// Current wheel-odometry pose of G.
+    /// Current plain wheel-odometry pose of G (never corrected).
     pub fn odometry(&self) -> Pose {
         self.odometry.pose()
     }
 
-    /// Re-anchors the odometry at `pose` (ignored when not finite).
+    /// Re-anchors the plain wheel odometry at `pose` (ignored when not
+    /// finite); the estimate is not affected.
     pub fn set_odometry(&mut self, pose: Pose) {
         self.odometry.set_pose(pose);
+    }
+
+    /// The pose estimator (its estimate, covariance and configuration).
+    pub fn estimator(&self) -> &PoseEstimator<H> {
+        &self.estimator
+    }
+
+    /// The estimator's status: covariance, innovations, accepted and
+    /// rejected measurements, gyro state and bias.
+    pub fn estimator_status(&self) -> &EstimatorStatus {
+        self.estimator.status()
     }
 
     /// Starts the controller: from [`RunState::Disarmed`], resets the
@@ -171,7 +203,11 @@ impl ControlLoop {
     /// One control period. `timing` is this tick's measurement by the
     /// loop's [`LoopTimer`](super::LoopTimer): its true elapsed time feeds
     /// the wheel-rate estimate and scales the encoder-jump limit, its
-    /// lateness against the schedule drives the overrun check.
+    /// lateness against the schedule drives the overrun check, and its
+    /// `now_us` is the robot time that gyro samples and pose measurements
+    /// are matched against. `gyro` ([`NoGyro`](super::NoGyro)) and
+    /// `pose_source` ([`WheelOdometryOnly`](super::WheelOdometryOnly)) may
+    /// be absent: the loop runs on the wheels alone.
     ///
     /// Never panics; on any safety violation while running it latches a
     /// stop, disables `motors` and reports the reason in
@@ -180,6 +216,7 @@ impl ControlLoop {
         &mut self,
         encoders: &mut impl WheelEncoders,
         motors: &mut impl MotorDriver,
+        gyro: &mut impl Gyro,
         pose_source: &mut impl PoseSource,
         timing: TickTiming,
     ) -> TickReport {
@@ -193,8 +230,8 @@ impl ControlLoop {
             .controller
             .robot
             .eta_from_wheel_rates(sample.rate_radps);
-        // 3. Pose.
-        let (pose, external_pose) = self.measure_pose(sample.dphi_rad, pose_source);
+        // 3. Pose: the estimator's fusion of wheels, gyro and external poses.
+        let (pose, external_pose) = self.measure_pose(sample.dphi_rad, gyro, pose_source, &timing);
         // 4. Reference and controller, 5. torque -> duty.
         let t_s = self.status.run_ticks as f32 * self.cfg.controller.period_s;
         let reference = self.pacer.reference(&self.pace, &self.cfg.reference, t_s);
@@ -214,7 +251,7 @@ impl ControlLoop {
             // Governor and health (crate::pacer): a hard fault stops.
             pace = self
                 .pacer
-                .update(&mut self.pace, &diag, eta, EstimatorStatus::Ok);
+                .update(&mut self.pace, &diag, eta, SensingHealth::Ok);
             if pace.mode == HealthMode::SafeStop {
                 stop = stop.or(Some(StopReason::Health(pace.reason)));
             }
@@ -242,6 +279,8 @@ impl ControlLoop {
             pose,
             odometry: self.odometry.pose(),
             external_pose,
+            estimate: *self.estimator.estimate(),
+            gyro: self.estimator.status().gyro,
             counts: sample,
             eta,
             reference,
@@ -297,23 +336,39 @@ impl ControlLoop {
         }
     }
 
-    /// Step 3: wheel odometry, replaced (and re-anchored) by an external
-    /// measurement when the source has one. Returns the pose and whether it
-    /// was external.
+    /// Step 3: the estimator predicts from this tick's wheel increments
+    /// and the gyro, then takes up to [`MAX_POSES_PER_TICK`] measurements
+    /// from the pose source (late ones are re-propagated to now). Plain
+    /// odometry runs beside it. Returns the fused pose of G and whether a
+    /// measurement was accepted. The controller's η stays the wheel-derived
+    /// one (D26).
     fn measure_pose(
         &mut self,
         dphi_rad: [f32; 2],
+        gyro: &mut impl Gyro,
         pose_source: &mut impl PoseSource,
+        timing: &TickTiming,
     ) -> (Pose, bool) {
         self.odometry.update(dphi_rad);
-        match pose_source.pose() {
-            Some(p) => {
+        let inc = self.cfg.controller.robot.eta_from_wheel_rates(dphi_rad);
+        self.estimator.predict(
+            timing.now_us,
+            timing.elapsed_s(),
+            inc.v_mps,
+            inc.omega_radps,
+            gyro.sample(),
+        );
+        let mut accepted = false;
+        for _ in 0..MAX_POSES_PER_TICK {
+            let Some(m) = pose_source.measurement() else {
+                break;
+            };
+            if self.estimator.correct(&m).is_ok() {
+                accepted = true;
                 self.status.external_poses = self.status.external_poses.saturating_add(1);
-                self.odometry.set_pose(p);
-                (p, true)
             }
-            None => (self.odometry.pose(), false),
         }
+        (self.estimator.estimate().pose, accepted)
     }
 
     /// Step 4 supervision: input faults (latching after

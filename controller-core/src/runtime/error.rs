@@ -1,6 +1,7 @@
 //! Configuration errors of the runtime.
 
 use crate::error::ConfigError;
+use crate::estimator::EstimatorConfigError;
 
 /// A runtime parameter rejected at construction.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -33,6 +34,14 @@ pub enum RuntimeConfigError {
     NonFiniteInitialPose,
     /// Button debounce must be >= 1 tick.
     InvalidDebounce,
+    /// The pose estimator's configuration is invalid.
+    Estimator(EstimatorConfigError),
+}
+
+impl From<EstimatorConfigError> for RuntimeConfigError {
+    fn from(e: EstimatorConfigError) -> Self {
+        Self::Estimator(e)
+    }
 }
 
 impl From<ConfigError> for RuntimeConfigError {
@@ -45,6 +54,7 @@ impl core::fmt::Display for RuntimeConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         let s = match self {
             Self::Core(e) => return write!(f, "controller: {e}"),
+            Self::Estimator(e) => return write!(f, "{e}"),
             Self::NonPositiveEncoderResolution => "encoder counts per wheel rev must be > 0",
             Self::InvalidSpeedWindow => "speed window must be 1..=32 ticks",
             Self::NonPositiveTorqueConstant => "motor torque constant must be > 0",

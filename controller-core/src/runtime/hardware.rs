@@ -2,7 +2,7 @@
 //! implements them with its registers (or models).
 
 use super::motor::DutyCommand;
-use crate::types::Pose;
+use crate::estimator::{GyroSample, PoseMeasurement};
 
 /// Per wheel `[right, left]`: the usual mounting of a differential drive,
 /// the left motor and encoder mirrored (they turn backwards when the robot
@@ -73,22 +73,46 @@ pub trait MotorDriver {
     fn disable(&mut self);
 }
 
-/// An optional external measurement of the pose of G (motion capture, a
-/// camera, a lidar localiser...). Wheel odometry cannot see wheel slip or an
-/// actuator fault that changes the body's motion, so the fault observer
-/// only works with such a measurement.
-pub trait PoseSource {
-    /// A new measurement taken since the last call, or `None` (then the
-    /// runtime uses wheel odometry).
-    fn pose(&mut self) -> Option<Pose>;
+/// A z-axis rate gyro (the yaw rate of the body, which the wheels do not
+/// see when they slip). Optional: without one the runtime uses the wheels'
+/// yaw rate and says so in the estimator's status.
+pub trait Gyro {
+    /// The latest sample, or `None` when there is none (not fitted, not
+    /// answering). A sample may be repeated; its stamp says how old it is.
+    fn sample(&mut self) -> Option<GyroSample>;
 }
+
+/// No gyro fitted.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoGyro;
+
+impl Gyro for NoGyro {
+    fn sample(&mut self) -> Option<GyroSample> {
+        None
+    }
+}
+
+/// An optional external measurement of the pose of G (motion capture, a
+/// camera, a lidar localiser, UWB...), timestamped when taken, with its
+/// uncertainty. Wheel odometry cannot see wheel slip or an actuator fault
+/// that changes the body's motion, so the fault observer only works with
+/// such a measurement.
+pub trait PoseSource {
+    /// The next measurement not yet delivered, oldest first, or `None`. The
+    /// runtime calls it up to [`MAX_POSES_PER_TICK`] times per tick; the
+    /// estimator uses measurements up to its history length late.
+    fn measurement(&mut self) -> Option<PoseMeasurement>;
+}
+
+/// Most pose measurements the runtime takes from its [`PoseSource`] in one tick.
+pub const MAX_POSES_PER_TICK: usize = 4;
 
 /// The default [`PoseSource`]: never has a measurement (wheel odometry only).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct WheelOdometryOnly;
 
 impl PoseSource for WheelOdometryOnly {
-    fn pose(&mut self) -> Option<Pose> {
+    fn measurement(&mut self) -> Option<PoseMeasurement> {
         None
     }
 }

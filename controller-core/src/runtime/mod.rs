@@ -11,8 +11,10 @@
 //!    deltas ([`count_delta`]), rejects implausible jumps, estimates wheel
 //!    rates over a short window and η = \[v, ω\]
 //!    ([`RobotParams::eta_from_wheel_rates`](crate::RobotParams::eta_from_wheel_rates));
-//! 3. integrates wheel odometry of the tracked point G ([`Odometry`]), or
-//!    takes an external pose from a [`PoseSource`];
+//! 3. estimates the pose of G ([`PoseEstimator`](crate::estimator::PoseEstimator)):
+//!    predicts from the wheels and the [`Gyro`] (if any), corrects with
+//!    the timestamped, possibly late measurements of a [`PoseSource`] (if
+//!    any); plain wheel odometry ([`Odometry`]) runs beside it for reference;
 //! 4. samples the reference at t = (ticks since arming) × period and runs one
 //!    [`Controller::step`](crate::Controller::step);
 //! 5. maps the wheel torques to PWM duty and direction through the motor
@@ -48,7 +50,8 @@ pub use control_loop::ControlLoop;
 pub use encoder::{count_delta, CountSample, EncoderParams, WheelCounts, MAX_SPEED_WINDOW};
 pub use error::RuntimeConfigError;
 pub use hardware::{
-    Encoder, MotorDriver, PoseSource, Wheel, WheelEncoders, WheelOdometryOnly, MIRRORED_LEFT,
+    Encoder, Gyro, MotorDriver, NoGyro, PoseSource, Wheel, WheelEncoders, WheelOdometryOnly,
+    MAX_POSES_PER_TICK, MIRRORED_LEFT,
 };
 pub use motor::{DutyCommand, DutyRequest, MotorModel, MotorParams};
 pub use odometry::Odometry;

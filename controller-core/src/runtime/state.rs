@@ -6,6 +6,7 @@ use super::hardware::Wheel;
 use super::motor::DutyCommand;
 use crate::controller::Diagnostics;
 use crate::error::InputFault;
+use crate::estimator::{Estimate, GyroState};
 use crate::health::HealthReason;
 use crate::pacer::PaceReport;
 use crate::trajectory::RefSample;
@@ -91,7 +92,7 @@ pub struct Status {
     /// Wheel-steps where the duty was clamped (the supply could not deliver
     /// the torque at that speed).
     pub duty_saturated: u32,
-    /// External pose measurements used.
+    /// External pose measurements accepted by the estimator.
     pub external_poses: u32,
     /// Safe stops latched.
     pub stops: u32,
@@ -107,12 +108,17 @@ pub struct TickReport {
     pub stopped: Option<StopReason>,
     /// Reference time of this step \[s\] (ticks since arming × period).
     pub t_s: f32,
-    /// Pose given to the controller (external measurement or odometry).
+    /// Pose given to the controller: the estimator's fused pose of G.
     pub pose: Pose,
-    /// Wheel odometry pose of G (re-anchored on external measurements).
+    /// Plain wheel odometry of G (never corrected), for comparison.
     pub odometry: Pose,
-    /// True when `pose` came from the [`PoseSource`](super::PoseSource).
+    /// True when a measurement from the [`PoseSource`](super::PoseSource)
+    /// was accepted this tick.
     pub external_pose: bool,
+    /// The estimator's output (fused pose, speed, body yaw rate).
+    pub estimate: Estimate,
+    /// What the estimator made of the gyro this tick.
+    pub gyro: GyroState,
     /// Encoder deltas and wheel rates.
     pub counts: CountSample,
     /// Measured η = \[v, ω\] from the wheel rates.

@@ -34,6 +34,9 @@ use super::error::RuntimeConfigError;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TickTiming {
+    /// When this tick started, in the robot's µs clock (the timestamps of
+    /// gyro samples and pose measurements are in the same clock).
+    pub now_us: u32,
     /// True time since the previous tick started \[µs\] (the nominal period
     /// on the first tick).
     pub elapsed_us: u32,
@@ -59,7 +62,13 @@ impl TickTiming {
     /// A tick exactly on schedule for a loop of period `period_us` (for
     /// tests of code that does not care about timing).
     pub const fn on_schedule(period_us: u32) -> Self {
+        Self::on_schedule_at(0, period_us)
+    }
+
+    /// A tick at `now_us`, exactly on schedule for a loop of period `period_us`.
+    pub const fn on_schedule_at(now_us: u32, period_us: u32) -> Self {
         Self {
+            now_us,
             elapsed_us: period_us,
             elapsed_periods: 1,
             lateness_us: 0,
@@ -190,6 +199,7 @@ impl LoopTimer {
         s.max_lateness_us = s.max_lateness_us.max(lateness_us);
         s.max_elapsed_us = s.max_elapsed_us.max(elapsed_us);
         TickTiming {
+            now_us,
             elapsed_us,
             elapsed_periods: elapsed_us.div_ceil(p).max(1),
             lateness_us,
@@ -206,7 +216,7 @@ mod tests {
     use super::*;
     use crate::controller::ControllerKind;
     use crate::runtime::{
-        ControlLoop, DutyCommand, MotorDriver, RunState, StopReason, WheelEncoders,
+        ControlLoop, DutyCommand, MotorDriver, NoGyro, RunState, StopReason, WheelEncoders,
         WheelOdometryOnly,
     };
     use crate::trajectory::{Line, Reference};
@@ -421,7 +431,13 @@ mod tests {
             instants.push(now);
             wheels.t_s = now as f64 * 1e-6;
             let timing = timer.tick(now);
-            let rep = cl.tick(&mut wheels, &mut Driver, &mut WheelOdometryOnly, timing);
+            let rep = cl.tick(
+                &mut wheels,
+                &mut Driver,
+                &mut NoGyro,
+                &mut WheelOdometryOnly,
+                timing,
+            );
             assert_eq!(rep.state, RunState::Disarmed);
             if i > window {
                 let span_s = (now - instants[i - window]) as f64 * 1e-6;
@@ -449,7 +465,7 @@ mod tests {
         let step = |cl: &mut ControlLoop, timer: &mut LoopTimer, w: &mut Wheels, now: u32| {
             w.t_s = now as f64 * 1e-6;
             let timing = timer.tick(now);
-            cl.tick(w, &mut Driver, &mut WheelOdometryOnly, timing)
+            cl.tick(w, &mut Driver, &mut NoGyro, &mut WheelOdometryOnly, timing)
         };
         // 40 rad/s (the example motor's no-load speed): 153 counts per ms,
         // 3056 in the 20 ms stall, beyond the 400 counts/period jump limit.

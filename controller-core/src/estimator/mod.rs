@@ -1,0 +1,728 @@
+//! Pose estimator: wheel odometry and a z-gyro fused with delayed external
+//! pose measurements (an extended Kalman filter with a history buffer).
+//!
+//! State: the axle midpoint O_B = (x, y), the heading θ, the gyro bias
+//! b and the speed scale k (body speed / wheel-derived speed: below 1 when
+//! the wheels slip or an actuator fault holds the body back); the pose of G is O_B + d·\[cos θ, sin θ\] (the same geometry as
+//! [`Odometry`](crate::runtime::Odometry)).
+//!
+//! * **Prediction, every tick** ([`PoseEstimator::predict`]): the distance
+//!   Δs the wheels rolled and the heading change Δθ = (gyro − b)·Δt, or
+//!   the wheels' Δθ when the gyro is absent, stale, saturated or not
+//!   finite ([`GyroState`]); O_B moves by k·Δs along θ + Δθ/2. After
+//!   `standstill_ticks` with both wheels still, the gyro's reading is a
+//!   measurement of its bias (zero-rate update).
+//! * **Correction** ([`PoseEstimator::correct`]): a pose of G taken at
+//!   `stamp_us` (in the robot's clock, up to [`HISTORY_LEN`] ticks ago).
+//!   The filter keeps, per tick, the state, the covariance and the tick's
+//!   inputs. The measurement updates the entry of its timestamp, then the
+//!   later entries are re-propagated from the stored inputs with the same
+//!   arithmetic as the forward prediction, so the estimate at *now* equals
+//!   what it would have been had the measurement arrived on time
+//!   (docs/DECISIONS.md D25). The innovation is gated by its squared
+//!   Mahalanobis distance (chi-square); the heading innovation is wrapped.
+//!   Measurements are used in timestamp order: one older than the last
+//!   accepted is refused ([`RejectReason::OutOfOrder`]).
+//! * **Output** ([`Estimate`]): `filter_pose` is the filter's estimate of G;
+//!   `pose`, for the controller, is the same with each correction's jump
+//!   spread over about two measurement intervals (a decaying offset, time
+//!   constant at most `output_smoothing_s`), so that a low-rate source (UWB
+//!   at 10 Hz) does not hand the controller steps.
+//!
+//! `no_std`, f32, fixed memory: 104 bytes per tick of history, chosen at
+//! compile time (`PoseEstimator<H>`; by default [`HISTORY_LEN`] = 256
+//! ticks, 26.6 KB), no panics: any non-finite input is refused or replaced, and
+//! a correction that would make the state non-finite is rolled back.
+
+#![allow(clippy::needless_range_loop)] // small matrices read best indexed
+
+mod config;
+mod types;
+
+pub use config::{EstimatorConfig, EstimatorConfigError, CHI2_999_2DOF, CHI2_999_3DOF};
+pub use types::{
+    Estimate, EstimatorStatus, GyroSample, GyroState, PoseMeasurement, RejectCounts, RejectReason,
+};
+
+use crate::math::{sin_cos, wrap_angle};
+use crate::types::Pose;
+
+/// Default ticks of history: the oldest measurement that can still be
+/// used is this many ticks old (256 ms at 1 kHz, above the 250 ms latency bound).
+pub const HISTORY_LEN: usize = 256;
+
+/// State dimension: x, y of O_B, θ, gyro bias, speed scale.
+const N: usize = 5;
+/// Largest variances kept \[m², m², rad², (rad/s)², 1\]: without
+/// corrections the covariance grows; beyond these it is scaled down.
+const MAX_VAR: [f32; N] = [1.0e6, 1.0e6, 10.0, 1.0, 0.25];
+/// The speed scale is kept in this range (a wheel-speed ratio).
+const SPEED_SCALE_RANGE: (f32, f32) = (0.2, 1.5);
+/// Packed upper-triangle size.
+const NP: usize = N * (N + 1) / 2;
+/// Smallest diagonal variance kept after a correction (f32 round-off).
+const MIN_VAR: f32 = 1.0e-12;
+/// Largest plausible wheel speed \[m/s\] and yaw rate \[rad/s\]: larger
+/// increments are glitches and are not integrated.
+const MAX_SPEED_MPS: f32 = 50.0;
+const MAX_YAW_RATE_RADPS: f32 = 200.0;
+/// Largest |coordinate| \[m\] and std. dev. \[m or rad\] of a usable
+/// measurement (beyond: implausible, refused).
+const MAX_COORD_M: f32 = 1.0e5;
+const MAX_STD: f32 = 1.0e3;
+/// A correction moving G by more than this (|Δx| + |Δy| \[m\]) is not
+/// smoothed: the output jumps with the filter (a reset, a long outage).
+const MAX_SMOOTHED_JUMP_M: f32 = 0.5;
+/// The output smoothing's time constant in mean measurement intervals.
+const SMOOTHING_INTERVALS: f32 = 2.0;
+/// Gain of the running mean of the measurement interval.
+const INTERVAL_GAIN: f32 = 0.1;
+/// Longest tick the prediction integrates \[s\].
+const MAX_DT_S: f32 = 0.1;
+
+type Mat = [[f32; N]; N];
+
+/// One tick's inputs to the prediction, kept for re-propagation.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Input {
+    dt_s: f32,
+    ds_m: f32,
+    dtheta_wheel_rad: f32,
+    gyro_radps: f32,
+    gyro_used: bool,
+    still: bool,
+}
+
+/// One tick of history: the posterior at `stamp_us` and the inputs that led to it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Entry {
+    stamp_us: u32,
+    x: [f32; N],
+    /// Upper triangle of the covariance, row-major.
+    p: [f32; NP],
+    input: Input,
+}
+
+fn pack(p: &Mat) -> [f32; NP] {
+    let mut t = [0.0; NP];
+    let mut k = 0;
+    for i in 0..N {
+        for j in i..N {
+            t[k] = p[i][j];
+            k += 1;
+        }
+    }
+    t
+}
+
+fn unpack(t: &[f32; NP]) -> Mat {
+    let mut p = [[0.0; N]; N];
+    let mut k = 0;
+    for i in 0..N {
+        for j in i..N {
+            p[i][j] = t[k];
+            p[j][i] = t[k];
+            k += 1;
+        }
+    }
+    p
+}
+
+fn all_finite(x: &[f32; N], p: &Mat) -> bool {
+    x.iter().all(|v| v.is_finite()) && p.iter().flatten().all(|v| v.is_finite())
+}
+
+/// Wheel odometry, a z-gyro and delayed external poses fused in an EKF
+/// with a history buffer; see the [module docs](self).
+#[derive(Clone, Debug)]
+pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
+    cfg: EstimatorConfig,
+    x: [f32; N],
+    p: Mat,
+    hist: [Entry; H],
+    /// Index of the newest entry.
+    head: usize,
+    len: usize,
+    now_us: u32,
+    last_accepted_stamp_us: Option<u32>,
+    consecutive_outliers: u16,
+    still_ticks: u16,
+    estimate: Estimate,
+    status: EstimatorStatus,
+    /// Output offset \[m, m, rad\]: `filter_pose − pose`, decaying.
+    offset: [f32; 3],
+    /// Running mean of the time between accepted measurements \[s\].
+    mean_interval_s: Option<f32>,
+}
+
+impl PoseEstimator {
+    /// Validates `cfg` and starts at its initial pose, bias 0, with
+    /// [`HISTORY_LEN`] ticks of history.
+    pub fn new(cfg: EstimatorConfig) -> Result<Self, EstimatorConfigError> {
+        Self::with_history(cfg)
+    }
+}
+
+impl<const H: usize> PoseEstimator<H> {
+    /// Validates `cfg` and starts at its initial pose, bias 0, with `H`
+    /// (>= 1) ticks of history.
+    pub fn with_history(cfg: EstimatorConfig) -> Result<Self, EstimatorConfigError> {
+        if H == 0 {
+            return Err(EstimatorConfigError::InvalidCount);
+        }
+        let cfg = cfg.validate()?;
+        let g = cfg.initial_pose;
+        let th = wrap_angle(g.theta_rad);
+        let (s, c) = sin_cos(th);
+        let d = cfg.com_offset_m;
+        let x = [g.x_m - d * c, g.y_m - d * s, th, 0.0, 1.0];
+        let mut p = [[0.0; N]; N];
+        p[0][0] = cfg.initial_position_std_m * cfg.initial_position_std_m;
+        p[1][1] = p[0][0];
+        p[2][2] = cfg.initial_heading_std_rad * cfg.initial_heading_std_rad;
+        p[3][3] = cfg.initial_bias_std_radps * cfg.initial_bias_std_radps;
+        p[4][4] = cfg.initial_speed_scale_std * cfg.initial_speed_scale_std;
+        let mut e = Self {
+            cfg,
+            x,
+            p,
+            hist: [Entry::default(); H],
+            head: 0,
+            len: 0,
+            now_us: 0,
+            last_accepted_stamp_us: None,
+            consecutive_outliers: 0,
+            still_ticks: 0,
+            estimate: Estimate::default(),
+            offset: [0.0; 3],
+            mean_interval_s: None,
+            status: EstimatorStatus {
+                since_accepted_us: u32::MAX,
+                ..EstimatorStatus::default()
+            },
+        };
+        e.refresh(&Input::default());
+        Ok(e)
+    }
+
+    /// The validated configuration.
+    pub fn config(&self) -> &EstimatorConfig {
+        &self.cfg
+    }
+
+    /// The estimate at the latest tick.
+    pub fn estimate(&self) -> &Estimate {
+        &self.estimate
+    }
+
+    /// Status for logs and telemetry.
+    pub fn status(&self) -> &EstimatorStatus {
+        &self.status
+    }
+
+    /// The latest tick's time \[µs\].
+    pub fn now_us(&self) -> u32 {
+        self.now_us
+    }
+
+    /// The full covariance at the latest tick (x, y of O_B, θ, bias,
+    /// speed scale).
+    pub fn covariance(&self) -> [[f32; N]; N] {
+        self.p
+    }
+
+    /// One tick: the tick at `now_us` (robot clock) came `dt_s` after the
+    /// previous one; the wheels rolled `ds_m` (axle midpoint) and turned the
+    /// body by `dtheta_wheel_rad`; `gyro` is the latest gyro sample, if any.
+    pub fn predict(
+        &mut self,
+        now_us: u32,
+        dt_s: f32,
+        ds_m: f32,
+        dtheta_wheel_rad: f32,
+        gyro: Option<GyroSample>,
+    ) -> &Estimate {
+        let dt_s = if dt_s.is_finite() && dt_s > 0.0 {
+            dt_s.min(MAX_DT_S)
+        } else {
+            1.0e-3
+        };
+        // Non-finite or physically impossible increments are dropped.
+        let finite = ds_m.abs() <= MAX_SPEED_MPS * dt_s
+            && dtheta_wheel_rad.abs() <= MAX_YAW_RATE_RADPS * dt_s;
+        let (ds_m, dtheta_wheel_rad) = if finite {
+            (ds_m, dtheta_wheel_rad)
+        } else {
+            (0.0, 0.0)
+        };
+        let gyro_state = match gyro {
+            None => GyroState::Absent,
+            Some(g) if !g.rate_radps.is_finite() => GyroState::NonFinite,
+            Some(g) if g.rate_radps.abs() >= self.cfg.gyro_saturation_radps => GyroState::Saturated,
+            Some(g) if now_us.wrapping_sub(g.stamp_us) > self.cfg.gyro_stale_us => GyroState::Stale,
+            Some(_) => GyroState::Ok,
+        };
+        let gyro_used = gyro_state == GyroState::Ok;
+        if ds_m == 0.0 && dtheta_wheel_rad == 0.0 && finite {
+            self.still_ticks = self.still_ticks.saturating_add(1);
+        } else {
+            self.still_ticks = 0;
+        }
+        let input = Input {
+            dt_s,
+            ds_m,
+            dtheta_wheel_rad,
+            gyro_radps: gyro.filter(|_| gyro_used).map_or(0.0, |g| g.rate_radps),
+            gyro_used,
+            still: gyro_used && self.still_ticks >= self.cfg.standstill_ticks,
+        };
+        self.propagate(&input);
+        // The output offset decays with time constant
+        // min(output_smoothing_s, SMOOTHING_INTERVALS × the mean interval
+        // between measurements): a jump is spread over about two intervals.
+        let tau = match self.mean_interval_s {
+            Some(i) => self.cfg.output_smoothing_s.min(SMOOTHING_INTERVALS * i),
+            None => self.cfg.output_smoothing_s,
+        };
+        let decay = if tau > 0.0 {
+            1.0 / (1.0 + dt_s / tau)
+        } else {
+            0.0
+        };
+        for o in &mut self.offset {
+            *o *= decay;
+        }
+        if input.still {
+            self.status.standstill_updates = self.status.standstill_updates.saturating_add(1);
+        }
+        self.now_us = now_us;
+        self.head = if self.len == 0 {
+            0
+        } else {
+            (self.head + 1) % H
+        };
+        self.len = (self.len + 1).min(H);
+        self.hist[self.head] = Entry {
+            stamp_us: now_us,
+            x: self.x,
+            p: pack(&self.p),
+            input,
+        };
+        self.status.gyro = gyro_state;
+        self.refresh(&input);
+        &self.estimate
+    }
+
+    /// Uses the pose measurement `m` (taken at `m.stamp_us`, not after the
+    /// latest tick, not older than the history); `Err` says why not.
+    pub fn correct(&mut self, m: &PoseMeasurement) -> Result<(), RejectReason> {
+        let r = self.try_correct(m);
+        if let Err(reason) = r {
+            self.status.rejected.count(reason);
+        }
+        r
+    }
+
+    fn try_correct(&mut self, m: &PoseMeasurement) -> Result<(), RejectReason> {
+        let heading_finite = m.heading_std_rad.is_none() || m.pose.theta_rad.is_finite();
+        let ok_coord = |v: f32| v.abs() <= MAX_COORD_M; // false for NaN
+        if !(ok_coord(m.pose.x_m) && ok_coord(m.pose.y_m) && heading_finite) {
+            return Err(RejectReason::NonFinite);
+        }
+        let ok_std = |s: f32| s > 0.0 && s <= MAX_STD; // false for NaN
+        if !ok_std(m.position_std_m) || !m.heading_std_rad.is_none_or(ok_std) {
+            return Err(RejectReason::BadStdDev);
+        }
+        if self.len == 0 {
+            return Err(RejectReason::TooOld);
+        }
+        if (self.now_us.wrapping_sub(m.stamp_us) as i32) < 0 {
+            return Err(RejectReason::FromFuture);
+        }
+        let oldest = (self.head + H + 1 - self.len) % H;
+        if (m.stamp_us.wrapping_sub(self.hist[oldest].stamp_us) as i32) < 0 {
+            return Err(RejectReason::TooOld);
+        }
+        if let Some(last) = self.last_accepted_stamp_us {
+            if (m.stamp_us.wrapping_sub(last) as i32) < 0 {
+                return Err(RejectReason::OutOfOrder);
+            }
+        }
+        // The entry nearest in time: walk back from the newest to the first
+        // entry at or before the stamp, then take the closer neighbour.
+        let mut back = 0;
+        while back + 1 < self.len {
+            let e = &self.hist[(self.head + H - back) % H];
+            if (e.stamp_us.wrapping_sub(m.stamp_us) as i32) <= 0 {
+                break;
+            }
+            back += 1;
+        }
+        if back > 0 {
+            let before = self.hist[(self.head + H - back) % H].stamp_us;
+            let after = self.hist[(self.head + H - back + 1) % H].stamp_us;
+            if after.wrapping_sub(m.stamp_us) < m.stamp_us.wrapping_sub(before) {
+                back -= 1;
+            }
+        }
+        let idx = (self.head + H - back) % H;
+        let e = self.hist[idx];
+        let before = self.filter_pose();
+        let (mut x, mut p) = (e.x, unpack(&e.p));
+        let resets = self.status.resets;
+        match self.update(&mut x, &mut p, m, true) {
+            Ok(()) => self.consecutive_outliers = 0,
+            Err(RejectReason::Outlier) => {
+                self.consecutive_outliers = self.consecutive_outliers.saturating_add(1);
+                if self.consecutive_outliers < self.cfg.max_consecutive_outliers {
+                    return Err(RejectReason::Outlier);
+                }
+                // The estimate has drifted (a long outage, a kidnapped robot):
+                // forget the pose, keep the bias, take this measurement.
+                self.reset_pose_covariance(&mut p);
+                self.update(&mut x, &mut p, m, false)?;
+                self.consecutive_outliers = 0;
+                self.status.resets = self.status.resets.saturating_add(1);
+            }
+            Err(r) => return Err(r),
+        }
+        self.hist[idx].x = x;
+        self.hist[idx].p = pack(&p);
+        // Re-propagate the later ticks from their stored inputs.
+        for k in (0..back).rev() {
+            let i = (self.head + H - k) % H;
+            let input = self.hist[i].input;
+            self.x = x;
+            self.p = p;
+            self.propagate(&input);
+            x = self.x;
+            p = self.p;
+            self.hist[i].x = x;
+            self.hist[i].p = pack(&p);
+        }
+        self.x = x;
+        self.p = p;
+        if let Some(last) = self.last_accepted_stamp_us {
+            let dt = m.stamp_us.wrapping_sub(last) as f32 * 1e-6;
+            self.mean_interval_s = Some(match self.mean_interval_s {
+                Some(i) => i + INTERVAL_GAIN * (dt.min(1.0) - i),
+                None => dt.min(1.0),
+            });
+        }
+        self.last_accepted_stamp_us = Some(m.stamp_us);
+        self.status.accepted = self.status.accepted.saturating_add(1);
+        let after = self.filter_pose();
+        let jump = [
+            after.x_m - before.x_m,
+            after.y_m - before.y_m,
+            wrap_angle(after.theta_rad - before.theta_rad),
+        ];
+        let big = jump[0].abs() + jump[1].abs() > MAX_SMOOTHED_JUMP_M;
+        if self.cfg.output_smoothing_s > 0.0 && !big && self.status.resets == resets {
+            for (o, j) in self.offset.iter_mut().zip(jump) {
+                *o += j;
+            }
+            self.offset[2] = wrap_angle(self.offset[2]);
+        } else {
+            self.offset = [0.0; 3];
+        }
+        let input = self.hist[self.head].input;
+        self.refresh(&input);
+        Ok(())
+    }
+
+    /// Position and heading variances to a wide prior, their correlations
+    /// dropped (after `max_consecutive_outliers` gated measurements).
+    fn reset_pose_covariance(&self, p: &mut Mat) {
+        let big = [1.0e4, 1.0e4, 10.0];
+        for i in 0..3 {
+            for j in 0..N {
+                if i != j {
+                    p[i][j] = 0.0;
+                    p[j][i] = 0.0;
+                }
+            }
+            p[i][i] = big[i];
+        }
+    }
+
+    /// The prediction of one tick (also used to re-propagate the history);
+    /// a result that is not finite is dropped (the state is kept).
+    fn propagate(&mut self, u: &Input) {
+        let (x0, p0) = (self.x, self.p);
+        self.propagate_unchecked(u);
+        if !all_finite(&self.x, &self.p) {
+            self.x = x0;
+            self.p = p0;
+        }
+    }
+
+    fn propagate_unchecked(&mut self, u: &Input) {
+        let cfg = &self.cfg;
+        let x = &mut self.x;
+        let dt = u.dt_s;
+        let (dth, g, q_th) = if u.gyro_used {
+            let n = cfg.gyro_noise_density;
+            ((u.gyro_radps - x[3]) * dt, -dt, n * n * dt)
+        } else {
+            let w = u.dtheta_wheel_rad / dt;
+            let k = cfg.slip_fraction * w;
+            let n = cfg.wheel_yaw_noise;
+            (u.dtheta_wheel_rad, 0.0, (n * n + k * k) * dt)
+        };
+        let (s, c) = sin_cos(x[2] + 0.5 * dth);
+        let ds = u.ds_m;
+        let dsk = x[4] * ds;
+        x[0] += dsk * c;
+        x[1] += dsk * s;
+        x[2] = wrap_angle(x[2] + dth);
+        // F = I + the partial derivatives ∂(x, y)/∂θ = (a, b),
+        // ∂(x, y)/∂b = g/2·(a, b), ∂θ/∂b = g, ∂(x, y)/∂k = Δs·(cos, sin).
+        let (a, b) = (-dsk * s, dsk * c);
+        let mut np = propagate_covariance(&self.p, a, b, g, ds * c, ds * s);
+        let v = ds / dt;
+        let kv = cfg.slip_fraction * v;
+        let nv = cfg.speed_noise_mps_per_sqrt_hz;
+        let q_p = (nv * nv + kv * kv) * dt;
+        np[0][0] += q_p;
+        np[1][1] += q_p;
+        np[2][2] += q_th;
+        np[3][3] += cfg.gyro_bias_walk * cfg.gyro_bias_walk * dt;
+        np[4][4] += cfg.speed_scale_walk * cfg.speed_scale_walk * dt;
+        // Bounded growth: scale a row and column whose variance is too big.
+        for i in 0..N {
+            if np[i][i].is_nan() || np[i][i] > MAX_VAR[i] {
+                let k = if np[i][i].is_finite() {
+                    crate::math::sqrt(MAX_VAR[i] / np[i][i])
+                } else {
+                    0.0
+                };
+                for j in 0..N {
+                    np[i][j] *= k;
+                    np[j][i] *= k;
+                }
+                np[i][i] = MAX_VAR[i];
+            }
+        }
+        self.p = np;
+        if u.still {
+            // Zero-rate update: standing still, the gyro reads its bias.
+            let n = cfg.gyro_noise_density;
+            let r = n * n / dt;
+            let s33 = self.p[3][3] + r;
+            let innov = u.gyro_radps - self.x[3];
+            let k: [f32; N] = core::array::from_fn(|i| self.p[i][3] / s33);
+            let row3 = self.p[3];
+            for i in 0..N {
+                self.x[i] += k[i] * innov;
+                for j in 0..N {
+                    self.p[i][j] -= k[i] * row3[j];
+                }
+            }
+            self.x[2] = wrap_angle(self.x[2]);
+            self.x[4] = self.x[4].clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
+            symmetrise(&mut self.p);
+        }
+    }
+
+    /// The EKF update of `(x, p)` with `m`; with `gate`, refuses an
+    /// innovation beyond the chi-square gate. `(x, p)` are untouched on error.
+    fn update(
+        &mut self,
+        x: &mut [f32; N],
+        p: &mut Mat,
+        m: &PoseMeasurement,
+        gate: bool,
+    ) -> Result<(), RejectReason> {
+        let d = self.cfg.com_offset_m;
+        let (s, c) = sin_cos(x[2]);
+        let n = if m.heading_std_rad.is_some() { 3 } else { 2 };
+        let nu = [
+            m.pose.x_m - (x[0] + d * c),
+            m.pose.y_m - (x[1] + d * s),
+            if n == 3 {
+                wrap_angle(m.pose.theta_rad - x[2])
+            } else {
+                0.0
+            },
+        ];
+        // H rows: [1, 0, −d s, 0, 0], [0, 1, d c, 0, 0], [0, 0, 1, 0, 0].
+        let h: [[f32; N]; 3] = [
+            [1.0, 0.0, -d * s, 0.0, 0.0],
+            [0.0, 1.0, d * c, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0, 0.0],
+        ];
+        let mut pht = [[0.0f32; 3]; N];
+        for i in 0..N {
+            for a in 0..n {
+                pht[i][a] = (0..N).map(|k| p[i][k] * h[a][k]).sum();
+            }
+        }
+        let mut sm = [[0.0f32; 3]; 3];
+        for a in 0..n {
+            for b in 0..n {
+                sm[a][b] = (0..N).map(|k| h[a][k] * pht[k][b]).sum();
+            }
+        }
+        let rp = m.position_std_m * m.position_std_m;
+        sm[0][0] += rp;
+        sm[1][1] += rp;
+        if let Some(sh) = m.heading_std_rad {
+            sm[2][2] += sh * sh;
+        }
+        if n == 2 {
+            sm[2][2] = 1.0;
+        }
+        let si = invert3(&sm).ok_or(RejectReason::NonFinite)?;
+        let mut d2 = 0.0;
+        for a in 0..n {
+            for b in 0..n {
+                d2 += nu[a] * si[a][b] * nu[b];
+            }
+        }
+        self.status.last_innovation = nu;
+        self.status.last_mahalanobis_sq = d2;
+        let limit = if n == 3 {
+            self.cfg.chi2_gate_3dof
+        } else {
+            self.cfg.chi2_gate_2dof
+        };
+        if !d2.is_finite() || d2 < 0.0 {
+            return Err(RejectReason::NonFinite);
+        }
+        if gate && d2 > limit {
+            return Err(RejectReason::Outlier);
+        }
+        let mut k = [[0.0f32; 3]; N];
+        for i in 0..N {
+            for a in 0..n {
+                k[i][a] = (0..n).map(|b| pht[i][b] * si[b][a]).sum();
+            }
+        }
+        let mut nx = *x;
+        let mut np = *p;
+        for i in 0..N {
+            nx[i] += (0..n).map(|a| k[i][a] * nu[a]).sum::<f32>();
+            for j in 0..N {
+                // P − K·(P Hᵀ)ᵀ
+                np[i][j] -= (0..n).map(|a| k[i][a] * pht[j][a]).sum::<f32>();
+            }
+        }
+        nx[2] = wrap_angle(nx[2]);
+        nx[4] = nx[4].clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
+        symmetrise(&mut np);
+        for (i, row) in np.iter_mut().enumerate() {
+            row[i] = row[i].max(MIN_VAR);
+        }
+        if !all_finite(&nx, &np) {
+            return Err(RejectReason::NonFinite);
+        }
+        *x = nx;
+        *p = np;
+        Ok(())
+    }
+
+    /// The filter's pose of G.
+    fn filter_pose(&self) -> Pose {
+        let d = self.cfg.com_offset_m;
+        let (s, c) = sin_cos(self.x[2]);
+        Pose::new(self.x[0] + d * c, self.x[1] + d * s, self.x[2])
+    }
+
+    /// The estimate and status from the live state.
+    fn refresh(&mut self, input: &Input) {
+        let g = self.filter_pose();
+        let o = self.offset;
+        let dt = if input.dt_s > 0.0 { input.dt_s } else { 1.0 };
+        let yaw = if input.gyro_used {
+            input.gyro_radps - self.x[3]
+        } else {
+            input.dtheta_wheel_rad / dt
+        };
+        self.estimate = Estimate {
+            pose: Pose::new(g.x_m - o[0], g.y_m - o[1], wrap_angle(g.theta_rad - o[2])),
+            filter_pose: g,
+            v_mps: input.ds_m / dt,
+            yaw_rate_radps: yaw,
+        };
+        self.status.covariance_diag = core::array::from_fn(|i| self.p[i][i]);
+        self.status.gyro_bias_radps = self.x[3];
+        self.status.speed_scale = self.x[4];
+        self.status.since_accepted_us = match self.last_accepted_stamp_us {
+            Some(t) => self.now_us.wrapping_sub(t),
+            None => u32::MAX,
+        };
+    }
+}
+
+/// F·P·Fᵀ for the prediction's F = I + E, E's only non-zero entries being
+/// E\[0\]\[2\] = a, E\[1\]\[2\] = b, E\[0\]\[3\] = g·a/2, E\[1\]\[3\] = g·b/2,
+/// E\[2\]\[3\] = g, E\[0\]\[4\] = kc, E\[1\]\[4\] = ks: rows 0-2 of F·P, then
+/// columns 0-2 of (F·P)·Fᵀ (about 80 multiply-adds instead of 250); the
+/// result is made exactly symmetric.
+fn propagate_covariance(p: &Mat, a: f32, b: f32, g: f32, kc: f32, ks: f32) -> Mat {
+    let (ga, gb) = (0.5 * g * a, 0.5 * g * b);
+    let mut fp = *p;
+    for j in 0..N {
+        let (p2, p3, p4) = (p[2][j], p[3][j], p[4][j]);
+        fp[0][j] = p[0][j] + a * p2 + ga * p3 + kc * p4;
+        fp[1][j] = p[1][j] + b * p2 + gb * p3 + ks * p4;
+        fp[2][j] = p2 + g * p3;
+    }
+    let mut np = fp;
+    for row in np.iter_mut() {
+        let (q2, q3, q4) = (row[2], row[3], row[4]);
+        row[0] += a * q2 + ga * q3 + kc * q4;
+        row[1] += b * q2 + gb * q3 + ks * q4;
+        row[2] = q2 + g * q3;
+    }
+    for i in 0..N {
+        for j in (i + 1)..N {
+            np[j][i] = np[i][j];
+        }
+    }
+    np
+}
+
+fn symmetrise(p: &mut Mat) {
+    for i in 0..N {
+        for j in (i + 1)..N {
+            let v = 0.5 * (p[i][j] + p[j][i]);
+            p[i][j] = v;
+            p[j][i] = v;
+        }
+    }
+}
+
+/// Inverse of a 3x3 matrix by cofactors; `None` when singular or not finite.
+fn invert3(m: &[[f32; 3]; 3]) -> Option<[[f32; 3]; 3]> {
+    let c00 = m[1][1] * m[2][2] - m[1][2] * m[2][1];
+    let c01 = m[1][2] * m[2][0] - m[1][0] * m[2][2];
+    let c02 = m[1][0] * m[2][1] - m[1][1] * m[2][0];
+    let det = m[0][0] * c00 + m[0][1] * c01 + m[0][2] * c02;
+    if !(det.is_finite() && det > 0.0) {
+        return None;
+    }
+    let id = 1.0 / det;
+    let inv = [
+        [
+            c00 * id,
+            (m[0][2] * m[2][1] - m[0][1] * m[2][2]) * id,
+            (m[0][1] * m[1][2] - m[0][2] * m[1][1]) * id,
+        ],
+        [
+            c01 * id,
+            (m[0][0] * m[2][2] - m[0][2] * m[2][0]) * id,
+            (m[0][2] * m[1][0] - m[0][0] * m[1][2]) * id,
+        ],
+        [
+            c02 * id,
+            (m[0][1] * m[2][0] - m[0][0] * m[2][1]) * id,
+            (m[0][0] * m[1][1] - m[0][1] * m[1][0]) * id,
+        ],
+    ];
+    inv.iter().flatten().all(|v| v.is_finite()).then_some(inv)
+}
+
+#[cfg(test)]
+mod tests;
