@@ -153,7 +153,8 @@ pub fn measure_floor(scn: &Scenario, reps: usize) -> Floor {
 
 /// Runs the benchmark.
 pub fn run_bench(cfg: &BenchConfig) -> BenchReport {
-    let scn = Scenario::paper_case(2, 1, None, None);
+    // The paper run (its setting: no governor), as `compare`'s first table.
+    let scn = Scenario::paper_case(2, 1, None, None).as_printed();
     let timings = ControllerKind::ALL
         .iter()
         .map(|&kind| {
@@ -210,7 +211,7 @@ impl fmt::Display for BenchReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "one 40 s paper Case 2 scenario ({} control steps at 1 kHz, {} RK4 sub-step(s)), single thread, {} reps:",
+            "one 40 s paper Case 2 scenario in the paper's setting ({} control steps at 1 kHz, {} RK4 sub-step(s)), single thread, {} reps:",
             self.steps, self.substeps, self.cfg.reps
         )?;
         writeln!(
