@@ -1,16 +1,16 @@
 //! The control loop and its safety supervisor: one [`ControlLoop::tick`] per
 //! control period, from raw encoder counts to motor duty.
 
-use super::config::RuntimeConfig;
+use super::config::{RuntimeConfig, SafetyLimits};
 use super::encoder::{CountSample, WheelCounts};
 use super::error::RuntimeConfigError;
 use super::hardware::Wheel;
 use super::hardware::{MotorDriver, PoseSource, WheelEncoders};
 use super::motor::{DutyCommand, MotorModel};
 use super::odometry::Odometry;
-use super::state::{ArmError, RunState, Status, StopReason, TickReport};
+use super::state::{ArmError, ReconfigureError, RunState, Status, StopReason, TickReport};
 use super::timing::TickTiming;
-use crate::controller::{Controller, Diagnostics, StepInput};
+use crate::controller::{Controller, ControllerConfig, Diagnostics, StepInput};
 use crate::trajectory::Trajectory;
 use crate::types::Pose;
 
@@ -151,6 +151,26 @@ impl ControlLoop {
         self.status.consecutive_overruns = 0;
     }
 
+    /// Replaces the controller configuration (gains, torque limit) and the
+    /// safety limits, validated; refused while running. The controller
+    /// restarts from its initial state; odometry and counters are kept.
+    pub fn reconfigure(
+        &mut self,
+        controller: ControllerConfig,
+        safety: SafetyLimits,
+    ) -> Result<(), ReconfigureError> {
+        if self.running() {
+            return Err(ReconfigureError::Running);
+        }
+        let new = Controller::new(controller)
+            .map_err(|e| ReconfigureError::Invalid(RuntimeConfigError::Core(e)))?;
+        safety.validate().map_err(ReconfigureError::Invalid)?;
+        self.controller = new;
+        self.cfg.controller = controller;
+        self.cfg.safety = safety;
+        Ok(())
+    }
+
     fn latch(&mut self, reason: StopReason) {
         self.status.state = RunState::Stopped(reason);
         self.status.stops = self.status.stops.saturating_add(1);
@@ -176,6 +196,22 @@ impl ControlLoop {
         pose_source: &mut impl PoseSource,
         timing: TickTiming,
     ) -> TickReport {
+        let reference = self.cfg.reference;
+        self.tick_with_reference(encoders, motors, pose_source, timing, &reference)
+    }
+
+    /// [`Self::tick`] tracking `reference` (sampled at the same reference
+    /// time) instead of the configured one: for references that are not a
+    /// compiled-in [`Reference`](crate::trajectory::Reference), such as an
+    /// uploaded trajectory or a velocity command (the host link).
+    pub fn tick_with_reference(
+        &mut self,
+        encoders: &mut impl WheelEncoders,
+        motors: &mut impl MotorDriver,
+        pose_source: &mut impl PoseSource,
+        timing: TickTiming,
+        reference: &impl Trajectory,
+    ) -> TickReport {
         self.status.ticks = self.status.ticks.wrapping_add(1);
         // 1. Loop timing, 2. encoders: the first violation found wins.
         let mut stop = self.check_timing(&timing);
@@ -190,7 +226,7 @@ impl ControlLoop {
         let (pose, external_pose) = self.measure_pose(sample.dphi_rad, pose_source);
         // 4. Reference and controller, 5. torque -> duty.
         let t_s = self.status.run_ticks as f32 * self.cfg.controller.period_s;
-        let reference = self.cfg.reference.sample(t_s);
+        let reference = reference.sample(t_s);
         let mut diag = Diagnostics::default();
         let mut torque = [0.0f32; 2];
         let mut duty = [DutyCommand::ZERO; 2];
