@@ -14,7 +14,6 @@ use crate::rng::Rng;
 use crate::scenario::{Scenario, Sensing};
 use controller_core::trajectory::Trajectory;
 use controller_core::{Controller, ControllerConfig, ControllerKind, Pose, RobotParams, StepInput};
-use serde::Serialize;
 use sim_robot::{PerturbationGrid, Plant, PlantParams, PlantState};
 
 /// Period of the logged trace \[s\] (every control step goes into the metrics).
@@ -25,40 +24,7 @@ pub fn trace_every(scn: &Scenario) -> usize {
     ((TRACE_PERIOD_S / scn.control_period_s).round() as usize).max(1)
 }
 
-/// One logged sample (decimated) for plots and CSV.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct TraceSample {
-    /// Time \[s\].
-    pub t_s: f64,
-    /// Reference x_s, y_s, θ_s.
-    pub ref_pose: [f64; 3],
-    /// True pose of G.
-    pub pose: [f64; 3],
-    /// Position error \[m\].
-    pub pos_err_m: f64,
-    /// World-frame error \[x_s − x, y_s − y\] \[m\].
-    pub err_xy_m: [f64; 2],
-    /// Controller's tracking error \[e_x, e_y, e_θ\].
-    pub e: [f64; 3],
-    /// Measured η \[v, ω\].
-    pub eta: [f64; 2],
-    /// η_c \[v_c, ω_c\].
-    pub eta_c: [f64; 2],
-    /// Applied torque \[right, left\] \[N·m\].
-    pub torque_nm: [f64; 2],
-    /// Sliding variable s.
-    pub s: [f64; 2],
-    /// ρ̂ (K for SMC).
-    pub rho_hat: [f64; 2],
-    /// D̂ = x̂3.
-    pub d_hat: [f64; 2],
-    /// F̂ = \[Δv̂, Δω̂\].
-    pub f_hat: [f64; 2],
-    /// Injected fault F = ε·η.
-    pub f_true: [f64; 2],
-    /// Saturation flag.
-    pub saturated: bool,
-}
+pub use track_log::TraceSample;
 
 /// Result of one run.
 #[derive(Clone, Debug)]

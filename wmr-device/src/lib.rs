@@ -368,6 +368,11 @@ impl Device {
         n
     }
 
+    /// Free space of the receive buffer \[bytes\].
+    pub fn rx_free(&self) -> usize {
+        RX_CAPACITY - self.rx.len()
+    }
+
     /// Moves queued outgoing bytes into `out`; returns how many.
     pub fn pop_tx(&mut self, out: &mut [u8]) -> usize {
         let mut n = 0;
@@ -462,6 +467,7 @@ impl Device {
             }
         }
         let mut rest = &chunk[..n];
+        let mut frame_error_sent = false;
         while !rest.is_empty() {
             let (decoded, r) = self.decoder.feed::<Request>(rest);
             rest = r;
@@ -485,9 +491,12 @@ impl Device {
                     self.link.rx_errors = self.link.rx_errors.saturating_add(1);
                     match seq {
                         Some(seq) => self.answer(seq, Err(error)),
-                        None => {
-                            self.send(&Reply::FrameError { error });
+                        // At most one per tick: a flood of garbage cannot
+                        // crowd telemetry and answers out of the link.
+                        None if !frame_error_sent => {
+                            frame_error_sent = self.send(&Reply::FrameError { error });
                         }
+                        None => {}
                     }
                 }
             }
@@ -828,7 +837,8 @@ impl Device {
                     Some(e) => (self.now_us.wrapping_sub(e) as i32) >= 0,
                     None => true,
                 };
-                if expired && self.velocity.expires_us.is_some() {
+                // No live command (expired, or armed without one): stop.
+                if expired {
                     self.velocity = VelocityCmd::default();
                     self.start_braking(StopCode::VelocityTimeout);
                     return self.reference_for_tick(motors);

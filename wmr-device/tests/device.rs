@@ -447,8 +447,11 @@ fn garbage_is_counted_and_answered_with_frame_errors() {
     let mut rig = Rig::new();
     rig.send_raw(&[1, 2, 3, 0, 0x55, 0x66, 0]);
     rig.tick();
+    rig.send_raw(&[9, 0]);
+    rig.tick();
     let c = rig.dev.counters();
-    assert_eq!(c.rx_errors, 2);
+    assert_eq!(c.rx_errors, 3);
+    // Every dropped frame counted, at most one frame error answered per tick.
     assert_eq!(
         rig.replies
             .iter()

@@ -600,3 +600,26 @@ impl ErrorCode {
         }
     }
 }
+
+/// The built-in shapes by the names of the simulator's `trajectory` key
+/// (`paper`, `circle`, `figure8`, `line`), with the simulator's parameters
+/// (hil-sim tests that both sample the same reference).
+pub fn named_shape(name: &str) -> Option<BuiltinShape> {
+    match name {
+        "paper" => Some(BuiltinShape::PaperCurve {
+            ax_m: 4.0,
+            ay_m: 3.0,
+            w_radps: 0.2,
+        }),
+        "circle" => Some(BuiltinShape::Circle {
+            radius_m: 2.0,
+            speed_mps: 0.5,
+        }),
+        "figure8" => Some(BuiltinShape::FigureEight {
+            amplitude_m: 3.0,
+            w_radps: 0.2,
+        }),
+        "line" => Some(BuiltinShape::Line { speed_mps: 0.5 }),
+        _ => None,
+    }
+}
