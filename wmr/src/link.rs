@@ -142,6 +142,13 @@ impl Link {
         Ok(self.seq)
     }
 
+    /// Writes raw bytes (tests: garbage on the wire).
+    pub fn write_raw(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.port
+            .write_all(bytes)
+            .map_err(|e| LinkError::Io(e.to_string()))
+    }
+
     /// Reads what the port has (waiting at most its read timeout) and
     /// decodes it: answers are returned, streams queued.
     fn poll(&mut self) -> Result<Vec<(u16, Reply)>, LinkError> {
