@@ -201,6 +201,21 @@ mod tests {
     }
 
     #[test]
+    fn the_example_square_parses() {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../trajectories/square.toml"
+        ))
+        .unwrap();
+        let (u, ignored) = parse_upload(&text, "square.toml").unwrap();
+        let Upload::Waypoints(p) = u else { panic!() };
+        assert!(ignored.is_empty());
+        assert_eq!(p.len(), 45);
+        assert_eq!(p.last().unwrap().pose.x_m, 0.0);
+        assert_eq!(segments(&p).len(), 6);
+    }
+
+    #[test]
     fn waypoints_and_errors() {
         let text = "[[waypoints]]\nt_s = 0\npose = [0, 0, 0]\nv_mps = 0\nomega_radps = 0\n\
                     [[waypoints]]\nt_s = 2.0\npose = [1.0, 0, 0]\nv_mps = 0.0\nomega_radps = 0\n";
