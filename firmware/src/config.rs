@@ -12,6 +12,8 @@ use controller_core::runtime::{
 };
 use controller_core::trajectory::{PaperCurve, PaperHeading, Reference, Trajectory};
 use controller_core::{ControllerConfig, ControllerKind, InputLimits, RobotParams};
+use wmr_device::{DeviceConfig, LinkConfig};
+use wmr_protocol::{BuiltinReference, BuiltinShape, PoseMsg};
 
 /// Which of the paper's controllers runs.
 pub const CONTROLLER: ControllerKind = ControllerKind::Proposed;
@@ -83,13 +85,15 @@ pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {
         period_s: 1.0 / crate::board::CONTROL_HZ as f32,
         input_limits: InputLimits::default(),
     };
-    // The paper's reference curve; odometry starts on its initial pose, so
-    // place the robot there (x = 4 m, y = 3 m from the origin, facing +x).
+    // The host link supplies the reference (boot state hold): this one is
+    // never driven, it only completes the runtime's configuration.
+    // Odometry starts at the origin facing +x.
     let reference = Reference::Paper(PaperCurve::paper(PaperHeading::SignedSmooth));
+    let _ = reference.sample(0.0);
     RuntimeConfig {
         controller,
         reference,
-        initial_pose: reference.sample(0.0).pose,
+        initial_pose: controller_core::Pose::new(0.0, 0.0, 0.0),
         encoder: ENCODER,
         motor: MotorParams {
             duty_full_scale: pwm_full_scale,
@@ -97,5 +101,39 @@ pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {
         },
         motor_inverted: MOTOR_INVERTED,
         safety: SAFETY,
+    }
+}
+
+/// What the arm button drives when the host has loaded nothing: a circle of
+/// 0.5 m radius at 0.2 m/s starting where odometry starts (the origin,
+/// facing +x), counter-clockwise. Not the paper's curve: that one reaches
+/// about 2 m/s (upload it with `wmr upload` when the robot has room).
+pub const BUTTON_REFERENCE: BuiltinReference = BuiltinReference {
+    shape: BuiltinShape::Circle {
+        radius_m: 0.5,
+        speed_mps: 0.2,
+    },
+    start: Some(PoseMsg {
+        x_m: 0.0,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    }),
+    speed_scale: 1.0,
+};
+
+/// Link settings: 500 ms link-silence timeout while moving under host
+/// control, velocity-command limits, braking deceleration, telemetry off
+/// until the host asks (`LinkConfig::DEFAULT`).
+pub const LINK: LinkConfig = LinkConfig::DEFAULT;
+
+/// The host link handler's configuration.
+pub fn device_config() -> DeviceConfig {
+    DeviceConfig {
+        chip: crate::board::CHIP_ID,
+        capabilities: wmr_protocol::CAP_EXTERNAL_POSE
+            | wmr_protocol::CAP_TRAJECTORY
+            | wmr_protocol::CAP_VELOCITY,
+        link: LINK,
+        button_reference: Some(BUTTON_REFERENCE),
     }
 }

@@ -10,22 +10,22 @@
 
 mod board;
 mod config;
+mod link;
 
-use controller_core::runtime::{
-    ArmingButton, ArmingEvent, ControlLoop, CycleStats, LoopTimer, RunState, TickReport,
-    WheelOdometryOnly,
-};
+use controller_core::runtime::{ArmingButton, CycleStats, LoopTimer, WheelOdometryOnly};
 use cortex_m::peripheral::DWT;
-use defmt::{error, info, unwrap, warn};
+use defmt::{error, info, unwrap};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_time::{Duration, Instant, Ticker};
+use wmr_device::Device;
+use wmr_protocol::RunStateMsg;
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     // Motor lines defined low before the clocks start (HSE start, PLL lock).
     board::outputs_low_early();
-    let board = board::init();
+    let mut board = board::init();
 
     // DWT cycle counter for the control step's execution time.
     let mut cp = unwrap!(cortex_m::Peripherals::take());
@@ -58,84 +58,107 @@ async fn main(spawner: Spawner) {
         board::WATCHDOG_TIMEOUT_US,
         board::TELEMETRY_DECIMATION
     );
-    info!("controller: {}", cfg.controller);
-    info!("reference: {}", cfg.reference);
-    info!("initial pose: {}", cfg.initial_pose);
-    info!("encoder: {}", cfg.encoder);
-    info!("motor: {} inverted {}", cfg.motor, cfg.motor_inverted);
-    info!("safety: {}", cfg.safety);
+    info!("reference: from the host (wmr upload / drive); button: a circle of 0.5 m radius at 0.2 m/s from the start pose");
+    // The full configuration (the host link shows it too: `wmr params get`).
+    #[cfg(feature = "rtt-telemetry")]
+    {
+        info!("controller: {}", cfg.controller);
+        info!("initial pose: {}", cfg.initial_pose);
+        info!("encoder: {}", cfg.encoder);
+        info!("motor: {} inverted {}", cfg.motor, cfg.motor_inverted);
+        info!("safety: {}", cfg.safety);
+    }
     info!("pose source: wheel odometry only (slip and actuator faults are invisible to it)");
 
-    let (control, timer, button) = match (
-        ControlLoop::new(cfg),
+    let (device, timer, button) = match (
+        Device::new(config::device_config(), cfg),
         LoopTimer::from_config(&cfg),
         ArmingButton::new(board::BUTTON_DEBOUNCE_TICKS),
     ) {
-        (Ok(c), Ok(t), Ok(b)) => (c, t, b),
-        (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => {
+        (Ok(d), Ok(t), Ok(b)) => (d, t, b),
+        _ => {
             // Never armed: motors stay off, the watchdog is not started.
-            error!("invalid configuration: {}; motors stay disabled", e);
+            error!("invalid configuration; motors stay disabled");
             loop {
                 cortex_m::asm::wfi();
             }
         }
     };
-    info!("state: DISARMED (motors off). Press the button to arm.");
-    spawner.spawn(unwrap!(control_task(board, control, timer, button)));
+    match board.link.take() {
+        Some(p) => {
+            link::start(&spawner, p);
+            info!(
+                "host link: wmr-protocol {=u16}",
+                wmr_protocol::PROTOCOL_VERSION
+            );
+        }
+        None => error!("host link off (no USB clock on the HSI)"),
+    }
+    info!("state: HOLD (motors off). Load a reference with wmr and arm, or press the button (slow circle).");
+    spawner.spawn(unwrap!(control_task(board, device, timer, button)));
 }
 
 #[embassy_executor::task]
 async fn control_task(
     mut b: board::Board,
-    mut cl: ControlLoop,
+    mut dev: Device,
     mut timer: LoopTimer,
     mut button: ArmingButton,
 ) {
     let mut ticker = Ticker::every(Duration::from_hz(board::CONTROL_HZ));
     b.watchdog.unleash();
     let mut cycles = CycleStats::new();
-    let mut state = cl.state();
+    let mut state = dev.state();
     let mut n: u32 = 0;
     loop {
         // Late ticks arrive back to back; the timer measures them against
         // the schedule t0 + n·1 ms and gives the runtime the true dt.
         ticker.next().await;
-        let timing = timer.tick(Instant::now().as_micros() as u32);
+        let now_us = Instant::now().as_micros() as u32;
+        let timing = timer.tick(now_us);
 
+        // Host link: bytes in and out through bounded pipes, never waiting.
+        link::receive(&mut dev);
         let c0 = DWT::cycle_count();
-        let rep = cl.tick(
+        let rep = dev.tick(
+            now_us,
             &mut b.encoders,
             &mut b.motors,
             &mut WheelOdometryOnly,
             timing,
         );
         cycles.record(DWT::cycle_count().wrapping_sub(c0));
+        link::transmit(&mut dev);
         b.watchdog.pet();
 
-        // Operator button: arm / disarm / clear a latched stop.
-        if let ArmingEvent::ArmRefused(e) =
-            button.update(b.button.pressed(), &mut cl, &mut b.motors)
-        {
-            warn!("arm refused: {}", e);
+        // Operator button: arm / disarm / clear a latched stop, without a host.
+        if button.press(b.button.pressed()) {
+            dev.button_pressed(&mut b.motors);
         }
         if let Some(reason) = rep.stopped {
             error!("SAFE STOP latched: {} (motors disabled)", reason);
         }
-        if cl.state() != state {
-            state = cl.state();
+        if dev.state() != state {
+            state = dev.state();
             match state {
-                RunState::Running => info!("state: RUNNING (reference t = 0)"),
-                RunState::Disarmed => info!("state: DISARMED (motors off)"),
-                RunState::Stopped(r) => error!("state: STOPPED {} (press button to reset)", r),
+                RunStateMsg::Running => info!("state: RUNNING (reference t = 0)"),
+                RunStateMsg::Stopping => info!("state: STOPPING (controlled stop)"),
+                RunStateMsg::Hold => info!("state: HOLD (motors off)"),
+                RunStateMsg::Stopped => error!("state: STOPPED (press the button or `wmr clear`)"),
             }
         }
 
         n = n.wrapping_add(1);
+        // RTT telemetry (opt-in: the host link carries telemetry, `wmr record`).
+        #[cfg(feature = "rtt-telemetry")]
         if n % board::TELEMETRY_DECIMATION == 0 {
             telemetry(&rep, &mut cycles);
         }
+        #[cfg(not(feature = "rtt-telemetry"))]
+        let _ = (&rep, &mut cycles);
+        #[cfg(feature = "rtt-telemetry")]
         if n % board::CONTROL_HZ as u32 == 0 {
-            let s = cl.status();
+            let s = dev.control().status();
             let t = timer.stats();
             info!(
                 "status ticks={=u32} run={=u32} overruns={=u32} late={=u32} max_late_us={=u32} max_loop_us={=u32} enc_jumps={=u32} input_faults={=u32} tau_sat={=u32} duty_sat={=u32} stops={=u32}",
@@ -156,7 +179,8 @@ async fn control_task(
 }
 
 /// Two decimated lines: tracking (`trk`) and estimates/timing (`est`).
-fn telemetry(r: &TickReport, cycles: &mut CycleStats) {
+#[cfg(feature = "rtt-telemetry")]
+fn telemetry(r: &controller_core::runtime::TickReport, cycles: &mut CycleStats) {
     let d = &r.diag;
     let p = &r.pose;
     info!(

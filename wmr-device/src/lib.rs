@@ -49,9 +49,9 @@ use wmr_protocol::{
 };
 
 /// Receive buffer \[bytes\].
-pub const RX_CAPACITY: usize = 512;
+pub const RX_CAPACITY: usize = 256;
 /// Send buffer \[bytes\].
-pub const TX_CAPACITY: usize = 2048;
+pub const TX_CAPACITY: usize = 1024;
 /// Received bytes decoded per tick at most (bounded work per tick; 128 kB/s
 /// at 1 kHz, above a 921 600 baud UART).
 pub const RX_BYTES_PER_TICK: usize = 128;
@@ -160,8 +160,9 @@ impl core::fmt::Display for DeviceConfigError {
     }
 }
 
-/// What the robot drives when armed.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// What the robot drives when armed (compared with `matches!`: a derived
+/// `PartialEq` would compare the references' floats, and cost flash).
+#[derive(Clone, Copy, Debug)]
 enum Mode {
     None,
     Builtin(PlacedReference),
@@ -438,7 +439,7 @@ impl Device {
             RunState::Running => self.disarm(motors, StopCode::Disarmed),
             RunState::Stopped(_) => self.control.reset(),
             RunState::Disarmed => {
-                if self.mode == Mode::None {
+                if matches!(self.mode, Mode::None) {
                     if let Some(p) = self
                         .cfg
                         .button_reference
@@ -454,6 +455,8 @@ impl Device {
         self.report_state();
     }
 
+    // Out of line: one copy (smaller firmware; the call costs nothing here).
+    #[inline(never)]
     fn process_rx(&mut self, motors: &mut impl MotorDriver) {
         let mut chunk = [0u8; RX_BYTES_PER_TICK];
         let mut n = 0;
@@ -573,6 +576,8 @@ impl Device {
         self.control.status().run_ticks as f32 * self.period_s
     }
 
+    // Out of line: one copy (smaller firmware; the call costs nothing here).
+    #[inline(never)]
     fn handle(&mut self, seq: u16, req: Request, motors: &mut impl MotorDriver) -> Answer {
         match req {
             Request::Hello { .. } => Ok(Some(self.hello(seq))),
@@ -648,7 +653,7 @@ impl Device {
                 points,
             } => {
                 let running = self.control.state() == RunState::Running;
-                if running && self.mode != Mode::Trajectory {
+                if running && !matches!(self.mode, Mode::Trajectory) {
                     return Err(ErrorCode::WrongMode);
                 }
                 let now = running.then(|| self.ref_time_s());
@@ -745,7 +750,7 @@ impl Device {
         self.control.disarm(motors);
         self.braking = None;
         self.velocity = VelocityCmd::default();
-        if self.mode == Mode::Trajectory && !self.waypoints.ready() {
+        if matches!(self.mode, Mode::Trajectory) && !self.waypoints.ready() {
             self.mode = Mode::None;
         }
         if was_running {
@@ -875,6 +880,8 @@ impl Device {
         }
     }
 
+    // Out of line: one copy (smaller firmware; the call costs nothing here).
+    #[inline(never)]
     fn telemetry(&mut self, rep: &TickReport) {
         let rate = self.cfg.link.telemetry_rate_hz;
         if rate == 0 {
@@ -953,6 +960,8 @@ impl Device {
         }
     }
 
+    // Out of line: one copy (smaller firmware; the call costs nothing here).
+    #[inline(never)]
     fn set_param(&mut self, id: ParamId, value: f32) -> Result<(), ErrorCode> {
         if !value.is_finite() {
             return Err(ErrorCode::InvalidValue);
