@@ -137,3 +137,60 @@ pub fn report(a: &ReportArgs, out: &mut dyn Write) -> Result<(), String> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::cli::{execute, Cli};
+    use crate::scenario::Scenario;
+    use clap::Parser;
+    use controller_core::ControllerKind;
+
+    /// `hil-sim report` of a CSV logged at every control step gives the
+    /// simulation's own metrics (same accumulator, same values); a file that
+    /// is not a trace is a clear error.
+    #[test]
+    fn report_of_a_full_trace_csv_equals_the_run() {
+        let scn = Scenario {
+            duration_s: 6.0,
+            window_s: [2.0, 4.0],
+            ..Scenario::paper_case(1, 2, None, None)
+        };
+        let cfg = crate::sim::controller_config(&scn, ControllerKind::Asmc);
+        let out = crate::sim::run_with(&scn, cfg, 1).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("t.csv");
+        let f = std::fs::File::create(&csv).unwrap();
+        crate::report::write_trace_csv(std::io::BufWriter::new(f), &out.trace).unwrap();
+        let cli = Cli::try_parse_from([
+            "hil-sim",
+            "report",
+            csv.to_str().unwrap(),
+            "--window",
+            "2",
+            "4",
+            "--controller",
+            "asmc",
+            "--no-plots",
+            "--json",
+        ])
+        .unwrap();
+        let mut buf = Vec::new();
+        execute(&cli, &mut buf).unwrap();
+        let m: crate::Metrics = serde_json::from_slice(&buf).unwrap();
+        let s = &out.metrics;
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * (1.0 + b.abs());
+        assert!(close(m.rms_pos_err_m, s.rms_pos_err_m));
+        assert!(close(m.rms_pos_err_window_m, s.rms_pos_err_window_m));
+        assert!(close(m.torque_rms_nm, s.torque_rms_nm));
+        assert!(close(m.chatter, s.chatter));
+
+        std::fs::write(dir.path().join("bad.csv"), "a,b\n").unwrap();
+        let bad = dir.path().join("bad.csv");
+        let cli = Cli::try_parse_from(["hil-sim", "report", bad.to_str().unwrap()]).unwrap();
+        let e = execute(&cli, &mut Vec::new()).unwrap_err();
+        assert!(
+            e.contains("bad.csv") && e.contains("not a trace CSV"),
+            "{e}"
+        );
+    }
+}

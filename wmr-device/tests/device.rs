@@ -615,3 +615,132 @@ proptest! {
         }
     }
 }
+
+/// One request of every kind (valid where the state allows it).
+fn one_of_each() -> Vec<Request> {
+    vec![
+        Request::Hello { version: 1 },
+        Request::GetStatus,
+        Request::Arm,
+        Request::Disarm,
+        Request::EmergencyStop,
+        Request::ClearStop,
+        Request::SetPose(PoseMsg::default()),
+        Request::ExternalPose {
+            t_robot_us: 0,
+            pose: PoseMsg::default(),
+            std_dev: [0.01; 3],
+        },
+        Request::ClockSync { host_time_us: 5 },
+        circle(),
+        Request::TrajectoryBegin { total_points: 2 },
+        Request::TrajectorySegment {
+            first_index: 0,
+            points: heapless::Vec::new(),
+        },
+        Request::Velocity {
+            v_mps: 0.1,
+            omega_radps: 0.0,
+            timeout_ms: 100,
+        },
+        Request::GetParam(ParamId::Ky),
+        Request::SetParam {
+            id: ParamId::Ky,
+            value: 20.0,
+        },
+        Request::SetTelemetry {
+            selection: TELEMETRY_ALL,
+            rate_hz: 10,
+        },
+    ]
+}
+
+/// Brings a fresh rig into `state`.
+fn rig_in(state: RunStateMsg) -> Rig {
+    let mut rig = Rig::new();
+    match state {
+        RunStateMsg::Hold => {}
+        RunStateMsg::Running => {
+            rig.request(&circle(), 1000);
+            rig.request(&Request::Arm, 1001);
+        }
+        RunStateMsg::Stopping => {
+            rig.request(&circle(), 1000);
+            rig.request(&Request::Arm, 1001);
+            while rig.dev.state() != RunStateMsg::Stopping {
+                rig.tick(); // link silence
+            }
+        }
+        RunStateMsg::Stopped => {
+            rig.request(&circle(), 1000);
+            rig.request(&Request::Arm, 1001);
+            rig.request(&Request::EmergencyStop, 1002);
+        }
+    }
+    assert_eq!(rig.dev.state(), state);
+    rig
+}
+
+/// Every kind of request in every state: exactly one answer, the
+/// invariants of `Rig::tick` on every tick, and the state rules: arming
+/// only from hold with a mode, configuration refused while moving, a latched
+/// stop left only through a clear.
+#[test]
+fn every_request_in_every_state() {
+    let reqs = one_of_each();
+    assert_eq!(reqs.len(), 16, "one of each Request variant");
+    for state in [
+        RunStateMsg::Hold,
+        RunStateMsg::Running,
+        RunStateMsg::Stopping,
+        RunStateMsg::Stopped,
+    ] {
+        for (i, req) in reqs.iter().enumerate() {
+            let mut rig = rig_in(state);
+            let seq = 2000 + i as u16;
+            let answer = rig.request(req, seq);
+            let refused = nack(&answer);
+            let after = rig.dev.state();
+            match (state, req) {
+                (RunStateMsg::Hold, Request::Arm) => {
+                    assert_eq!(refused, Some(ErrorCode::NoReference))
+                }
+                (RunStateMsg::Stopped, Request::Arm) => {
+                    assert_eq!(refused, Some(ErrorCode::Latched))
+                }
+                (RunStateMsg::Stopping, Request::Arm) => {
+                    assert_eq!(refused, Some(ErrorCode::Busy))
+                }
+                (RunStateMsg::Running | RunStateMsg::Stopping, Request::SetParam { .. })
+                | (RunStateMsg::Running | RunStateMsg::Stopping, Request::SetPose(_))
+                | (RunStateMsg::Running | RunStateMsg::Stopping, Request::SetReference(_))
+                | (RunStateMsg::Running | RunStateMsg::Stopping, Request::TrajectoryBegin { .. }) =>
+                {
+                    assert_eq!(refused, Some(ErrorCode::Busy), "{state:?} {req:?}")
+                }
+                (_, Request::EmergencyStop) => {
+                    assert_eq!(refused, None);
+                    assert_eq!(after, RunStateMsg::Stopped);
+                }
+                (RunStateMsg::Stopped, Request::ClearStop) => {
+                    assert_eq!(refused, None);
+                    assert_eq!(after, RunStateMsg::Hold);
+                }
+                (_, Request::Disarm) => {
+                    assert_eq!(refused, None);
+                    assert!(matches!(after, RunStateMsg::Hold | RunStateMsg::Stopped));
+                }
+                _ => {}
+            }
+            if state == RunStateMsg::Stopped && !matches!(req, Request::ClearStop) {
+                assert_eq!(after, RunStateMsg::Stopped, "{req:?} left the latched stop");
+            }
+            if state == RunStateMsg::Hold && !matches!(req, Request::Arm) {
+                assert!(
+                    !matches!(after, RunStateMsg::Running | RunStateMsg::Stopping),
+                    "{req:?} moved the robot"
+                );
+            }
+        }
+    }
+}
