@@ -631,3 +631,36 @@ fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(
     writeln!(out, "{sent} poses sent, {refused} refused").map_err(io)?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pose_lines() {
+        let std = [0.01, 0.02, 0.03];
+        assert_eq!(
+            parse_pose_line("1.5 -2 0.25", std).unwrap(),
+            Some(([1.5, -2.0, 0.25], std))
+        );
+        assert_eq!(
+            parse_pose_line("1,2,3, 0.1,0.1,0.2 # mocap", std).unwrap(),
+            Some(([1.0, 2.0, 3.0], [0.1, 0.1, 0.2]))
+        );
+        assert_eq!(parse_pose_line("  # comment", std).unwrap(), None);
+        assert!(parse_pose_line("1 2", std).unwrap_err().contains("expected"));
+        assert!(parse_pose_line("x y z", std).unwrap_err().contains("not numbers"));
+    }
+
+    #[test]
+    fn one_line_errors() {
+        let e = LinkError::Nack("Arm".into(), ErrorCode::NoReference);
+        assert_eq!(
+            e.to_string(),
+            "the robot refused Arm: no reference, trajectory or velocity command loaded"
+        );
+        let e = Link::open("/dev/no-such-port", Duration::from_millis(10)).err().unwrap();
+        assert_eq!(e.to_string(), "no such port: /dev/no-such-port");
+        assert!(!LinkError::NoAnswer("Hello".into()).to_string().contains('\n'));
+    }
+}
