@@ -648,8 +648,12 @@ mod tests {
             Some(([1.0, 2.0, 3.0], [0.1, 0.1, 0.2]))
         );
         assert_eq!(parse_pose_line("  # comment", std).unwrap(), None);
-        assert!(parse_pose_line("1 2", std).unwrap_err().contains("expected"));
-        assert!(parse_pose_line("x y z", std).unwrap_err().contains("not numbers"));
+        assert!(parse_pose_line("1 2", std)
+            .unwrap_err()
+            .contains("expected"));
+        assert!(parse_pose_line("x y z", std)
+            .unwrap_err()
+            .contains("not numbers"));
     }
 
     #[test]
@@ -659,8 +663,12 @@ mod tests {
             e.to_string(),
             "the robot refused Arm: no reference, trajectory or velocity command loaded"
         );
-        let e = Link::open("/dev/no-such-port", Duration::from_millis(10)).err().unwrap();
+        let e = Link::open("/dev/no-such-port", Duration::from_millis(10))
+            .err()
+            .unwrap();
         assert_eq!(e.to_string(), "no such port: /dev/no-such-port");
-        assert!(!LinkError::NoAnswer("Hello".into()).to_string().contains('\n'));
+        assert!(!LinkError::NoAnswer("Hello".into())
+            .to_string()
+            .contains('\n'));
     }
 }
