@@ -60,8 +60,9 @@ pub struct UploadArgs {
     /// Reference file (TOML).
     #[arg(value_name = "FILE.toml")]
     pub file: PathBuf,
-    /// Arm after loading (and stream waypoints beyond the robot's buffer while
-    /// running).
+    /// Arm after loading, stream waypoints beyond the robot's buffer while
+    /// running, and keep the link alive until the run ends (Ctrl-C: the robot
+    /// brakes to a stop after link_timeout_ms).
     #[arg(long)]
     pub arm: bool,
 }
@@ -285,7 +286,12 @@ fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
             writeln!(out, "reference loaded: {:?}", r.shape).map_err(io)?;
             if a.arm {
                 link.command(&Request::Arm)?;
-                writeln!(out, "armed").map_err(io)?;
+                writeln!(
+                    out,
+                    "armed; the robot runs while wmr runs (Ctrl-C: it brakes to a stop)"
+                )
+                .map_err(io)?;
+                keep_alive_until_stop(link, out)?;
             }
         }
         Upload::Waypoints(pts) => {
@@ -320,6 +326,7 @@ fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
                     ));
                 }
                 writeln!(out, "all {} waypoints streamed", pts.len()).map_err(io)?;
+                keep_alive_until_stop(link, out)?;
             }
         }
     }
@@ -339,6 +346,34 @@ fn wait_for_stop(link: &mut Link, within: Duration) -> Result<Option<Event>, Lin
         }
     }
     Ok(None)
+}
+
+/// Keeps the link alive (a frame every 100 ms) until the robot reports hold
+/// or a latched stop, and prints why.
+fn keep_alive_until_stop(link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
+    let t0 = Instant::now();
+    let mut last_ping = Instant::now();
+    loop {
+        if last_ping.elapsed() >= Duration::from_millis(100) {
+            link.send(&Request::ClockSync {
+                host_time_us: host_us(t0),
+            })?;
+            last_ping = Instant::now();
+        }
+        if let Some(Reply::Event(Event::StateChanged {
+            state: state @ (RunStateMsg::Hold | RunStateMsg::Stopped),
+            cause,
+        })) = link.next_stream(Duration::from_millis(20))?
+        {
+            writeln!(
+                out,
+                "stopped: {state:?} ({})",
+                cause.map_or_else(|| "-".into(), |c| format!("{c:?}"))
+            )
+            .map_err(io)?;
+            return Ok(());
+        }
+    }
 }
 
 fn drive(a: &DriveArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
