@@ -40,6 +40,13 @@ compile_error!("select exactly one chip feature: stm32f411ce or stm32f446re");
 #[cfg(not(any(feature = "stm32f411ce", feature = "stm32f446re")))]
 compile_error!("select a chip feature: stm32f411ce (default) or stm32f446re");
 
+/// Chip name for the host link's handshake (at most 16 bytes).
+#[cfg(feature = "stm32f411ce")]
+pub const CHIP_ID: &str = "stm32f411ce";
+/// Chip name for the host link's handshake (at most 16 bytes).
+#[cfg(feature = "stm32f446re")]
+pub const CHIP_ID: &str = "stm32f446re";
+
 /// Chip name for the banner.
 #[cfg(feature = "stm32f411ce")]
 pub const CHIP: &str = "STM32F411CE (Black Pill), HSE 25 MHz -> SYSCLK 96 MHz";
@@ -50,11 +57,13 @@ pub const CHIP: &str = "STM32F446RE (Nucleo-64), HSE 8 MHz bypass -> SYSCLK 168 
 /// Core clock \[Hz\] (DWT cycle counts are in these cycles); the same on
 /// the HSI fallback.
 #[cfg(feature = "stm32f411ce")]
+#[allow(dead_code)] // used by the `rtt-telemetry` lines
 pub const SYSCLK_HZ: u32 = 96_000_000;
 /// Core clock \[Hz\] (DWT cycle counts are in these cycles); the same on
 /// the HSI fallback. 168 MHz rather than the chip's 180 MHz so that the
 /// main PLL's Q output gives the 48 MHz USB clock (see [`clock_config`]).
 #[cfg(feature = "stm32f446re")]
+#[allow(dead_code)] // used by the `rtt-telemetry` lines
 pub const SYSCLK_HZ: u32 = 168_000_000;
 
 /// HSE mode: a 25 MHz crystal on the Black Pill.
@@ -285,6 +294,8 @@ pub struct Board {
     pub button: ArmButton,
     /// Independent watchdog (configured, not yet started).
     pub watchdog: IndependentWatchdog<'static, IWDG>,
+    /// The host link's port (USB OTG_FS on the F411, USART2 on the F446).
+    pub link: Option<crate::link::LinkPeripherals>,
 }
 
 /// Drives the motor outputs low with raw register writes, before anything
@@ -406,6 +417,19 @@ pub fn init() -> Board {
     let button = ArmButton(Input::new(p.PC13, Pull::Up));
 
     let watchdog = IndependentWatchdog::new(p.IWDG, WATCHDOG_TIMEOUT_US);
+    // USB needs the 48 MHz clock within ±0.25 %: not on the HSI fallback.
+    #[cfg(feature = "stm32f411ce")]
+    let link = (clock == ClockSource::Hse).then(|| crate::link::LinkPeripherals {
+        otg: p.USB_OTG_FS,
+        dp: p.PA12,
+        dm: p.PA11,
+    });
+    #[cfg(feature = "stm32f446re")]
+    let link = Some(crate::link::LinkPeripherals {
+        usart: p.USART2,
+        tx: p.PA2,
+        rx: p.PA3,
+    });
 
     Board {
         clock,
@@ -418,6 +442,7 @@ pub fn init() -> Board {
         },
         button,
         watchdog,
+        link,
     }
 }
 

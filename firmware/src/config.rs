@@ -12,6 +12,8 @@ use controller_core::runtime::{
 };
 use controller_core::trajectory::{PaperCurve, PaperHeading, Reference, Trajectory};
 use controller_core::{ControllerConfig, ControllerKind, InputLimits, RobotParams};
+use wmr_device::{DeviceConfig, LinkConfig};
+use wmr_protocol::{BuiltinReference, BuiltinShape, PoseMsg};
 
 /// Which of the paper's controllers runs.
 pub const CONTROLLER: ControllerKind = ControllerKind::Proposed;
@@ -68,10 +70,12 @@ pub const MOTOR_INVERTED: [bool; 2] = MIRRORED_LEFT;
 pub const SAFETY: SafetyLimits = SafetyLimits::EXAMPLE;
 
 /// Ticks of pose-estimator history (104 bytes each): the oldest external
-/// pose the runtime can still use. 1 while the pose source is empty (the
-/// host link is a later step); 256 (256 ms at 1 kHz) for a source up to
-/// 250 ms late.
-pub const POSE_HISTORY_TICKS: usize = 1;
+/// pose (sent over the host link, `wmr pose-feed`) the runtime can still
+/// use, in ms at 1 kHz. 16 fits the 16 KiB static-RAM budget next to the
+/// link's buffers and covers motion capture (about 10 ms late); a source up
+/// to 250 ms late (UWB, a lidar localiser) needs 256 (26.6 KB: a chip with
+/// more RAM, or the history stored every few ticks).
+pub const POSE_HISTORY_TICKS: usize = 16;
 
 /// The full runtime configuration; `pwm_full_scale` is the PWM timer's
 /// counts at 100 % duty.
@@ -91,13 +95,15 @@ pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {
         period_s: 1.0 / crate::board::CONTROL_HZ as f32,
         input_limits: InputLimits::default(),
     };
-    // The paper's reference curve; odometry starts on its initial pose, so
-    // place the robot there (x = 4 m, y = 3 m from the origin, facing +x).
+    // The host link supplies the reference (boot state hold): this one is
+    // never driven, it only completes the runtime's configuration.
+    // Odometry starts at the origin facing +x.
     let reference = Reference::Paper(PaperCurve::paper(PaperHeading::SignedSmooth));
+    let _ = reference.sample(0.0);
     RuntimeConfig {
         controller,
         reference,
-        initial_pose: reference.sample(0.0).pose,
+        initial_pose: controller_core::Pose::new(0.0, 0.0, 0.0),
         encoder: ENCODER,
         motor: MotorParams {
             duty_full_scale: pwm_full_scale,
@@ -107,5 +113,39 @@ pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {
         safety: SAFETY,
         // Reference governor and health machine (DECISIONS D22, D24).
         pacing: controller_core::pacer::PacingConfig::on(),
+    }
+}
+
+/// What the arm button drives when the host has loaded nothing: a circle of
+/// 0.5 m radius at 0.2 m/s starting where odometry starts (the origin,
+/// facing +x), counter-clockwise. Not the paper's curve: that one reaches
+/// about 2 m/s (upload it with `wmr upload` when the robot has room).
+pub const BUTTON_REFERENCE: BuiltinReference = BuiltinReference {
+    shape: BuiltinShape::Circle {
+        radius_m: 0.5,
+        speed_mps: 0.2,
+    },
+    start: Some(PoseMsg {
+        x_m: 0.0,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    }),
+    speed_scale: 1.0,
+};
+
+/// Link settings: 500 ms link-silence timeout while moving under host
+/// control, velocity-command limits, braking deceleration, telemetry off
+/// until the host asks (`LinkConfig::DEFAULT`).
+pub const LINK: LinkConfig = LinkConfig::DEFAULT;
+
+/// The host link handler's configuration.
+pub fn device_config() -> DeviceConfig {
+    DeviceConfig {
+        chip: crate::board::CHIP_ID,
+        capabilities: wmr_protocol::CAP_EXTERNAL_POSE
+            | wmr_protocol::CAP_TRAJECTORY
+            | wmr_protocol::CAP_VELOCITY,
+        link: LINK,
+        button_reference: Some(BUTTON_REFERENCE),
     }
 }

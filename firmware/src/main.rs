@@ -10,26 +10,26 @@
 
 mod board;
 mod config;
+mod link;
 
 use controller_core::estimator::EstimatorConfig;
-use controller_core::runtime::{
-    ArmingButton, ArmingEvent, ControlLoop, CycleStats, LoopTimer, NoGyro, RunState, TickReport,
-    WheelOdometryOnly,
-};
+use controller_core::runtime::{ArmingButton, CycleStats, LoopTimer, NoGyro, WheelOdometryOnly};
 use cortex_m::peripheral::DWT;
 use defmt::{error, info, unwrap, warn};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_time::{Duration, Instant, Ticker};
+use wmr_device::Device;
+use wmr_protocol::RunStateMsg;
 
-/// The runtime with the firmware's pose history.
-type Loop = ControlLoop<{ config::POSE_HISTORY_TICKS }>;
+/// The host-link device and runtime with the firmware's pose history.
+type Robot = Device<{ config::POSE_HISTORY_TICKS }>;
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     // Motor lines defined low before the clocks start (HSE start, PLL lock).
     board::outputs_low_early();
-    let board = board::init();
+    let mut board = board::init();
 
     // DWT cycle counter for the control step's execution time.
     let mut cp = unwrap!(cortex_m::Peripherals::take());
@@ -62,54 +62,75 @@ async fn main(spawner: Spawner) {
         board::WATCHDOG_TIMEOUT_US,
         board::TELEMETRY_DECIMATION
     );
-    info!("controller: {}", cfg.controller);
-    info!("reference: {}", cfg.reference);
-    info!("initial pose: {}", cfg.initial_pose);
-    info!("encoder: {}", cfg.encoder);
-    info!("motor: {} inverted {}", cfg.motor, cfg.motor_inverted);
-    info!("safety: {}", cfg.safety);
+    info!("reference: from the host (wmr upload / drive); button: a circle of 0.5 m radius at 0.2 m/s from the start pose");
+    // The full configuration (the host link shows it too: `wmr params get`).
+    #[cfg(feature = "rtt-telemetry")]
+    {
+        info!("controller: {}", cfg.controller);
+        info!("initial pose: {}", cfg.initial_pose);
+        info!("encoder: {}", cfg.encoder);
+        info!("motor: {} inverted {}", cfg.motor, cfg.motor_inverted);
+        info!("safety: {}", cfg.safety);
+    }
     info!("gyro: none (the IMU driver is a later step): heading from the wheels");
-    info!("pose source: none yet (host link pending): wheel odometry only, blind to slip and actuator faults");
+    info!(
+        "pose source: external poses from the host link (wmr pose-feed), used up to {=usize} ms late; without them wheel odometry only, blind to slip and actuator faults",
+        config::POSE_HISTORY_TICKS
+    );
 
     let estimator = EstimatorConfig::example(cfg.controller.robot.com_offset_m, cfg.initial_pose);
-    let (control, timer, button) = match (
-        Loop::with_estimator(cfg, estimator),
+    let (device, timer, button) = match (
+        Robot::with_estimator(config::device_config(), cfg, estimator),
         LoopTimer::from_config(&cfg),
         ArmingButton::new(board::BUTTON_DEBOUNCE_TICKS),
     ) {
-        (Ok(c), Ok(t), Ok(b)) => (c, t, b),
-        (Err(e), _, _) | (_, Err(e), _) | (_, _, Err(e)) => {
+        (Ok(d), Ok(t), Ok(b)) => (d, t, b),
+        _ => {
             // Never armed: motors stay off, the watchdog is not started.
-            error!("invalid configuration: {}; motors stay disabled", e);
+            error!("invalid configuration; motors stay disabled");
             loop {
                 cortex_m::asm::wfi();
             }
         }
     };
-    info!("state: DISARMED (motors off). Press the button to arm.");
-    spawner.spawn(unwrap!(control_task(board, control, timer, button)));
+    match board.link.take() {
+        Some(p) => {
+            link::start(&spawner, p);
+            info!(
+                "host link: wmr-protocol {=u16}",
+                wmr_protocol::PROTOCOL_VERSION
+            );
+        }
+        None => error!("host link off (no USB clock on the HSI)"),
+    }
+    info!("state: HOLD (motors off). Load a reference with wmr and arm, or press the button (slow circle).");
+    spawner.spawn(unwrap!(control_task(board, device, timer, button)));
 }
 
 #[embassy_executor::task]
 async fn control_task(
     mut b: board::Board,
-    mut cl: Loop,
+    mut dev: Robot,
     mut timer: LoopTimer,
     mut button: ArmingButton,
 ) {
     let mut ticker = Ticker::every(Duration::from_hz(board::CONTROL_HZ));
     b.watchdog.unleash();
     let mut cycles = CycleStats::new();
-    let mut state = cl.state();
+    let mut state = dev.state();
     let mut n: u32 = 0;
     loop {
         // Late ticks arrive back to back; the timer measures them against
         // the schedule t0 + n·1 ms and gives the runtime the true dt.
         ticker.next().await;
-        let timing = timer.tick(Instant::now().as_micros() as u32);
+        let now_us = Instant::now().as_micros() as u32;
+        let timing = timer.tick(now_us);
 
+        // Host link: bytes in and out through bounded pipes, never waiting.
+        link::receive(&mut dev);
         let c0 = DWT::cycle_count();
-        let rep = cl.tick(
+        let rep = dev.tick(
+            now_us,
             &mut b.encoders,
             &mut b.motors,
             &mut NoGyro,
@@ -117,13 +138,12 @@ async fn control_task(
             timing,
         );
         cycles.record(DWT::cycle_count().wrapping_sub(c0));
+        link::transmit(&mut dev);
         b.watchdog.pet();
 
-        // Operator button: arm / disarm / clear a latched stop.
-        if let ArmingEvent::ArmRefused(e) =
-            button.update(b.button.pressed(), &mut cl, &mut b.motors)
-        {
-            warn!("arm refused: {}", e);
+        // Operator button: arm / disarm / clear a latched stop, without a host.
+        if button.press(b.button.pressed()) {
+            dev.button_pressed(&mut b.motors);
         }
         if let Some(reason) = rep.stopped {
             error!("SAFE STOP latched: {} (motors disabled)", reason);
@@ -134,21 +154,27 @@ async fn control_task(
                 h.from, h.to, h.reason, rep.pace.transitions
             );
         }
-        if cl.state() != state {
-            state = cl.state();
+        if dev.state() != state {
+            state = dev.state();
             match state {
-                RunState::Running => info!("state: RUNNING (reference t = 0)"),
-                RunState::Disarmed => info!("state: DISARMED (motors off)"),
-                RunState::Stopped(r) => error!("state: STOPPED {} (press button to reset)", r),
+                RunStateMsg::Running => info!("state: RUNNING (reference t = 0)"),
+                RunStateMsg::Stopping => info!("state: STOPPING (controlled stop)"),
+                RunStateMsg::Hold => info!("state: HOLD (motors off)"),
+                RunStateMsg::Stopped => error!("state: STOPPED (press the button or `wmr clear`)"),
             }
         }
 
         n = n.wrapping_add(1);
+        // RTT telemetry (opt-in: the host link carries telemetry, `wmr record`).
+        #[cfg(feature = "rtt-telemetry")]
         if n % board::TELEMETRY_DECIMATION == 0 {
             telemetry(&rep, &mut cycles);
         }
+        #[cfg(not(feature = "rtt-telemetry"))]
+        let _ = (&rep, &mut cycles);
+        #[cfg(feature = "rtt-telemetry")]
         if n % board::CONTROL_HZ as u32 == 0 {
-            let s = cl.status();
+            let s = dev.control().status();
             let t = timer.stats();
             info!(
                 "status ticks={=u32} run={=u32} overruns={=u32} late={=u32} max_late_us={=u32} max_loop_us={=u32} enc_jumps={=u32} input_faults={=u32} tau_sat={=u32} duty_sat={=u32} stops={=u32}",
@@ -169,7 +195,8 @@ async fn control_task(
 }
 
 /// Two decimated lines: tracking (`trk`) and estimates/timing (`est`).
-fn telemetry(r: &TickReport, cycles: &mut CycleStats) {
+#[cfg(feature = "rtt-telemetry")]
+fn telemetry(r: &controller_core::runtime::TickReport, cycles: &mut CycleStats) {
     let d = &r.diag;
     let p = &r.pose;
     info!(

@@ -42,6 +42,11 @@ pub enum Command {
     Merge(MergeArgs),
     /// Time per 40 s paper scenario and Monte-Carlo throughput on this machine.
     Bench(BenchArgs),
+    /// The simulated robot behind the host link: prints a pseudo-terminal's path
+    /// (first stdout line) for `wmr --port PATH ...`.
+    Device(Box<crate::cli_link::DeviceArgs>),
+    /// Metrics and plots of a trace CSV (`hil-sim run --csv` or `wmr record`).
+    Report(crate::cli_link::ReportArgs),
 }
 
 /// The controller to run.
@@ -915,6 +920,8 @@ pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
             out.write_all(r.to_string().as_bytes())
                 .map_err(|e| e.to_string())
         }
+        Command::Device(a) => crate::cli_link::device(a, out),
+        Command::Report(a) => crate::cli_link::report(a, out),
     }
 }
 

@@ -51,6 +51,65 @@ impl Default for HilOptions {
 }
 
 /// The preset's gyro, if it has one.
+/// The simulated gyro and external pose source of a scenario's sensing
+/// preset (either may be absent), as the runtime's [`Gyro`] and
+/// [`PoseSource`]: shared by the HIL runs and the simulated robot behind the
+/// host link.
+pub struct SimSensors {
+    gyro: MaybeGyro,
+    pose_source: MaybePose,
+}
+
+impl SimSensors {
+    /// The sensors of `scn`'s sensing preset (seeded from the scenario) and
+    /// the estimator tuning for them.
+    pub fn of(scn: &Scenario) -> Result<(Self, EstimatorConfig), String> {
+        let sensors = SensorSetup::of(scn)?;
+        let gyro = match sensors.gyro {
+            Some(m) => {
+                Some(SimGyro::new(m, scn.seed ^ GYRO_SEED_SALT).map_err(|e| format!("gyro: {e}"))?)
+            }
+            None => None,
+        };
+        let pose_source = match sensors.pose {
+            Some(m) => Some(
+                SimPoseSource::new(m, scn.seed ^ POSE_SEED_SALT)
+                    .map_err(|e| format!("pose source: {e}"))?,
+            ),
+            None => None,
+        };
+        let est = sensing_estimator_config(&sensors);
+        Ok((
+            Self {
+                gyro: MaybeGyro(gyro),
+                pose_source: MaybePose(pose_source),
+            },
+            est,
+        ))
+    }
+
+    /// The true motion at time `t_s`: the gyro's yaw rate \[rad/s\] and the
+    /// pose of G for the pose source.
+    pub fn update(&mut self, t_s: f64, yaw_rate_radps: f64, true_pose: [f64; 3]) {
+        if let Some(g) = &mut self.gyro.0 {
+            g.update(t_s, yaw_rate_radps);
+        }
+        if let Some(p) = &mut self.pose_source.0 {
+            p.update(t_s, true_pose);
+        }
+    }
+
+    /// The runtime's gyro and pose source.
+    pub fn parts(&mut self) -> (&mut impl Gyro, &mut impl PoseSource) {
+        (&mut self.gyro, &mut self.pose_source)
+    }
+
+    /// The pose source's counters (None without one).
+    pub fn pose_stats(&self) -> Option<PoseSourceStats> {
+        self.pose_source.0.as_ref().map(|p| p.stats)
+    }
+}
+
 struct MaybeGyro(Option<SimGyro>);
 
 impl Gyro for MaybeGyro {
@@ -101,8 +160,7 @@ pub struct RuntimeSide {
     timer: LoopTimer,
     encoders: SimEncoders,
     bridge: SimDriver,
-    gyro: MaybeGyro,
-    pose_source: MaybePose,
+    sensors: SimSensors,
     opts: HilOptions,
     /// First safe stop latched, with the step it happened at.
     pub stop: Option<(usize, StopReason)>,
@@ -118,20 +176,7 @@ impl RuntimeSide {
         if scn.sensing == Sensing::Ideal {
             return Err("the firmware runtime needs a firmware sensing preset, not ideal".into());
         }
-        let sensors = SensorSetup::of(scn)?;
-        let gyro = match sensors.gyro {
-            Some(m) => {
-                Some(SimGyro::new(m, scn.seed ^ GYRO_SEED_SALT).map_err(|e| format!("gyro: {e}"))?)
-            }
-            None => None,
-        };
-        let pose_source = match sensors.pose {
-            Some(m) => Some(
-                SimPoseSource::new(m, scn.seed ^ POSE_SEED_SALT)
-                    .map_err(|e| format!("pose source: {e}"))?,
-            ),
-            None => None,
-        };
+        let (sensors, sensing_est) = SimSensors::of(scn)?;
         let p0 = scn.initial_pose;
         let cfg = RuntimeConfig {
             controller,
@@ -143,9 +188,7 @@ impl RuntimeSide {
             safety: opts.safety,
             pacing: scn.pacing(),
         };
-        let mut est = opts
-            .estimator
-            .unwrap_or_else(|| sensing_estimator_config(&sensors));
+        let mut est = opts.estimator.unwrap_or(sensing_est);
         est.com_offset_m = controller.robot.com_offset_m;
         est.initial_pose = cfg.initial_pose;
         let mut control =
@@ -157,8 +200,7 @@ impl RuntimeSide {
             timer,
             encoders: SimEncoders::new(&cfg.encoder),
             bridge: SimDriver::default(),
-            gyro: MaybeGyro(gyro),
-            pose_source: MaybePose(pose_source),
+            sensors,
             opts,
             stop: None,
         })
@@ -170,7 +212,7 @@ impl RuntimeSide {
     pub fn sensing_report(&self) -> SensingReport {
         SensingReport {
             estimator: *self.control.estimator_status(),
-            pose_source: self.pose_source.0.as_ref().map(|p| p.stats),
+            pose_source: self.sensors.pose_stats(),
         }
     }
 }
@@ -187,21 +229,18 @@ impl ControlSide for RuntimeSide {
                 self.encoders.kill(wheel);
             }
         }
-        if let Some(g) = &mut self.gyro.0 {
-            g.update(sensed.t_s, sensed.yaw_rate_radps);
-        }
-        if let Some(p) = &mut self.pose_source.0 {
-            p.update(sensed.t_s, sensed.true_pose);
-        }
+        self.sensors
+            .update(sensed.t_s, sensed.yaw_rate_radps, sensed.true_pose);
         // A µs counter that wraps, like the firmware's (the sensors stamp
         // their samples in the same clock).
         let now_us = (sensed.step as u64 * self.timer.period_us() as u64) as u32;
         let timing = self.timer.tick(now_us);
+        let (gyro, pose_source) = self.sensors.parts();
         let rep = self.control.tick(
             &mut self.encoders,
             &mut self.bridge,
-            &mut self.gyro,
-            &mut self.pose_source,
+            gyro,
+            pose_source,
             timing,
         );
         if let (Some(reason), None) = (rep.stopped, self.stop) {

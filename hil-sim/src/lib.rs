@@ -11,8 +11,11 @@
 
 pub mod bench;
 pub mod cli;
+pub mod cli_link;
 pub mod control_side;
+pub mod device;
 pub mod hil;
+pub mod log_report;
 pub mod metrics;
 pub mod montecarlo;
 pub mod plot;

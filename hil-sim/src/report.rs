@@ -3,11 +3,9 @@
 
 use crate::metrics::Metrics;
 use crate::scenario::Scenario;
-use crate::sim::TraceSample;
 use controller_core::ControllerKind;
 use serde::Serialize;
 use std::fmt::Write as _;
-use std::io::{self, Write};
 
 /// One run as printed by `run --json` and stored in `metrics.json`: the
 /// [`Metrics`] keys at the top level plus `controller` and `scenario`.
@@ -233,68 +231,37 @@ pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutpu
     s
 }
 
-/// CSV header of [`write_trace_csv`], one name per [`TraceSample`] scalar.
-pub const CSV_HEADER: &str = "t_s,ref_x_m,ref_y_m,ref_theta_rad,x_m,y_m,theta_rad,pos_err_m,\
-err_x_m,err_y_m,e_x,e_y,e_theta,v_mps,omega_radps,v_c_mps,omega_c_radps,tau_r_nm,tau_l_nm,\
-s_v,s_omega,rho_hat_v,rho_hat_omega,d_hat_v,d_hat_omega,f_hat_v,f_hat_omega,f_true_v,f_true_omega,saturated,\
-time_scale,tau_s,health,health_reason";
-
-/// Writes the header and one row per sample.
-pub fn write_trace_csv(mut w: impl Write, trace: &[TraceSample]) -> io::Result<()> {
-    writeln!(w, "{CSV_HEADER}")?;
-    for s in trace {
-        let vals = [
-            s.t_s,
-            s.ref_pose[0],
-            s.ref_pose[1],
-            s.ref_pose[2],
-            s.pose[0],
-            s.pose[1],
-            s.pose[2],
-            s.pos_err_m,
-            s.err_xy_m[0],
-            s.err_xy_m[1],
-            s.e[0],
-            s.e[1],
-            s.e[2],
-            s.eta[0],
-            s.eta[1],
-            s.eta_c[0],
-            s.eta_c[1],
-            s.torque_nm[0],
-            s.torque_nm[1],
-            s.s[0],
-            s.s[1],
-            s.rho_hat[0],
-            s.rho_hat[1],
-            s.d_hat[0],
-            s.d_hat[1],
-            s.f_hat[0],
-            s.f_hat[1],
-            s.f_true[0],
-            s.f_true[1],
-        ];
-        let mut line = String::with_capacity(400);
-        for v in vals {
-            let _ = write!(line, "{v},");
-        }
-        let _ = write!(
-            line,
-            "{},{},{},{},{}",
-            u8::from(s.saturated),
-            s.time_scale,
-            s.tau_s,
-            s.health,
-            s.health_reason
-        );
-        writeln!(w, "{line}")?;
-    }
-    Ok(())
-}
+pub use track_log::csv::{read_trace_csv, write_trace_csv, CSV_HEADER};
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sim::TraceSample;
+
+    /// The metrics of a trace logged at every control step, computed from
+    /// its rows by `metrics_from_trace`, equal the simulator's own (the same
+    /// accumulator fed the same values).
+    #[test]
+    fn metrics_from_a_full_trace_equal_the_simulation() {
+        let scn = Scenario {
+            duration_s: 12.0,
+            window_s: [4.0, 9.0],
+            ..Scenario::paper_case(2, 3, None, None)
+        };
+        let cfg = crate::sim::controller_config(&scn, ControllerKind::Proposed);
+        let out = crate::sim::run_with(&scn, cfg, 1).unwrap();
+        let m = track_log::metrics_from_trace(&out.trace, scn.window_s, true).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * (1.0 + a.abs());
+        let s = &out.metrics;
+        assert!(close(m.rms_pos_err_m, s.rms_pos_err_m));
+        assert!(close(m.rms_pos_err_window_m, s.rms_pos_err_window_m));
+        assert!(close(m.max_pos_err_window_m, s.max_pos_err_window_m));
+        assert!(close(m.torque_rms_nm, s.torque_rms_nm));
+        assert!(close(m.chatter, s.chatter));
+        assert!(close(m.fault_est_rmse.unwrap(), s.fault_est_rmse.unwrap()));
+        assert_eq!(m.settling_time_s.is_some(), s.settling_time_s.is_some());
+        assert!(close(m.saturated_fraction, s.saturated_fraction));
+    }
 
     #[test]
     fn csv_header_matches_row_width_and_count() {

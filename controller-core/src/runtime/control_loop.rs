@@ -1,19 +1,20 @@
 //! The control loop and its safety supervisor: one [`ControlLoop::tick`] per
 //! control period, from raw encoder counts to motor duty.
 
-use super::config::RuntimeConfig;
+use super::config::{RuntimeConfig, SafetyLimits};
 use super::encoder::{CountSample, WheelCounts};
 use super::error::RuntimeConfigError;
 use super::hardware::Wheel;
 use super::hardware::{Gyro, MotorDriver, PoseSource, WheelEncoders, MAX_POSES_PER_TICK};
 use super::motor::{DutyCommand, MotorModel};
 use super::odometry::Odometry;
-use super::state::{ArmError, RunState, Status, StopReason, TickReport};
+use super::state::{ArmError, ReconfigureError, RunState, Status, StopReason, TickReport};
 use super::timing::TickTiming;
-use crate::controller::{Controller, Diagnostics, StepInput};
+use crate::controller::{Controller, ControllerConfig, Diagnostics, StepInput};
 use crate::estimator::{EstimatorConfig, EstimatorStatus, PoseEstimator, HISTORY_LEN};
 use crate::health::{EstimatorStatus as SensingHealth, HealthMode};
 use crate::pacer::{Pacer, PacerState};
+use crate::trajectory::Trajectory;
 use crate::types::Pose;
 
 /// The runtime: encoders, pose estimator, controller, motor model and
@@ -128,6 +129,37 @@ impl<const H: usize> ControlLoop<H> {
         self.odometry.set_pose(pose);
     }
 
+    /// Re-anchors the pose: the estimator restarts at `pose` with its
+    /// configured initial uncertainty (history and gyro bias estimate
+    /// dropped), and the plain odometry restarts there too. Refused while
+    /// running or for a non-finite pose.
+    pub fn set_pose(&mut self, pose: Pose) -> Result<(), ReconfigureError> {
+        if self.running() {
+            return Err(ReconfigureError::Running);
+        }
+        let cfg = EstimatorConfig {
+            initial_pose: pose,
+            ..*self.estimator.config()
+        };
+        self.estimator =
+            PoseEstimator::with_history(cfg).map_err(|e| ReconfigureError::Invalid(e.into()))?;
+        self.odometry.set_pose(pose);
+        Ok(())
+    }
+
+    /// Reference time \[s\] the next tick samples its reference at: the
+    /// governed time τ with pacing on, ticks since arming × period without.
+    /// A caller that computes the reference itself (the host link) samples
+    /// it here and passes it to [`Self::tick_with_reference`], so the
+    /// governor's time scaling applies to it too.
+    pub fn reference_time_s(&self) -> f32 {
+        if self.cfg.pacing.enabled {
+            self.pacer.status(&self.pace).tau_s
+        } else {
+            self.status.run_ticks as f32 * self.cfg.controller.period_s
+        }
+    }
+
     /// The pose estimator (its estimate, covariance and configuration).
     pub fn estimator(&self) -> &PoseEstimator<H> {
         &self.estimator
@@ -190,6 +222,30 @@ impl<const H: usize> ControlLoop<H> {
         self.status.consecutive_overruns = 0;
     }
 
+    /// Replaces the controller configuration (gains, torque limit) and the
+    /// safety limits, validated; refused while running. The controller
+    /// restarts from its initial state; odometry and counters are kept.
+    pub fn reconfigure(
+        &mut self,
+        controller: ControllerConfig,
+        safety: SafetyLimits,
+    ) -> Result<(), ReconfigureError> {
+        if self.running() {
+            return Err(ReconfigureError::Running);
+        }
+        let invalid = |e| ReconfigureError::Invalid(RuntimeConfigError::Core(e));
+        let new = Controller::new(controller).map_err(invalid)?;
+        // The pacer's saturation and health thresholds follow the gains and limit.
+        let pacer = Pacer::new(self.cfg.pacing, &controller).map_err(invalid)?;
+        safety.validate().map_err(ReconfigureError::Invalid)?;
+        self.controller = new;
+        self.pace = pacer.initial_state();
+        self.pacer = pacer;
+        self.cfg.controller = controller;
+        self.cfg.safety = safety;
+        Ok(())
+    }
+
     fn latch(&mut self, reason: StopReason) {
         self.status.state = RunState::Stopped(reason);
         self.status.stops = self.status.stops.saturating_add(1);
@@ -220,6 +276,23 @@ impl<const H: usize> ControlLoop<H> {
         pose_source: &mut impl PoseSource,
         timing: TickTiming,
     ) -> TickReport {
+        let reference = self.cfg.reference;
+        self.tick_with_reference(encoders, motors, gyro, pose_source, timing, &reference)
+    }
+
+    /// [`Self::tick`] tracking `reference` (sampled at the same reference
+    /// time) instead of the configured one: for references that are not a
+    /// compiled-in [`Reference`](crate::trajectory::Reference), such as an
+    /// uploaded trajectory or a velocity command (the host link).
+    pub fn tick_with_reference(
+        &mut self,
+        encoders: &mut impl WheelEncoders,
+        motors: &mut impl MotorDriver,
+        gyro: &mut impl Gyro,
+        pose_source: &mut impl PoseSource,
+        timing: TickTiming,
+        reference: &impl Trajectory,
+    ) -> TickReport {
         self.status.ticks = self.status.ticks.wrapping_add(1);
         // 1. Loop timing, 2. encoders: the first violation found wins.
         let mut stop = self.check_timing(&timing);
@@ -234,7 +307,7 @@ impl<const H: usize> ControlLoop<H> {
         let (pose, external_pose) = self.measure_pose(sample.dphi_rad, gyro, pose_source, &timing);
         // 4. Reference and controller, 5. torque -> duty.
         let t_s = self.status.run_ticks as f32 * self.cfg.controller.period_s;
-        let reference = self.pacer.reference(&self.pace, &self.cfg.reference, t_s);
+        let reference = self.pacer.reference(&self.pace, reference, t_s);
         let mut diag = Diagnostics::default();
         let mut torque = [0.0f32; 2];
         let mut duty = [DutyCommand::ZERO; 2];

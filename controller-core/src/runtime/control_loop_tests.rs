@@ -520,3 +520,71 @@ proptest::proptest! {
         }
     }
 }
+
+/// `tick_with_reference` given another reference drives toward it; given
+/// the configured one it is `tick`, step for step.
+#[test]
+fn tick_with_reference_tracks_the_given_reference() {
+    let cfg = line_cfg(0.5);
+    let (mut a, mut b) = (Rig::new(cfg), Rig::new(cfg));
+    a.cl.arm().unwrap();
+    b.cl.arm().unwrap();
+    let backwards = Reference::Line(Line {
+        start: Pose::new(0.0, 0.0, 0.0),
+        speed_mps: -0.5,
+    });
+    for k in 0..50u16 {
+        a.enc = [Enc(k), Enc(0u16.wrapping_sub(k))];
+        b.enc = a.enc;
+        let ra = a.tick();
+        let rb = b.cl.tick_with_reference(
+            &mut b.enc,
+            &mut b.drv,
+            &mut NoGyro,
+            &mut WheelOdometryOnly,
+            ON_TIME,
+            &cfg.reference,
+        );
+        assert_eq!(ra, rb);
+    }
+    let mut c = Rig::new(cfg);
+    c.cl.arm().unwrap();
+    let r = c.cl.tick_with_reference(
+        &mut c.enc,
+        &mut c.drv,
+        &mut NoGyro,
+        &mut WheelOdometryOnly,
+        ON_TIME,
+        &backwards,
+    );
+    assert!(r.reference.v_mps < 0.0);
+    // Reference behind a robot at rest: both wheels pushed backwards.
+    assert!(
+        r.torque_nm[0] < 0.0 && r.torque_nm[1] < 0.0,
+        "{:?}",
+        r.torque_nm
+    );
+}
+
+#[test]
+fn reconfigure_only_while_not_running_and_validated() {
+    let cfg = line_cfg(0.5);
+    let mut rig = Rig::new(cfg);
+    let mut c = cfg.controller;
+    c.torque_limit_nm = 3.0;
+    rig.cl.arm().unwrap();
+    assert_eq!(
+        rig.cl.reconfigure(c, cfg.safety),
+        Err(ReconfigureError::Running)
+    );
+    rig.cl.disarm(&mut rig.drv);
+    let mut bad = c;
+    bad.torque_limit_nm = f32::NAN;
+    assert!(matches!(
+        rig.cl.reconfigure(bad, cfg.safety),
+        Err(ReconfigureError::Invalid(_))
+    ));
+    assert_eq!(rig.cl.config().controller.torque_limit_nm, 10.0);
+    rig.cl.reconfigure(c, cfg.safety).unwrap();
+    assert_eq!(rig.cl.controller().config().torque_limit_nm, 3.0);
+}

@@ -55,6 +55,6 @@ pub use hardware::{
 };
 pub use motor::{DutyCommand, DutyRequest, MotorModel, MotorParams};
 pub use odometry::Odometry;
-pub use state::{ArmError, RunState, Status, StopReason, TickReport};
+pub use state::{ArmError, ReconfigureError, RunState, Status, StopReason, TickReport};
 pub use stats::CycleStats;
 pub use timing::{LoopTimer, TickTiming, TimingStats};

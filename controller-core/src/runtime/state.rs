@@ -66,6 +66,17 @@ pub enum ArmError {
     Latched(StopReason),
 }
 
+/// Why [`ControlLoop::reconfigure`](super::ControlLoop::reconfigure) refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ReconfigureError {
+    /// Not while running: disarm first.
+    Running,
+    /// The new configuration is invalid.
+    Invalid(super::error::RuntimeConfigError),
+}
+
 /// Counters for logging (lifetime totals unless noted).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -1,0 +1,227 @@
+//! The host link's transport. The control task owns the protocol handler
+//! (`wmr_device::Device`); this module only moves bytes between it and the
+//! port through two bounded pipes, and the control task never waits on
+//! them: [`receive`] and [`transmit`] use `try_read`/`try_write` and move at
+//! most what fits. When the host floods the link the receive pipe
+//! overflows (bytes dropped here, frames then fail their CRC and are counted
+//! by the device); when it stops reading or unplugs, the send pipe fills
+//! and the device drops (and counts) telemetry.
+//!
+//! * STM32F411CE: USB CDC-ACM (embassy-usb, OTG_FS on PA11/PA12, VBUS
+//!   detection off: PA9 is the left PWM output). A packet write that does
+//!   not complete within `usb::USB_WRITE_TIMEOUT_MS` (a host that is gone) is
+//!   dropped, so a stalled host never holds the link task either.
+//! * STM32F446RE: USART2 on PA2 (TX) / PA3 (RX), the ST-LINK's virtual COM
+//!   port, 115 200 baud 8N1 (11.5 kB/s: about 60 telemetry frames per second
+//!   with every group; choose the rate with `wmr params set telemetry_rate_hz`).
+
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::pipe::Pipe;
+use wmr_device::Device;
+
+/// Bytes each pipe holds.
+pub const PIPE_BYTES: usize = 512;
+/// Host → robot.
+pub static RX: Pipe<CriticalSectionRawMutex, PIPE_BYTES> = Pipe::new();
+/// Robot → host.
+pub static TX: Pipe<CriticalSectionRawMutex, PIPE_BYTES> = Pipe::new();
+
+/// Control task, before the tick: received bytes into the device (what fits).
+pub fn receive<const H: usize>(dev: &mut Device<H>) {
+    let mut buf = [0u8; wmr_device::RX_BYTES_PER_TICK];
+    let room = dev.rx_free().min(buf.len());
+    if room > 0 {
+        if let Ok(n) = RX.try_read(&mut buf[..room]) {
+            dev.push_rx(&buf[..n]);
+        }
+    }
+}
+
+/// Control task, after the tick: queued frames out (what fits).
+pub fn transmit<const H: usize>(dev: &mut Device<H>) {
+    let mut buf = [0u8; 128];
+    let room = TX.free_capacity().min(buf.len());
+    let n = dev.pop_tx(&mut buf[..room]);
+    if n > 0 {
+        // Fits: at most the free capacity was taken from the device.
+        let _ = TX.try_write(&buf[..n]);
+    }
+}
+
+#[cfg(feature = "stm32f411ce")]
+pub use usb::{start, LinkPeripherals};
+
+#[cfg(feature = "stm32f411ce")]
+mod usb {
+    use super::{RX, TX};
+    use defmt::unwrap;
+    use embassy_executor::Spawner;
+    use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
+    use embassy_stm32::usb::Driver;
+    use embassy_stm32::{bind_interrupts, Peri};
+    use embassy_time::{with_timeout, Duration};
+    use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
+    use embassy_usb::{Builder, UsbDevice};
+    use static_cell::StaticCell;
+
+    /// A USB packet write that takes longer than this is dropped \[ms\].
+    pub const USB_WRITE_TIMEOUT_MS: u64 = 20;
+    const MAX_PACKET: u16 = 64;
+
+    bind_interrupts!(struct Irqs {
+        OTG_FS => embassy_stm32::usb::InterruptHandler<USB_OTG_FS>;
+    });
+
+    /// The peripherals of the link.
+    pub struct LinkPeripherals {
+        /// OTG_FS.
+        pub otg: Peri<'static, USB_OTG_FS>,
+        /// D+.
+        pub dp: Peri<'static, PA12>,
+        /// D−.
+        pub dm: Peri<'static, PA11>,
+    }
+
+    type UsbDriver = Driver<'static, USB_OTG_FS>;
+
+    /// Builds the CDC-ACM device and spawns its tasks.
+    pub fn start(spawner: &Spawner, p: LinkPeripherals) {
+        static EP_OUT: StaticCell<[u8; 256]> = StaticCell::new();
+        static CONFIG_DESC: StaticCell<[u8; 128]> = StaticCell::new();
+        static BOS_DESC: StaticCell<[u8; 32]> = StaticCell::new();
+        static CONTROL_BUF: StaticCell<[u8; 64]> = StaticCell::new();
+        static CDC_STATE: StaticCell<State<'static>> = StaticCell::new();
+        let mut config = embassy_stm32::usb::Config::default();
+        // PA9, the OTG VBUS sense pin, is the left PWM output.
+        config.vbus_detection = false;
+        let driver = Driver::new_fs(p.otg, Irqs, p.dp, p.dm, EP_OUT.init([0; 256]), config);
+        // pid.codes test VID/PID: replace with your own for a product.
+        let mut ucfg = embassy_usb::Config::new(0x1209, 0x0001);
+
+        ucfg.product = Some("trajectory-tracking robot");
+        ucfg.max_packet_size_0 = 64;
+        let mut builder = Builder::new(
+            driver,
+            ucfg,
+            CONFIG_DESC.init([0; 128]),
+            BOS_DESC.init([0; 32]),
+            &mut [],
+            CONTROL_BUF.init([0; 64]),
+        );
+        let class = CdcAcmClass::new(&mut builder, CDC_STATE.init(State::new()), MAX_PACKET);
+        let usb = builder.build();
+        spawner.spawn(unwrap!(usb_task(usb, class)));
+    }
+
+    /// The USB device and the CDC-ACM class in one task (one task's
+    /// overhead instead of two).
+    #[embassy_executor::task]
+    async fn usb_task(
+        mut usb: UsbDevice<'static, UsbDriver>,
+        class: CdcAcmClass<'static, UsbDriver>,
+    ) {
+        let (mut tx, mut rx) = class.split();
+        let receive = async {
+            let mut buf = [0u8; MAX_PACKET as usize];
+            loop {
+                rx.wait_connection().await;
+                while let Ok(n) = rx.read_packet(&mut buf).await {
+                    // Overflow is dropped: the control task reads on its own pace.
+                    let _ = RX.try_write(&buf[..n]);
+                }
+            }
+        };
+        let send = async {
+            // Short packets only (< 64 bytes): no zero-length packet needed.
+            let mut buf = [0u8; MAX_PACKET as usize - 1];
+            loop {
+                tx.wait_connection().await;
+                loop {
+                    let n = TX.read(&mut buf).await;
+                    match with_timeout(
+                        Duration::from_millis(USB_WRITE_TIMEOUT_MS),
+                        tx.write_packet(&buf[..n]),
+                    )
+                    .await
+                    {
+                        Ok(Ok(())) => {}
+                        // Disconnected: wait for the host again.
+                        Ok(Err(_)) => break,
+                        // The host does not read: drop the packet.
+                        Err(_) => {}
+                    }
+                }
+            }
+        };
+        embassy_futures::join::join3(usb.run(), receive, send).await;
+    }
+}
+
+#[cfg(feature = "stm32f446re")]
+pub use uart::{start, LinkPeripherals};
+
+#[cfg(feature = "stm32f446re")]
+mod uart {
+    use super::{RX, TX};
+    use defmt::unwrap;
+    use embassy_executor::Spawner;
+    use embassy_stm32::peripherals::{PA2, PA3, USART2};
+    use embassy_stm32::usart::{BufferedUart, BufferedUartRx, BufferedUartTx, Config};
+    use embassy_stm32::{bind_interrupts, Peri};
+    use embedded_io_async::{Read, Write};
+    use static_cell::StaticCell;
+
+    bind_interrupts!(struct Irqs {
+        USART2 => embassy_stm32::usart::BufferedInterruptHandler<USART2>;
+    });
+
+    /// The peripherals of the link.
+    pub struct LinkPeripherals {
+        /// USART2.
+        pub usart: Peri<'static, USART2>,
+        /// TX (to the ST-LINK's RX).
+        pub tx: Peri<'static, PA2>,
+        /// RX.
+        pub rx: Peri<'static, PA3>,
+    }
+
+    /// Opens USART2 at 115 200 baud and spawns its tasks.
+    pub fn start(spawner: &Spawner, p: LinkPeripherals) {
+        static TX_BUF: StaticCell<[u8; 256]> = StaticCell::new();
+        static RX_BUF: StaticCell<[u8; 256]> = StaticCell::new();
+        let mut cfg = Config::default();
+        cfg.baudrate = 115_200;
+        let uart = unwrap!(BufferedUart::new(
+            p.usart,
+            p.rx,
+            p.tx,
+            TX_BUF.init([0; 256]),
+            RX_BUF.init([0; 256]),
+            Irqs,
+            cfg
+        ));
+        let (tx, rx) = uart.split();
+        spawner.spawn(unwrap!(rx_task(rx)));
+        spawner.spawn(unwrap!(tx_task(tx)));
+    }
+
+    #[embassy_executor::task]
+    async fn rx_task(mut rx: BufferedUartRx<'static>) {
+        let mut buf = [0u8; 64];
+        loop {
+            if let Ok(n) = rx.read(&mut buf).await {
+                let _ = RX.try_write(&buf[..n]);
+            }
+        }
+    }
+
+    #[embassy_executor::task]
+    async fn tx_task(mut tx: BufferedUartTx<'static>) {
+        let mut buf = [0u8; 64];
+        loop {
+            let n = TX.read(&mut buf).await;
+            // A UART always drains (no host handshake), at the baud rate.
+            let _ = tx.write_all(&buf[..n]).await;
+        }
+    }
+}

@@ -1,0 +1,631 @@
+//! End-to-end tests of the host link over pseudo-terminal pairs, no
+//! hardware: the simulated robot (`hil_sim::device`: the link handler, the
+//! firmware runtime and the plant) served on a pty, and the host tool's
+//! link (`wmr`) or raw frames on the other side. Every timing assertion is
+//! in robot time (the telemetry's clock), so a loaded machine cannot make
+//! them flaky.
+
+use controller_core::ControllerKind;
+use hil_sim::device::{open_pty, serve, SimRobot};
+use hil_sim::scenario::{Scenario, Sensing, TrajectoryKind};
+use std::io::{Read, Write};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+use wmr::Link;
+use wmr_protocol::*;
+
+/// The simulated robot served on a pty in a thread.
+struct Robot {
+    path: String,
+    stop: Arc<AtomicBool>,
+    handle: Option<JoinHandle<SimRobot>>,
+    _slave: serialport::TTYPort,
+}
+
+impl Robot {
+    fn start(scn: &Scenario, speed: f64) -> Self {
+        let (mut master, slave, path) = open_pty().unwrap();
+        let mut robot = SimRobot::new(scn, ControllerKind::Proposed).unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        let handle = std::thread::spawn(move || {
+            serve(&mut robot, &mut master, speed, &s).unwrap();
+            robot
+        });
+        Self {
+            path,
+            stop,
+            handle: Some(handle),
+            _slave: slave,
+        }
+    }
+
+    fn link(&self) -> Link {
+        let mut l = Link::open(&self.path, Duration::from_millis(1000)).unwrap();
+        l.hello().unwrap();
+        l
+    }
+
+    fn finish(mut self) -> SimRobot {
+        self.stop.store(true, Ordering::Relaxed);
+        self.handle.take().unwrap().join().unwrap()
+    }
+}
+
+impl Drop for Robot {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}
+
+/// The paper's curve without perturbations, the true pose measured
+/// (mocap sensing), starting on the curve's start
+/// offset as in the paper.
+fn nominal(trajectory: TrajectoryKind, duration_s: f64) -> Scenario {
+    Scenario {
+        name: "nominal".into(),
+        duration_s,
+        window_s: [0.0, 0.0],
+        trajectory,
+        beta: 0.0,
+        eps: 0.0,
+        skid_scale: 0.0,
+        disturbance_nm: 0.0,
+        sensing: Sensing::Mocap,
+        ..Scenario::default()
+    }
+}
+
+fn ok(link: &mut Link, req: Request) {
+    link.command(&req)
+        .unwrap_or_else(|e| panic!("{req:?}: {e}"));
+}
+
+fn builtin(name: &str) -> Request {
+    Request::SetReference(BuiltinReference {
+        shape: named_shape(name).unwrap(),
+        start: None,
+        speed_scale: 1.0,
+    })
+}
+
+/// Reads telemetry for up to `wall` (wall clock) until `until` is true.
+fn telemetry_until(
+    link: &mut Link,
+    wall: Duration,
+    mut until: impl FnMut(&Telemetry) -> bool,
+) -> Vec<Telemetry> {
+    let end = Instant::now() + wall;
+    let mut out = Vec::new();
+    while Instant::now() < end {
+        if let Some(Reply::Telemetry(t)) = link.next_stream(Duration::from_millis(10)).unwrap() {
+            let done = until(&t);
+            out.push(t);
+            if done {
+                return out;
+            }
+        }
+    }
+    panic!("condition not reached in {wall:?}; last {:?}", out.last());
+}
+
+#[test]
+fn hello_over_the_pty_and_the_binary_prints_its_path_first() {
+    let robot = Robot::start(&nominal(TrajectoryKind::Paper, 1.0), 1.0);
+    let mut link = robot.link();
+    let h = link.hello().unwrap();
+    assert_eq!(h.version, PROTOCOL_VERSION);
+    assert_eq!(h.chip, "sim");
+    assert!(h.capabilities & CAP_SIMULATED != 0);
+    assert_eq!(h.robot.control_period_s, 0.001);
+    drop(link);
+    robot.finish();
+
+    // The binary: the pty path is the first stdout line, and it answers.
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_hil-sim"))
+        .args(["device", "--pty", "--for-s", "20"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    let mut out = child.stdout.take().unwrap();
+    let mut b = [0u8; 1];
+    while out.read(&mut b).unwrap() == 1 && b[0] != b'\n' {
+        first.push(b[0] as char);
+    }
+    assert!(first.starts_with("/dev/pts/"), "{first:?}");
+    let mut link = Link::open(&first, Duration::from_millis(1000)).unwrap();
+    assert_eq!(link.hello().unwrap().chip, "sim");
+    drop(link);
+    child.kill().unwrap();
+    child.wait().unwrap();
+}
+
+/// A robot that speaks the next protocol version: wmr's handshake fails
+/// with a clear version-mismatch error; and our simulated robot answers a
+/// hello of the next version with its own version and refuses anything else.
+#[test]
+fn version_mismatch_both_ways() {
+    let other = PROTOCOL_VERSION + 1;
+    let (mut master, _slave, path) = open_pty().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    let fake = std::thread::spawn(move || {
+        let mut dec = FrameDecoder::<MAX_FRAME>::new();
+        let mut buf = [0u8; 256];
+        while !s.load(Ordering::Relaxed) {
+            let n = match master.read(&mut buf) {
+                Ok(n) => n,
+                Err(_) => {
+                    std::thread::sleep(Duration::from_millis(1));
+                    continue;
+                }
+            };
+            let mut rest = &buf[..n];
+            while !rest.is_empty() {
+                let (d, r) = dec.feed::<Request>(rest);
+                rest = r;
+                if let Some(Decoded::Frame { seq, .. }) = d {
+                    let reply = Reply::Hello {
+                        seq,
+                        version: other,
+                        capabilities: 0,
+                        chip: Default::default(),
+                        robot: RobotInfo {
+                            wheel_radius_m: 0.1,
+                            half_track_m: 0.2,
+                            mass_kg: 15.0,
+                            control_period_s: 0.001,
+                            torque_limit_nm: 10.0,
+                        },
+                    };
+                    let mut out = [0u8; MAX_FRAME];
+                    let f = encode_with_version(&reply, seq, other, &mut out).unwrap();
+                    master.write_all(f).unwrap();
+                }
+            }
+        }
+    });
+    let mut link = Link::open(&path, Duration::from_millis(500)).unwrap();
+    let e = link.hello().unwrap_err();
+    assert_eq!(e, wmr::LinkError::VersionMismatch { robot: other });
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "version mismatch: the robot speaks protocol {other}, wmr speaks {PROTOCOL_VERSION}"
+        )
+    );
+    stop.store(true, Ordering::Relaxed);
+    fake.join().unwrap();
+
+    // A host of the next version talking to our robot.
+    let robot = Robot::start(&nominal(TrajectoryKind::Paper, 1.0), 1.0);
+    let mut port = serialport::new(&robot.path, 115_200)
+        .timeout(Duration::from_millis(5))
+        .open_native()
+        .unwrap();
+    let mut out = [0u8; MAX_FRAME];
+    let hello = encode_with_version(&Request::Hello { version: other }, 11, other, &mut out)
+        .unwrap()
+        .to_vec();
+    let arm = encode_with_version(&Request::Arm, 12, other, &mut out)
+        .unwrap()
+        .to_vec();
+    port.write_all(&hello).unwrap();
+    port.write_all(&arm).unwrap();
+    let mut dec = FrameDecoder::<MAX_FRAME>::new();
+    let mut got = Vec::new();
+    let end = Instant::now() + Duration::from_secs(5);
+    let mut buf = [0u8; 512];
+    while got.len() < 2 && Instant::now() < end {
+        if let Ok(n) = port.read(&mut buf) {
+            let mut rest = &buf[..n];
+            while !rest.is_empty() {
+                let (d, r) = dec.feed::<Reply>(rest);
+                rest = r;
+                if let Some(Decoded::Frame { msg, .. }) = d {
+                    got.push(msg);
+                }
+            }
+        }
+    }
+    assert!(
+        matches!(
+            got[0],
+            Reply::Hello {
+                seq: 11,
+                version: PROTOCOL_VERSION,
+                ..
+            }
+        ),
+        "{got:?}"
+    );
+    assert_eq!(
+        got[1],
+        Reply::Nack {
+            seq: 12,
+            error: ErrorCode::VersionMismatch
+        }
+    );
+    drop(port);
+    let mut r = robot.finish();
+    assert_eq!(r.device().state(), RunStateMsg::Hold);
+    assert_eq!(r.device().counters().nacks, 1);
+}
+
+/// Upload the paper curve, arm, record 12 s through `wmr record`: the JSON
+/// summary's metrics (telemetry at 100 Hz, the robot's own pose and
+/// commanded torque) match `hil-sim run` of the same scenario (every 1 ms
+/// step, true pose and delivered torque) within the stated tolerances:
+/// position metrics within 2 % + 2 mm, torque RMS within 3 %.
+#[test]
+fn recorded_paper_curve_matches_the_simulation() {
+    let duration = 12.0;
+    let scn = nominal(TrajectoryKind::Paper, duration);
+    let sim = hil_sim::sim::run_with(
+        &scn,
+        hil_sim::sim::controller_config(&scn, ControllerKind::Proposed),
+        1,
+    )
+    .unwrap();
+    let robot = Robot::start(&scn, 4.0);
+    let mut link = robot.link();
+    ok(
+        &mut link,
+        Request::SetParam {
+            id: ParamId::LinkTimeoutMs,
+            value: 5000.0,
+        },
+    );
+    ok(&mut link, builtin("paper"));
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("rec.csv");
+    let args = wmr::cli::RecordArgs {
+        seconds: duration,
+        out: csv.clone(),
+        rate: 100,
+        arm: true,
+        quiet: true,
+    };
+    let mut out = Vec::new();
+    wmr::cli::record(&args, &mut link, &mut out).unwrap();
+    let summary: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    let rows = summary["rows"].as_u64().unwrap();
+    assert!((1190..=1200).contains(&rows), "{rows} rows");
+    let m = &summary["metrics"];
+    let f = |k: &str| m[k].as_f64().unwrap();
+    let s = &sim.metrics;
+    let close = |name: &str, rec: f64, sim: f64, rel: f64, abs: f64| {
+        assert!(
+            (rec - sim).abs() <= rel * sim.abs() + abs,
+            "{name}: recorded {rec}, simulated {sim}"
+        );
+    };
+    eprintln!(
+        "recorded / simulated: rms {:.5} / {:.5} m, rms_t>5 {:.5} / {:.5} m, final {:.5} / {:.5} m, tau_rms {:.4} / {:.4} N·m",
+        f("rms_pos_err_m"),
+        s.rms_pos_err_m,
+        f("rms_pos_err_after5_m"),
+        s.rms_pos_err_after5_m,
+        f("final_pos_err_m"),
+        s.final_pos_err_m,
+        f("torque_rms_nm"),
+        s.torque_rms_nm
+    );
+    close("rms", f("rms_pos_err_m"), s.rms_pos_err_m, 0.02, 0.002);
+    close(
+        "rms_t>5",
+        f("rms_pos_err_after5_m"),
+        s.rms_pos_err_after5_m,
+        0.02,
+        0.002,
+    );
+    close(
+        "final",
+        f("final_pos_err_m"),
+        s.final_pos_err_m,
+        0.02,
+        0.002,
+    );
+    close("tau_rms", f("torque_rms_nm"), s.torque_rms_nm, 0.03, 0.0);
+    // The same numbers from the CSV through `hil-sim report`'s code.
+    let trace = hil_sim::log_report::load_trace(&csv).unwrap();
+    let again =
+        hil_sim::log_report::trace_metrics(&trace, [0.0, 0.0], ControllerKind::Proposed).unwrap();
+    assert_eq!(again.rms_pos_err_m, f("rms_pos_err_m"));
+    drop(link);
+    robot.finish();
+}
+
+/// Armed by the host, then silence: braking starts within the link
+/// timeout (500 ms, one telemetry period of slack), the robot stands still
+/// and disarms (zero torque) within the braking time.
+#[test]
+fn link_silence_while_running_stops_within_the_timeout() {
+    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
+    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
+    let robot = Robot::start(&scn, 1.0);
+    let mut link = robot.link();
+    ok(&mut link, builtin("circle"));
+    ok(
+        &mut link,
+        Request::SetTelemetry {
+            selection: TELEMETRY_TRACKING,
+            rate_hz: 1000,
+        },
+    );
+    ok(&mut link, Request::Arm);
+    // From here on the host only listens.
+    let frames = telemetry_until(&mut link, Duration::from_secs(20), |t| {
+        t.state == RunStateMsg::Hold && t.t_ref_s > 0.0
+    });
+    let t_us = |t: &Telemetry| t.t_robot_us as f64 * 1e-6;
+    let armed = frames
+        .iter()
+        .find(|t| t.state == RunStateMsg::Running)
+        .map(t_us)
+        .unwrap();
+    let braking = frames
+        .iter()
+        .find(|t| t.state == RunStateMsg::Stopping)
+        .map(t_us)
+        .unwrap();
+    let hold = frames.last().unwrap();
+    assert!(
+        braking - armed <= 0.5 + 0.002,
+        "braking began {:.3} s after arming",
+        braking - armed
+    );
+    // 0.5 m/s at 1 m/s² brakes in 0.5 s.
+    assert!(t_us(hold) - braking <= 0.5 + 0.002);
+    assert_eq!(hold.tracking.unwrap().torque_nm, [0.0; 2]);
+    drop(link);
+    robot.finish();
+}
+
+/// `drive` without refresh: the command expires after its timeout, the
+/// reference ramps to a standstill and the robot disarms.
+#[test]
+fn drive_without_refresh_stops_after_its_timeout() {
+    let robot = Robot::start(&nominal(TrajectoryKind::Line, 1.0), 1.0);
+    let mut link = robot.link();
+    ok(
+        &mut link,
+        Request::SetTelemetry {
+            selection: TELEMETRY_TRACKING,
+            rate_hz: 1000,
+        },
+    );
+    ok(
+        &mut link,
+        Request::Velocity {
+            v_mps: 0.3,
+            omega_radps: 0.2,
+            timeout_ms: 200,
+        },
+    );
+    ok(&mut link, Request::Arm);
+    let mut last_ping = Instant::now();
+    let end = Instant::now() + Duration::from_secs(20);
+    let mut frames = Vec::new();
+    while Instant::now() < end {
+        // The link stays alive; only the velocity command is not refreshed.
+        if last_ping.elapsed() > Duration::from_millis(50) {
+            link.send(&Request::GetStatus).unwrap();
+            last_ping = Instant::now();
+        }
+        if let Some(Reply::Telemetry(t)) = link.next_stream(Duration::from_millis(10)).unwrap() {
+            frames.push(t);
+            if t.state == RunStateMsg::Hold
+                && frames.iter().any(|f| f.state == RunStateMsg::Running)
+            {
+                break;
+            }
+        }
+    }
+    let t = |s: RunStateMsg| {
+        frames
+            .iter()
+            .find(|f| f.state == s)
+            .map(|f| f.t_robot_us as f64 * 1e-6)
+            .unwrap()
+    };
+    let (run, stopping) = (t(RunStateMsg::Running), t(RunStateMsg::Stopping));
+    assert!(stopping - run <= 0.2 + 0.002, "{:.3} s", stopping - run);
+    let hold = frames.last().unwrap();
+    assert_eq!(hold.state, RunStateMsg::Hold);
+    // v reached at most 1 m/s² × 0.2 s = 0.2 m/s: 0.2 s of braking.
+    assert!(hold.t_robot_us as f64 * 1e-6 - stopping <= 0.2 + 0.002);
+    assert_eq!(hold.tracking.unwrap().torque_nm, [0.0; 2]);
+    drop(link);
+    robot.finish();
+}
+
+/// Raw frames in order: the emergency stop's ack and the telemetry of the
+/// tick that handled it are sent together; that tick already has zero
+/// torque, the one before it drove.
+#[test]
+fn estop_reaches_zero_torque_within_two_ticks() {
+    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
+    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
+    let robot = Robot::start(&scn, 1.0);
+    let mut link = robot.link();
+    ok(&mut link, builtin("circle"));
+    ok(
+        &mut link,
+        Request::SetTelemetry {
+            selection: TELEMETRY_TRACKING,
+            rate_hz: 1000,
+        },
+    );
+    ok(&mut link, Request::Arm);
+    drop(link);
+    let mut port = serialport::new(&robot.path, 115_200)
+        .timeout(Duration::from_millis(5))
+        .open_native()
+        .unwrap();
+    let mut dec = FrameDecoder::<MAX_FRAME>::new();
+    let mut seen: Vec<Reply> = Vec::new();
+    let mut buf = [0u8; 4096];
+    let mut read = |port: &mut serialport::TTYPort, seen: &mut Vec<Reply>| {
+        if let Ok(n) = port.read(&mut buf) {
+            let mut rest = &buf[..n];
+            while !rest.is_empty() {
+                let (d, r) = dec.feed::<Reply>(rest);
+                rest = r;
+                if let Some(Decoded::Frame { msg, .. }) = d {
+                    seen.push(msg);
+                }
+            }
+        }
+    };
+    // Let it drive 100 ms.
+    let end = Instant::now() + Duration::from_secs(10);
+    while Instant::now() < end
+        && !seen
+            .iter()
+            .any(|r| matches!(r, Reply::Telemetry(t) if t.t_ref_s > 0.1))
+    {
+        read(&mut port, &mut seen);
+    }
+    let mut out = [0u8; MAX_FRAME];
+    let f = encode(&Request::EmergencyStop, 77, &mut out)
+        .unwrap()
+        .to_vec();
+    port.write_all(&f).unwrap();
+    let end = Instant::now() + Duration::from_secs(10);
+    while Instant::now() < end {
+        read(&mut port, &mut seen);
+        if let Some(i) = seen.iter().position(|r| *r == Reply::Ack { seq: 77 }) {
+            if seen[i..].iter().any(|r| matches!(r, Reply::Telemetry(_))) {
+                break;
+            }
+        }
+    }
+    let i = seen
+        .iter()
+        .position(|r| *r == Reply::Ack { seq: 77 })
+        .expect("estop acked");
+    let tel = |r: &Reply| match r {
+        Reply::Telemetry(t) => Some(*t),
+        _ => None,
+    };
+    let before = seen[..i].iter().rev().find_map(tel).expect("a tick before");
+    let after = seen[i..].iter().find_map(tel).expect("a tick after");
+    assert_eq!(before.state, RunStateMsg::Running);
+    assert_ne!(before.tracking.unwrap().torque_nm, [0.0; 2]);
+    assert_eq!(after.state, RunStateMsg::Stopped);
+    assert_eq!(after.tracking.unwrap().torque_nm, [0.0; 2]);
+    assert_eq!(after.tracking.unwrap().duty, [0; 2]);
+    let ticks = (after.t_robot_us - before.t_robot_us) / 1000;
+    assert!(ticks <= 2, "{ticks} ticks");
+    drop(port);
+    robot.finish();
+}
+
+/// Garbage, corrupted and oversized frames while running: every one
+/// counted, the robot keeps running on the circle it started on (no stop,
+/// tracking error as small as without them), telemetry keeps flowing.
+#[test]
+fn garbage_and_corrupted_frames_never_disturb_the_loop() {
+    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
+    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
+    let robot = Robot::start(&scn, 1.0);
+    let mut link = robot.link();
+    ok(&mut link, builtin("circle"));
+    ok(
+        &mut link,
+        Request::SetTelemetry {
+            selection: TELEMETRY_TRACKING | TELEMETRY_COUNTERS,
+            rate_hz: 100,
+        },
+    );
+    ok(&mut link, Request::Arm);
+    // The link holds the port exclusively: the garbage goes through it.
+    let mut rng = 0x1234_5678u32;
+    let mut next = || {
+        rng ^= rng << 13;
+        rng ^= rng >> 17;
+        rng ^= rng << 5;
+        rng
+    };
+    let mut frames = Vec::new();
+    let start = Instant::now();
+    let mut k = 0u32;
+    while start.elapsed() < Duration::from_secs(2) {
+        k += 1;
+        let mut junk: Vec<u8> = (0..40).map(|_| next() as u8).collect();
+        if k % 3 == 0 {
+            // A valid frame with one byte changed.
+            let mut out = [0u8; MAX_FRAME];
+            let f = encode(&Request::EmergencyStop, 9, &mut out).unwrap();
+            let n = f.len() - 1;
+            f[(next() as usize) % n] ^= 1 + (next() % 255) as u8;
+            junk.extend_from_slice(f);
+        }
+        if k % 50 == 0 {
+            junk.extend(std::iter::repeat_n(0x42u8, 400));
+            junk.push(0);
+        }
+        link.write_raw(&junk).unwrap();
+        // Keep the link alive with valid frames in between.
+        link.send(&Request::GetStatus).unwrap();
+        if let Some(Reply::Telemetry(t)) = link.next_stream(Duration::from_millis(5)).unwrap() {
+            frames.push(t);
+        }
+    }
+    let status = match link.command(&Request::GetStatus).unwrap() {
+        Reply::Status { status, .. } => status,
+        r => panic!("{r:?}"),
+    };
+    assert_eq!(status.state, RunStateMsg::Running, "{status:?}");
+    assert_eq!(status.counters.stops, 0);
+    assert!(status.counters.rx_errors > 100, "{:?}", status.counters);
+    // Frames queued before the arm's tick are hold; from the first running
+    // one on, every frame is running.
+    let first = frames
+        .iter()
+        .position(|t| t.state == RunStateMsg::Running)
+        .unwrap();
+    assert!(
+        frames.len() - first > 50,
+        "{} telemetry frames",
+        frames.len()
+    );
+    for t in &frames[first..] {
+        assert_eq!(t.state, RunStateMsg::Running);
+        let tr = t.tracking.unwrap();
+        let e = (tr.ref_pose.x_m - tr.pose.x_m).hypot(tr.ref_pose.y_m - tr.pose.y_m);
+        assert!(e < 0.02, "position error {e} m at t = {}", t.t_ref_s);
+    }
+    drop(link);
+    robot.finish();
+}
+
+/// `wmr upload` names the simulator's trajectories: the robot's built-in
+/// reference of each name samples the same reference as the simulator's.
+#[test]
+fn robot_shapes_are_the_simulator_trajectories() {
+    use controller_core::trajectory::Trajectory;
+    for (name, kind) in [
+        ("paper", TrajectoryKind::Paper),
+        ("circle", TrajectoryKind::Circle),
+        ("figure8", TrajectoryKind::Figure8),
+        ("line", TrajectoryKind::Line),
+    ] {
+        let placed = wmr_device::reference::PlacedReference::new(&BuiltinReference {
+            shape: named_shape(name).unwrap(),
+            start: None,
+            speed_scale: 1.0,
+        })
+        .unwrap();
+        let sim = kind.reference();
+        for k in 0..400 {
+            let t = k as f32 * 0.1;
+            assert_eq!(placed.sample(t), sim.sample(t), "{name} at {t}");
+        }
+    }
+}

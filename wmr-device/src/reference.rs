@@ -1,0 +1,488 @@
+//! The references the host can load: built-in shapes placed in the world
+//! with a speed scale, a bounded buffer of timed waypoints interpolated by
+//! cubic Hermite curves, a velocity command integrated into a virtual
+//! vehicle, and the braking profile of a controlled stop.
+
+use controller_core::math::{atan2, sin_cos, wrap_angle};
+use controller_core::trajectory::{
+    tangent_sample, Circle, FigureEight, Line, PaperCurve, PaperHeading, RefSample, Reference,
+    Trajectory,
+};
+use controller_core::Pose;
+use heapless::Deque;
+use wmr_protocol::{BuiltinReference, BuiltinShape, PoseMsg, Waypoint};
+
+/// Largest accepted speed scale.
+pub const MAX_SPEED_SCALE: f32 = 10.0;
+/// Waypoints the trajectory buffer holds.
+pub const WAYPOINT_CAPACITY: usize = 64;
+
+/// Protocol pose to controller-core pose.
+pub fn pose_from_msg(p: PoseMsg) -> Pose {
+    Pose::new(p.x_m, p.y_m, p.theta_rad)
+}
+
+/// Controller-core pose to protocol pose.
+pub fn pose_to_msg(p: Pose) -> PoseMsg {
+    PoseMsg {
+        x_m: p.x_m,
+        y_m: p.y_m,
+        theta_rad: p.theta_rad,
+    }
+}
+
+/// A built-in shape placed rigidly in the world and time-scaled; validated
+/// by [`PlacedReference::new`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlacedReference {
+    shape: Reference,
+    scale: f32,
+    /// Rotation φ and the translation applied after rotating about the
+    /// shape's start point `origin`.
+    phi_rad: f32,
+    origin: [f32; 2],
+    target: [f32; 2],
+}
+
+impl PlacedReference {
+    /// Validates and places `r`; `None` when a parameter is not finite or
+    /// out of range.
+    pub fn new(r: &BuiltinReference) -> Option<Self> {
+        let shape = match r.shape {
+            BuiltinShape::PaperCurve {
+                ax_m,
+                ay_m,
+                w_radps,
+            } => Reference::Paper(PaperCurve {
+                ax_m,
+                ay_m,
+                w_radps,
+                heading: PaperHeading::SignedSmooth,
+            }),
+            BuiltinShape::Circle {
+                radius_m,
+                speed_mps,
+            } => Reference::Circle(Circle {
+                radius_m,
+                speed_mps,
+            }),
+            BuiltinShape::FigureEight {
+                amplitude_m,
+                w_radps,
+            } => Reference::FigureEight(FigureEight {
+                amplitude_m,
+                w_radps,
+            }),
+            BuiltinShape::Line { speed_mps } => Reference::Line(Line {
+                start: Pose::new(0.0, 0.0, 0.0),
+                speed_mps,
+            }),
+        };
+        let shape = shape.validate().ok()?;
+        let s = r.speed_scale;
+        if !(s.is_finite() && s > 0.0 && s <= MAX_SPEED_SCALE) {
+            return None;
+        }
+        let r0 = shape.sample(0.0).pose;
+        let (phi_rad, origin, target) = match r.start {
+            None => (0.0, [0.0; 2], [0.0; 2]),
+            Some(p) if p.is_finite() => (
+                wrap_angle(p.theta_rad - r0.theta_rad),
+                [r0.x_m, r0.y_m],
+                [p.x_m, p.y_m],
+            ),
+            Some(_) => return None,
+        };
+        Some(Self {
+            shape,
+            scale: s,
+            phi_rad,
+            origin,
+            target,
+        })
+    }
+}
+
+impl Trajectory for PlacedReference {
+    fn sample(&self, t_s: f32) -> RefSample {
+        let s = self.scale;
+        let r = self.shape.sample(s * t_s);
+        let (sn, cs) = sin_cos(self.phi_rad);
+        let dx = r.pose.x_m - self.origin[0];
+        let dy = r.pose.y_m - self.origin[1];
+        RefSample {
+            pose: Pose::new(
+                self.target[0] + cs * dx - sn * dy,
+                self.target[1] + sn * dx + cs * dy,
+                r.pose.theta_rad + self.phi_rad,
+            ),
+            v_mps: s * r.v_mps,
+            omega_radps: s * r.omega_radps,
+            v_dot_mps2: s * s * r.v_dot_mps2,
+            omega_dot_radps2: s * s * r.omega_dot_radps2,
+        }
+    }
+}
+
+/// Why a segment was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SegmentError {
+    /// No upload begun, wrong index or non-increasing time.
+    OutOfOrder,
+    /// Not enough room.
+    Full,
+    /// A non-finite value.
+    Invalid,
+}
+
+/// The bounded buffer of an uploaded trajectory.
+#[derive(Clone, Debug, Default)]
+pub struct WaypointBuffer {
+    points: Deque<Waypoint, WAYPOINT_CAPACITY>,
+    /// Trajectory index of `points[0]`.
+    head_index: u32,
+    /// Index the next segment must start at.
+    next_index: u32,
+    total: u32,
+    begun: bool,
+}
+
+impl WaypointBuffer {
+    /// Clears the buffer and expects `total` waypoints.
+    pub fn begin(&mut self, total: u32) {
+        *self = Self {
+            total,
+            begun: true,
+            ..Self::default()
+        };
+    }
+
+    /// Drops everything.
+    pub fn clear(&mut self) {
+        *self = Self::default();
+    }
+
+    /// Appends a segment; waypoints already passed at reference time
+    /// `t_now_s` (all but the one before it) make room when needed.
+    pub fn push(
+        &mut self,
+        first_index: u32,
+        points: &[Waypoint],
+        t_now_s: Option<f32>,
+    ) -> Result<(), SegmentError> {
+        if !self.begun || first_index != self.next_index {
+            return Err(SegmentError::OutOfOrder);
+        }
+        if self.next_index as u64 + points.len() as u64 > self.total as u64 {
+            return Err(SegmentError::OutOfOrder);
+        }
+        let mut last_t = self.points.back().map(|w| w.t_s);
+        for w in points {
+            let finite = w.t_s.is_finite()
+                && w.pose.is_finite()
+                && w.v_mps.is_finite()
+                && w.omega_radps.is_finite();
+            if !finite || w.t_s < 0.0 {
+                return Err(SegmentError::Invalid);
+            }
+            if last_t.is_some_and(|t| w.t_s <= t) {
+                return Err(SegmentError::OutOfOrder);
+            }
+            last_t = Some(w.t_s);
+        }
+        if let Some(t) = t_now_s {
+            while self.points.len() >= 2 && self.points.iter().nth(1).is_some_and(|w| w.t_s <= t) {
+                if self.free() >= points.len() {
+                    break;
+                }
+                self.points.pop_front();
+                self.head_index += 1;
+            }
+        }
+        if self.free() < points.len() {
+            return Err(SegmentError::Full);
+        }
+        for w in points {
+            // Cannot fail: room checked above.
+            let _ = self.points.push_back(*w);
+        }
+        self.next_index += points.len() as u32;
+        Ok(())
+    }
+
+    /// Free slots.
+    pub fn free(&self) -> usize {
+        WAYPOINT_CAPACITY - self.points.len()
+    }
+
+    /// Waypoints held.
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+
+    /// Index the next segment must start at.
+    pub fn next_index(&self) -> u32 {
+        self.next_index
+    }
+
+    /// Drivable from t = 0: at least two waypoints, the first one held.
+    pub fn ready(&self) -> bool {
+        self.begun && self.head_index == 0 && self.points.len() >= 2
+    }
+
+    /// Every waypoint of the upload has arrived.
+    pub fn complete(&self) -> bool {
+        self.begun && self.next_index == self.total
+    }
+
+    /// The reference at `t_s`, or `None` past the last buffered waypoint.
+    pub fn sample(&self, t_s: f32) -> Option<RefSample> {
+        let first = self.points.front()?;
+        if t_s <= first.t_s {
+            return Some(hold_sample(first));
+        }
+        self.points
+            .iter()
+            .zip(self.points.iter().skip(1))
+            .find(|(_, b)| t_s <= b.t_s)
+            .map(|(a, b)| hermite(a, b, t_s))
+    }
+
+    /// The last buffered waypoint.
+    pub fn last(&self) -> Option<Waypoint> {
+        self.points.back().copied()
+    }
+}
+
+fn hold_sample(w: &Waypoint) -> RefSample {
+    RefSample {
+        pose: pose_from_msg(w.pose),
+        v_mps: w.v_mps,
+        omega_radps: w.omega_radps,
+        v_dot_mps2: 0.0,
+        omega_dot_radps2: 0.0,
+    }
+}
+
+/// Speed of the Hermite curve below which the heading is interpolated \[m/s\].
+const MIN_TANGENT_SPEED_MPS: f32 = 1e-3;
+
+/// Cubic Hermite between two waypoints: positions and velocity vectors
+/// v·(cos θ, sin θ) at both ends; heading along the tangent (flipped where
+/// the interpolated v is negative); ω, v̇, ω̇ from the exact derivatives.
+pub fn hermite(a: &Waypoint, b: &Waypoint, t_s: f32) -> RefSample {
+    let h = b.t_s - a.t_s;
+    let s = ((t_s - a.t_s) / h).clamp(0.0, 1.0);
+    let (sa, ca) = sin_cos(a.pose.theta_rad);
+    let (sb, cb) = sin_cos(b.pose.theta_rad);
+    let p0 = [a.pose.x_m, a.pose.y_m];
+    let p1 = [b.pose.x_m, b.pose.y_m];
+    let m0 = [h * a.v_mps * ca, h * a.v_mps * sa];
+    let m1 = [h * b.v_mps * cb, h * b.v_mps * sb];
+    let (s2, s3) = (s * s, s * s * s);
+    let c0 = [
+        2.0 * s3 - 3.0 * s2 + 1.0,
+        s3 - 2.0 * s2 + s,
+        -2.0 * s3 + 3.0 * s2,
+        s3 - s2,
+    ];
+    let c1 = [
+        6.0 * s2 - 6.0 * s,
+        3.0 * s2 - 4.0 * s + 1.0,
+        -6.0 * s2 + 6.0 * s,
+        3.0 * s2 - 2.0 * s,
+    ];
+    let c2 = [
+        12.0 * s - 6.0,
+        6.0 * s - 4.0,
+        -12.0 * s + 6.0,
+        6.0 * s - 2.0,
+    ];
+    let c3 = [12.0, 6.0, -12.0, 6.0];
+    let comb = |c: [f32; 4], scale: f32| {
+        core::array::from_fn::<f32, 2, _>(|k| {
+            (c[0] * p0[k] + c[1] * m0[k] + c[2] * p1[k] + c[3] * m1[k]) * scale
+        })
+    };
+    let p = comb(c0, 1.0);
+    let d1 = comb(c1, 1.0 / h);
+    let d2 = comb(c2, 1.0 / (h * h));
+    let d3 = comb(c3, 1.0 / (h * h * h));
+    let v_lin = a.v_mps + s * (b.v_mps - a.v_mps);
+    let speed2 = d1[0] * d1[0] + d1[1] * d1[1];
+    if speed2 < MIN_TANGENT_SPEED_MPS * MIN_TANGENT_SPEED_MPS {
+        let dth = wrap_angle(b.pose.theta_rad - a.pose.theta_rad);
+        return RefSample {
+            pose: Pose::new(p[0], p[1], a.pose.theta_rad + s * dth),
+            v_mps: 0.0,
+            omega_radps: dth / h,
+            v_dot_mps2: 0.0,
+            omega_dot_radps2: 0.0,
+        };
+    }
+    let mut r = tangent_sample(p, d1, d2, d3);
+    if v_lin < 0.0 {
+        r.pose.theta_rad = wrap_angle(r.pose.theta_rad + core::f32::consts::PI);
+        r.v_mps = -r.v_mps;
+        r.v_dot_mps2 = -r.v_dot_mps2;
+    }
+    r
+}
+
+/// A unicycle reference integrated tick by tick: the virtual vehicle of
+/// velocity commands and of controlled stops.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VirtualVehicle {
+    /// The current sample (pose, v, ω and their rates of change).
+    pub sample: RefSample,
+}
+
+impl VirtualVehicle {
+    /// Standing at `pose`.
+    pub fn at_rest(pose: Pose) -> Self {
+        Self {
+            sample: RefSample {
+                pose,
+                ..RefSample::default()
+            },
+        }
+    }
+
+    /// Continuing from `sample`.
+    pub fn from_sample(sample: RefSample) -> Self {
+        Self { sample }
+    }
+
+    /// Advances one period `dt_s` with the rates `v_dot`, `omega_dot`
+    /// (midpoint rule for the pose).
+    pub fn advance(&mut self, dt_s: f32, v_dot: f32, omega_dot: f32) {
+        let r = &mut self.sample;
+        let v1 = r.v_mps + v_dot * dt_s;
+        let w1 = r.omega_radps + omega_dot * dt_s;
+        let v_mid = 0.5 * (r.v_mps + v1);
+        let w_mid = 0.5 * (r.omega_radps + w1);
+        let (s, c) = sin_cos(r.pose.theta_rad + 0.5 * w_mid * dt_s);
+        r.pose = Pose::new(
+            r.pose.x_m + v_mid * c * dt_s,
+            r.pose.y_m + v_mid * s * dt_s,
+            wrap_angle(r.pose.theta_rad + w_mid * dt_s),
+        );
+        r.v_mps = v1;
+        r.omega_radps = w1;
+    }
+
+    /// The rate that moves `x` toward `target` by at most `limit`·`dt_s`
+    /// in one period, exactly reaching it when closer.
+    pub fn ramp_rate(x: f32, target: f32, limit: f32, dt_s: f32) -> f32 {
+        let d = target - x;
+        let step = limit * dt_s;
+        if d.abs() <= step {
+            d / dt_s
+        } else if d > 0.0 {
+            limit
+        } else {
+            -limit
+        }
+    }
+}
+
+/// Heading of a velocity vector (for tests and the host tool).
+pub fn heading_of(vx: f32, vy: f32) -> f32 {
+    atan2(vy, vx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wp(t: f32, x: f32, y: f32, th: f32, v: f32, w: f32) -> Waypoint {
+        Waypoint {
+            t_s: t,
+            pose: PoseMsg {
+                x_m: x,
+                y_m: y,
+                theta_rad: th,
+            },
+            v_mps: v,
+            omega_radps: w,
+        }
+    }
+
+    /// Hermite segments pass through both waypoints with their velocity
+    /// (forwards and backwards), and the sample's v and ω are the
+    /// derivatives of its own pose (central differences).
+    #[test]
+    fn hermite_interpolates_ends_and_is_self_consistent() {
+        for sign in [1.0f32, -1.0] {
+            let a = wp(1.0, 0.0, 0.0, 0.0, sign * 0.5, 0.0);
+            let b = wp(3.0, sign * 1.0, 0.6, 0.6, sign * 0.5, 0.0);
+            let ra = hermite(&a, &b, 1.0);
+            let rb = hermite(&a, &b, 3.0);
+            assert!((ra.pose.x_m - 0.0).abs() < 1e-6 && (rb.pose.y_m - 0.6).abs() < 1e-6);
+            assert!((ra.v_mps - sign * 0.5).abs() < 1e-5, "{}", ra.v_mps);
+            assert!((ra.pose.theta_rad - 0.0).abs() < 1e-5);
+            assert!((wrap_angle(rb.pose.theta_rad - 0.6)).abs() < 1e-5);
+            let h = 1e-3;
+            let mut t = 1.05;
+            while t < 2.95 {
+                let (p, m, n) = (
+                    hermite(&a, &b, t - h),
+                    hermite(&a, &b, t),
+                    hermite(&a, &b, t + h),
+                );
+                let vx = (n.pose.x_m - p.pose.x_m) / (2.0 * h);
+                let vy = (n.pose.y_m - p.pose.y_m) / (2.0 * h);
+                let (s, c) = sin_cos(m.pose.theta_rad);
+                assert!((vx - m.v_mps * c).abs() < 2e-3 && (vy - m.v_mps * s).abs() < 2e-3);
+                let w = wrap_angle(n.pose.theta_rad - p.pose.theta_rad) / (2.0 * h);
+                assert!(
+                    (w - m.omega_radps).abs() < 5e-3,
+                    "t {t}: {w} vs {}",
+                    m.omega_radps
+                );
+                t += 0.1;
+            }
+        }
+    }
+
+    /// A placed, scaled line starts on the requested pose, heads its way
+    /// and runs at s times its speed.
+    #[test]
+    fn placed_reference_starts_on_the_start_pose() {
+        let r = PlacedReference::new(&BuiltinReference {
+            shape: BuiltinShape::Circle {
+                radius_m: 2.0,
+                speed_mps: 0.5,
+            },
+            start: Some(PoseMsg {
+                x_m: 1.0,
+                y_m: -1.0,
+                theta_rad: 0.0,
+            }),
+            speed_scale: 0.5,
+        })
+        .unwrap();
+        let s0 = r.sample(0.0);
+        assert!((s0.pose.x_m - 1.0).abs() < 1e-5 && (s0.pose.y_m + 1.0).abs() < 1e-5);
+        assert!(s0.pose.theta_rad.abs() < 1e-5);
+        assert!((s0.v_mps - 0.25).abs() < 1e-6);
+        // A quarter circle of radius 2 (π m) at 0.25 m/s takes 4π s and
+        // ends 2 m ahead and 2 m to the left, heading +y.
+        let q = r.sample(core::f32::consts::PI / 0.25);
+        assert!(
+            (q.pose.x_m - 3.0).abs() < 1e-3 && (q.pose.y_m - 1.0).abs() < 1e-3,
+            "{q:?}"
+        );
+        let bad = BuiltinReference {
+            shape: BuiltinShape::Line { speed_mps: 0.1 },
+            start: None,
+            speed_scale: 0.0,
+        };
+        assert!(PlacedReference::new(&bad).is_none());
+    }
+}

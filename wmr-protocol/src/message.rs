@@ -1,0 +1,634 @@
+//! Every message of the link, typed. Host → robot: [`Request`] (each with a
+//! sequence number chosen by the host, echoed in the reply). Robot → host:
+//! [`Reply`] (answers, telemetry and events). Units are in the field names;
+//! `docs/protocol.md` documents every variant and field.
+
+use heapless::Vec;
+use serde::{Deserialize, Serialize};
+
+/// Waypoints per [`Request::TrajectorySegment`] (bounded so a frame stays
+/// below [`MAX_BODY`](crate::MAX_BODY)).
+pub const SEGMENT_POINTS: usize = 8;
+
+/// Planar pose of the tracked point G in the world frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PoseMsg {
+    /// x \[m\].
+    pub x_m: f32,
+    /// y \[m\].
+    pub y_m: f32,
+    /// Heading θ \[rad\].
+    pub theta_rad: f32,
+}
+
+impl PoseMsg {
+    /// True when every coordinate is finite.
+    pub fn is_finite(&self) -> bool {
+        self.x_m.is_finite() && self.y_m.is_finite() && self.theta_rad.is_finite()
+    }
+}
+
+/// A built-in parametric reference of the robot (controller-core's
+/// `trajectory` module).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BuiltinShape {
+    /// The paper's curve x = a_x cos wt, y = a_y cos 3wt (smooth signed heading).
+    PaperCurve {
+        /// a_x \[m\].
+        ax_m: f32,
+        /// a_y \[m\].
+        ay_m: f32,
+        /// w \[rad/s\].
+        w_radps: f32,
+    },
+    /// Circle about the origin, counter-clockwise from (R, 0).
+    Circle {
+        /// Radius \[m\].
+        radius_m: f32,
+        /// Speed \[m/s\].
+        speed_mps: f32,
+    },
+    /// Figure-eight x = A sin wt, y = (A/2) sin 2wt.
+    FigureEight {
+        /// Half-width A \[m\].
+        amplitude_m: f32,
+        /// w \[rad/s\].
+        w_radps: f32,
+    },
+    /// Straight line along +x from the origin.
+    Line {
+        /// Speed \[m/s\] (signed).
+        speed_mps: f32,
+    },
+}
+
+/// A built-in reference placed in the world: shape, rigid start-pose
+/// transform and speed scale.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BuiltinReference {
+    /// The shape in its own frame.
+    pub shape: BuiltinShape,
+    /// `None`: the shape's frame is the world frame. `Some(p)`: the shape
+    /// is moved rigidly so that its pose at t = 0 is `p`.
+    pub start: Option<PoseMsg>,
+    /// Time scale s > 0: the robot follows r(s·t) (speeds × s, accelerations × s²).
+    pub speed_scale: f32,
+}
+
+/// One timed waypoint of an uploaded trajectory.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Waypoint {
+    /// Time since arming \[s\] (strictly increasing along the trajectory).
+    pub t_s: f32,
+    /// Pose at `t_s`.
+    pub pose: PoseMsg,
+    /// Linear velocity v \[m/s\] (signed) at `t_s`.
+    pub v_mps: f32,
+    /// Angular velocity ω \[rad/s\] at `t_s`.
+    pub omega_radps: f32,
+}
+
+/// A parameter the host can read and (where marked) write.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ParamId {
+    /// Per-wheel torque limit \[N·m\] (hold only).
+    TorqueLimitNm,
+    /// Kinematic gain k_x of eq. (14) (hold only).
+    Kx,
+    /// Kinematic gain k_y of eq. (14) (hold only).
+    Ky,
+    /// Kinematic gain k_θ of eq. (14) (hold only).
+    Ktheta,
+    /// Sliding-surface gain k_s of eq. (20) (hold only).
+    Ks,
+    /// Stall torque of the safety supervisor \[N·m\] (hold only).
+    StallTorqueNm,
+    /// Stall time of the safety supervisor \[ticks\] (hold only).
+    StallTicks,
+    /// Telemetry rate \[Hz\] (any state; 0 = off).
+    TelemetryRateHz,
+    /// Link-silence timeout while moving under host control \[ms\] (any state).
+    LinkTimeoutMs,
+    /// Acceleration limit of velocity commands \[m/s²\] (hold only).
+    AccelMps2,
+    /// Angular acceleration limit of velocity commands \[rad/s²\] (hold only).
+    AngAccelRadps2,
+    /// Deceleration of a controlled stop \[m/s²\] (hold only).
+    BrakeDecelMps2,
+    /// Largest |v| a velocity command may ask \[m/s\] (hold only).
+    MaxSpeedMps,
+    /// Largest |ω| a velocity command may ask \[rad/s\] (hold only).
+    MaxYawRateRadps,
+    /// Control period \[s\] (read only).
+    ControlPeriodS,
+}
+
+/// What a telemetry frame carries (bit set; see the `TELEMETRY_*` constants).
+pub type TelemetrySelection = u8;
+/// Telemetry group: pose, reference, tracking error, η, η_c, torques, duties.
+pub const TELEMETRY_TRACKING: TelemetrySelection = 1;
+/// Telemetry group: sliding variable, ρ̂, D̂, F̂, estimator status.
+pub const TELEMETRY_ESTIMATORS: TelemetrySelection = 2;
+/// Telemetry group: tick and fault counters.
+pub const TELEMETRY_COUNTERS: TelemetrySelection = 4;
+/// Every telemetry group.
+pub const TELEMETRY_ALL: TelemetrySelection = 7;
+
+/// Host → robot.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Request {
+    /// Handshake: the host's protocol version; answered by [`Reply::Hello`].
+    Hello {
+        /// [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION) of the host.
+        version: u16,
+    },
+    /// Status: answered by [`Reply::Status`].
+    GetStatus,
+    /// Start driving the loaded reference or velocity mode.
+    Arm,
+    /// Stop driving (motors off, not latched).
+    Disarm,
+    /// Latch a safe stop at once (motors off on this tick).
+    EmergencyStop,
+    /// Clear a latched stop (back to hold).
+    ClearStop,
+    /// Re-anchor the pose estimate (hold only).
+    SetPose(PoseMsg),
+    /// An external pose measurement (motion capture, camera...).
+    ExternalPose {
+        /// When it was measured, robot clock \[µs\] (see [`Request::ClockSync`]).
+        t_robot_us: u32,
+        /// The measured pose.
+        pose: PoseMsg,
+        /// Standard deviations of x, y \[m\] and θ \[rad\].
+        std_dev: [f32; 3],
+    },
+    /// Clock sync: answered by [`Reply::ClockSync`] with the robot's time.
+    ClockSync {
+        /// Host time when sent \[µs\] (echoed).
+        host_time_us: u64,
+    },
+    /// Load a built-in reference (hold only).
+    SetReference(BuiltinReference),
+    /// Start a waypoint upload (hold only): clears the buffer.
+    TrajectoryBegin {
+        /// Total waypoints that will follow (≥ 2).
+        total_points: u32,
+    },
+    /// The next waypoints of the upload (streamed while running too).
+    TrajectorySegment {
+        /// Index of the first waypoint of this segment in the trajectory.
+        first_index: u32,
+        /// Up to [`SEGMENT_POINTS`] waypoints.
+        points: Vec<Waypoint, SEGMENT_POINTS>,
+    },
+    /// Velocity command, like ROS `cmd_vel`: selects velocity mode in hold,
+    /// refreshes it while running.
+    Velocity {
+        /// v \[m/s\].
+        v_mps: f32,
+        /// ω \[rad/s\].
+        omega_radps: f32,
+        /// The command expires this long after it arrives \[ms\] (1..=5000).
+        timeout_ms: u16,
+    },
+    /// Read a parameter: answered by [`Reply::Param`].
+    GetParam(ParamId),
+    /// Write a parameter: acknowledged, or refused with a typed error.
+    SetParam {
+        /// Which.
+        id: ParamId,
+        /// New value, in the parameter's unit.
+        value: f32,
+    },
+    /// Telemetry groups and rate.
+    SetTelemetry {
+        /// Bit set of `TELEMETRY_*` groups.
+        selection: TelemetrySelection,
+        /// Frames per second (0 = off).
+        rate_hz: u16,
+    },
+}
+
+/// Why a request was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ErrorCode {
+    /// The frame's protocol version differs from the robot's.
+    VersionMismatch,
+    /// The frame's CRC does not match its content.
+    BadCrc,
+    /// The frame does not decode into a request.
+    Malformed,
+    /// The frame is longer than [`MAX_FRAME`](crate::MAX_FRAME).
+    TooLong,
+    /// Not allowed while running (disarm first).
+    Busy,
+    /// Arming needs a loaded reference, a complete trajectory or a velocity command.
+    NoReference,
+    /// A safe stop is latched: clear it first.
+    Latched,
+    /// A value is NaN, infinite or out of its range.
+    InvalidValue,
+    /// The parameter cannot be written.
+    ReadOnly,
+    /// The trajectory buffer is full: send the segment again later.
+    BufferFull,
+    /// A segment does not continue the upload (index, time order, no begin).
+    OutOfOrder,
+    /// The pose measurement is too old or in the future.
+    Stale,
+    /// The command does not apply in the current mode.
+    WrongMode,
+}
+
+/// The robot's run state as the host sees it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RunStateMsg {
+    /// Motors off, waiting for a reference or velocity command and arm (boot state).
+    Hold,
+    /// Tracking the reference or velocity command.
+    Running,
+    /// Braking to a standstill along the reference, then hold.
+    Stopping,
+    /// Latched safe stop: motors off until cleared.
+    Stopped,
+}
+
+/// What the robot drives when armed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ModeMsg {
+    /// Nothing loaded: arming is refused.
+    None,
+    /// A built-in reference.
+    Builtin,
+    /// An uploaded waypoint trajectory.
+    Trajectory,
+    /// Velocity commands.
+    Velocity,
+}
+
+/// Why the robot stopped (a latched stop or a controlled stop).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StopCode {
+    /// The controller rejected its input.
+    ControllerInput,
+    /// An implausible encoder jump.
+    EncoderJump,
+    /// A wheel did not move under torque.
+    EncoderStalled,
+    /// Sustained loop overrun.
+    LoopOverrun,
+    /// Emergency stop request or stop command.
+    Commanded,
+    /// No valid frame for longer than the link timeout while moving.
+    LinkSilence,
+    /// The velocity command expired.
+    VelocityTimeout,
+    /// The uploaded trajectory ended or ran out of streamed waypoints.
+    TrajectoryEnd,
+    /// Disarmed by the host or the button.
+    Disarmed,
+    /// Any other runtime stop.
+    Other,
+}
+
+/// Something that happened on the robot, pushed without a request.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Event {
+    /// The run state changed.
+    StateChanged {
+        /// New state.
+        state: RunStateMsg,
+        /// Why, when it is a stop.
+        cause: Option<StopCode>,
+    },
+    /// The link went quiet while moving: a controlled stop began.
+    LinkLost,
+}
+
+/// Robot constants sent in the handshake.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RobotInfo {
+    /// Wheel radius r \[m\].
+    pub wheel_radius_m: f32,
+    /// Half track h \[m\].
+    pub half_track_m: f32,
+    /// Mass m \[kg\].
+    pub mass_kg: f32,
+    /// Control period \[s\].
+    pub control_period_s: f32,
+    /// Per-wheel torque limit \[N·m\].
+    pub torque_limit_nm: f32,
+}
+
+/// Capability bits of [`Reply::Hello`].
+pub type Capabilities = u16;
+/// Accepts external pose measurements.
+pub const CAP_EXTERNAL_POSE: Capabilities = 1;
+/// Accepts waypoint trajectories.
+pub const CAP_TRAJECTORY: Capabilities = 2;
+/// Accepts velocity commands.
+pub const CAP_VELOCITY: Capabilities = 4;
+/// A simulated robot (`hil-sim device`).
+pub const CAP_SIMULATED: Capabilities = 8;
+
+/// Status counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Counters {
+    /// Control ticks since boot.
+    pub ticks: u32,
+    /// Controller steps since the last arming.
+    pub run_ticks: u32,
+    /// Overrun episodes.
+    pub overruns: u32,
+    /// Largest time between two ticks \[µs\].
+    pub max_loop_time_us: u32,
+    /// Implausible encoder jumps.
+    pub encoder_jumps: u32,
+    /// Rejected controller inputs.
+    pub input_faults: u32,
+    /// Torque-saturated steps.
+    pub torque_saturated: u32,
+    /// Duty-saturated wheel-steps.
+    pub duty_saturated: u32,
+    /// External pose measurements used.
+    pub external_poses: u32,
+    /// Latched stops.
+    pub stops: u32,
+    /// Valid frames received.
+    pub rx_frames: u32,
+    /// Frames dropped: bad CRC, malformed, too long, wrong version.
+    pub rx_errors: u32,
+    /// Received bytes dropped because the receive buffer was full.
+    pub rx_overflow: u32,
+    /// Outgoing frames dropped because the send buffer was full.
+    pub tx_dropped: u32,
+    /// Requests refused with a nack.
+    pub nacks: u32,
+}
+
+/// Reply to [`Request::GetStatus`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StatusMsg {
+    /// Run state.
+    pub state: RunStateMsg,
+    /// Loaded mode.
+    pub mode: ModeMsg,
+    /// The last stop's cause (latched or controlled), if any.
+    pub last_stop: Option<StopCode>,
+    /// Robot clock \[µs\].
+    pub t_robot_us: u32,
+    /// Waypoints in the trajectory buffer.
+    pub buffered_points: u16,
+    /// Every counter.
+    pub counters: Counters,
+}
+
+/// Telemetry group [`TELEMETRY_TRACKING`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TrackingTelemetry {
+    /// Pose given to the controller.
+    pub pose: PoseMsg,
+    /// Reference pose.
+    pub ref_pose: PoseMsg,
+    /// Tracking error \[e_x m, e_y m, e_θ rad\] in the robot frame (eq. 8).
+    pub error: [f32; 3],
+    /// Measured η = \[v m/s, ω rad/s\].
+    pub eta: [f32; 2],
+    /// η_c = \[v_c m/s, ω_c rad/s\] (eq. 14).
+    pub eta_c: [f32; 2],
+    /// Wheel torques \[right, left\] \[N·m\].
+    pub torque_nm: [f32; 2],
+    /// Signed PWM duty \[right, left\] \[counts\].
+    pub duty: [i32; 2],
+    /// The torque request exceeded the limit this tick.
+    pub saturated: bool,
+    /// Reference governor time scale s after this tick (1 = nominal speed).
+    pub time_scale: f32,
+    /// Governed reference time τ the next tick uses \[s\].
+    pub tau_s: f32,
+    /// Health mode: 0 nominal, 1 degraded, 2 safe stop.
+    pub health: u8,
+    /// Reason published with the health mode (controller-core's
+    /// `HealthReason` as its index, 0 = none).
+    pub health_reason: u8,
+}
+
+/// Telemetry group [`TELEMETRY_ESTIMATORS`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct EstimatorTelemetry {
+    /// Sliding variable s (eq. 20).
+    pub s: [f32; 2],
+    /// Switching gain ρ̂ (or K).
+    pub rho_hat: [f32; 2],
+    /// ESO disturbance estimate D̂.
+    pub d_hat: [f32; 2],
+    /// Fault estimate F̂ = \[Δv̂ m/s, Δω̂ rad/s\].
+    pub f_hat: [f32; 2],
+    /// The pose came from an external measurement this tick.
+    pub external_pose: bool,
+    /// The controller rejected its input this tick.
+    pub input_fault: bool,
+}
+
+/// One telemetry frame.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Telemetry {
+    /// Telemetry frame number (wraps; a gap is a dropped frame).
+    pub seq: u32,
+    /// Robot clock at the tick \[µs\].
+    pub t_robot_us: u32,
+    /// Reference time \[s\] (since arming).
+    pub t_ref_s: f32,
+    /// Run state.
+    pub state: RunStateMsg,
+    /// Group [`TELEMETRY_TRACKING`].
+    pub tracking: Option<TrackingTelemetry>,
+    /// Group [`TELEMETRY_ESTIMATORS`].
+    pub estimators: Option<EstimatorTelemetry>,
+    /// Group [`TELEMETRY_COUNTERS`].
+    pub counters: Option<Counters>,
+}
+
+/// Robot → host.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Reply {
+    /// The request `seq` was accepted.
+    Ack {
+        /// Sequence number of the request.
+        seq: u16,
+    },
+    /// The request `seq` was refused.
+    Nack {
+        /// Sequence number of the request.
+        seq: u16,
+        /// Why.
+        error: ErrorCode,
+    },
+    /// A frame was dropped before its sequence number could be read.
+    FrameError {
+        /// Why.
+        error: ErrorCode,
+    },
+    /// Answer to [`Request::Hello`].
+    Hello {
+        /// Sequence number of the request.
+        seq: u16,
+        /// The robot's [`PROTOCOL_VERSION`](crate::PROTOCOL_VERSION).
+        version: u16,
+        /// `CAP_*` bits.
+        capabilities: Capabilities,
+        /// Chip or board name, e.g. `stm32f411ce` or `sim`.
+        chip: heapless::String<16>,
+        /// Robot constants.
+        robot: RobotInfo,
+    },
+    /// Answer to [`Request::GetStatus`].
+    Status {
+        /// Sequence number of the request.
+        seq: u16,
+        /// The status.
+        status: StatusMsg,
+    },
+    /// Answer to [`Request::GetParam`].
+    Param {
+        /// Sequence number of the request.
+        seq: u16,
+        /// Which.
+        id: ParamId,
+        /// Its value, in its unit.
+        value: f32,
+    },
+    /// Answer to [`Request::ClockSync`].
+    ClockSync {
+        /// Sequence number of the request.
+        seq: u16,
+        /// The host's time, echoed \[µs\].
+        host_time_us: u64,
+        /// Robot clock when the request was handled \[µs\].
+        robot_time_us: u32,
+    },
+    /// Answer to [`Request::TrajectorySegment`]: accepted, with flow control.
+    TrajectoryAck {
+        /// Sequence number of the request.
+        seq: u16,
+        /// Index the next segment must start at.
+        next_index: u32,
+        /// Free waypoint slots in the buffer.
+        free: u16,
+    },
+    /// A telemetry frame.
+    Telemetry(Telemetry),
+    /// An event.
+    Event(Event),
+}
+
+impl ParamId {
+    /// Every parameter, in wire order.
+    pub const ALL: [ParamId; 15] = [
+        Self::TorqueLimitNm,
+        Self::Kx,
+        Self::Ky,
+        Self::Ktheta,
+        Self::Ks,
+        Self::StallTorqueNm,
+        Self::StallTicks,
+        Self::TelemetryRateHz,
+        Self::LinkTimeoutMs,
+        Self::AccelMps2,
+        Self::AngAccelRadps2,
+        Self::BrakeDecelMps2,
+        Self::MaxSpeedMps,
+        Self::MaxYawRateRadps,
+        Self::ControlPeriodS,
+    ];
+
+    /// The name the host tool uses (`wmr params get NAME`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::TorqueLimitNm => "torque_limit_nm",
+            Self::Kx => "k_x",
+            Self::Ky => "k_y",
+            Self::Ktheta => "k_theta",
+            Self::Ks => "k_s",
+            Self::StallTorqueNm => "stall_torque_nm",
+            Self::StallTicks => "stall_ticks",
+            Self::TelemetryRateHz => "telemetry_rate_hz",
+            Self::LinkTimeoutMs => "link_timeout_ms",
+            Self::AccelMps2 => "accel_mps2",
+            Self::AngAccelRadps2 => "ang_accel_radps2",
+            Self::BrakeDecelMps2 => "brake_decel_mps2",
+            Self::MaxSpeedMps => "max_speed_mps",
+            Self::MaxYawRateRadps => "max_yaw_rate_radps",
+            Self::ControlPeriodS => "control_period_s",
+        }
+    }
+
+    /// The parameter of a [`Self::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+}
+
+impl ErrorCode {
+    /// One-line reason, as the host tool prints it.
+    pub const fn reason(self) -> &'static str {
+        match self {
+            Self::VersionMismatch => "protocol version mismatch",
+            Self::BadCrc => "frame CRC mismatch",
+            Self::Malformed => "malformed frame",
+            Self::TooLong => "frame too long",
+            Self::Busy => "not allowed while running (disarm first)",
+            Self::NoReference => "no reference, trajectory or velocity command loaded",
+            Self::Latched => "a safe stop is latched (clear it first)",
+            Self::InvalidValue => "value NaN, infinite or out of range",
+            Self::ReadOnly => "parameter is read-only",
+            Self::BufferFull => "trajectory buffer full",
+            Self::OutOfOrder => "segment does not continue the upload",
+            Self::Stale => "pose measurement too old or in the future",
+            Self::WrongMode => "command does not apply in the current mode",
+        }
+    }
+}
+
+/// The built-in shapes by the names of the simulator's `trajectory` key
+/// (`paper`, `circle`, `figure8`, `line`), with the simulator's parameters
+/// (hil-sim tests that both sample the same reference).
+pub fn named_shape(name: &str) -> Option<BuiltinShape> {
+    match name {
+        "paper" => Some(BuiltinShape::PaperCurve {
+            ax_m: 4.0,
+            ay_m: 3.0,
+            w_radps: 0.2,
+        }),
+        "circle" => Some(BuiltinShape::Circle {
+            radius_m: 2.0,
+            speed_mps: 0.5,
+        }),
+        "figure8" => Some(BuiltinShape::FigureEight {
+            amplitude_m: 3.0,
+            w_radps: 0.2,
+        }),
+        "line" => Some(BuiltinShape::Line { speed_mps: 0.5 }),
+        _ => None,
+    }
+}

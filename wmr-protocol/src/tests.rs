@@ -1,0 +1,280 @@
+extern crate std;
+use super::*;
+use proptest::prelude::*;
+use std::format;
+use std::string::String;
+use std::vec::Vec as StdVec;
+
+fn frame<M: Serialize>(msg: &M, seq: u16) -> StdVec<u8> {
+    let mut buf = [0u8; MAX_FRAME];
+    encode(msg, seq, &mut buf).unwrap().to_vec()
+}
+
+fn decode_all<M: DeserializeOwned>(
+    dec: &mut FrameDecoder<MAX_FRAME>,
+    mut bytes: &[u8],
+) -> StdVec<Decoded<M>> {
+    let mut out = StdVec::new();
+    let mut guard = 0;
+    while !bytes.is_empty() {
+        let (d, rest) = dec.feed::<M>(bytes);
+        assert!(rest.len() < bytes.len() || d.is_some(), "no progress");
+        out.extend(d);
+        bytes = rest;
+        guard += 1;
+        assert!(guard < 100_000);
+    }
+    out
+}
+
+/// Every variant of `T` by its postcard index: variant i followed by zero
+/// bytes decodes (every field's zero value) exactly for i < variant count.
+fn variants<T: DeserializeOwned>() -> StdVec<T> {
+    let mut out = StdVec::new();
+    for i in 0u8..=127 {
+        let mut bytes = [0u8; 128];
+        bytes[0] = i;
+        if let Ok(v) = postcard::from_bytes::<T>(&bytes) {
+            out.push(v);
+        }
+    }
+    out
+}
+
+fn variant_name<T: core::fmt::Debug>(v: &T) -> String {
+    let s = format!("{v:?}");
+    s.split(|c: char| !c.is_alphanumeric() && c != '_')
+        .next()
+        .unwrap()
+        .into()
+}
+
+fn sample_requests() -> StdVec<Request> {
+    let mut pts = heapless::Vec::new();
+    for i in 0..SEGMENT_POINTS {
+        pts.push(Waypoint {
+            t_s: i as f32 * 0.1,
+            pose: PoseMsg {
+                x_m: 1.5,
+                y_m: -2.0,
+                theta_rad: 3.1,
+            },
+            v_mps: -1.25,
+            omega_radps: 0.5,
+        })
+        .unwrap();
+    }
+    let mut v = variants::<Request>();
+    v.push(Request::TrajectorySegment {
+        first_index: u32::MAX,
+        points: pts,
+    });
+    v.push(Request::ClockSync {
+        host_time_us: u64::MAX,
+    });
+    v
+}
+
+#[test]
+fn every_message_round_trips_through_a_frame() {
+    let mut dec = FrameDecoder::<MAX_FRAME>::new();
+    for (i, req) in sample_requests().into_iter().enumerate() {
+        let bytes = frame(&req, i as u16);
+        assert!(bytes.len() <= MAX_FRAME);
+        assert_eq!(*bytes.last().unwrap(), 0);
+        assert_eq!(
+            bytes.iter().filter(|&&b| b == 0).count(),
+            1,
+            "COBS: one zero"
+        );
+        let got = decode_all::<Request>(&mut dec, &bytes);
+        assert_eq!(
+            got,
+            [Decoded::Frame {
+                seq: i as u16,
+                msg: req
+            }]
+        );
+    }
+    let mut replies = variants::<Reply>();
+    replies.push(Reply::Telemetry(Telemetry {
+        seq: u32::MAX,
+        t_robot_us: u32::MAX,
+        t_ref_s: 1.0e6,
+        state: RunStateMsg::Stopping,
+        tracking: Some(TrackingTelemetry {
+            duty: [i32::MIN, i32::MAX],
+            ..Default::default()
+        }),
+        estimators: Some(EstimatorTelemetry::default()),
+        counters: Some(Counters {
+            ticks: u32::MAX,
+            rx_frames: u32::MAX,
+            nacks: u32::MAX,
+            ..Default::default()
+        }),
+    }));
+    for r in replies {
+        let bytes = frame(&r, 7);
+        assert!(bytes.len() <= MAX_FRAME, "{r:?}: {}", bytes.len());
+        assert_eq!(
+            decode_all::<Reply>(&mut dec, &bytes),
+            [Decoded::Frame { seq: 7, msg: r }]
+        );
+    }
+}
+
+#[test]
+fn the_enumeration_finds_every_variant() {
+    // Guards the doc test below: it must see all of them.
+    assert_eq!(variants::<Request>().len(), 16);
+    assert_eq!(variants::<ParamId>().len(), ParamId::ALL.len());
+    for (p, q) in variants::<ParamId>().into_iter().zip(ParamId::ALL) {
+        assert_eq!(p, q);
+        assert_eq!(ParamId::from_name(p.name()), Some(p));
+    }
+}
+
+/// Every variant of every message enum, and every parameter name and error
+/// code, has its entry in docs/protocol.md: adding one without documenting
+/// it fails here.
+#[test]
+fn every_message_is_documented() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/protocol.md");
+    let doc = std::fs::read_to_string(path).expect("docs/protocol.md");
+    let mut missing = StdVec::new();
+    let mut check = |kind: &str, name: String| {
+        let entry = if kind == "name" {
+            format!("`{name}`")
+        } else {
+            format!("`{kind}::{name}`")
+        };
+        if !doc.contains(&entry) {
+            missing.push(entry);
+        }
+    };
+    variants::<Request>()
+        .iter()
+        .for_each(|v| check("Request", variant_name(v)));
+    variants::<Reply>()
+        .iter()
+        .for_each(|v| check("Reply", variant_name(v)));
+    variants::<ErrorCode>()
+        .iter()
+        .for_each(|v| check("ErrorCode", variant_name(v)));
+    variants::<Event>()
+        .iter()
+        .for_each(|v| check("Event", variant_name(v)));
+    variants::<StopCode>()
+        .iter()
+        .for_each(|v| check("StopCode", variant_name(v)));
+    variants::<RunStateMsg>()
+        .iter()
+        .for_each(|v| check("RunStateMsg", variant_name(v)));
+    variants::<ModeMsg>()
+        .iter()
+        .for_each(|v| check("ModeMsg", variant_name(v)));
+    variants::<BuiltinShape>()
+        .iter()
+        .for_each(|v| check("BuiltinShape", variant_name(v)));
+    for p in ParamId::ALL {
+        check("ParamId", variant_name(&p));
+        check("name", p.name().into());
+    }
+    assert!(missing.is_empty(), "docs/protocol.md lacks {missing:?}");
+    assert!(doc.contains(&format!("PROTOCOL_VERSION = {PROTOCOL_VERSION}")));
+}
+
+#[test]
+fn version_mismatch_is_reported_with_the_hello_still_readable() {
+    let mut buf = [0u8; MAX_FRAME];
+    let f = encode_with_version(&Request::Hello { version: 9 }, 3, 9, &mut buf)
+        .unwrap()
+        .to_vec();
+    let mut dec = FrameDecoder::<MAX_FRAME>::new();
+    assert_eq!(
+        decode_all::<Request>(&mut dec, &f),
+        [Decoded::OtherVersion {
+            seq: 3,
+            version: 9,
+            msg: Some(Request::Hello { version: 9 })
+        }]
+    );
+}
+
+#[test]
+fn oversized_frame_is_dropped_and_the_next_one_decodes() {
+    let mut dec = FrameDecoder::<MAX_FRAME>::new();
+    let mut bytes = std::vec![0x55u8; 3 * MAX_FRAME];
+    bytes.push(0);
+    bytes.extend(frame(&Request::Arm, 5));
+    // Fed in small chunks, as a UART delivers them.
+    let mut got = StdVec::new();
+    for chunk in bytes.chunks(7) {
+        got.extend(decode_all::<Request>(&mut dec, chunk));
+    }
+    assert_eq!(
+        got,
+        [
+            Decoded::Error {
+                seq: None,
+                error: ErrorCode::TooLong
+            },
+            Decoded::Frame {
+                seq: 5,
+                msg: Request::Arm
+            }
+        ]
+    );
+}
+
+proptest! {
+    /// Random bytes: never a panic, always progress, never more outcomes
+    /// than delimiters (+1 for an overflow).
+    #[test]
+    fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..2000)) {
+        let mut dec = FrameDecoder::<MAX_FRAME>::new();
+        let got = decode_all::<Request>(&mut dec, &bytes);
+        let zeros = bytes.iter().filter(|&&b| b == 0).count();
+        prop_assert!(got.len() <= zeros + bytes.len() / MAX_FRAME + 1);
+    }
+
+    /// One flipped bit anywhere in a frame is never accepted as a
+    /// different valid message: it is dropped (CRC, COBS or decode error),
+    /// or decodes to the very same message (a flip in COBS overhead that
+    /// cancels out cannot happen, but the check is what matters).
+    #[test]
+    fn corrupted_frames_are_rejected(
+        idx in 0usize..SEGMENT_POINTS + 2, byte in any::<prop::sample::Index>(), bit in 0u8..8,
+    ) {
+        let reqs = sample_requests();
+        let req = &reqs[idx % reqs.len()];
+        let mut f = frame(req, 42);
+        let n = f.len() - 1; // keep the delimiter
+        let i = byte.index(n);
+        f[i] ^= 1 << bit;
+        let mut dec = FrameDecoder::<MAX_FRAME>::new();
+        let got = decode_all::<Request>(&mut dec, &f);
+        for d in got {
+            match d {
+                Decoded::Frame { seq, msg } => prop_assert!(seq == 42 && &msg == req, "accepted {msg:?}"),
+                Decoded::OtherVersion { .. } => prop_assert!(false, "version bit survived the CRC"),
+                Decoded::Error { .. } => {}
+            }
+        }
+    }
+
+    /// A frame cut anywhere and followed by a good one: the good one
+    /// always decodes.
+    #[test]
+    fn truncated_frame_then_good_frame(cut in any::<prop::sample::Index>()) {
+        let reqs = sample_requests();
+        let long = frame(reqs.last().unwrap(), 1);
+        let mut bytes = long[..cut.index(long.len() - 1)].to_vec();
+        bytes.push(0);
+        bytes.extend(frame(&Request::Disarm, 2));
+        let mut dec = FrameDecoder::<MAX_FRAME>::new();
+        let got = decode_all::<Request>(&mut dec, &bytes);
+        prop_assert_eq!(got.last(), Some(&Decoded::Frame { seq: 2, msg: Request::Disarm }));
+    }
+}

@@ -1,0 +1,13 @@
+//! # wmr
+//!
+//! Host tool for the trajectory-tracking robot: talks [`wmr_protocol`] over a
+//! serial port, a USB CDC-ACM port or the pseudo-terminal of the simulated
+//! robot (`hil-sim device --pty`). See `wmr --help` and the README.
+#![deny(missing_docs)]
+
+pub mod cli;
+pub mod link;
+pub mod record;
+pub mod upload;
+
+pub use link::{HelloInfo, Link, LinkError};

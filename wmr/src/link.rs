@@ -1,0 +1,290 @@
+//! The host end of the link: frames requests, waits for the answer with the
+//! same sequence number, keeps telemetry and events that arrive meanwhile,
+//! and turns every failure into a one-line [`LinkError`].
+
+use std::collections::VecDeque;
+use std::io::{Read, Write};
+use std::time::{Duration, Instant};
+use wmr_protocol::{
+    encode, Decoded, ErrorCode, FrameDecoder, Reply, Request, RobotInfo, MAX_FRAME,
+    PROTOCOL_VERSION,
+};
+
+/// Why a command failed; `Display` is the one line `wmr` prints.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum LinkError {
+    /// The port does not exist.
+    NoSuchPort(String),
+    /// The port exists but cannot be opened or configured.
+    Open(String, String),
+    /// No answer within the timeout.
+    NoAnswer(String),
+    /// The robot speaks another protocol version.
+    VersionMismatch {
+        /// The robot's version.
+        robot: u16,
+    },
+    /// The robot refused the request.
+    Nack(String, ErrorCode),
+    /// An unexpected answer.
+    Unexpected(String),
+    /// Reading or writing the port failed.
+    Io(String),
+}
+
+impl std::fmt::Display for LinkError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NoSuchPort(p) => write!(f, "no such port: {p}"),
+            Self::Open(p, e) => write!(f, "cannot open {p}: {e}"),
+            Self::NoAnswer(what) => write!(f, "no answer from the robot to {what}"),
+            Self::VersionMismatch { robot } => write!(
+                f,
+                "version mismatch: the robot speaks protocol {robot}, wmr speaks {PROTOCOL_VERSION}"
+            ),
+            Self::Nack(what, e) => write!(f, "the robot refused {what}: {}", e.reason()),
+            Self::Unexpected(what) => write!(f, "unexpected answer: {what}"),
+            Self::Io(e) => write!(f, "link error: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for LinkError {}
+
+/// A byte stream to the robot (a serial port, a pseudo-terminal).
+pub trait Port: Read + Write + Send {}
+impl<T: Read + Write + Send> Port for T {}
+
+/// What the handshake told.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HelloInfo {
+    /// The robot's protocol version (equal to ours after [`Link::hello`]).
+    pub version: u16,
+    /// `CAP_*` bits.
+    pub capabilities: u16,
+    /// Chip or board.
+    pub chip: String,
+    /// Robot constants.
+    pub robot: RobotInfo,
+}
+
+/// The host end of the link.
+pub struct Link {
+    port: Box<dyn Port>,
+    decoder: FrameDecoder<MAX_FRAME>,
+    seq: u16,
+    timeout: Duration,
+    /// Telemetry and events received while waiting for answers, oldest first.
+    pub stream: VecDeque<Reply>,
+    /// The last successful handshake.
+    pub last_hello: Option<HelloInfo>,
+    buf: Vec<u8>,
+}
+
+/// A short name of a request for error messages.
+pub fn request_name(r: &Request) -> String {
+    let s = format!("{r:?}");
+    let end = s.find([' ', '(', '{']).unwrap_or(s.len());
+    s[..end].to_string()
+}
+
+impl Link {
+    /// Opens a serial port or pseudo-terminal at `path` (the baud rate does
+    /// not matter for USB CDC and ptys; 115200 for a UART).
+    pub fn open(path: &str, timeout: Duration) -> Result<Self, LinkError> {
+        if !std::path::Path::new(path).exists() {
+            return Err(LinkError::NoSuchPort(path.into()));
+        }
+        let port = serialport::new(path, 115_200)
+            .timeout(Duration::from_millis(5))
+            .open_native()
+            .map_err(|e| LinkError::Open(path.into(), e.to_string()))?;
+        use serialport::SerialPort;
+        // Stale bytes from before we opened (telemetry to nobody) go.
+        let _ = port.clear(serialport::ClearBuffer::Input);
+        Ok(Self::from_port(Box::new(port), timeout))
+    }
+
+    /// A link over any byte stream whose reads return within a few ms
+    /// (errors of kind `TimedOut`/`WouldBlock` mean "nothing yet").
+    pub fn from_port(port: Box<dyn Port>, timeout: Duration) -> Self {
+        Self {
+            port,
+            decoder: FrameDecoder::new(),
+            seq: 0,
+            timeout,
+            stream: VecDeque::new(),
+            last_hello: None,
+            buf: Vec::new(),
+        }
+    }
+
+    /// The answer timeout.
+    pub fn timeout(&self) -> Duration {
+        self.timeout
+    }
+
+    /// Sends `req` with a fresh sequence number; returns the number.
+    pub fn send(&mut self, req: &Request) -> Result<u16, LinkError> {
+        // 0 is the sequence number of streams: never used for a request.
+        self.seq = self.seq.checked_add(1).unwrap_or(1);
+        let mut buf = [0u8; MAX_FRAME + 1];
+        // A leading delimiter resynchronises a robot that saw half a frame.
+        buf[0] = 0;
+        let n = encode(req, self.seq, &mut buf[1..])
+            .map_err(|_| LinkError::Io("request too large".into()))?
+            .len();
+        self.port
+            .write_all(&buf[..n + 1])
+            .and_then(|_| self.port.flush())
+            .map_err(|e| LinkError::Io(e.to_string()))?;
+        Ok(self.seq)
+    }
+
+    /// Writes raw bytes (tests: garbage on the wire).
+    pub fn write_raw(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
+        self.port
+            .write_all(bytes)
+            .map_err(|e| LinkError::Io(e.to_string()))
+    }
+
+    /// Reads what the port has (waiting at most its read timeout) and
+    /// decodes it: answers are returned, streams queued.
+    fn poll(&mut self) -> Result<Vec<(u16, Reply)>, LinkError> {
+        let mut chunk = [0u8; 1024];
+        match self.port.read(&mut chunk) {
+            Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::TimedOut
+                        | std::io::ErrorKind::WouldBlock
+                        | std::io::ErrorKind::Interrupted
+                ) =>
+            {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            Err(e) => return Err(LinkError::Io(e.to_string())),
+        }
+        let mut answers = Vec::new();
+        let bytes = std::mem::take(&mut self.buf);
+        let mut rest = &bytes[..];
+        while !rest.is_empty() {
+            let (d, r) = self.decoder.feed::<Reply>(rest);
+            rest = r;
+            match d {
+                Some(Decoded::Frame { msg, .. }) => match &msg {
+                    Reply::Telemetry(_) | Reply::Event(_) => self.stream.push_back(msg),
+                    _ => answers.push((reply_seq(&msg), msg)),
+                },
+                Some(Decoded::OtherVersion { version, msg, .. }) => {
+                    if let Some(Reply::Hello { seq, .. }) = msg {
+                        answers.push((
+                            seq,
+                            Reply::Hello {
+                                seq,
+                                version,
+                                capabilities: 0,
+                                chip: heapless::String::new(),
+                                robot: RobotInfo {
+                                    wheel_radius_m: 0.0,
+                                    half_track_m: 0.0,
+                                    mass_kg: 0.0,
+                                    control_period_s: 0.0,
+                                    torque_limit_nm: 0.0,
+                                },
+                            },
+                        ));
+                    } else {
+                        return Err(LinkError::VersionMismatch { robot: version });
+                    }
+                }
+                // A partial frame at the start, noise: skip.
+                Some(Decoded::Error { .. }) | None => {}
+            }
+        }
+        Ok(answers)
+    }
+
+    /// Reads for up to `wait`; returns the next telemetry or event frame.
+    pub fn next_stream(&mut self, wait: Duration) -> Result<Option<Reply>, LinkError> {
+        let end = Instant::now() + wait;
+        loop {
+            if let Some(r) = self.stream.pop_front() {
+                return Ok(Some(r));
+            }
+            self.poll()?;
+            if Instant::now() >= end && self.stream.is_empty() {
+                return Ok(None);
+            }
+        }
+    }
+
+    /// Sends `req` and waits for its answer (retrying once on silence).
+    pub fn request(&mut self, req: &Request) -> Result<Reply, LinkError> {
+        for _attempt in 0..2 {
+            let seq = self.send(req)?;
+            let end = Instant::now() + self.timeout;
+            while Instant::now() < end {
+                for (s, r) in self.poll()? {
+                    if s == seq {
+                        return Ok(r);
+                    }
+                }
+            }
+        }
+        Err(LinkError::NoAnswer(request_name(req)))
+    }
+
+    /// Sends `req`; `Ok` on an ack, the reason on a nack.
+    pub fn command(&mut self, req: &Request) -> Result<Reply, LinkError> {
+        match self.request(req)? {
+            Reply::Nack { error, .. } => Err(LinkError::Nack(request_name(req), error)),
+            r => Ok(r),
+        }
+    }
+
+    /// The handshake: fails with [`LinkError::VersionMismatch`] when the
+    /// robot speaks another version.
+    pub fn hello(&mut self) -> Result<HelloInfo, LinkError> {
+        match self.command(&Request::Hello {
+            version: PROTOCOL_VERSION,
+        })? {
+            Reply::Hello { version, .. } if version != PROTOCOL_VERSION => {
+                Err(LinkError::VersionMismatch { robot: version })
+            }
+            Reply::Hello {
+                version,
+                capabilities,
+                chip,
+                robot,
+                ..
+            } => {
+                let h = HelloInfo {
+                    version,
+                    capabilities,
+                    chip: chip.as_str().into(),
+                    robot,
+                };
+                self.last_hello = Some(h.clone());
+                Ok(h)
+            }
+            r => Err(LinkError::Unexpected(format!("{r:?}"))),
+        }
+    }
+}
+
+/// The sequence number an answer carries (0 for streams).
+pub fn reply_seq(r: &Reply) -> u16 {
+    match r {
+        Reply::Ack { seq }
+        | Reply::Nack { seq, .. }
+        | Reply::Hello { seq, .. }
+        | Reply::Status { seq, .. }
+        | Reply::Param { seq, .. }
+        | Reply::ClockSync { seq, .. }
+        | Reply::TrajectoryAck { seq, .. } => *seq,
+        Reply::FrameError { .. } | Reply::Telemetry(_) | Reply::Event(_) => 0,
+    }
+}
