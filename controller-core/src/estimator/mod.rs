@@ -132,6 +132,22 @@ fn all_finite(x: &[f32; N], p: &Mat) -> bool {
     x.iter().all(|v| v.is_finite()) && p.iter().flatten().all(|v| v.is_finite())
 }
 
+/// [`all_finite`] for a symmetric `p` (only its upper triangle is read),
+/// without branches: v·0 is ±0 for a finite v and NaN for ±∞ or NaN, so
+/// the sum is 0 exactly when every value is finite.
+fn all_finite_sym(x: &[f32; N], p: &Mat) -> bool {
+    let mut z = 0.0f32;
+    for v in x {
+        z += v * 0.0;
+    }
+    for i in 0..N {
+        for v in &p[i][i..] {
+            z += v * 0.0;
+        }
+    }
+    z == 0.0
+}
+
 /// Wheel odometry, a z-gyro and delayed external poses fused in an EKF
 /// with a history buffer; see the [module docs](self).
 #[derive(Clone, Debug)]
@@ -389,19 +405,16 @@ impl<const H: usize> PoseEstimator<H> {
         self.hist[idx].x = x;
         self.hist[idx].p = pack(&p);
         // Re-propagate the later ticks from their stored inputs.
+        self.x = x;
+        self.p = p;
         for k in (0..back).rev() {
             let i = (self.head + H - k) % H;
             let input = self.hist[i].input;
-            self.x = x;
-            self.p = p;
             self.propagate(&input);
-            x = self.x;
-            p = self.p;
-            self.hist[i].x = x;
-            self.hist[i].p = pack(&p);
+            let e = &mut self.hist[i];
+            e.x = self.x;
+            e.p = pack(&self.p);
         }
-        self.x = x;
-        self.p = p;
         if let Some(last) = self.last_accepted_stamp_us {
             let dt = m.stamp_us.wrapping_sub(last) as f32 * 1e-6;
             self.mean_interval_s = Some(match self.mean_interval_s {
@@ -449,17 +462,20 @@ impl<const H: usize> PoseEstimator<H> {
     /// The prediction of one tick (also used to re-propagate the history);
     /// a result that is not finite is dropped (the state is kept).
     fn propagate(&mut self, u: &Input) {
-        let (x0, p0) = (self.x, self.p);
-        self.propagate_unchecked(u);
-        if !all_finite(&self.x, &self.p) {
-            self.x = x0;
-            self.p = p0;
+        let (x, p) = self.propagated(u);
+        // The covariance is symmetric (mirrored, scaled or symmetrised).
+        if all_finite_sym(&x, &p) {
+            self.x = x;
+            self.p = p;
         }
     }
 
-    fn propagate_unchecked(&mut self, u: &Input) {
+    /// The state and covariance one tick on (not checked).
+    #[inline(always)]
+    fn propagated(&self, u: &Input) -> ([f32; N], Mat) {
         let cfg = &self.cfg;
-        let x = &mut self.x;
+        let mut xs = self.x;
+        let x = &mut xs;
         let dt = u.dt_s;
         let (dth, g, q_th) = if u.gyro_used {
             let n = cfg.gyro_noise_density;
@@ -504,25 +520,25 @@ impl<const H: usize> PoseEstimator<H> {
                 np[i][i] = MAX_VAR[i];
             }
         }
-        self.p = np;
         if u.still {
             // Zero-rate update: standing still, the gyro reads its bias.
             let n = cfg.gyro_noise_density;
             let r = n * n / dt;
-            let s33 = self.p[3][3] + r;
-            let innov = u.gyro_radps - self.x[3];
-            let k: [f32; N] = core::array::from_fn(|i| self.p[i][3] / s33);
-            let row3 = self.p[3];
+            let s33 = np[3][3] + r;
+            let innov = u.gyro_radps - xs[3];
+            let k: [f32; N] = core::array::from_fn(|i| np[i][3] / s33);
+            let row3 = np[3];
             for i in 0..N {
-                self.x[i] += k[i] * innov;
+                xs[i] += k[i] * innov;
                 for j in 0..N {
-                    self.p[i][j] -= k[i] * row3[j];
+                    np[i][j] -= k[i] * row3[j];
                 }
             }
-            self.x[2] = wrap_angle(self.x[2]);
-            self.x[4] = self.x[4].clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
-            symmetrise(&mut self.p);
+            xs[2] = wrap_angle(xs[2]);
+            xs[4] = xs[4].clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
+            symmetrise(&mut np);
         }
+        (xs, np)
     }
 
     /// The EKF update of `(x, p)` with `m`; with `gate`, refuses an
