@@ -584,7 +584,10 @@ fn main() -> ! {
     let mut correction_max = 0.0f32;
     for (name, source) in [
         ("mocap (100 Hz, 10 ms)", tick::MOCAP),
-        ("UWB at maximal latency (10 Hz, 250 ms)", tick::UWB_MAX_LATENCY),
+        (
+            "UWB at maximal latency (10 Hz, 250 ms)",
+            tick::UWB_MAX_LATENCY,
+        ),
     ] {
         let r = tick::run_tick(&c, source);
         if !(r.max_pos_error_after_10s < 0.5) || r.accepted < 100 {
@@ -607,10 +610,31 @@ fn main() -> ! {
             );
         };
         row("**every tick**", &r.tick_all);
-        row("**tick without a pose measurement**", &r.tick_plain);
-        row("**tick with a correction**", &r.tick_correction);
+        row(
+            "**typical tick** (no measurement, no re-propagation)",
+            &r.tick_plain,
+        );
+        row(
+            "**tick with a correction** (update + ≤ 24 ticks re-propagated)",
+            &r.tick_correction,
+        );
+        row(
+            "**tick continuing a re-propagation** (≤ 24 ticks)",
+            &r.tick_resume,
+        );
         row("  `PoseEstimator::predict` alone", &r.predict);
-        row("  `PoseEstimator::correct` alone", &r.correct);
+        row(
+            "  `PoseEstimator::resume` alone (a pending slice)",
+            &r.resume,
+        );
+        row(
+            "  `PoseEstimator::correct_within` alone (≤ 24 ticks now)",
+            &r.correct,
+        );
+        row(
+            "  `PoseEstimator::correct` (whole re-propagation at once)",
+            &r.correct_whole,
+        );
         hprintln!(
             "<!-- {}: {} poses accepted, largest latency {} ticks, max |e_xy| after 10 s {} m -->",
             name,
@@ -620,7 +644,9 @@ fn main() -> ! {
         );
         typical_mean = typical_mean.max(scale.mean(&r.tick_plain));
         typical_max = typical_max.max(scale.max(&r.tick_plain));
-        correction_max = correction_max.max(scale.max(&r.tick_correction));
+        correction_max = correction_max
+            .max(scale.max(&r.tick_correction))
+            .max(scale.max(&r.tick_resume));
     }
     hprintln!("");
     hprintln!(

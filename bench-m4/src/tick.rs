@@ -20,6 +20,7 @@ use controller_core::estimator::{
 use controller_core::math;
 use controller_core::runtime::{
     ControlLoop, Gyro, LoopTimer, PoseSource, RuntimeConfig, WheelEncoders, MAX_POSES_PER_TICK,
+    MAX_REPROPAGATION_PER_TICK,
 };
 use controller_core::{ControllerKind, Pose};
 use sim_robot::{
@@ -123,14 +124,21 @@ impl PoseSource for LatchedPoses {
 pub struct TickResult {
     /// `LoopTimer::tick` + `ControlLoop::tick`, every tick.
     pub tick_all: Stat,
-    /// Ticks that took no pose measurement.
+    /// Ticks that took no pose measurement and had no re-propagation pending.
     pub tick_plain: Stat,
     /// Ticks that took (at least) one pose measurement.
     pub tick_correction: Stat,
+    /// Ticks that continued a pending re-propagation (and took no measurement).
+    pub tick_resume: Stat,
     /// `PoseEstimator::predict` alone (second estimator, same inputs).
     pub predict: Stat,
-    /// `PoseEstimator::correct` alone (second estimator, same inputs).
+    /// `PoseEstimator::resume` alone (the pending re-propagation's slice).
+    pub resume: Stat,
+    /// `PoseEstimator::correct_within` alone (second estimator, same inputs).
     pub correct: Stat,
+    /// `PoseEstimator::correct` (the whole re-propagation at once) on a
+    /// third estimator fed the same inputs.
+    pub correct_whole: Stat,
     /// Largest re-propagation seen \[ticks between stamp and now\].
     pub max_latency_ticks: u32,
     /// Pose measurements accepted by the loop.
@@ -154,6 +162,7 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
         ControlLoop::with_estimator(cfg, est).unwrap_or_else(|_| fail("runtime config"));
     let mut shadow: PoseEstimator<HISTORY_LEN> =
         PoseEstimator::with_history(est).unwrap_or_else(|_| fail("estimator config"));
+    let mut whole = shadow.clone();
     let mut timer = LoopTimer::from_config(&cfg).unwrap_or_else(|_| fail("loop timer"));
     if control.arm().is_err() {
         fail("arm");
@@ -208,6 +217,7 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
         q.n_taken = 0;
         let now_us = k.wrapping_mul(period_us);
         // The tick, as the firmware runs it (timer and loop).
+        let was_repropagating = control.estimator().is_repropagating();
         let t0 = c.now();
         let timing = timer.tick(black_box(now_us));
         let rep = control.tick(&mut enc, &mut driver, &mut gyro_hw, &mut pose_hw, timing);
@@ -217,6 +227,8 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
         res.tick_all.add(counts);
         if pose_hw.n_taken > 0 {
             res.tick_correction.add(counts);
+        } else if was_repropagating {
+            res.tick_resume.add(counts);
         } else {
             res.tick_plain.add(counts);
         }
@@ -229,23 +241,49 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
         // The estimator alone: the same inputs as the loop's, timed.
         let inc = robot.eta_from_wheel_rates(rep.counts.dphi_rad);
         let g = gyro_hw.0;
+        let args = (
+            timing.now_us,
+            timing.elapsed_s(),
+            inc.v_mps,
+            inc.omega_radps,
+            g,
+        );
         time(c, &mut res.predict, || {
             shadow.predict(
-                black_box(timing.now_us),
-                black_box(timing.elapsed_s()),
-                black_box(inc.v_mps),
-                black_box(inc.omega_radps),
-                black_box(g),
+                black_box(args.0),
+                black_box(args.1),
+                black_box(args.2),
+                black_box(args.3),
+                black_box(args.4),
             );
         });
+        whole.predict(args.0, args.1, args.2, args.3, args.4);
+        let mut used = if shadow.is_repropagating() {
+            time(c, &mut res.resume, || {
+                shadow.resume(black_box(MAX_REPROPAGATION_PER_TICK))
+            })
+        } else {
+            0
+        };
         for m in pose_hw.taken[..pose_hw.n_taken].iter().flatten() {
             let lat = now_us.wrapping_sub(m.stamp_us) / period_us;
             res.max_latency_ticks = res.max_latency_ticks.max(lat);
-            let r = time(c, &mut res.correct, || shadow.correct(black_box(m)));
-            let _ = r;
+            let budget = MAX_REPROPAGATION_PER_TICK - used;
+            let r = time(c, &mut res.correct, || {
+                shadow.correct_within(black_box(m), black_box(budget))
+            });
+            used += r.unwrap_or(0);
+            let _ = time(c, &mut res.correct_whole, || whole.correct(black_box(m)));
         }
         if *shadow.estimate() != rep.estimate {
             fail("tick: the estimator alone differs from the loop's");
+        }
+        // Sliced and whole re-propagation agree once the slices are done.
+        if !shadow.is_repropagating()
+            && (shadow.estimate().filter_pose != whole.estimate().filter_pose
+                || shadow.covariance() != whole.covariance())
+        {
+            fail("tick: sliced re-propagation differs from the whole one");
         }
         // The plant over [t, t + dt] with the bridge's output (not timed).
         let e = [

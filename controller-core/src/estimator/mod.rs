@@ -37,7 +37,10 @@
 #![allow(clippy::needless_range_loop)] // small matrices read best indexed
 
 mod config;
+mod repropagation;
 mod types;
+
+use repropagation::Repropagation;
 
 pub use config::{EstimatorConfig, EstimatorConfigError, CHI2_999_2DOF, CHI2_999_3DOF};
 pub use types::{
@@ -169,6 +172,9 @@ pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
     offset: [f32; 3],
     /// Running mean of the time between accepted measurements \[s\].
     mean_interval_s: Option<f32>,
+    /// A correction whose re-propagation is not finished (see
+    /// [`PoseEstimator::correct_within`]).
+    pending: Option<Repropagation>,
 }
 
 impl PoseEstimator {
@@ -212,6 +218,7 @@ impl<const H: usize> PoseEstimator<H> {
             estimate: Estimate::default(),
             offset: [0.0; 3],
             mean_interval_s: None,
+            pending: None,
             status: EstimatorStatus {
                 since_accepted_us: u32::MAX,
                 ..EstimatorStatus::default()
@@ -325,6 +332,7 @@ impl<const H: usize> PoseEstimator<H> {
             input,
         };
         self.status.gyro = gyro_state;
+        self.pending_tick();
         self.refresh(&input);
         &self.estimate
     }
@@ -332,14 +340,34 @@ impl<const H: usize> PoseEstimator<H> {
     /// Uses the pose measurement `m` (taken at `m.stamp_us`, not after the
     /// latest tick, not older than the history); `Err` says why not.
     pub fn correct(&mut self, m: &PoseMeasurement) -> Result<(), RejectReason> {
-        let r = self.try_correct(m);
+        self.correct_within(m, usize::MAX).map(|_| ())
+    }
+
+    /// [`Self::correct`], re-propagating at most `max_ticks` ticks of
+    /// history now (a pending re-propagation is finished first); the rest
+    /// is done by [`Self::resume`] in later ticks. Until it is done
+    /// ([`Self::is_repropagating`]), the estimate stays the uncorrected one;
+    /// once done, state and covariance are bit for bit those [`Self::correct`]
+    /// gives (the output smoothing takes the jump when it is applied).
+    /// `Ok` holds the number of ticks re-propagated now.
+    pub fn correct_within(
+        &mut self,
+        m: &PoseMeasurement,
+        max_ticks: usize,
+    ) -> Result<usize, RejectReason> {
+        self.resume(usize::MAX);
+        let r = self.try_correct(m, max_ticks);
         if let Err(reason) = r {
             self.status.rejected.count(reason);
         }
         r
     }
 
-    fn try_correct(&mut self, m: &PoseMeasurement) -> Result<(), RejectReason> {
+    fn try_correct(
+        &mut self,
+        m: &PoseMeasurement,
+        max_ticks: usize,
+    ) -> Result<usize, RejectReason> {
         let heading_finite = m.heading_std_rad.is_none() || m.pose.theta_rad.is_finite();
         let ok_coord = |v: f32| v.abs() <= MAX_COORD_M; // false for NaN
         if !(ok_coord(m.pose.x_m) && ok_coord(m.pose.y_m) && heading_finite) {
@@ -383,7 +411,6 @@ impl<const H: usize> PoseEstimator<H> {
         }
         let idx = (self.head + H - back) % H;
         let e = self.hist[idx];
-        let before = self.filter_pose();
         let (mut x, mut p) = (e.x, unpack(&e.p));
         let resets = self.status.resets;
         match self.update(&mut x, &mut p, m, true) {
@@ -404,17 +431,6 @@ impl<const H: usize> PoseEstimator<H> {
         }
         self.hist[idx].x = x;
         self.hist[idx].p = pack(&p);
-        // Re-propagate the later ticks from their stored inputs.
-        self.x = x;
-        self.p = p;
-        for k in (0..back).rev() {
-            let i = (self.head + H - k) % H;
-            let input = self.hist[i].input;
-            self.propagate(&input);
-            let e = &mut self.hist[i];
-            e.x = self.x;
-            e.p = pack(&self.p);
-        }
         if let Some(last) = self.last_accepted_stamp_us {
             let dt = m.stamp_us.wrapping_sub(last) as f32 * 1e-6;
             self.mean_interval_s = Some(match self.mean_interval_s {
@@ -424,6 +440,23 @@ impl<const H: usize> PoseEstimator<H> {
         }
         self.last_accepted_stamp_us = Some(m.stamp_us);
         self.status.accepted = self.status.accepted.saturating_add(1);
+        // Re-propagate the later ticks from their stored inputs.
+        self.pending = Some(Repropagation {
+            back,
+            x,
+            p,
+            reset: self.status.resets != resets,
+        });
+        Ok(self.resume(max_ticks))
+    }
+
+    /// Applies a finished correction: the live state becomes the
+    /// re-propagated `(x, p)`; the jump of the filter's pose goes into the
+    /// output offset (unless it is big or the pose was reset).
+    fn finish_correction(&mut self, x: [f32; N], p: Mat, reset: bool) {
+        let before = self.filter_pose();
+        self.x = x;
+        self.p = p;
         let after = self.filter_pose();
         let jump = [
             after.x_m - before.x_m,
@@ -431,7 +464,7 @@ impl<const H: usize> PoseEstimator<H> {
             wrap_angle(after.theta_rad - before.theta_rad),
         ];
         let big = jump[0].abs() + jump[1].abs() > MAX_SMOOTHED_JUMP_M;
-        if self.cfg.output_smoothing_s > 0.0 && !big && self.status.resets == resets {
+        if self.cfg.output_smoothing_s > 0.0 && !big && !reset {
             for (o, j) in self.offset.iter_mut().zip(jump) {
                 *o += j;
             }
@@ -441,7 +474,6 @@ impl<const H: usize> PoseEstimator<H> {
         }
         let input = self.hist[self.head].input;
         self.refresh(&input);
-        Ok(())
     }
 
     /// Position and heading variances to a wide prior, their correlations
