@@ -600,6 +600,10 @@ fn main() -> ! {
             fail("tick: closed loop did not track or took no poses");
         }
         let row = |what: &str, s: &Stat| {
+            if s.n == 0 {
+                hprintln!("| {}: {} | 0 | — | — |", name, what);
+                return;
+            }
             hprintln!(
                 "| {}: {} | {} | {:.0} | {:.0} |",
                 name,
