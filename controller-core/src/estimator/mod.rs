@@ -85,6 +85,30 @@ const MAX_DT_S: f32 = 0.1;
 
 type Mat = [[f32; N]; N];
 
+/// The configuration's noise parameters squared, once (the products are
+/// the ones the prediction formed every tick, so results are unchanged).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct NoiseSq {
+    gyro: f32,
+    wheel_yaw: f32,
+    speed: f32,
+    bias_walk: f32,
+    scale_walk: f32,
+}
+
+impl NoiseSq {
+    fn of(cfg: &EstimatorConfig) -> Self {
+        let sq = |v: f32| v * v;
+        Self {
+            gyro: sq(cfg.gyro_noise_density),
+            wheel_yaw: sq(cfg.wheel_yaw_noise),
+            speed: sq(cfg.speed_noise_mps_per_sqrt_hz),
+            bias_walk: sq(cfg.gyro_bias_walk),
+            scale_walk: sq(cfg.speed_scale_walk),
+        }
+    }
+}
+
 /// One tick's inputs to the prediction, kept for re-propagation.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Input {
@@ -156,6 +180,7 @@ fn all_finite_sym(x: &[f32; N], p: &Mat) -> bool {
 #[derive(Clone, Debug)]
 pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
     cfg: EstimatorConfig,
+    noise_sq: NoiseSq,
     x: [f32; N],
     p: Mat,
     hist: [Entry; H],
@@ -205,6 +230,7 @@ impl<const H: usize> PoseEstimator<H> {
         p[3][3] = cfg.initial_bias_std_radps * cfg.initial_bias_std_radps;
         p[4][4] = cfg.initial_speed_scale_std * cfg.initial_speed_scale_std;
         let mut e = Self {
+            noise_sq: NoiseSq::of(&cfg),
             cfg,
             x,
             p,
@@ -506,17 +532,16 @@ impl<const H: usize> PoseEstimator<H> {
     #[inline(always)]
     fn propagated(&self, u: &Input) -> ([f32; N], Mat) {
         let cfg = &self.cfg;
+        let sq = &self.noise_sq;
         let mut xs = self.x;
         let x = &mut xs;
         let dt = u.dt_s;
         let (dth, g, q_th) = if u.gyro_used {
-            let n = cfg.gyro_noise_density;
-            ((u.gyro_radps - x[3]) * dt, -dt, n * n * dt)
+            ((u.gyro_radps - x[3]) * dt, -dt, sq.gyro * dt)
         } else {
             let w = u.dtheta_wheel_rad / dt;
             let k = cfg.slip_fraction * w;
-            let n = cfg.wheel_yaw_noise;
-            (u.dtheta_wheel_rad, 0.0, (n * n + k * k) * dt)
+            (u.dtheta_wheel_rad, 0.0, (sq.wheel_yaw + k * k) * dt)
         };
         let (s, c) = sin_cos(x[2] + 0.5 * dth);
         let ds = u.ds_m;
@@ -530,13 +555,12 @@ impl<const H: usize> PoseEstimator<H> {
         let mut np = propagate_covariance(&self.p, a, b, g, ds * c, ds * s);
         let v = ds / dt;
         let kv = cfg.slip_fraction * v;
-        let nv = cfg.speed_noise_mps_per_sqrt_hz;
-        let q_p = (nv * nv + kv * kv) * dt;
+        let q_p = (sq.speed + kv * kv) * dt;
         np[0][0] += q_p;
         np[1][1] += q_p;
         np[2][2] += q_th;
-        np[3][3] += cfg.gyro_bias_walk * cfg.gyro_bias_walk * dt;
-        np[4][4] += cfg.speed_scale_walk * cfg.speed_scale_walk * dt;
+        np[3][3] += sq.bias_walk * dt;
+        np[4][4] += sq.scale_walk * dt;
         // Bounded growth: scale a row and column whose variance is too big.
         for i in 0..N {
             if np[i][i].is_nan() || np[i][i] > MAX_VAR[i] {
@@ -554,8 +578,7 @@ impl<const H: usize> PoseEstimator<H> {
         }
         if u.still {
             // Zero-rate update: standing still, the gyro reads its bias.
-            let n = cfg.gyro_noise_density;
-            let r = n * n / dt;
+            let r = sq.gyro / dt;
             let s33 = np[3][3] + r;
             let innov = u.gyro_radps - xs[3];
             let k: [f32; N] = core::array::from_fn(|i| np[i][3] / s33);
@@ -709,6 +732,43 @@ impl<const H: usize> PoseEstimator<H> {
 /// columns 0-2 of (F·P)·Fᵀ (about 80 multiply-adds instead of 250); the
 /// result is made exactly symmetric.
 fn propagate_covariance(p: &Mat, a: f32, b: f32, g: f32, kc: f32, ks: f32) -> Mat {
+    let (ga, gb) = (0.5 * g * a, 0.5 * g * b);
+    // Rows 0-2 of F·P (all columns).
+    let mut fp = [[0.0f32; N]; 3];
+    for j in 0..N {
+        let (p2, p3, p4) = (p[2][j], p[3][j], p[4][j]);
+        fp[0][j] = p[0][j] + a * p2 + ga * p3 + kc * p4;
+        fp[1][j] = p[1][j] + b * p2 + gb * p3 + ks * p4;
+        fp[2][j] = p2 + g * p3;
+    }
+    // The upper triangle of (F·P)·Fᵀ: columns 0-2 of rows 0-2 combine
+    // F·P's columns 2-4; columns 3-4 are F·P's; rows 3-4 are P's.
+    let mut np = *p;
+    for i in 0..3 {
+        let (q2, q3, q4) = (fp[i][2], fp[i][3], fp[i][4]);
+        if i == 0 {
+            np[0][0] = fp[0][0] + (a * q2 + ga * q3 + kc * q4);
+        }
+        if i <= 1 {
+            np[i][1] = fp[i][1] + (b * q2 + gb * q3 + ks * q4);
+        }
+        np[i][2] = q2 + g * q3;
+        np[i][3] = q3;
+        np[i][4] = q4;
+    }
+    for i in 0..N {
+        for j in (i + 1)..N {
+            np[j][i] = np[i][j];
+        }
+    }
+    np
+}
+
+/// The previous formulation of [`propagate_covariance`] (every entry of
+/// (F·P)·Fᵀ, then mirrored), kept to test that the upper-triangle one is
+/// bit for bit the same.
+#[cfg(test)]
+fn propagate_covariance_full(p: &Mat, a: f32, b: f32, g: f32, kc: f32, ks: f32) -> Mat {
     let (ga, gb) = (0.5 * g * a, 0.5 * g * b);
     let mut fp = *p;
     for j in 0..N {

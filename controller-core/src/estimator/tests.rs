@@ -66,6 +66,9 @@ fn sparse_covariance_prediction_equals_dense() {
         f[0][4] = kc;
         f[1][4] = ks;
         let sparse = propagate_covariance(&p, a, b, g, kc, ks);
+        let full = propagate_covariance_full(&p, a, b, g, kc, ks);
+        let bits = |m: Mat| m.map(|r| r.map(f32::to_bits));
+        assert_eq!(bits(sparse), bits(full), "upper triangle vs every entry");
         for i in 0..5 {
             for j in 0..5 {
                 let dense: f32 = (0..5)
