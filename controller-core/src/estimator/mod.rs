@@ -23,6 +23,10 @@
 //!   Mahalanobis distance (chi-square); the heading innovation is wrapped.
 //!   Measurements are used in timestamp order: one older than the last
 //!   accepted is refused ([`RejectReason::OutOfOrder`]).
+//!   [`PoseEstimator::correct_within`] bounds the re-propagation done at
+//!   once (the runtime does 24 ticks per tick) and [`PoseEstimator::resume`]
+//!   continues it in later ticks; the result is the same bit for bit, it
+//!   only lands a few ticks later.
 //! * **Output** ([`Estimate`]): `filter_pose` is the filter's estimate of G;
 //!   `pose`, for the controller, is the same with each correction's jump
 //!   spread over about two measurement intervals (a decaying offset, time
