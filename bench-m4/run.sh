@@ -6,16 +6,30 @@
 #       of all three kinds, no printing) links an f64 soft-float routine
 #       (__aeabi_d*, __adddf3, ...) or formatting code (core::fmt, flt2dec), or
 #   (b) the proposed step exceeds PROPOSED_BUDGET instructions (default 1500)
-#       in its worst observed step (SysTick resolution: 40 instructions).
-# Both checks have negative controls: the libm build of step-only must be
-# flagged by (a), and the bench binary (which prints) must show core::fmt.
+#       in its worst observed step (SysTick resolution: 40 instructions),
+#   (c) the worst firmware tick with an external pose correction (mocap, and
+#       UWB at the maximal 250 ms latency: update + re-propagation slice, or
+#       a tick continuing one) reaches CORRECTION_BUDGET (default 20000:
+#       20 % of a 1 ms period at 100 MHz),
+#   (d) the typical firmware tick (LoopTimer::tick + ControlLoop::tick with
+#       reference, proposed step, pacer, estimator prediction; no pose
+#       measurement, no re-propagation pending) exceeds TICK_BUDGET
+#       (default 3600) in its mean or max. The target of issues 9 and 12
+#       is 1500; measured 3346 mean / 3436 max (BENCHMARKS.md), so this
+#       check holds the line at today's cost until the tick is reworked.
+# (a) has negative controls: the libm build of step-only must be flagged,
+# and the bench binary (which prints) must show core::fmt; (b)-(d) one:
+# the same comparison with a budget one below the measured value must fail.
 #
 # Usage: bench-m4/run.sh            (from anywhere; installs what it needs)
-# Env:   PROPOSED_BUDGET=1500  QEMU_TIMEOUT=600  SKIP_NEGATIVE_CONTROLS=1
+# Env:   PROPOSED_BUDGET=1500  CORRECTION_BUDGET=20000  TICK_BUDGET=3600
+#        QEMU_TIMEOUT=600  SKIP_NEGATIVE_CONTROLS=1
 set -euo pipefail
 cd "$(dirname "$0")"
 
 BUDGET="${PROPOSED_BUDGET:-1500}"
+CORRECTION_BUDGET="${CORRECTION_BUDGET:-20000}"
+TICK_BUDGET="${TICK_BUDGET:-3600}"
 QEMU_TIMEOUT="${QEMU_TIMEOUT:-600}"
 TARGET=thumbv7em-none-eabihf
 
@@ -95,16 +109,56 @@ if [ "$rc" -ne 0 ]; then
     exit 1
 fi
 
-step "check (b): proposed step <= $BUDGET instructions"
 line="$(grep '^RESULT ' "$OUT" || true)"
-mean="$(sed -n 's/.*proposed_step_mean=\([0-9]*\).*/\1/p' <<<"$line")"
-max="$(sed -n 's/.*proposed_step_max=\([0-9]*\).*/\1/p' <<<"$line")"
-if [ -z "$mean" ] || [ -z "$max" ]; then
-    echo "FAIL: no RESULT line from bench-m4" >&2
+# The value of KEY in the RESULT line ("" when missing).
+result() { sed -n "s/.* $1=\([0-9]*\).*/\1/p" <<<"$line"; }
+# within BUDGET VALUE...: every VALUE <= BUDGET.
+within() {
+    local b="$1" v
+    shift
+    for v in "$@"; do [ "$v" -le "$b" ] || return 1; done
+}
+# The negative control of a budget check: one below the largest value fails.
+control() {
+    [ -n "${SKIP_NEGATIVE_CONTROLS:-}" ] && return 0
+    local m
+    m="$(printf '%s\n' "$@" | sort -n | tail -1)"
+    if within "$((m - 1))" "$@"; then
+        echo "FAIL: negative control: budget $((m - 1)) was not flagged; the check is blind" >&2
+        exit 1
+    fi
+    echo "OK: negative control: budget $((m - 1)) is flagged"
+}
+mean="$(result proposed_step_mean)"
+max="$(result proposed_step_max)"
+tmean="$(result tick_typical_mean)"
+tmax="$(result tick_typical_max)"
+cmax="$(result tick_correction_max)"
+if [ -z "$mean" ] || [ -z "$max" ] || [ -z "$tmean" ] || [ -z "$tmax" ] || [ -z "$cmax" ]; then
+    echo "FAIL: no complete RESULT line from bench-m4" >&2
     exit 1
 fi
-if [ "$max" -gt "$BUDGET" ] || [ "$mean" -gt "$BUDGET" ]; then
+
+step "check (b): proposed step <= $BUDGET instructions"
+if ! within "$BUDGET" "$mean" "$max"; then
     echo "FAIL: proposed step mean $mean, max $max instructions > budget $BUDGET" >&2
     exit 1
 fi
 echo "OK: proposed step mean $mean, max $max instructions <= $BUDGET"
+control "$mean" "$max"
+
+step "check (c): worst tick with a pose correction < $CORRECTION_BUDGET instructions"
+if ! within "$((CORRECTION_BUDGET - 1))" "$cmax"; then
+    echo "FAIL: worst tick with a correction $cmax instructions >= budget $CORRECTION_BUDGET" >&2
+    exit 1
+fi
+echo "OK: worst tick with a correction $cmax instructions < $CORRECTION_BUDGET"
+control "$cmax"
+
+step "check (d): typical firmware tick <= $TICK_BUDGET instructions"
+if ! within "$TICK_BUDGET" "$tmean" "$tmax"; then
+    echo "FAIL: typical tick mean $tmean, max $tmax instructions > budget $TICK_BUDGET" >&2
+    exit 1
+fi
+echo "OK: typical tick mean $tmean, max $tmax instructions <= $TICK_BUDGET"
+control "$tmean" "$tmax"

@@ -13,6 +13,7 @@
 // `!(x <= limit)` is deliberate (NaN counts as out of range), as in controller.rs.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+mod tick;
 mod timer;
 
 use core::hint::black_box;
@@ -40,7 +41,7 @@ const MATH_CALLS: u32 = 2_000;
 
 /// Accumulated counts of one timed item.
 #[derive(Clone, Copy, Default)]
-struct Stat {
+pub(crate) struct Stat {
     sum: u64,
     n: u32,
     max: u32,
@@ -48,7 +49,7 @@ struct Stat {
 
 impl Stat {
     #[inline(always)]
-    fn add(&mut self, counts: u32) {
+    pub(crate) fn add(&mut self, counts: u32) {
         self.sum += counts as u64;
         self.n += 1;
         self.max = self.max.max(counts);
@@ -60,7 +61,7 @@ impl Stat {
 
 /// Times one call of `f` (inputs must be black_boxed inside `f`).
 #[inline(always)]
-fn time<C: Counter, R>(c: &C, st: &mut Stat, f: impl FnOnce() -> R) -> R {
+pub(crate) fn time<C: Counter, R>(c: &C, st: &mut Stat, f: impl FnOnce() -> R) -> R {
     let t0 = c.now();
     let r = black_box(f());
     let t1 = c.now();
@@ -83,6 +84,19 @@ impl Scale {
     }
 }
 
+/// The paper's Case 2 perturbations: slip β = 0.1 rad/s, skid, a 1 N·m
+/// disturbance and an actuator fault ε = 0.2 in [10 s, 35 s).
+pub(crate) fn case2_profile() -> PerturbationProfile {
+    PerturbationProfile {
+        window_s: [10.0, 35.0],
+        beta_radps: 0.1,
+        fault_eps: 0.2,
+        skid_scale: 0.05,
+        disturbance_nm: 1.0,
+        fault_eps_end: None,
+    }
+}
+
 /// The simulated robot that closes the loop: the project's one plant
 /// (`sim-robot`, f64 through libm, soft-float on this core; not timed),
 /// one RK4 step per period, in the paper's Case 2 shape: slip β = 0.1 rad/s,
@@ -95,14 +109,7 @@ struct SimRobot {
 
 impl SimRobot {
     fn new(robot: &RobotParams, dt: f64) -> Self {
-        let profile = PerturbationProfile {
-            window_s: [10.0, 35.0],
-            beta_radps: 0.1,
-            fault_eps: 0.2,
-            skid_scale: 0.05,
-            disturbance_nm: 1.0,
-            fault_eps_end: None,
-        };
+        let profile = case2_profile();
         Self {
             plant: Plant::new(PlantParams::from_robot(robot, 1.0, 1.0)),
             // The simulator's default start; the reference starts at (4, 3).
@@ -205,7 +212,7 @@ fn staged_step<C: Counter>(
     }
 }
 
-fn fail(what: &str) -> ! {
+pub(crate) fn fail(what: &str) -> ! {
     hprintln!("FAIL: {}", what);
     debug::exit(debug::EXIT_FAILURE);
     loop {
@@ -564,6 +571,87 @@ fn main() -> ! {
             r.max_pos_error_after_10s
         );
     }
+    // The whole firmware tick with the estimator (module `tick`).
+    hprintln!("");
+    hprintln!(
+        "| firmware tick, proposed (`LoopTimer::tick` + `ControlLoop::tick`) | calls | mean {} | max {} |",
+        unit,
+        unit
+    );
+    hprintln!("|---|---:|---:|---:|");
+    let mut typical_mean = 0.0f32;
+    let mut typical_max = 0.0f32;
+    let mut correction_max = 0.0f32;
+    for (name, source) in [
+        ("mocap (100 Hz, 10 ms)", tick::MOCAP),
+        (
+            "UWB at maximal latency (10 Hz, 250 ms)",
+            tick::UWB_MAX_LATENCY,
+        ),
+    ] {
+        let r = tick::run_tick(&c, source);
+        if !(r.max_pos_error_after_10s < 0.5) || r.accepted < 100 {
+            hprintln!(
+                "{}: max position error after 10 s {} m, {} poses accepted",
+                name,
+                r.max_pos_error_after_10s,
+                r.accepted
+            );
+            fail("tick: closed loop did not track or took no poses");
+        }
+        let row = |what: &str, s: &Stat| {
+            if s.n == 0 {
+                hprintln!("| {}: {} | 0 | — | — |", name, what);
+                return;
+            }
+            hprintln!(
+                "| {}: {} | {} | {:.0} | {:.0} |",
+                name,
+                what,
+                s.n,
+                scale.mean(s),
+                scale.max(s)
+            );
+        };
+        row("**every tick**", &r.tick_all);
+        row(
+            "**typical tick** (no measurement, no re-propagation)",
+            &r.tick_plain,
+        );
+        row(
+            "**tick with a correction** (update + ≤ 24 ticks re-propagated)",
+            &r.tick_correction,
+        );
+        row(
+            "**tick continuing a re-propagation** (≤ 24 ticks)",
+            &r.tick_resume,
+        );
+        row("  `PoseEstimator::predict` alone", &r.predict);
+        row(
+            "  `PoseEstimator::resume` alone (a pending slice)",
+            &r.resume,
+        );
+        row(
+            "  `PoseEstimator::correct_within` alone (≤ 24 ticks now)",
+            &r.correct,
+        );
+        row(
+            "  `PoseEstimator::correct` (whole re-propagation at once)",
+            &r.correct_whole,
+        );
+        hprintln!(
+            "<!-- {}: {} poses accepted, largest latency {} ticks, max |e_xy| after 10 s {} m -->",
+            name,
+            r.accepted,
+            r.max_latency_ticks,
+            r.max_pos_error_after_10s
+        );
+        typical_mean = typical_mean.max(scale.mean(&r.tick_plain));
+        typical_max = typical_max.max(scale.max(&r.tick_plain));
+        correction_max = correction_max
+            .max(scale.max(&r.tick_correction))
+            .max(scale.max(&r.tick_resume));
+    }
     hprintln!("");
     hprintln!(
         "| math routine | inputs | libm {} | micromath {} (max err vs libm) | fast {} (max err vs libm) |",
@@ -598,9 +686,12 @@ fn main() -> ! {
     }
     hprintln!("");
     hprintln!(
-        "RESULT proposed_step_mean={:.0} proposed_step_max={:.0} unit={}",
+        "RESULT proposed_step_mean={:.0} proposed_step_max={:.0} tick_typical_mean={:.0} tick_typical_max={:.0} tick_correction_max={:.0} unit={}",
         proposed_mean,
         proposed_max,
+        typical_mean,
+        typical_max,
+        correction_max,
         unit
     );
     debug::exit(debug::EXIT_SUCCESS);

@@ -23,6 +23,10 @@
 //!   Mahalanobis distance (chi-square); the heading innovation is wrapped.
 //!   Measurements are used in timestamp order: one older than the last
 //!   accepted is refused ([`RejectReason::OutOfOrder`]).
+//!   [`PoseEstimator::correct_within`] bounds the re-propagation done at
+//!   once (the runtime does 24 ticks per tick) and [`PoseEstimator::resume`]
+//!   continues it in later ticks; the result is the same bit for bit, it
+//!   only lands a few ticks later.
 //! * **Output** ([`Estimate`]): `filter_pose` is the filter's estimate of G;
 //!   `pose`, for the controller, is the same with each correction's jump
 //!   spread over about two measurement intervals (a decaying offset, time
@@ -37,7 +41,10 @@
 #![allow(clippy::needless_range_loop)] // small matrices read best indexed
 
 mod config;
+mod repropagation;
 mod types;
+
+use repropagation::Repropagation;
 
 pub use config::{EstimatorConfig, EstimatorConfigError, CHI2_999_2DOF, CHI2_999_3DOF};
 pub use types::{
@@ -81,6 +88,30 @@ const INTERVAL_GAIN: f32 = 0.1;
 const MAX_DT_S: f32 = 0.1;
 
 type Mat = [[f32; N]; N];
+
+/// The configuration's noise parameters squared, once (the products are
+/// the ones the prediction formed every tick, so results are unchanged).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct NoiseSq {
+    gyro: f32,
+    wheel_yaw: f32,
+    speed: f32,
+    bias_walk: f32,
+    scale_walk: f32,
+}
+
+impl NoiseSq {
+    fn of(cfg: &EstimatorConfig) -> Self {
+        let sq = |v: f32| v * v;
+        Self {
+            gyro: sq(cfg.gyro_noise_density),
+            wheel_yaw: sq(cfg.wheel_yaw_noise),
+            speed: sq(cfg.speed_noise_mps_per_sqrt_hz),
+            bias_walk: sq(cfg.gyro_bias_walk),
+            scale_walk: sq(cfg.speed_scale_walk),
+        }
+    }
+}
 
 /// One tick's inputs to the prediction, kept for re-propagation.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -132,11 +163,28 @@ fn all_finite(x: &[f32; N], p: &Mat) -> bool {
     x.iter().all(|v| v.is_finite()) && p.iter().flatten().all(|v| v.is_finite())
 }
 
+/// [`all_finite`] for a symmetric `p` (only its upper triangle is read),
+/// without branches: v·0 is ±0 for a finite v and NaN for ±∞ or NaN, so
+/// the sum is 0 exactly when every value is finite.
+fn all_finite_sym(x: &[f32; N], p: &Mat) -> bool {
+    let mut z = 0.0f32;
+    for v in x {
+        z += v * 0.0;
+    }
+    for i in 0..N {
+        for v in &p[i][i..] {
+            z += v * 0.0;
+        }
+    }
+    z == 0.0
+}
+
 /// Wheel odometry, a z-gyro and delayed external poses fused in an EKF
 /// with a history buffer; see the [module docs](self).
 #[derive(Clone, Debug)]
 pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
     cfg: EstimatorConfig,
+    noise_sq: NoiseSq,
     x: [f32; N],
     p: Mat,
     hist: [Entry; H],
@@ -153,6 +201,9 @@ pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
     offset: [f32; 3],
     /// Running mean of the time between accepted measurements \[s\].
     mean_interval_s: Option<f32>,
+    /// A correction whose re-propagation is not finished (see
+    /// [`PoseEstimator::correct_within`]).
+    pending: Option<Repropagation>,
 }
 
 impl PoseEstimator {
@@ -183,6 +234,7 @@ impl<const H: usize> PoseEstimator<H> {
         p[3][3] = cfg.initial_bias_std_radps * cfg.initial_bias_std_radps;
         p[4][4] = cfg.initial_speed_scale_std * cfg.initial_speed_scale_std;
         let mut e = Self {
+            noise_sq: NoiseSq::of(&cfg),
             cfg,
             x,
             p,
@@ -196,6 +248,7 @@ impl<const H: usize> PoseEstimator<H> {
             estimate: Estimate::default(),
             offset: [0.0; 3],
             mean_interval_s: None,
+            pending: None,
             status: EstimatorStatus {
                 since_accepted_us: u32::MAX,
                 ..EstimatorStatus::default()
@@ -309,6 +362,7 @@ impl<const H: usize> PoseEstimator<H> {
             input,
         };
         self.status.gyro = gyro_state;
+        self.pending_tick();
         self.refresh(&input);
         &self.estimate
     }
@@ -316,14 +370,34 @@ impl<const H: usize> PoseEstimator<H> {
     /// Uses the pose measurement `m` (taken at `m.stamp_us`, not after the
     /// latest tick, not older than the history); `Err` says why not.
     pub fn correct(&mut self, m: &PoseMeasurement) -> Result<(), RejectReason> {
-        let r = self.try_correct(m);
+        self.correct_within(m, usize::MAX).map(|_| ())
+    }
+
+    /// [`Self::correct`], re-propagating at most `max_ticks` ticks of
+    /// history now (a pending re-propagation is finished first); the rest
+    /// is done by [`Self::resume`] in later ticks. Until it is done
+    /// ([`Self::is_repropagating`]), the estimate stays the uncorrected one;
+    /// once done, state and covariance are bit for bit those [`Self::correct`]
+    /// gives (the output smoothing takes the jump when it is applied).
+    /// `Ok` holds the number of ticks re-propagated now.
+    pub fn correct_within(
+        &mut self,
+        m: &PoseMeasurement,
+        max_ticks: usize,
+    ) -> Result<usize, RejectReason> {
+        self.resume(usize::MAX);
+        let r = self.try_correct(m, max_ticks);
         if let Err(reason) = r {
             self.status.rejected.count(reason);
         }
         r
     }
 
-    fn try_correct(&mut self, m: &PoseMeasurement) -> Result<(), RejectReason> {
+    fn try_correct(
+        &mut self,
+        m: &PoseMeasurement,
+        max_ticks: usize,
+    ) -> Result<usize, RejectReason> {
         let heading_finite = m.heading_std_rad.is_none() || m.pose.theta_rad.is_finite();
         let ok_coord = |v: f32| v.abs() <= MAX_COORD_M; // false for NaN
         if !(ok_coord(m.pose.x_m) && ok_coord(m.pose.y_m) && heading_finite) {
@@ -367,7 +441,6 @@ impl<const H: usize> PoseEstimator<H> {
         }
         let idx = (self.head + H - back) % H;
         let e = self.hist[idx];
-        let before = self.filter_pose();
         let (mut x, mut p) = (e.x, unpack(&e.p));
         let resets = self.status.resets;
         match self.update(&mut x, &mut p, m, true) {
@@ -388,20 +461,6 @@ impl<const H: usize> PoseEstimator<H> {
         }
         self.hist[idx].x = x;
         self.hist[idx].p = pack(&p);
-        // Re-propagate the later ticks from their stored inputs.
-        for k in (0..back).rev() {
-            let i = (self.head + H - k) % H;
-            let input = self.hist[i].input;
-            self.x = x;
-            self.p = p;
-            self.propagate(&input);
-            x = self.x;
-            p = self.p;
-            self.hist[i].x = x;
-            self.hist[i].p = pack(&p);
-        }
-        self.x = x;
-        self.p = p;
         if let Some(last) = self.last_accepted_stamp_us {
             let dt = m.stamp_us.wrapping_sub(last) as f32 * 1e-6;
             self.mean_interval_s = Some(match self.mean_interval_s {
@@ -411,6 +470,23 @@ impl<const H: usize> PoseEstimator<H> {
         }
         self.last_accepted_stamp_us = Some(m.stamp_us);
         self.status.accepted = self.status.accepted.saturating_add(1);
+        // Re-propagate the later ticks from their stored inputs.
+        self.pending = Some(Repropagation {
+            back,
+            x,
+            p,
+            reset: self.status.resets != resets,
+        });
+        Ok(self.resume(max_ticks))
+    }
+
+    /// Applies a finished correction: the live state becomes the
+    /// re-propagated `(x, p)`; the jump of the filter's pose goes into the
+    /// output offset (unless it is big or the pose was reset).
+    fn finish_correction(&mut self, x: [f32; N], p: Mat, reset: bool) {
+        let before = self.filter_pose();
+        self.x = x;
+        self.p = p;
         let after = self.filter_pose();
         let jump = [
             after.x_m - before.x_m,
@@ -418,7 +494,7 @@ impl<const H: usize> PoseEstimator<H> {
             wrap_angle(after.theta_rad - before.theta_rad),
         ];
         let big = jump[0].abs() + jump[1].abs() > MAX_SMOOTHED_JUMP_M;
-        if self.cfg.output_smoothing_s > 0.0 && !big && self.status.resets == resets {
+        if self.cfg.output_smoothing_s > 0.0 && !big && !reset {
             for (o, j) in self.offset.iter_mut().zip(jump) {
                 *o += j;
             }
@@ -428,7 +504,6 @@ impl<const H: usize> PoseEstimator<H> {
         }
         let input = self.hist[self.head].input;
         self.refresh(&input);
-        Ok(())
     }
 
     /// Position and heading variances to a wide prior, their correlations
@@ -449,26 +524,28 @@ impl<const H: usize> PoseEstimator<H> {
     /// The prediction of one tick (also used to re-propagate the history);
     /// a result that is not finite is dropped (the state is kept).
     fn propagate(&mut self, u: &Input) {
-        let (x0, p0) = (self.x, self.p);
-        self.propagate_unchecked(u);
-        if !all_finite(&self.x, &self.p) {
-            self.x = x0;
-            self.p = p0;
+        let (x, p) = self.propagated(u);
+        // The covariance is symmetric (mirrored, scaled or symmetrised).
+        if all_finite_sym(&x, &p) {
+            self.x = x;
+            self.p = p;
         }
     }
 
-    fn propagate_unchecked(&mut self, u: &Input) {
+    /// The state and covariance one tick on (not checked).
+    #[inline(always)]
+    fn propagated(&self, u: &Input) -> ([f32; N], Mat) {
         let cfg = &self.cfg;
-        let x = &mut self.x;
+        let sq = &self.noise_sq;
+        let mut xs = self.x;
+        let x = &mut xs;
         let dt = u.dt_s;
         let (dth, g, q_th) = if u.gyro_used {
-            let n = cfg.gyro_noise_density;
-            ((u.gyro_radps - x[3]) * dt, -dt, n * n * dt)
+            ((u.gyro_radps - x[3]) * dt, -dt, sq.gyro * dt)
         } else {
             let w = u.dtheta_wheel_rad / dt;
             let k = cfg.slip_fraction * w;
-            let n = cfg.wheel_yaw_noise;
-            (u.dtheta_wheel_rad, 0.0, (n * n + k * k) * dt)
+            (u.dtheta_wheel_rad, 0.0, (sq.wheel_yaw + k * k) * dt)
         };
         let (s, c) = sin_cos(x[2] + 0.5 * dth);
         let ds = u.ds_m;
@@ -482,13 +559,12 @@ impl<const H: usize> PoseEstimator<H> {
         let mut np = propagate_covariance(&self.p, a, b, g, ds * c, ds * s);
         let v = ds / dt;
         let kv = cfg.slip_fraction * v;
-        let nv = cfg.speed_noise_mps_per_sqrt_hz;
-        let q_p = (nv * nv + kv * kv) * dt;
+        let q_p = (sq.speed + kv * kv) * dt;
         np[0][0] += q_p;
         np[1][1] += q_p;
         np[2][2] += q_th;
-        np[3][3] += cfg.gyro_bias_walk * cfg.gyro_bias_walk * dt;
-        np[4][4] += cfg.speed_scale_walk * cfg.speed_scale_walk * dt;
+        np[3][3] += sq.bias_walk * dt;
+        np[4][4] += sq.scale_walk * dt;
         // Bounded growth: scale a row and column whose variance is too big.
         for i in 0..N {
             if np[i][i].is_nan() || np[i][i] > MAX_VAR[i] {
@@ -504,25 +580,24 @@ impl<const H: usize> PoseEstimator<H> {
                 np[i][i] = MAX_VAR[i];
             }
         }
-        self.p = np;
         if u.still {
             // Zero-rate update: standing still, the gyro reads its bias.
-            let n = cfg.gyro_noise_density;
-            let r = n * n / dt;
-            let s33 = self.p[3][3] + r;
-            let innov = u.gyro_radps - self.x[3];
-            let k: [f32; N] = core::array::from_fn(|i| self.p[i][3] / s33);
-            let row3 = self.p[3];
+            let r = sq.gyro / dt;
+            let s33 = np[3][3] + r;
+            let innov = u.gyro_radps - xs[3];
+            let k: [f32; N] = core::array::from_fn(|i| np[i][3] / s33);
+            let row3 = np[3];
             for i in 0..N {
-                self.x[i] += k[i] * innov;
+                xs[i] += k[i] * innov;
                 for j in 0..N {
-                    self.p[i][j] -= k[i] * row3[j];
+                    np[i][j] -= k[i] * row3[j];
                 }
             }
-            self.x[2] = wrap_angle(self.x[2]);
-            self.x[4] = self.x[4].clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
-            symmetrise(&mut self.p);
+            xs[2] = wrap_angle(xs[2]);
+            xs[4] = xs[4].clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
+            symmetrise(&mut np);
         }
+        (xs, np)
     }
 
     /// The EKF update of `(x, p)` with `m`; with `gate`, refuses an
@@ -661,6 +736,43 @@ impl<const H: usize> PoseEstimator<H> {
 /// columns 0-2 of (F·P)·Fᵀ (about 80 multiply-adds instead of 250); the
 /// result is made exactly symmetric.
 fn propagate_covariance(p: &Mat, a: f32, b: f32, g: f32, kc: f32, ks: f32) -> Mat {
+    let (ga, gb) = (0.5 * g * a, 0.5 * g * b);
+    // Rows 0-2 of F·P (all columns).
+    let mut fp = [[0.0f32; N]; 3];
+    for j in 0..N {
+        let (p2, p3, p4) = (p[2][j], p[3][j], p[4][j]);
+        fp[0][j] = p[0][j] + a * p2 + ga * p3 + kc * p4;
+        fp[1][j] = p[1][j] + b * p2 + gb * p3 + ks * p4;
+        fp[2][j] = p2 + g * p3;
+    }
+    // The upper triangle of (F·P)·Fᵀ: columns 0-2 of rows 0-2 combine
+    // F·P's columns 2-4; columns 3-4 are F·P's; rows 3-4 are P's.
+    let mut np = *p;
+    for i in 0..3 {
+        let (q2, q3, q4) = (fp[i][2], fp[i][3], fp[i][4]);
+        if i == 0 {
+            np[0][0] = fp[0][0] + (a * q2 + ga * q3 + kc * q4);
+        }
+        if i <= 1 {
+            np[i][1] = fp[i][1] + (b * q2 + gb * q3 + ks * q4);
+        }
+        np[i][2] = q2 + g * q3;
+        np[i][3] = q3;
+        np[i][4] = q4;
+    }
+    for i in 0..N {
+        for j in (i + 1)..N {
+            np[j][i] = np[i][j];
+        }
+    }
+    np
+}
+
+/// The previous formulation of [`propagate_covariance`] (every entry of
+/// (F·P)·Fᵀ, then mirrored), kept to test that the upper-triangle one is
+/// bit for bit the same.
+#[cfg(test)]
+fn propagate_covariance_full(p: &Mat, a: f32, b: f32, g: f32, kc: f32, ks: f32) -> Mat {
     let (ga, gb) = (0.5 * g * a, 0.5 * g * b);
     let mut fp = *p;
     for j in 0..N {

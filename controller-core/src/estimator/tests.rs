@@ -66,6 +66,9 @@ fn sparse_covariance_prediction_equals_dense() {
         f[0][4] = kc;
         f[1][4] = ks;
         let sparse = propagate_covariance(&p, a, b, g, kc, ks);
+        let full = propagate_covariance_full(&p, a, b, g, kc, ks);
+        let bits = |m: Mat| m.map(|r| r.map(f32::to_bits));
+        assert_eq!(bits(sparse), bits(full), "upper triangle vs every entry");
         for i in 0..5 {
             for j in 0..5 {
                 let dense: f32 = (0..5)
@@ -262,6 +265,20 @@ fn s_curve(every: u32, delay: u32, ticks: u32) -> PoseEstimator {
 
 /// [`s_curve`] with measurements taken only up to tick `last`.
 fn s_curve_until(every: u32, delay: u32, ticks: u32, last: u32) -> PoseEstimator {
+    s_curve_sliced(every, delay, ticks, last, None)
+}
+
+/// [`s_curve_until`]; with `Some(budget)`, corrections re-propagate at most
+/// `budget` ticks per tick ([`PoseEstimator::correct_within`] and
+/// [`PoseEstimator::resume`], as the runtime calls them) and a measurement
+/// waits while a re-propagation is pending.
+fn s_curve_sliced(
+    every: u32,
+    delay: u32,
+    ticks: u32,
+    last: u32,
+    budget: Option<usize>,
+) -> PoseEstimator {
     let mut e = est();
     let mut pending: [Option<(u32, PoseMeasurement)>; 64] = [None; 64];
     let (mut x, mut y, mut th) = (0.0f32, 0.0f32, 0.0f32);
@@ -276,6 +293,7 @@ fn s_curve_until(every: u32, delay: u32, ticks: u32, last: u32) -> PoseEstimator
         th += w * DT;
         // Wheels slip by 20 % (they over-report), the gyro is biased.
         e.predict(now, DT, 1.2 * ds, 1.1 * w * DT, gyro(w + 0.01, now));
+        let mut used = budget.map_or(0, |b| e.resume(b));
         if k % every == 0 && k <= last {
             let g = Pose::new(x + D * th.cos(), y + D * th.sin(), wrap_angle(th));
             let slot = pending.iter_mut().find(|p| p.is_none()).unwrap();
@@ -287,12 +305,17 @@ fn s_curve_until(every: u32, delay: u32, ticks: u32, last: u32) -> PoseEstimator
                 .iter_mut()
                 .filter(|p| p.is_some_and(|(at, _)| at <= k))
                 .min_by_key(|p| p.unwrap().1.stamp_us);
-            match due {
-                Some(p) => {
+            match (due, budget) {
+                (_, Some(_)) if e.is_repropagating() => break,
+                (Some(p), None) => {
                     let (_, m) = p.take().unwrap();
                     e.correct(&m).unwrap();
                 }
-                None => break,
+                (Some(p), Some(b)) => {
+                    let (_, m) = p.take().unwrap();
+                    used += e.correct_within(&m, b - used).unwrap();
+                }
+                (None, _) => break,
             }
         }
     }
@@ -319,6 +342,30 @@ fn late_measurements_equal_on_time_ones() {
             assert!((pa[i][i] - pb[i][i]).abs() <= 1e-6 * pa[i][i].abs().max(1e-12));
         }
         assert_eq!(on_time.status().accepted, late.status().accepted);
+    }
+}
+
+/// Re-propagating in slices of a few ticks per tick (what the runtime
+/// does, to bound a tick's cost) ends in exactly the state and covariance
+/// of the whole re-propagation at once, for latencies up to the history.
+#[test]
+fn sliced_repropagation_equals_whole() {
+    // Rates the slices keep up with: a correction `delay` late takes about
+    // delay / (budget − 1) ticks, less than the time between measurements.
+    for (every, delay, budget) in [(10, 37, 8), (20, 250, 24), (100, 250, 4), (5, 249, 64)] {
+        // Enough ticks after the last measurement for the slices to finish.
+        let ticks = 3000 + delay + 300;
+        let whole = s_curve_sliced(every, delay, ticks, 3000, None);
+        let sliced = s_curve_sliced(every, delay, ticks, 3000, Some(budget));
+        assert!(!sliced.is_repropagating());
+        let bits = |e: &PoseEstimator| {
+            let f = e.estimate().filter_pose;
+            let p = e.covariance().map(|r| r.map(f32::to_bits));
+            ([f.x_m, f.y_m, f.theta_rad].map(f32::to_bits), p)
+        };
+        assert_eq!(bits(&whole), bits(&sliced), "{every}/{delay}/{budget}");
+        assert_eq!(whole.status().accepted, sliced.status().accepted);
+        assert_eq!(whole.status().accepted, 3000 / every);
     }
 }
 

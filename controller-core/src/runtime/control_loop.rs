@@ -17,6 +17,13 @@ use crate::pacer::{Pacer, PacerState};
 use crate::trajectory::Trajectory;
 use crate::types::Pose;
 
+/// History ticks the estimator re-propagates per tick after a late pose
+/// measurement (the rest in later ticks, [`PoseEstimator::correct_within`]):
+/// bounds a tick's cost on a small MCU (about 400 Cortex-M4F instructions
+/// per tick re-propagated, BENCHMARKS.md). A correction 250 ticks late
+/// takes effect 11 ticks later; one 10 ticks late (motion capture) at once.
+pub const MAX_REPROPAGATION_PER_TICK: usize = 24;
+
 /// The runtime: encoders, pose estimator, controller, motor model and
 /// supervisor. `H` is the estimator's history in ticks (the oldest usable
 /// pose measurement; 104 bytes per tick): [`HISTORY_LEN`] by default, 1
@@ -411,7 +418,8 @@ impl<const H: usize> ControlLoop<H> {
 
     /// Step 3: the estimator predicts from this tick's wheel increments
     /// and the gyro, then takes up to [`MAX_POSES_PER_TICK`] measurements
-    /// from the pose source (late ones are re-propagated to now). Plain
+    /// from the pose source (late ones are re-propagated to now, at most
+    /// [`MAX_REPROPAGATION_PER_TICK`] ticks of history per tick). Plain
     /// odometry runs beside it. Returns the fused pose of G and whether a
     /// measurement was accepted. The controller's η stays the wheel-derived
     /// one (D26).
@@ -431,12 +439,20 @@ impl<const H: usize> ControlLoop<H> {
             inc.omega_radps,
             gyro.sample(),
         );
+        // A pending re-propagation goes on; new measurements wait in the
+        // source until it is done.
+        let mut used = self.estimator.resume(MAX_REPROPAGATION_PER_TICK);
         let mut accepted = false;
         for _ in 0..MAX_POSES_PER_TICK {
+            if self.estimator.is_repropagating() {
+                break;
+            }
             let Some(m) = pose_source.measurement() else {
                 break;
             };
-            if self.estimator.correct(&m).is_ok() {
+            let budget = MAX_REPROPAGATION_PER_TICK.saturating_sub(used);
+            if let Ok(n) = self.estimator.correct_within(&m, budget) {
+                used += n;
                 accepted = true;
                 self.status.external_poses = self.status.external_poses.saturating_add(1);
             }

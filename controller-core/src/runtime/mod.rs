@@ -46,7 +46,7 @@ mod timing;
 
 pub use arming::{ArmingButton, ArmingEvent};
 pub use config::{RuntimeConfig, SafetyLimits};
-pub use control_loop::ControlLoop;
+pub use control_loop::{ControlLoop, MAX_REPROPAGATION_PER_TICK};
 pub use encoder::{count_delta, CountSample, EncoderParams, WheelCounts, MAX_SPEED_WINDOW};
 pub use error::RuntimeConfigError;
 pub use hardware::{

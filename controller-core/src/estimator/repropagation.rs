@@ -1,0 +1,77 @@
+//! Re-propagation of the history after a late correction, in slices: a
+//! correction 250 ticks late re-runs 250 predictions, more than one tick's
+//! time budget on a small MCU. [`PoseEstimator::correct_within`] does at
+//! most a given number of them at once and leaves the rest pending;
+//! [`PoseEstimator::resume`] continues in later ticks (each new tick adds
+//! one entry to re-propagate) until the corrected branch reaches the newest
+//! entry and replaces the live state. The arithmetic per entry is the
+//! forward prediction's, on the same stored inputs, so the result equals
+//! [`PoseEstimator::correct`]'s bit for bit (tested).
+
+use super::{pack, Mat, PoseEstimator, N};
+
+/// A correction being re-propagated: the corrected branch's state at the
+/// entry `back` ticks before the newest one.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Repropagation {
+    /// Entries still to re-propagate (from the branch's entry to the newest).
+    pub(super) back: usize,
+    /// The branch's state and covariance.
+    pub(super) x: [f32; N],
+    pub(super) p: Mat,
+    /// The correction reset the pose (its jump is not smoothed).
+    pub(super) reset: bool,
+}
+
+impl<const H: usize> PoseEstimator<H> {
+    /// A correction's re-propagation is pending: the estimate is still the
+    /// uncorrected one.
+    pub fn is_repropagating(&self) -> bool {
+        self.pending.is_some()
+    }
+
+    /// Continues a pending re-propagation by at most `max_ticks` entries;
+    /// returns how many it did. When it reaches the newest entry the
+    /// corrected state replaces the live one.
+    pub fn resume(&mut self, max_ticks: usize) -> usize {
+        let Some(mut r) = self.pending.take() else {
+            return 0;
+        };
+        let n = r.back.min(max_ticks);
+        let live = (self.x, self.p);
+        self.x = r.x;
+        self.p = r.p;
+        for k in (r.back - n..r.back).rev() {
+            let i = (self.head + H - k) % H;
+            let input = self.hist[i].input;
+            self.propagate(&input);
+            let e = &mut self.hist[i];
+            e.x = self.x;
+            e.p = pack(&self.p);
+        }
+        r.back -= n;
+        let (x, p) = (self.x, self.p);
+        (self.x, self.p) = live;
+        if r.back == 0 {
+            self.finish_correction(x, p, r.reset);
+        } else {
+            r.x = x;
+            r.p = p;
+            self.pending = Some(r);
+        }
+        n
+    }
+
+    /// A new tick was appended: one more entry to re-propagate. If the
+    /// branch's entry would fall out of the history, the re-propagation is
+    /// finished now.
+    pub(super) fn pending_tick(&mut self) {
+        let Some(r) = &mut self.pending else {
+            return;
+        };
+        r.back += 1;
+        if r.back >= H {
+            self.resume(usize::MAX);
+        }
+    }
+}
