@@ -583,7 +583,7 @@ fn main() -> ! {
     let mut typical_max = 0.0f32;
     let mut correction_max = 0.0f32;
     for (name, source) in [
-        ("mocap (100 Hz, 10 ms)", tick::MOCAP),
+        ("mocap (100 Hz, 10 ms)", sim_robot::sensors::PRESET_MOCAP),
         (
             "UWB at maximal latency (10 Hz, 250 ms)",
             tick::UWB_MAX_LATENCY,

@@ -23,9 +23,10 @@ use controller_core::runtime::{
     MAX_REPROPAGATION_PER_TICK,
 };
 use controller_core::{ControllerKind, Pose};
+use sim_robot::sensors::PRESET_GYRO;
 use sim_robot::{
-    GyroModel, MotorDrive, PerturbationGrid, Plant, PlantParams, PlantState, PoseSourceModel,
-    SimDriver, SimEncoders, SimGyro, SimPoseSource,
+    MotorDrive, PerturbationGrid, Plant, PlantParams, PlantState, PoseSourceModel, SimDriver,
+    SimEncoders, SimGyro, SimPoseSource,
 };
 
 use crate::timer::Counter;
@@ -33,31 +34,6 @@ use crate::{case2_profile, fail, time, Stat};
 
 /// Ticks per run: the paper's 40 s at 1 kHz.
 const TICKS: u32 = 40_000;
-
-/// The gyro of hil-sim's `imu`/`mocap`/`uwb` presets (BMI088 / ICM-42688
-/// class at 2000 °/s, read every tick).
-const GYRO: GyroModel = GyroModel {
-    noise_density_radps_per_sqrt_hz: 2.5e-4,
-    bias_radps: 0.005,
-    bias_walk_radps_per_sqrt_s: 1.0e-4,
-    scale_error: 0.005,
-    saturation_radps: 34.9,
-    rate_hz: 1000.0,
-};
-
-/// Motion capture as hil-sim's `mocap` preset: 100 Hz, 10 ms latency
-/// (+ up to 1 ms jitter), 2 mm and 0.005 rad noise.
-pub const MOCAP: PoseSourceModel = PoseSourceModel {
-    rate_hz: 100.0,
-    latency_s: 0.010,
-    jitter_s: 0.001,
-    position_noise_m: 0.002,
-    heading_noise_rad: Some(0.005),
-    dropout: 0.0,
-    outage_s: None,
-    outlier_fraction: 0.0,
-    outlier_m: 1.0,
-};
 
 /// UWB-like (position only, 10 Hz, 5 cm) at the maximal latency the
 /// runtime accepts (250 ms, no jitter): every correction re-propagates 250
@@ -157,7 +133,7 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
         ..RuntimeConfig::example(ControllerKind::Proposed)
     };
     let mut est = EstimatorConfig::example(cfg.controller.robot.com_offset_m, initial_pose);
-    est.gyro_saturation_radps = GYRO.saturation_radps as f32;
+    est.gyro_saturation_radps = PRESET_GYRO.saturation_radps as f32;
     let mut control: ControlLoop<HISTORY_LEN> =
         ControlLoop::with_estimator(cfg, est).unwrap_or_else(|_| fail("runtime config"));
     let mut shadow: PoseEstimator<HISTORY_LEN> =
@@ -177,7 +153,7 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
     let mut perturb = PerturbationGrid::new(case2_profile(), 0.5 * dt);
     let mut encoders = SimEncoders::new(&cfg.encoder);
     let mut driver = SimDriver::default();
-    let mut gyro = SimGyro::new(GYRO, 0x6779_726F).unwrap_or_else(|_| fail("gyro model"));
+    let mut gyro = SimGyro::new(PRESET_GYRO, 0x6779_726F).unwrap_or_else(|_| fail("gyro model"));
     let mut poses = SimPoseSource::new(source, 0x706F_7365).unwrap_or_else(|_| fail("pose model"));
     let mut enc = LatchedEncoders([0; 2]);
     let mut gyro_hw = LatchedGyro(None);

@@ -1,27 +1,27 @@
-//! Small deterministic PRNG (SplitMix64) so a seed fully determines a run.
+//! Small deterministic PRNG so a seed fully determines a run: the
+//! simulated robot's SplitMix64 generator ([`sim_robot::sensors::SimRng`])
+//! with the draws the scenarios need.
+
+use sim_robot::sensors::SimRng;
 
 /// SplitMix64 generator.
 #[derive(Clone, Debug)]
-pub struct Rng(u64);
+pub struct Rng(SimRng);
 
 impl Rng {
     /// Generator from a seed.
     pub fn new(seed: u64) -> Self {
-        Self(seed ^ 0x9E37_79B9_7F4A_7C15)
+        Self(SimRng::new(seed))
     }
 
     /// Next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     /// Uniform in [0, 1).
     pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+        self.0.uniform()
     }
 
     /// Uniform in the open interval (lo, hi).

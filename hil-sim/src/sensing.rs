@@ -5,44 +5,7 @@
 use crate::scenario::{Scenario, Sensing};
 use sim_robot::{GyroModel, PoseSourceModel};
 
-/// The gyro of the `imu`, `mocap` and `uwb` presets: a MEMS gyro of the
-/// BMI088 / ICM-42688 class at its 2000 °/s range, read every tick.
-pub const PRESET_GYRO: GyroModel = GyroModel {
-    noise_density_radps_per_sqrt_hz: 2.5e-4,
-    bias_radps: 0.005,
-    bias_walk_radps_per_sqrt_s: 1.0e-4,
-    scale_error: 0.005,
-    saturation_radps: 34.9,
-    rate_hz: 1000.0,
-};
-
-/// Motion capture: pose of G at 100 Hz, 10 ms latency (+ up to 1 ms
-/// jitter), 2 mm and 0.005 rad noise.
-pub const PRESET_MOCAP: PoseSourceModel = PoseSourceModel {
-    rate_hz: 100.0,
-    latency_s: 0.010,
-    jitter_s: 0.001,
-    position_noise_m: 0.002,
-    heading_noise_rad: Some(0.005),
-    dropout: 0.0,
-    outage_s: None,
-    outlier_fraction: 0.0,
-    outlier_m: 1.0,
-};
-
-/// UWB: position at 10 Hz, 100 ms latency (+ up to 5 ms jitter), 5 cm
-/// noise, no heading.
-pub const PRESET_UWB: PoseSourceModel = PoseSourceModel {
-    rate_hz: 10.0,
-    latency_s: 0.100,
-    jitter_s: 0.005,
-    position_noise_m: 0.05,
-    heading_noise_rad: None,
-    dropout: 0.0,
-    outage_s: None,
-    outlier_fraction: 0.0,
-    outlier_m: 1.0,
-};
+pub use sim_robot::sensors::{PRESET_GYRO, PRESET_MOCAP, PRESET_UWB};
 
 /// The sensors of a scenario: preset plus overrides.
 #[derive(Clone, Copy, Debug, PartialEq)]
