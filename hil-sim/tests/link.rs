@@ -16,6 +16,14 @@ use std::time::{Duration, Instant};
 use wmr::Link;
 use wmr_protocol::*;
 
+/// The link tests run one at a time: each serves a simulated robot in real
+/// time next to its host, and several at once on a 2-core machine would
+/// starve the robots' clocks (what the timing assertions measure).
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 /// The simulated robot served on a pty in a thread.
 struct Robot {
     path: String,
@@ -113,6 +121,7 @@ fn telemetry_until(
 
 #[test]
 fn hello_over_the_pty_and_the_binary_prints_its_path_first() {
+    let _serial = serial();
     let robot = Robot::start(&nominal(TrajectoryKind::Paper, 1.0), 1.0);
     let mut link = robot.link();
     let h = link.hello().unwrap();
@@ -149,6 +158,7 @@ fn hello_over_the_pty_and_the_binary_prints_its_path_first() {
 /// hello of the next version with its own version and refuses anything else.
 #[test]
 fn version_mismatch_both_ways() {
+    let _serial = serial();
     let other = PROTOCOL_VERSION + 1;
     let (mut master, _slave, path) = open_pty().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
@@ -263,6 +273,7 @@ fn version_mismatch_both_ways() {
 /// position metrics within 2 % + 2 mm, torque RMS within 3 %.
 #[test]
 fn recorded_paper_curve_matches_the_simulation() {
+    let _serial = serial();
     let duration = 12.0;
     let scn = nominal(TrajectoryKind::Paper, duration);
     let sim = hil_sim::sim::run_with(
@@ -345,6 +356,7 @@ fn recorded_paper_curve_matches_the_simulation() {
 /// and disarms (zero torque) within the braking time.
 #[test]
 fn link_silence_while_running_stops_within_the_timeout() {
+    let _serial = serial();
     let mut scn = nominal(TrajectoryKind::Circle, 1.0);
     scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
     let robot = Robot::start(&scn, 1.0);
@@ -390,6 +402,7 @@ fn link_silence_while_running_stops_within_the_timeout() {
 /// reference ramps to a standstill and the robot disarms.
 #[test]
 fn drive_without_refresh_stops_after_its_timeout() {
+    let _serial = serial();
     let robot = Robot::start(&nominal(TrajectoryKind::Line, 1.0), 1.0);
     let mut link = robot.link();
     ok(
@@ -449,6 +462,7 @@ fn drive_without_refresh_stops_after_its_timeout() {
 /// torque, the one before it drove.
 #[test]
 fn estop_reaches_zero_torque_within_two_ticks() {
+    let _serial = serial();
     let mut scn = nominal(TrajectoryKind::Circle, 1.0);
     scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
     let robot = Robot::start(&scn, 1.0);
@@ -531,6 +545,7 @@ fn estop_reaches_zero_torque_within_two_ticks() {
 /// tracking error as small as without them), telemetry keeps flowing.
 #[test]
 fn garbage_and_corrupted_frames_never_disturb_the_loop() {
+    let _serial = serial();
     let mut scn = nominal(TrajectoryKind::Circle, 1.0);
     scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
     let robot = Robot::start(&scn, 1.0);
@@ -609,6 +624,7 @@ fn garbage_and_corrupted_frames_never_disturb_the_loop() {
 /// reference of each name samples the same reference as the simulator's.
 #[test]
 fn robot_shapes_are_the_simulator_trajectories() {
+    let _serial = serial();
     use controller_core::trajectory::Trajectory;
     for (name, kind) in [
         ("paper", TrajectoryKind::Paper),
