@@ -394,9 +394,13 @@ impl Plant {
         o
     }
 
-    /// True when every state component is finite.
+    /// True when every state component is finite. (One sum: a NaN or an
+    /// infinity in any component makes it non-finite; finite components
+    /// only overflow it beyond 10³⁰⁷, a diverged state anyway.)
     pub fn state_is_finite(st: &PlantState) -> bool {
-        st.q.iter().chain(&st.nu).all(|x| x.is_finite())
+        let [a, b, c, d, e] = st.q;
+        let [f, g] = st.nu;
+        (a + b + c + d + e + f + g).is_finite()
     }
 }
 
