@@ -19,6 +19,7 @@ use defmt::{error, info, unwrap, warn};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_time::{Duration, Instant, Ticker};
+use static_cell::StaticCell;
 use wmr_device::Device;
 use wmr_protocol::RunStateMsg;
 
@@ -104,13 +105,18 @@ async fn main(spawner: Spawner) {
         None => error!("host link off (no USB clock on the HSI)"),
     }
     info!("state: HOLD (motors off). Load a reference with wmr and arm, or press the button (slow circle).");
+    // The device (about 7 KiB) in a static of its own, the task holds a
+    // reference: moved into the task by value, the future would hold it
+    // twice (the argument and the local it is moved into).
+    static ROBOT: StaticCell<Robot> = StaticCell::new();
+    let device = ROBOT.init(device);
     spawner.spawn(unwrap!(control_task(board, device, timer, button)));
 }
 
 #[embassy_executor::task]
 async fn control_task(
     mut b: board::Board,
-    mut dev: Robot,
+    dev: &'static mut Robot,
     mut timer: LoopTimer,
     mut button: ArmingButton,
 ) {
@@ -127,7 +133,7 @@ async fn control_task(
         let timing = timer.tick(now_us);
 
         // Host link: bytes in and out through bounded pipes, never waiting.
-        link::receive(&mut dev);
+        link::receive(dev);
         let c0 = DWT::cycle_count();
         let rep = dev.tick(
             now_us,
@@ -138,7 +144,7 @@ async fn control_task(
             timing,
         );
         cycles.record(DWT::cycle_count().wrapping_sub(c0));
-        link::transmit(&mut dev);
+        link::transmit(dev);
         b.watchdog.pet();
 
         // Operator button: arm / disarm / clear a latched stop, without a host.
