@@ -243,13 +243,24 @@ fn telemetry(r: &controller_core::runtime::TickReport, cycles: &mut CycleStats) 
 /// Panic: motor outputs off first (raw register writes), then log and stop
 /// in a fault the debugger sees; without a debugger the watchdog resets the
 /// chip, which boots with the motors disabled.
+///
+/// The handler does not read `info` unless the `panic-location` feature is
+/// on: reading it keeps every panic site's message arguments, file names
+/// and `core::fmt` in the image (about 11 KiB of flash). probe-rs halts on
+/// the `udf` below (HardFault) and prints the backtrace with file and line.
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     board::motors_off_raw();
+    #[cfg(feature = "panic-location")]
     if let Some(loc) = info.location() {
         error!("PANIC at {}:{} (motors off)", loc.file(), loc.line());
     } else {
         error!("PANIC (motors off)");
+    }
+    #[cfg(not(feature = "panic-location"))]
+    {
+        let _ = info;
+        error!("PANIC (motors off; location: the backtrace, or build with `panic-location`)");
     }
     cortex_m::asm::udf()
 }
