@@ -110,7 +110,7 @@ async fn main(spawner: Spawner) {
     // twice (the argument and the local it is moved into).
     static ROBOT: StaticCell<Robot> = StaticCell::new();
     let device = ROBOT.init(device);
-    spawner.spawn(unwrap!(control_task(board, device, timer, button)));
+    spawner.spawn(unwrap!(control_task(board, device, timer, button).ok()));
 }
 
 #[embassy_executor::task]
