@@ -12,7 +12,6 @@ mod board;
 mod config;
 mod link;
 
-use controller_core::estimator::EstimatorConfig;
 use controller_core::runtime::{ArmingButton, CycleStats, LoopTimer, NoGyro, WheelOdometryOnly};
 use cortex_m::peripheral::DWT;
 use defmt::{error, info, unwrap, warn};
@@ -79,9 +78,8 @@ async fn main(spawner: Spawner) {
         config::POSE_HISTORY_TICKS
     );
 
-    let estimator = EstimatorConfig::example(cfg.controller.robot.com_offset_m, cfg.initial_pose);
     let (device, timer, button) = match (
-        Robot::with_estimator(config::device_config(), cfg, estimator),
+        Robot::with_estimator(config::DEVICE, cfg, config::ESTIMATOR),
         LoopTimer::from_config(&cfg),
         ArmingButton::new(board::BUTTON_DEBOUNCE_TICKS),
     ) {
