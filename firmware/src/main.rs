@@ -12,8 +12,7 @@ mod board;
 mod config;
 mod link;
 
-use controller_core::runtime::{ArmingButton, CycleStats, LoopTimer, NoGyro, WheelOdometryOnly};
-use cortex_m::peripheral::DWT;
+use controller_core::runtime::{ArmingButton, LoopTimer, NoGyro, WheelOdometryOnly};
 use defmt::{error, info, unwrap, warn};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
@@ -21,6 +20,8 @@ use embassy_time::{Duration, Instant, Ticker};
 use static_cell::StaticCell;
 use wmr_device::Device;
 use wmr_protocol::RunStateMsg;
+#[cfg(feature = "rtt-telemetry")]
+use {controller_core::runtime::CycleStats, cortex_m::peripheral::DWT};
 
 /// The host-link device and runtime with the firmware's pose history.
 type Robot = Device<{ config::POSE_HISTORY_TICKS }>;
@@ -31,10 +32,14 @@ async fn main(spawner: Spawner) {
     board::outputs_low_early();
     let mut board = board::init();
 
-    // DWT cycle counter for the control step's execution time.
-    let mut cp = unwrap!(cortex_m::Peripherals::take());
-    cp.DCB.enable_trace();
-    cp.DWT.enable_cycle_counter();
+    // DWT cycle counter for the control step's execution time (RTT
+    // telemetry).
+    #[cfg(feature = "rtt-telemetry")]
+    {
+        let mut cp = unwrap!(cortex_m::Peripherals::take());
+        cp.DCB.enable_trace();
+        cp.DWT.enable_cycle_counter();
+    }
 
     let full_scale = board.motors.full_scale();
     let full_scale = if full_scale <= u16::MAX as u32 {
@@ -120,6 +125,9 @@ async fn control_task(
 ) {
     let mut ticker = Ticker::every(Duration::from_hz(board::CONTROL_HZ));
     b.watchdog.unleash();
+    // Execution time of the step in CPU cycles: only the RTT telemetry
+    // reports it.
+    #[cfg(feature = "rtt-telemetry")]
     let mut cycles = CycleStats::new();
     let mut state = dev.state();
     let mut n: u32 = 0;
@@ -132,6 +140,7 @@ async fn control_task(
 
         // Host link: bytes in and out through bounded pipes, never waiting.
         link::receive(dev);
+        #[cfg(feature = "rtt-telemetry")]
         let c0 = DWT::cycle_count();
         let rep = dev.tick(
             now_us,
@@ -141,6 +150,7 @@ async fn control_task(
             &mut WheelOdometryOnly,
             timing,
         );
+        #[cfg(feature = "rtt-telemetry")]
         cycles.record(DWT::cycle_count().wrapping_sub(c0));
         link::transmit(dev);
         b.watchdog.pet();
@@ -174,8 +184,6 @@ async fn control_task(
         if n % board::TELEMETRY_DECIMATION == 0 {
             telemetry(&rep, &mut cycles);
         }
-        #[cfg(not(feature = "rtt-telemetry"))]
-        let _ = (&rep, &mut cycles);
         #[cfg(feature = "rtt-telemetry")]
         if n % board::CONTROL_HZ as u32 == 0 {
             let s = dev.control().status();
