@@ -49,10 +49,10 @@ async fn main(spawner: Spawner) {
     };
     let cfg = config::runtime_config(full_scale);
     info!(
-        "==== trajectory-tracking firmware {} ====",
+        "==== trajectory-tracking firmware {=str} ====",
         env!("CARGO_PKG_VERSION")
     );
-    info!("chip: {}", board::CHIP);
+    info!("chip: {=str}", board::CHIP);
     if board.clock == board::ClockSource::HsiFallback {
         error!(
             "HSE did not start within {=u32} ms: running on the internal HSI (same SYSCLK, ~1 % accuracy, no USB)",
