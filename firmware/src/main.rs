@@ -252,7 +252,7 @@ fn telemetry(r: &controller_core::runtime::TickReport, cycles: &mut CycleStats) 
 ///
 /// The handler does not read `info` unless the `panic-location` feature is
 /// on: reading it keeps every panic site's message arguments, file names
-/// and `core::fmt` in the image (about 11 KiB of flash). probe-rs halts on
+/// and `core::fmt` in the image (12 to 19 KiB of flash). probe-rs halts on
 /// the `udf` below (HardFault) and prints the backtrace with file and line.
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
