@@ -32,16 +32,22 @@ pub struct AdaptiveGain {
     pub rho_max: f32,
 }
 
+impl AdaptiveGain {
+    /// The defaults (also [`Default::default`]); a constant so that
+    /// configurations built from it are data, not code.
+    pub const DEFAULT: Self = Self {
+        gamma: 0.1,
+        dead_zone: 0.01,
+        leakage: 0.01,
+        rho0: 0.1,
+        rho_min: 0.0,
+        rho_max: 5.0,
+    };
+}
+
 impl Default for AdaptiveGain {
     fn default() -> Self {
-        Self {
-            gamma: 0.1,
-            dead_zone: 0.01,
-            leakage: 0.01,
-            rho0: 0.1,
-            rho_min: 0.0,
-            rho_max: 5.0,
-        }
+        Self::DEFAULT
     }
 }
 

@@ -67,13 +67,19 @@ pub struct InputLimits {
     pub max_yaw_rate_radps: f32,
 }
 
+impl InputLimits {
+    /// The defaults (also [`Default::default`]); a constant so that
+    /// configurations built from it are data, not code.
+    pub const DEFAULT: Self = Self {
+        max_position_m: 1000.0,
+        max_speed_mps: 10.0,
+        max_yaw_rate_radps: 30.0,
+    };
+}
+
 impl Default for InputLimits {
     fn default() -> Self {
-        Self {
-            max_position_m: 1000.0,
-            max_speed_mps: 10.0,
-            max_yaw_rate_radps: 30.0,
-        }
+        Self::DEFAULT
     }
 }
 
@@ -112,11 +118,11 @@ pub const DEFAULT_TORQUE_LIMIT_NM: f32 = 10.0;
 impl ControllerConfig {
     /// Table 2 gains for `kind` at a 1 kHz period, with the project's
     /// documented choices where the paper is silent or unusable.
-    pub fn paper(kind: ControllerKind) -> Self {
+    pub const fn paper(kind: ControllerKind) -> Self {
         let (k_s, switching) = match kind {
             ControllerKind::Smc => (5.0, Switching::Fixed(DEFAULT_SMC_GAIN)),
-            ControllerKind::Asmc => (5.0, Switching::Adaptive(AdaptiveGain::default())),
-            ControllerKind::Proposed => (50.0, Switching::Adaptive(AdaptiveGain::default())),
+            ControllerKind::Asmc => (5.0, Switching::Adaptive(AdaptiveGain::DEFAULT)),
+            ControllerKind::Proposed => (50.0, Switching::Adaptive(AdaptiveGain::DEFAULT)),
         };
         Self {
             kind,
@@ -125,12 +131,12 @@ impl ControllerConfig {
                 k_y: DEFAULT_K_Y,
                 ..KinematicGains::paper()
             },
-            fault_observer: FaultObserverGains::default(),
-            eso: EsoParams::default(),
+            fault_observer: FaultObserverGains::DEFAULT,
+            eso: EsoParams::DEFAULT,
             sliding: SlidingParams { k_s, switching },
             torque_limit_nm: DEFAULT_TORQUE_LIMIT_NM,
             period_s: 1e-3,
-            input_limits: InputLimits::default(),
+            input_limits: InputLimits::DEFAULT,
         }
     }
 

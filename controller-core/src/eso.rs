@@ -59,14 +59,20 @@ pub struct EsoParams {
     pub max_disturbance: [f32; 2],
 }
 
+impl EsoParams {
+    /// The defaults (also [`Default::default`]); a constant so that
+    /// configurations built from it are data, not code.
+    pub const DEFAULT: Self = Self {
+        lambda: [10.0, 20.0, 30.0],
+        zeta: 0.1,
+        alpha: 0.01,
+        max_disturbance: [20.0, 40.0],
+    };
+}
+
 impl Default for EsoParams {
     fn default() -> Self {
-        Self {
-            lambda: [10.0, 20.0, 30.0],
-            zeta: 0.1,
-            alpha: 0.01,
-            max_disturbance: [20.0, 40.0],
-        }
+        Self::DEFAULT
     }
 }
 

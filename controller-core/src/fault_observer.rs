@@ -34,13 +34,19 @@ pub struct FaultObserverGains {
     pub max_estimate: [f32; 2],
 }
 
+impl FaultObserverGains {
+    /// The defaults (also [`Default::default`]); a constant so that
+    /// configurations built from it are data, not code.
+    pub const DEFAULT: Self = Self {
+        l_v: 5.0,
+        l_omega: 5.0,
+        max_estimate: [1.5, 2.0],
+    };
+}
+
 impl Default for FaultObserverGains {
     fn default() -> Self {
-        Self {
-            l_v: 5.0,
-            l_omega: 5.0,
-            max_estimate: [1.5, 2.0],
-        }
+        Self::DEFAULT
     }
 }
 

@@ -55,19 +55,25 @@ pub struct GovernorParams {
     pub max_increase_per_s: f32,
 }
 
+impl GovernorParams {
+    /// The defaults (also [`Default::default`]); a constant so that
+    /// configurations built from it are data, not code.
+    pub const DEFAULT: Self = Self {
+        saturation_start: 0.9,
+        saturation_stop: 1.5,
+        saturation_filter_s: 0.02,
+        error_start_m: 0.5,
+        error_stop_m: 1.5,
+        error_min_scale: 0.2,
+        gain_per_s: 10.0,
+        max_decrease_per_s: 1.0,
+        max_increase_per_s: 0.5,
+    };
+}
+
 impl Default for GovernorParams {
     fn default() -> Self {
-        Self {
-            saturation_start: 0.9,
-            saturation_stop: 1.5,
-            saturation_filter_s: 0.02,
-            error_start_m: 0.5,
-            error_stop_m: 1.5,
-            error_min_scale: 0.2,
-            gain_per_s: 10.0,
-            max_decrease_per_s: 1.0,
-            max_increase_per_s: 0.5,
-        }
+        Self::DEFAULT
     }
 }
 

@@ -148,24 +148,30 @@ pub struct HealthParams {
 /// [`HealthParams::adaptation_degraded`] that turns the ρ̂ check off.
 pub const ADAPTATION_CHECK_OFF: f32 = 2.0;
 
+impl HealthParams {
+    /// The defaults (also [`Default::default`]); a constant so that
+    /// configurations built from it are data, not code.
+    pub const DEFAULT: Self = Self {
+        filter_s: 0.5,
+        fault_fit_speed_mps: 0.2,
+        fault_ratio_degraded: 0.35,
+        fault_ratio_hard: 0.9,
+        disturbance_degraded: 0.5,
+        adaptation_degraded: ADAPTATION_CHECK_OFF,
+        saturation_degraded: 0.3,
+        error_degraded_m: 0.3,
+        acquired_m: 0.2,
+        lost_path_m: 2.0,
+        exit_fraction: 0.7,
+        min_dwell_s: 1.0,
+        hard_dwell_s: 0.5,
+        degraded_speed_scale: 0.6,
+    };
+}
+
 impl Default for HealthParams {
     fn default() -> Self {
-        Self {
-            filter_s: 0.5,
-            fault_fit_speed_mps: 0.2,
-            fault_ratio_degraded: 0.35,
-            fault_ratio_hard: 0.9,
-            disturbance_degraded: 0.5,
-            adaptation_degraded: ADAPTATION_CHECK_OFF,
-            saturation_degraded: 0.3,
-            error_degraded_m: 0.3,
-            acquired_m: 0.2,
-            lost_path_m: 2.0,
-            exit_fraction: 0.7,
-            min_dwell_s: 1.0,
-            hard_dwell_s: 0.5,
-            degraded_speed_scale: 0.6,
-        }
+        Self::DEFAULT
     }
 }
 

@@ -39,11 +39,11 @@ pub struct PacingConfig {
 
 impl PacingConfig {
     /// On, default parameters (the default in the runtime and the simulator).
-    pub fn on() -> Self {
+    pub const fn on() -> Self {
         Self {
             enabled: true,
-            governor: GovernorParams::default(),
-            health: HealthParams::default(),
+            governor: GovernorParams::DEFAULT,
+            health: HealthParams::DEFAULT,
         }
     }
 

@@ -419,7 +419,7 @@ pub fn init() -> Board {
     let watchdog = IndependentWatchdog::new(p.IWDG, WATCHDOG_TIMEOUT_US);
     // USB needs the 48 MHz clock within ±0.25 %: not on the HSI fallback.
     #[cfg(feature = "stm32f411ce")]
-    let link = (clock == ClockSource::Hse).then(|| crate::link::LinkPeripherals {
+    let link = (clock == ClockSource::Hse).then_some(crate::link::LinkPeripherals {
         otg: p.USB_OTG_FS,
         dp: p.PA12,
         dm: p.PA11,

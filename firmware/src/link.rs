@@ -110,7 +110,7 @@ mod usb {
         );
         let class = CdcAcmClass::new(&mut builder, CDC_STATE.init(State::new()), MAX_PACKET);
         let usb = builder.build();
-        spawner.spawn(unwrap!(usb_task(usb, class)));
+        spawner.spawn(unwrap!(usb_task(usb, class).ok()));
     }
 
     /// The USB device and the CDC-ACM class in one task (one task's
@@ -199,10 +199,11 @@ mod uart {
             RX_BUF.init([0; 256]),
             Irqs,
             cfg
-        ));
+        )
+        .ok());
         let (tx, rx) = uart.split();
-        spawner.spawn(unwrap!(rx_task(rx)));
-        spawner.spawn(unwrap!(tx_task(tx)));
+        spawner.spawn(unwrap!(rx_task(rx).ok()));
+        spawner.spawn(unwrap!(tx_task(tx).ok()));
     }
 
     #[embassy_executor::task]

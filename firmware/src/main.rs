@@ -12,15 +12,16 @@ mod board;
 mod config;
 mod link;
 
-use controller_core::estimator::EstimatorConfig;
-use controller_core::runtime::{ArmingButton, CycleStats, LoopTimer, NoGyro, WheelOdometryOnly};
-use cortex_m::peripheral::DWT;
+use controller_core::runtime::{ArmingButton, LoopTimer, NoGyro, WheelOdometryOnly};
 use defmt::{error, info, unwrap, warn};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_time::{Duration, Instant, Ticker};
+use static_cell::StaticCell;
 use wmr_device::Device;
 use wmr_protocol::RunStateMsg;
+#[cfg(feature = "rtt-telemetry")]
+use {controller_core::runtime::CycleStats, cortex_m::peripheral::DWT};
 
 /// The host-link device and runtime with the firmware's pose history.
 type Robot = Device<{ config::POSE_HISTORY_TICKS }>;
@@ -31,10 +32,14 @@ async fn main(spawner: Spawner) {
     board::outputs_low_early();
     let mut board = board::init();
 
-    // DWT cycle counter for the control step's execution time.
-    let mut cp = unwrap!(cortex_m::Peripherals::take());
-    cp.DCB.enable_trace();
-    cp.DWT.enable_cycle_counter();
+    // DWT cycle counter for the control step's execution time (RTT
+    // telemetry).
+    #[cfg(feature = "rtt-telemetry")]
+    {
+        let mut cp = unwrap!(cortex_m::Peripherals::take());
+        cp.DCB.enable_trace();
+        cp.DWT.enable_cycle_counter();
+    }
 
     let full_scale = board.motors.full_scale();
     let full_scale = if full_scale <= u16::MAX as u32 {
@@ -44,10 +49,10 @@ async fn main(spawner: Spawner) {
     };
     let cfg = config::runtime_config(full_scale);
     info!(
-        "==== trajectory-tracking firmware {} ====",
+        "==== trajectory-tracking firmware {=str} ====",
         env!("CARGO_PKG_VERSION")
     );
-    info!("chip: {}", board::CHIP);
+    info!("chip: {=str}", board::CHIP);
     if board.clock == board::ClockSource::HsiFallback {
         error!(
             "HSE did not start within {=u32} ms: running on the internal HSI (same SYSCLK, ~1 % accuracy, no USB)",
@@ -78,9 +83,8 @@ async fn main(spawner: Spawner) {
         config::POSE_HISTORY_TICKS
     );
 
-    let estimator = EstimatorConfig::example(cfg.controller.robot.com_offset_m, cfg.initial_pose);
     let (device, timer, button) = match (
-        Robot::with_estimator(config::device_config(), cfg, estimator),
+        Robot::with_estimator(config::DEVICE, cfg, config::ESTIMATOR),
         LoopTimer::from_config(&cfg),
         ArmingButton::new(board::BUTTON_DEBOUNCE_TICKS),
     ) {
@@ -104,18 +108,26 @@ async fn main(spawner: Spawner) {
         None => error!("host link off (no USB clock on the HSI)"),
     }
     info!("state: HOLD (motors off). Load a reference with wmr and arm, or press the button (slow circle).");
-    spawner.spawn(unwrap!(control_task(board, device, timer, button)));
+    // The device (about 7 KiB) in a static of its own, the task holds a
+    // reference: moved into the task by value, the future would hold it
+    // twice (the argument and the local it is moved into).
+    static ROBOT: StaticCell<Robot> = StaticCell::new();
+    let device = ROBOT.init(device);
+    spawner.spawn(unwrap!(control_task(board, device, timer, button).ok()));
 }
 
 #[embassy_executor::task]
 async fn control_task(
     mut b: board::Board,
-    mut dev: Robot,
+    dev: &'static mut Robot,
     mut timer: LoopTimer,
     mut button: ArmingButton,
 ) {
     let mut ticker = Ticker::every(Duration::from_hz(board::CONTROL_HZ));
     b.watchdog.unleash();
+    // Execution time of the step in CPU cycles: only the RTT telemetry
+    // reports it.
+    #[cfg(feature = "rtt-telemetry")]
     let mut cycles = CycleStats::new();
     let mut state = dev.state();
     let mut n: u32 = 0;
@@ -127,7 +139,8 @@ async fn control_task(
         let timing = timer.tick(now_us);
 
         // Host link: bytes in and out through bounded pipes, never waiting.
-        link::receive(&mut dev);
+        link::receive(dev);
+        #[cfg(feature = "rtt-telemetry")]
         let c0 = DWT::cycle_count();
         let rep = dev.tick(
             now_us,
@@ -137,8 +150,9 @@ async fn control_task(
             &mut WheelOdometryOnly,
             timing,
         );
+        #[cfg(feature = "rtt-telemetry")]
         cycles.record(DWT::cycle_count().wrapping_sub(c0));
-        link::transmit(&mut dev);
+        link::transmit(dev);
         b.watchdog.pet();
 
         // Operator button: arm / disarm / clear a latched stop, without a host.
@@ -170,8 +184,6 @@ async fn control_task(
         if n % board::TELEMETRY_DECIMATION == 0 {
             telemetry(&rep, &mut cycles);
         }
-        #[cfg(not(feature = "rtt-telemetry"))]
-        let _ = (&rep, &mut cycles);
         #[cfg(feature = "rtt-telemetry")]
         if n % board::CONTROL_HZ as u32 == 0 {
             let s = dev.control().status();
@@ -237,13 +249,24 @@ fn telemetry(r: &controller_core::runtime::TickReport, cycles: &mut CycleStats) 
 /// Panic: motor outputs off first (raw register writes), then log and stop
 /// in a fault the debugger sees; without a debugger the watchdog resets the
 /// chip, which boots with the motors disabled.
+///
+/// The handler does not read `info` unless the `panic-location` feature is
+/// on: reading it keeps every panic site's message arguments, file names
+/// and `core::fmt` in the image (12 to 19 KiB of flash). probe-rs halts on
+/// the `udf` below (HardFault) and prints the backtrace with file and line.
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     board::motors_off_raw();
+    #[cfg(feature = "panic-location")]
     if let Some(loc) = info.location() {
         error!("PANIC at {}:{} (motors off)", loc.file(), loc.line());
     } else {
         error!("PANIC (motors off)");
+    }
+    #[cfg(not(feature = "panic-location"))]
+    {
+        let _ = info;
+        error!("PANIC (motors off; location: the backtrace, or build with `panic-location`)");
     }
     cortex_m::asm::udf()
 }

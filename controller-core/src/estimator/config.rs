@@ -95,7 +95,7 @@ pub struct EstimatorConfig {
 impl EstimatorConfig {
     /// Example tuning for a small robot with a MEMS gyro, starting at
     /// `initial_pose` with G `com_offset_m` ahead of the axle.
-    pub fn example(com_offset_m: f32, initial_pose: Pose) -> Self {
+    pub const fn example(com_offset_m: f32, initial_pose: Pose) -> Self {
         Self {
             com_offset_m,
             initial_pose,
