@@ -192,6 +192,7 @@ pub fn run_bench(cfg: &BenchConfig) -> BenchReport {
             vary_mass: false,
             duration_s: None,
             sensing: Default::default(),
+            paper_setting: false,
         },
         &|| {},
     );

@@ -343,6 +343,10 @@ pub struct McArgs {
     /// Sensing preset of every run (docs/scenario.md).
     #[arg(long, value_enum, default_value = "ideal")]
     pub sensing: Sensing,
+    /// Every run in the paper's setting (no governor or health machine, law (14)
+    /// as printed), as `compare`'s first table.
+    #[arg(long)]
+    pub paper_setting: bool,
     /// Run only shard I of N (0-based: 0/N … N-1/N), a contiguous block of the run
     /// indices with the same seeds as the unsharded run; write its raw results to
     /// --out (default mc-case<C>-seed<S>-runs<R>-shard<I>of<N>.jsonl) for `merge`.
@@ -852,6 +856,7 @@ fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
         vary_mass: a.vary_mass,
         duration_s: a.duration,
         sensing: a.sensing,
+        paper_setting: a.paper_setting,
     };
     cfg.validate()?;
     let shard = a.shard.unwrap_or(Shard::WHOLE);

@@ -227,10 +227,19 @@ pub struct McConfig {
     /// so their format is unchanged).
     #[serde(default, skip_serializing_if = "is_ideal")]
     pub sensing: Sensing,
+    /// Every run in the paper's setting (no governor, no health machine,
+    /// law (14) as printed: [`Scenario::as_printed`]); absent from shard
+    /// files of default sweeps, so their format is unchanged.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub paper_setting: bool,
 }
 
 fn is_ideal(s: &Sensing) -> bool {
     *s == Sensing::Ideal
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 impl McConfig {
@@ -242,6 +251,9 @@ impl McConfig {
             scn.duration_s = d;
         }
         scn.sensing = self.sensing;
+        if self.paper_setting {
+            scn = scn.as_printed();
+        }
         scn
     }
 

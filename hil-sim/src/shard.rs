@@ -479,6 +479,7 @@ mod tests {
             vary_mass: false,
             duration_s: None,
             sensing: Default::default(),
+            paper_setting: false,
         };
         let mut rng = Rng::new(9);
         let mut any = || loop {

@@ -71,6 +71,7 @@ fn three_shards_merged_equal_the_unsharded_run() {
         vary_mass: true,
         duration_s: Some(DURATION.parse().unwrap()),
         sensing: Default::default(),
+        paper_setting: false,
     };
     let whole = run_montecarlo(&cfg, &|| {});
     // Non-trivial sample: the runs differ and the window metrics are defined.
