@@ -341,7 +341,11 @@ fn recorded_paper_curve_matches_the_simulation() {
         0.02,
         0.002,
     );
-    close("tau_rms", f("torque_rms_nm"), s.torque_rms_nm, 0.03, 0.0);
+    // The recording samples the torque at 100 Hz, the simulation's metric
+    // takes every 1 kHz tick; through the runtime the torque chatters from
+    // tick to tick, and which ticks the 100 Hz samples hit follows the host's
+    // timing (measured: 2.70 vs 2.79 N·m under heavy machine load): 5 %.
+    close("tau_rms", f("torque_rms_nm"), s.torque_rms_nm, 0.05, 0.0);
     // The same numbers from the CSV through `hil-sim report`'s code.
     let trace = hil_sim::log_report::load_trace(&csv).unwrap();
     let again =
