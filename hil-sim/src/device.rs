@@ -11,8 +11,8 @@
 use crate::hil::SimSensors;
 use crate::scenario::{Scenario, Sensing};
 use crate::sim::controller_config;
-use controller_core::runtime::{LoopTimer, RuntimeConfig, TickReport, MIRRORED_LEFT};
-use controller_core::{ControllerKind, Pose};
+use controller_core::runtime::{LoopTimer, TickReport};
+use controller_core::ControllerKind;
 use sim_robot::{
     MotorDrive, PerturbationGrid, Plant, PlantParams, PlantState, SimDriver, SimEncoders,
 };
@@ -53,17 +53,8 @@ impl SimRobot {
         };
         let (sensors, mut estimator) = SimSensors::of(scn)?;
         let controller = controller_config(scn, kind);
+        let cfg = scn.runtime_config(controller, crate::hil::HilOptions::default().safety);
         let p0 = scn.initial_pose;
-        let cfg = RuntimeConfig {
-            controller,
-            reference: scn.trajectory.reference(),
-            initial_pose: Pose::new(p0[0] as f32, p0[1] as f32, p0[2] as f32),
-            encoder: scn.encoder(),
-            motor: scn.motor(),
-            motor_inverted: MIRRORED_LEFT,
-            safety: crate::hil::HilOptions::default().safety,
-            pacing: scn.pacing(),
-        };
         estimator.com_offset_m = controller.robot.com_offset_m;
         estimator.initial_pose = cfg.initial_pose;
         let dev_cfg = DeviceConfig {

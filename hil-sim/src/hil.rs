@@ -19,8 +19,7 @@ use crate::sensing::SensorSetup;
 use crate::sim::{run_loop, trace_every, SimOutput};
 use controller_core::estimator::{EstimatorConfig, EstimatorStatus, GyroSample, PoseMeasurement};
 use controller_core::runtime::{
-    ControlLoop, Gyro, LoopTimer, PoseSource, RuntimeConfig, SafetyLimits, StopReason,
-    MIRRORED_LEFT,
+    ControlLoop, Gyro, LoopTimer, PoseSource, SafetyLimits, StopReason,
 };
 use controller_core::{ControllerConfig, ControllerKind, Pose};
 use sim_robot::sensors::PoseSourceStats;
@@ -177,17 +176,7 @@ impl RuntimeSide {
             return Err("the firmware runtime needs a firmware sensing preset, not ideal".into());
         }
         let (sensors, sensing_est) = SimSensors::of(scn)?;
-        let p0 = scn.initial_pose;
-        let cfg = RuntimeConfig {
-            controller,
-            reference: scn.trajectory.reference(),
-            initial_pose: Pose::new(p0[0] as f32, p0[1] as f32, p0[2] as f32),
-            encoder: scn.encoder(),
-            motor: scn.motor(),
-            motor_inverted: MIRRORED_LEFT,
-            safety: opts.safety,
-            pacing: scn.pacing(),
-        };
+        let cfg = scn.runtime_config(controller, opts.safety);
         let mut est = opts.estimator.unwrap_or(sensing_est);
         est.com_offset_m = controller.robot.com_offset_m;
         est.initial_pose = cfg.initial_pose;

@@ -404,6 +404,27 @@ impl Scenario {
         }
     }
 
+    /// The firmware runtime's configuration for this scenario: `controller`,
+    /// the scenario's reference and initial pose, its encoders and motors
+    /// (left mirrored), `safety`, and its pacing.
+    pub fn runtime_config(
+        &self,
+        controller: controller_core::ControllerConfig,
+        safety: controller_core::runtime::SafetyLimits,
+    ) -> controller_core::runtime::RuntimeConfig {
+        let p0 = self.initial_pose;
+        controller_core::runtime::RuntimeConfig {
+            controller,
+            reference: self.trajectory.reference(),
+            initial_pose: controller_core::Pose::new(p0[0] as f32, p0[1] as f32, p0[2] as f32),
+            encoder: self.encoder(),
+            motor: self.motor(),
+            motor_inverted: controller_core::runtime::MIRRORED_LEFT,
+            safety,
+            pacing: self.pacing(),
+        }
+    }
+
     /// The simulated motors (firmware sensing): the example motor with
     /// `pwm_levels` counts at full duty (the example's where 0).
     pub fn motor(&self) -> MotorParams {
