@@ -26,8 +26,6 @@ pub struct Sensed {
     pub wheel_angle_rad: [f64; 2],
     /// True wheel rates φ̇ `[right, left]` \[rad/s\].
     pub wheel_rate_radps: [f64; 2],
-    /// The reference sampled at `t_s` (sampled once per step by the loop).
-    pub reference: RefSample,
 }
 
 /// How the controller side drives the wheels over the next period.
@@ -59,7 +57,7 @@ pub struct ControlOutput {
     /// The controller's diagnostics.
     pub diag: Diagnostics,
     /// The reference the controller tracked this step (at the governed time
-    /// τ; the sensed nominal sample when pacing is off).
+    /// τ; at the step's time when pacing is off), for the metrics.
     pub reference: RefSample,
     /// Governor and health machine after this step.
     pub pace: PaceReport,

@@ -1,8 +1,8 @@
 //! Closed-loop runner: a [`ControlSide`] against the simulated robot.
 //!
 //! Per control period k (t = k·Δt): measure (pose of G with optional noise,
-//! the wheels' angles and rates), sample the reference once, one step of the
-//! controller side, then integrate the plant over the period with the
+//! the wheels' angles and rates), one step of the controller side (which
+//! samples the reference once and returns it for the metrics), then integrate the plant over the period with the
 //! actuation held (zero-order hold of torque or of PWM duty) in `substeps`
 //! RK4 steps. The scenario's [`Sensing`] chooses the controller side: the
 //! bare `Controller` with ideal measurements ([`IdealSide`]) or the firmware
@@ -124,7 +124,7 @@ impl ControlSide for IdealSide {
         let reference = if self.pacer.enabled() {
             self.pacer.reference(&self.pace, &self.reference, 0.0)
         } else {
-            sensed.reference
+            self.reference.sample(sensed.t_s as f32)
         };
         let out = self.ctrl.step(&StepInput {
             reference,
@@ -187,7 +187,6 @@ pub fn run_loop(
         scn.mass_scale,
         scn.inertia_scale,
     ));
-    let reference = scn.trajectory.reference();
     let perturbations = scn.perturbations();
     let dt = scn.control_period_s;
     let n = (scn.duration_s / dt).round() as usize;
@@ -229,7 +228,6 @@ pub fn run_loop(
             [0.0; 3]
         };
         let p_now = perturb.at(t);
-        let rs = reference.sample(t as f32);
         // The governed clock the step used (before its own update).
         let (rs_tau_s, scale_before) = (last_tau_s, last_scale);
         let sensed = Sensed {
@@ -249,7 +247,6 @@ pub fn run_loop(
             },
             wheel_angle_rad: [st.q[3], st.q[4]],
             wheel_rate_radps: plant.wheel_rates_radps(&st, &p_now),
-            reference: rs,
         };
         let ControlOutput {
             actuation,

@@ -148,24 +148,11 @@ impl Rig {
         self.send(req, seq);
         for _ in 0..10 {
             self.tick();
-            if let Some(r) = self.replies.iter().find(|r| reply_seq(r) == Some(seq)) {
+            if let Some(r) = self.replies.iter().find(|r| r.seq() == Some(seq)) {
                 return r.clone();
             }
         }
         panic!("no answer to {req:?}");
-    }
-}
-
-fn reply_seq(r: &Reply) -> Option<u16> {
-    match r {
-        Reply::Ack { seq }
-        | Reply::Nack { seq, .. }
-        | Reply::Hello { seq, .. }
-        | Reply::Status { seq, .. }
-        | Reply::Param { seq, .. }
-        | Reply::ClockSync { seq, .. }
-        | Reply::TrajectoryAck { seq, .. } => Some(*seq),
-        _ => None,
     }
 }
 
@@ -619,7 +606,7 @@ proptest! {
         prop_assert_eq!(c.rx_overflow, 0);
         prop_assert_eq!(c.tx_dropped, 0);
         for s in intact {
-            let answers = rig.replies.iter().filter(|r| reply_seq(r) == Some(s)).count();
+            let answers = rig.replies.iter().filter(|r| r.seq() == Some(s)).count();
             prop_assert_eq!(answers, 1, "seq {} answered {} times", s, answers);
         }
     }

@@ -468,6 +468,23 @@ pub struct Telemetry {
     pub counters: Option<Counters>,
 }
 
+impl Reply {
+    /// The sequence number of the request this reply answers; `None` for
+    /// streams (telemetry, events) and frame errors.
+    pub fn seq(&self) -> Option<u16> {
+        match self {
+            Reply::Ack { seq }
+            | Reply::Nack { seq, .. }
+            | Reply::Hello { seq, .. }
+            | Reply::Status { seq, .. }
+            | Reply::Param { seq, .. }
+            | Reply::ClockSync { seq, .. }
+            | Reply::TrajectoryAck { seq, .. } => Some(*seq),
+            Reply::FrameError { .. } | Reply::Telemetry(_) | Reply::Event(_) => None,
+        }
+    }
+}
+
 /// Robot → host.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

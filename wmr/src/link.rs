@@ -176,7 +176,7 @@ impl Link {
             match d {
                 Some(Decoded::Frame { msg, .. }) => match &msg {
                     Reply::Telemetry(_) | Reply::Event(_) => self.stream.push_back(msg),
-                    _ => answers.push((reply_seq(&msg), msg)),
+                    _ => answers.push((msg.seq().unwrap_or(0), msg)),
                 },
                 Some(Decoded::OtherVersion { version, msg, .. }) => {
                     if let Some(Reply::Hello { seq, .. }) = msg {
@@ -272,19 +272,5 @@ impl Link {
             }
             r => Err(LinkError::Unexpected(format!("{r:?}"))),
         }
-    }
-}
-
-/// The sequence number an answer carries (0 for streams).
-pub fn reply_seq(r: &Reply) -> u16 {
-    match r {
-        Reply::Ack { seq }
-        | Reply::Nack { seq, .. }
-        | Reply::Hello { seq, .. }
-        | Reply::Status { seq, .. }
-        | Reply::Param { seq, .. }
-        | Reply::ClockSync { seq, .. }
-        | Reply::TrajectoryAck { seq, .. } => *seq,
-        Reply::FrameError { .. } | Reply::Telemetry(_) | Reply::Event(_) => 0,
     }
 }
