@@ -1,0 +1,211 @@
+//! The control task: one [`Device::tick`] per period on an embassy
+//! [`Ticker`], the host link's bytes around it, the watchdog and the button.
+
+use controller_core::runtime::{ArmingButton, CycleStats, LoopTimer};
+use embassy_time::{Duration, Instant, Ticker};
+use wmr_device::Device;
+use wmr_protocol::RunStateMsg;
+
+use crate::board::{AppEvent, Board, StatusSummary};
+use crate::link::LinkPipes;
+
+/// How often the control task reports to the board's log.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AppConfig {
+    /// Ticks between two [`AppEvent::Status`] (0: never).
+    pub status_every_ticks: u32,
+    /// Ticks between two [`AppEvent::Telemetry`] (0: never; the host link
+    /// carries the telemetry, `wmr record`).
+    pub telemetry_every_ticks: u32,
+}
+
+impl AppConfig {
+    /// A status every second at 1 kHz, no local telemetry.
+    pub const DEFAULT: Self = Self {
+        status_every_ticks: 1000,
+        telemetry_every_ticks: 0,
+    };
+}
+
+impl Default for AppConfig {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// A rejected [`ControlTask`] configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum AppConfigError {
+    /// The loop period does not fit embassy's timer (0 or over 1 s).
+    InvalidPeriod,
+}
+
+/// The control task's own state: the loop's schedule, the button's
+/// debounce, the execution-time statistics.
+pub struct ControlTask {
+    timer: LoopTimer,
+    button: ArmingButton,
+    cfg: AppConfig,
+    state: RunStateMsg,
+    ticks: u32,
+    feeds: u32,
+    cycles: CycleStats,
+    link_max: u32,
+    link_ticks: u32,
+}
+
+impl ControlTask {
+    /// The task for a loop timed by `timer` (its period is the ticker's),
+    /// sampling `button` once per tick.
+    pub fn new(
+        timer: LoopTimer,
+        button: ArmingButton,
+        cfg: AppConfig,
+    ) -> Result<Self, AppConfigError> {
+        if timer.period_us() == 0 || timer.period_us() > 1_000_000 {
+            return Err(AppConfigError::InvalidPeriod);
+        }
+        Ok(Self {
+            timer,
+            button,
+            cfg,
+            state: RunStateMsg::Hold,
+            ticks: 0,
+            feeds: 0,
+            cycles: CycleStats::new(),
+            link_max: 0,
+            link_ticks: 0,
+        })
+    }
+
+    /// The loop's schedule statistics.
+    pub fn timer(&self) -> &LoopTimer {
+        &self.timer
+    }
+
+    /// Watchdog feeds so far (one per completed tick).
+    pub fn watchdog_feeds(&self) -> u32 {
+        self.feeds
+    }
+
+    /// Runs forever: starts the watchdog, then one [`tick`](Self::tick) per
+    /// period. Late ticks (the executor was busy, a debugger halted the
+    /// core) arrive back to back; the [`LoopTimer`] measures each against
+    /// the schedule t₀ + n·period and gives the runtime the true elapsed
+    /// time, and a sustained overrun latches a safe stop.
+    pub async fn run<B: Board, const H: usize>(
+        mut self,
+        board: &mut B,
+        dev: &mut Device<H>,
+        pipes: &LinkPipes,
+    ) -> ! {
+        let mut ticker = Ticker::every(Duration::from_micros(self.timer.period_us() as u64));
+        board.start_watchdog();
+        board.event(&AppEvent::Started);
+        loop {
+            ticker.next().await;
+            let now_us = Instant::now().as_micros() as u32;
+            self.tick(now_us, board, dev, pipes);
+        }
+    }
+
+    /// One period's work at robot time `now_us` (a wrapping µs clock):
+    /// schedule check, host bytes in, the device's tick, host bytes out,
+    /// watchdog feed, the button, events. Never waits, never panics.
+    pub fn tick<B: Board, const H: usize>(
+        &mut self,
+        now_us: u32,
+        board: &mut B,
+        dev: &mut Device<H>,
+        pipes: &LinkPipes,
+    ) {
+        let timing = self.timer.tick(now_us);
+        let c0 = board.cycles();
+        let received = pipes.receive(dev);
+        let io = board.io();
+        let rep = dev.tick(
+            now_us,
+            io.encoders,
+            io.motors,
+            io.gyro,
+            io.pose_source,
+            timing,
+        );
+        let sent = pipes.transmit(dev);
+        let cycles = board.cycles().wrapping_sub(c0);
+        // The tick completed: the loop is alive.
+        board.feed_watchdog();
+        self.feeds = self.feeds.wrapping_add(1);
+        self.ticks = self.ticks.wrapping_add(1);
+        self.cycles.record(cycles);
+        if received + sent > 0 {
+            self.link_ticks += 1;
+            self.link_max = self.link_max.max(cycles);
+        }
+
+        // Operator button: arm / disarm / clear a latched stop, without a host.
+        if self.button.press(board.button_pressed()) {
+            dev.button_pressed(board.motors());
+        }
+
+        if let Some(reason) = rep.stopped {
+            board.event(&AppEvent::SafeStop(reason));
+        }
+        if let Some(transition) = rep.pace.transition {
+            board.event(&AppEvent::Health {
+                transition,
+                transitions: rep.pace.transitions,
+            });
+        }
+        if dev.state() != self.state {
+            self.state = dev.state();
+            board.event(&AppEvent::State(self.state));
+        }
+        if every(self.ticks, self.cfg.telemetry_every_ticks) {
+            board.event(&AppEvent::Telemetry(&rep));
+        }
+        if every(self.ticks, self.cfg.status_every_ticks) {
+            let status = self.status(pipes);
+            board.event(&AppEvent::Status(status));
+        }
+    }
+
+    /// The status since the last one (starts a new execution-time window).
+    fn status(&mut self, pipes: &LinkPipes) -> StatusSummary {
+        let t = self.timer.stats();
+        let c = self.cycles.take();
+        let s = StatusSummary {
+            ticks: self.ticks,
+            late_ticks: t.late_ticks,
+            overrun_episodes: t.overrun_episodes,
+            max_lateness_us: t.max_lateness_us,
+            tick_cycles_mean: c.mean(),
+            tick_cycles_max: c.max(),
+            tick_cycles_max_link: self.link_max,
+            link_ticks: self.link_ticks,
+            watchdog_feeds: self.feeds,
+            rx_dropped_bytes: pipes.rx_dropped_bytes(),
+        };
+        self.link_max = 0;
+        self.link_ticks = 0;
+        s
+    }
+}
+
+fn every(n: u32, period: u32) -> bool {
+    period != 0 && n % period == 0
+}
+
+/// The control task (see [`ControlTask::run`]): wrap it in a one-line
+/// `#[embassy_executor::task]` with the board's concrete types.
+pub async fn control_task<B: Board, const H: usize>(
+    board: &mut B,
+    dev: &mut Device<H>,
+    pipes: &LinkPipes,
+    task: ControlTask,
+) -> ! {
+    task.run(board, dev, pipes).await
+}
