@@ -24,7 +24,7 @@
 //! and the first instruction only the external pull-downs hold them (see
 //! the README's pin-state table).
 
-use controller_core::runtime::{DutyCommand, Encoder, MotorDriver};
+use controller_core::runtime::{DutyCommand, Encoder, MotorDriver, NoGyro, WheelOdometryOnly};
 use embassy_stm32::gpio::{Input, Level, Output, OutputType, Pull, Speed};
 use embassy_stm32::pac::timer::vals::{FilterValue, Ossi};
 use embassy_stm32::peripherals::{IWDG, TIM1, TIM3, TIM4};
@@ -296,6 +296,10 @@ pub struct Board {
     pub watchdog: IndependentWatchdog<'static, IWDG>,
     /// The host link's port (USB OTG_FS on the F411, USART2 on the F446).
     pub link: Option<crate::link::LinkPeripherals>,
+    /// No IMU yet: the estimator predicts with the wheels' yaw rate.
+    pub gyro: NoGyro,
+    /// External poses come over the host link only.
+    pub pose_source: WheelOdometryOnly,
 }
 
 /// Drives the motor outputs low with raw register writes, before anything
@@ -443,6 +447,8 @@ pub fn init() -> Board {
         button,
         watchdog,
         link,
+        gyro: NoGyro,
+        pose_source: WheelOdometryOnly,
     }
 }
 
@@ -478,4 +484,57 @@ pub fn motors_off_raw() {
         w.set_moder(8, pac::gpio::vals::Moder::OUTPUT);
         w.set_moder(9, pac::gpio::vals::Moder::OUTPUT);
     });
+}
+
+/// The application's view of the board (robot-app): the control task
+/// drives everything through this.
+impl robot_app::Board for Board {
+    type Encoders = Encoders;
+    type Motors = HBridge;
+    type Gyro = NoGyro;
+    type PoseSource = WheelOdometryOnly;
+    /// The status and trk/est lines only with `rtt-telemetry` (flash).
+    const LOGS_STATUS: bool = cfg!(feature = "rtt-telemetry");
+
+    fn io(&mut self) -> robot_app::BoardIo<'_, Encoders, HBridge, NoGyro, WheelOdometryOnly> {
+        robot_app::BoardIo {
+            encoders: &mut self.encoders,
+            motors: &mut self.motors,
+            gyro: &mut self.gyro,
+            pose_source: &mut self.pose_source,
+        }
+    }
+
+    fn motors(&mut self) -> &mut HBridge {
+        &mut self.motors
+    }
+
+    fn button_pressed(&mut self) -> bool {
+        self.button.pressed()
+    }
+
+    fn start_watchdog(&mut self) {
+        self.watchdog.unleash();
+    }
+
+    fn feed_watchdog(&mut self) {
+        self.watchdog.pet();
+    }
+
+    /// DWT CYCCNT (SYSCLK cycles), enabled in `main` with the
+    /// `rtt-telemetry` feature (the only user of the statistics); 0 without.
+    fn cycles(&mut self) -> u32 {
+        #[cfg(feature = "rtt-telemetry")]
+        {
+            cortex_m::peripheral::DWT::cycle_count()
+        }
+        #[cfg(not(feature = "rtt-telemetry"))]
+        {
+            0
+        }
+    }
+
+    fn event(&mut self, event: &robot_app::AppEvent<'_>) {
+        crate::log::event(event);
+    }
 }

@@ -161,3 +161,12 @@ pub const DEVICE: DeviceConfig = DeviceConfig {
     link: LINK,
     button_reference: Some(BUTTON_REFERENCE),
 };
+
+/// The control task's local logs: a status line every second and the
+/// tracking lines at 20 Hz, printed only with the `rtt-telemetry` feature
+/// (`Board::LOGS_STATUS`; the host link carries the telemetry otherwise,
+/// `wmr record`).
+pub const APP: robot_app::AppConfig = robot_app::AppConfig {
+    status_every_ticks: crate::board::CONTROL_HZ as u32,
+    telemetry_every_ticks: crate::board::TELEMETRY_DECIMATION,
+};

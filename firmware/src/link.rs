@@ -1,11 +1,10 @@
-//! The host link's transport. The control task owns the protocol handler
-//! (`wmr_device::Device`); this module only moves bytes between it and the
-//! port through two bounded pipes, and the control task never waits on
-//! them: [`receive`] and [`transmit`] use `try_read`/`try_write` and move at
-//! most what fits. When the host floods the link the receive pipe
-//! overflows (bytes dropped here, frames then fail their CRC and are counted
-//! by the device); when it stops reading or unplugs, the send pipe fills
-//! and the device drops (and counts) telemetry.
+//! The host link's transport. The control task (robot-app) owns the
+//! protocol handler (`wmr_device::Device`); this module only moves bytes
+//! between the port and the two bounded pipes of [`PIPES`], and the control
+//! task never waits on them. When the host floods the link the receive pipe
+//! overflows (bytes dropped and counted, frames then fail their CRC and are
+//! counted by the device); when it stops reading or unplugs, the send pipe
+//! fills and the device drops (and counts) telemetry.
 //!
 //! * STM32F411CE: USB CDC-ACM (embassy-usb, OTG_FS on PA11/PA12, VBUS
 //!   detection off: PA9 is the left PWM output). A packet write that does
@@ -15,45 +14,18 @@
 //!   port, 115 200 baud 8N1 (11.5 kB/s: about 60 telemetry frames per second
 //!   with every group; choose the rate with `wmr params set telemetry_rate_hz`).
 
-use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::pipe::Pipe;
-use wmr_device::Device;
+use robot_app::LinkPipes;
 
-/// Bytes each pipe holds.
-pub const PIPE_BYTES: usize = 512;
-/// Host → robot.
-pub static RX: Pipe<CriticalSectionRawMutex, PIPE_BYTES> = Pipe::new();
-/// Robot → host.
-pub static TX: Pipe<CriticalSectionRawMutex, PIPE_BYTES> = Pipe::new();
-
-/// Control task, before the tick: received bytes into the device (what fits).
-pub fn receive<const H: usize>(dev: &mut Device<H>) {
-    let mut buf = [0u8; wmr_device::RX_BYTES_PER_TICK];
-    let room = dev.rx_free().min(buf.len());
-    if room > 0 {
-        if let Ok(n) = RX.try_read(&mut buf[..room]) {
-            dev.push_rx(&buf[..n]);
-        }
-    }
-}
-
-/// Control task, after the tick: queued frames out (what fits).
-pub fn transmit<const H: usize>(dev: &mut Device<H>) {
-    let mut buf = [0u8; 128];
-    let room = TX.free_capacity().min(buf.len());
-    let n = dev.pop_tx(&mut buf[..room]);
-    if n > 0 {
-        // Fits: at most the free capacity was taken from the device.
-        let _ = TX.try_write(&buf[..n]);
-    }
-}
+/// The link's byte pipes between the port's task and the control task
+/// (`robot_app::link`: bounded, the control task never waits on them).
+pub static PIPES: LinkPipes = LinkPipes::new();
 
 #[cfg(feature = "stm32f411ce")]
 pub use usb::{start, LinkPeripherals};
 
 #[cfg(feature = "stm32f411ce")]
 mod usb {
-    use super::{RX, TX};
+    use super::PIPES;
     use defmt::unwrap;
     use embassy_executor::Spawner;
     use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
@@ -126,8 +98,9 @@ mod usb {
             loop {
                 rx.wait_connection().await;
                 while let Ok(n) = rx.read_packet(&mut buf).await {
-                    // Overflow is dropped: the control task reads on its own pace.
-                    let _ = RX.try_write(&buf[..n]);
+                    // Overflow is dropped (counted): the control task
+                    // reads at its own pace.
+                    PIPES.port_received(&buf[..n]);
                 }
             }
         };
@@ -137,7 +110,7 @@ mod usb {
             loop {
                 tx.wait_connection().await;
                 loop {
-                    let n = TX.read(&mut buf).await;
+                    let n = PIPES.port_next_tx(&mut buf).await;
                     match with_timeout(
                         Duration::from_millis(USB_WRITE_TIMEOUT_MS),
                         tx.write_packet(&buf[..n]),
@@ -162,13 +135,12 @@ pub use uart::{start, LinkPeripherals};
 
 #[cfg(feature = "stm32f446re")]
 mod uart {
-    use super::{RX, TX};
+    use super::PIPES;
     use defmt::unwrap;
     use embassy_executor::Spawner;
     use embassy_stm32::peripherals::{PA2, PA3, USART2};
     use embassy_stm32::usart::{BufferedUart, BufferedUartRx, BufferedUartTx, Config};
     use embassy_stm32::{bind_interrupts, Peri};
-    use embedded_io_async::{Read, Write};
     use static_cell::StaticCell;
 
     bind_interrupts!(struct Irqs {
@@ -208,21 +180,12 @@ mod uart {
 
     #[embassy_executor::task]
     async fn rx_task(mut rx: BufferedUartRx<'static>) {
-        let mut buf = [0u8; 64];
-        loop {
-            if let Ok(n) = rx.read(&mut buf).await {
-                let _ = RX.try_write(&buf[..n]);
-            }
-        }
+        robot_app::pump_rx(&mut rx, &PIPES).await
     }
 
+    /// A UART always drains (no host handshake), at the baud rate.
     #[embassy_executor::task]
     async fn tx_task(mut tx: BufferedUartTx<'static>) {
-        let mut buf = [0u8; 64];
-        loop {
-            let n = TX.read(&mut buf).await;
-            // A UART always drains (no host handshake), at the baud rate.
-            let _ = tx.write_all(&buf[..n]).await;
-        }
+        robot_app::pump_tx(&mut tx, &PIPES).await
     }
 }

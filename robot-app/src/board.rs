@@ -29,6 +29,12 @@ pub trait Board {
     /// when poses come only over the host link.
     type PoseSource: PoseSource;
 
+    /// Whether the board logs [`AppEvent::Status`] and
+    /// [`AppEvent::Telemetry`]. `false` (a flash-constrained board whose
+    /// host link carries the telemetry) lets the compiler drop the task's
+    /// execution-time bookkeeping and both events.
+    const LOGS_STATUS: bool = true;
+
     /// Borrows the peripherals the control tick uses, all at once.
     fn io(&mut self) -> BoardIo<'_, Self::Encoders, Self::Motors, Self::Gyro, Self::PoseSource>;
 

@@ -136,14 +136,13 @@ impl ControlTask {
         );
         let sent = pipes.transmit(dev);
         let cycles = board.cycles().wrapping_sub(c0);
-        // The tick completed: the loop is alive.
-        board.feed_watchdog();
-        self.feeds = self.feeds.wrapping_add(1);
         self.ticks = self.ticks.wrapping_add(1);
-        self.cycles.record(cycles);
-        if received + sent > 0 {
-            self.link_ticks += 1;
-            self.link_max = self.link_max.max(cycles);
+        if B::LOGS_STATUS {
+            self.cycles.record(cycles);
+            if received + sent > 0 {
+                self.link_ticks += 1;
+                self.link_max = self.link_max.max(cycles);
+            }
         }
 
         // Operator button: arm / disarm / clear a latched stop, without a host.
@@ -164,13 +163,16 @@ impl ControlTask {
             self.state = dev.state();
             board.event(&AppEvent::State(self.state));
         }
-        if every(self.ticks, self.cfg.telemetry_every_ticks) {
+        if B::LOGS_STATUS && every(self.ticks, self.cfg.telemetry_every_ticks) {
             board.event(&AppEvent::Telemetry(&rep));
         }
-        if every(self.ticks, self.cfg.status_every_ticks) {
+        // The tick completed: the loop is alive.
+        self.feeds = self.feeds.wrapping_add(1);
+        if B::LOGS_STATUS && every(self.ticks, self.cfg.status_every_ticks) {
             let status = self.status(pipes);
             board.event(&AppEvent::Status(status));
         }
+        board.feed_watchdog();
     }
 
     /// The status since the last one (starts a new execution-time window).
