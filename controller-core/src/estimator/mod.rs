@@ -11,32 +11,41 @@
 //!   the wheels' Δθ when the gyro is absent, stale, saturated or not
 //!   finite ([`GyroState`]); O_B moves by k·Δs along θ + Δθ/2. After
 //!   `standstill_ticks` with both wheels still, the gyro's reading is a
-//!   measurement of its bias (zero-rate update).
+//!   measurement of its bias (zero-rate update). The covariance update
+//!   F·P·Fᵀ + Q is written out over F's seven non-zero partials on the
+//!   packed upper triangle of P, in place, with one sin/cos per tick
+//!   (`predict.rs`; tested against the dense f64 update).
 //! * **Correction** ([`PoseEstimator::correct`]): a pose of G taken at
-//!   `stamp_us` (in the robot's clock, up to [`HISTORY_LEN`] ticks ago).
-//!   The filter keeps, per tick, the state, the covariance and the tick's
-//!   inputs. The measurement updates the entry of its timestamp, then the
-//!   later entries are re-propagated from the stored inputs with the same
-//!   arithmetic as the forward prediction, so the estimate at *now* equals
-//!   what it would have been had the measurement arrived on time
-//!   (docs/DECISIONS.md D25). The innovation is gated by its squared
-//!   Mahalanobis distance (chi-square); the heading innovation is wrapped.
-//!   Measurements are used in timestamp order: one older than the last
-//!   accepted is refused ([`RejectReason::OutOfOrder`]).
+//!   `stamp_us` (in the robot's clock, up to
+//!   [`PoseEstimator::GUARANTEED_DEPTH_TICKS`] ticks ago: 255 for the
+//!   default [`HISTORY_LEN`] = 272). The filter keeps, per tick, only the
+//!   inputs of the prediction (16 B), and every 17 ticks a snapshot of the
+//!   state and covariance (`history.rs`, docs/DECISIONS.md D31). The
+//!   measurement restores the snapshot at or before its stamp, replays the
+//!   stored inputs to the stamp, updates there, then the later ticks are
+//!   re-propagated from the stored inputs with the same arithmetic as the
+//!   forward prediction, so the estimate at *now* equals what it would have
+//!   been had the measurement arrived on time (D25). The innovation is
+//!   gated by its squared Mahalanobis distance (chi-square); the heading
+//!   innovation is wrapped. Measurements are used in timestamp order: one
+//!   older than the last accepted is refused ([`RejectReason::OutOfOrder`]).
 //!   [`PoseEstimator::correct_within`] bounds the re-propagation done at
-//!   once (the runtime does 24 ticks per tick) and [`PoseEstimator::resume`]
-//!   continues it in later ticks; the result is the same bit for bit, it
-//!   only lands a few ticks later.
+//!   once (the runtime does 24 ticks per tick, plus at most 16 replayed to
+//!   the stamp) and [`PoseEstimator::resume`] continues it in later ticks;
+//!   the result is the same bit for bit, it only lands a few ticks later
+//!   (D30).
 //! * **Output** ([`Estimate`]): `filter_pose` is the filter's estimate of G;
 //!   `pose`, for the controller, is the same with each correction's jump
 //!   spread over about two measurement intervals (a decaying offset, time
 //!   constant at most `output_smoothing_s`), so that a low-rate source (UWB
 //!   at 10 Hz) does not hand the controller steps.
 //!
-//! `no_std`, f32, fixed memory: 104 bytes per tick of history, chosen at
-//! compile time (`PoseEstimator<H>`; by default [`HISTORY_LEN`] = 256
-//! ticks, 26.6 KB), no panics: any non-finite input is refused or replaced, and
-//! a correction that would make the state non-finite is rolled back.
+//! `no_std`, f32, fixed memory chosen at compile time
+//! (`PoseEstimator<H>`): 16 B per tick of history plus 16 snapshots of
+//! 80 B (5.6 KiB for 272 ticks; the former full posterior per tick was
+//! 104 B), no panics: any non-finite input is refused or replaced, and a
+//! prediction or correction that would make the state non-finite is
+//! dropped.
 
 #![allow(clippy::needless_range_loop)] // small matrices read best indexed
 
@@ -93,10 +102,13 @@ const FALLBACK_DT_S: f32 = 1.0e-3;
 type Mat = [[f32; N]; N];
 
 fn pack(p: &Mat) -> [f32; NP] {
-    core::array::from_fn(|k| {
-        let i = (0..N).rfind(|&i| ix(i, i) <= k).unwrap_or(0);
-        p[i][k - ix(i, i) + i]
-    })
+    let mut t = [0.0; NP];
+    for i in 0..N {
+        for j in i..N {
+            t[ix(i, j)] = p[i][j];
+        }
+    }
+    t
 }
 
 fn unpack(t: &[f32; NP]) -> Mat {
@@ -602,7 +614,7 @@ impl<const H: usize> PoseEstimator<H> {
 
     /// The estimate and status from the live state; `input` is the newest
     /// tick's.
-    #[inline(always)]
+    #[inline(never)]
     fn refresh(&mut self, input: &Input) {
         let g = self.filter_pose();
         let o = self.offset;

@@ -117,7 +117,7 @@ fn sum_finite<const M: usize>(v: [f32; M]) -> bool {
     for i in 0..M {
         z += v[i];
     }
-    z - z == 0.0
+    z.is_finite()
 }
 
 /// (sin, cos) of θ + h from (sin θ, cos θ).
@@ -138,8 +138,9 @@ fn rotated(f: &Filter, h: f32) -> (f32, f32) {
 ///
 /// Only what changes is computed and stored: x, y, θ, rows 0-2 of P and
 /// the diagonal of rows 3-4 (the still tick's zero-rate update and the
-/// bounding of a too large variance take [`predict_rare`]).
-#[inline(always)]
+/// bounding of a too large variance take [`predict_rare`]). One copy (not
+/// inlined) serves the live tick, the replay and the re-propagation.
+#[inline(never)]
 pub(super) fn predict(f: &mut Filter, u: &Input, nq: &NoiseSq) {
     let x = &f.x;
     let dt = u.dt_s;

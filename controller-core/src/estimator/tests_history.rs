@@ -94,8 +94,7 @@ fn tick_round_trips_its_inputs() {
 fn history_fits_a_few_kib() {
     let size = core::mem::size_of::<PoseEstimator<HISTORY_LEN>>();
     assert!(size <= 16 * HISTORY_LEN + 16 * 80 + 640, "{size} B");
-    assert!(DEPTH >= 250, "{DEPTH} ticks");
-    assert_eq!(K, 17);
+    const { assert!(DEPTH >= 250 && K == 17) };
 }
 
 /// At every tick, the posterior the history gives for each usable past
