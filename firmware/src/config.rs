@@ -71,13 +71,13 @@ pub const MOTOR_INVERTED: [bool; 2] = MIRRORED_LEFT;
 /// latch, first bad input latching.
 pub const SAFETY: SafetyLimits = SafetyLimits::EXAMPLE;
 
-/// Ticks of pose-estimator history (104 bytes each): the oldest external
-/// pose (sent over the host link, `wmr pose-feed`) the runtime can still
-/// use, in ms at 1 kHz. 16 fits the 16 KiB static-RAM budget next to the
-/// link's buffers and covers motion capture (about 10 ms late); a source up
-/// to 250 ms late (UWB, a lidar localiser) needs 256 (26.6 KB: a chip with
-/// more RAM, or the history stored every few ticks).
-pub const POSE_HISTORY_TICKS: usize = 16;
+/// Ticks of pose-estimator history: the oldest external pose (sent over the
+/// host link, `wmr pose-feed`) the runtime can still use. The history keeps
+/// 16 B of inputs per tick and a posterior snapshot (80 B) every 17 ticks
+/// (docs/DECISIONS.md D31): 272 ticks are 5.6 KiB and cover poses up to
+/// 255 ms late at 1 kHz (`PoseEstimator::<272>::GUARANTEED_DEPTH_TICKS`),
+/// above the 250 ms latency bound of issue 9 (UWB, a lidar localiser).
+pub const POSE_HISTORY_TICKS: usize = controller_core::estimator::HISTORY_LEN;
 
 /// Where odometry and the estimator start: the origin facing +x.
 pub const INITIAL_POSE: controller_core::Pose = controller_core::Pose::new(0.0, 0.0, 0.0);

@@ -131,7 +131,7 @@ fn banner(board: &board::Board, full_scale: u16, cfg: &controller_core::runtime:
     info!("gyro: none (the IMU driver is a later step): heading from the wheels");
     info!(
         "pose source: external poses from the host link (wmr pose-feed), used up to {=usize} ms late; without them wheel odometry only, blind to slip and actuator faults",
-        config::POSE_HISTORY_TICKS
+        controller_core::estimator::PoseEstimator::<{ config::POSE_HISTORY_TICKS }>::GUARANTEED_DEPTH_TICKS
     );
 }
 

@@ -11,36 +11,47 @@
 //!   the wheels' Δθ when the gyro is absent, stale, saturated or not
 //!   finite ([`GyroState`]); O_B moves by k·Δs along θ + Δθ/2. After
 //!   `standstill_ticks` with both wheels still, the gyro's reading is a
-//!   measurement of its bias (zero-rate update).
+//!   measurement of its bias (zero-rate update). The covariance update
+//!   F·P·Fᵀ + Q is written out over F's seven non-zero partials on the
+//!   packed upper triangle of P, in place, with one sin/cos per tick
+//!   (`predict.rs`; tested against the dense f64 update).
 //! * **Correction** ([`PoseEstimator::correct`]): a pose of G taken at
-//!   `stamp_us` (in the robot's clock, up to [`HISTORY_LEN`] ticks ago).
-//!   The filter keeps, per tick, the state, the covariance and the tick's
-//!   inputs. The measurement updates the entry of its timestamp, then the
-//!   later entries are re-propagated from the stored inputs with the same
-//!   arithmetic as the forward prediction, so the estimate at *now* equals
-//!   what it would have been had the measurement arrived on time
-//!   (docs/DECISIONS.md D25). The innovation is gated by its squared
-//!   Mahalanobis distance (chi-square); the heading innovation is wrapped.
-//!   Measurements are used in timestamp order: one older than the last
-//!   accepted is refused ([`RejectReason::OutOfOrder`]).
+//!   `stamp_us` (in the robot's clock, up to
+//!   [`PoseEstimator::GUARANTEED_DEPTH_TICKS`] ticks ago: 255 for the
+//!   default [`HISTORY_LEN`] = 272). The filter keeps, per tick, only the
+//!   inputs of the prediction (16 B), and every 17 ticks a snapshot of the
+//!   state and covariance (`history.rs`, docs/DECISIONS.md D31). The
+//!   measurement restores the snapshot at or before its stamp, replays the
+//!   stored inputs to the stamp, updates there, then the later ticks are
+//!   re-propagated from the stored inputs with the same arithmetic as the
+//!   forward prediction, so the estimate at *now* equals what it would have
+//!   been had the measurement arrived on time (D25). The innovation is
+//!   gated by its squared Mahalanobis distance (chi-square); the heading
+//!   innovation is wrapped. Measurements are used in timestamp order: one
+//!   older than the last accepted is refused ([`RejectReason::OutOfOrder`]).
 //!   [`PoseEstimator::correct_within`] bounds the re-propagation done at
-//!   once (the runtime does 24 ticks per tick) and [`PoseEstimator::resume`]
-//!   continues it in later ticks; the result is the same bit for bit, it
-//!   only lands a few ticks later.
+//!   once (the runtime does 24 ticks per tick, plus at most 16 replayed to
+//!   the stamp) and [`PoseEstimator::resume`] continues it in later ticks;
+//!   the result is the same bit for bit, it only lands a few ticks later
+//!   (D30).
 //! * **Output** ([`Estimate`]): `filter_pose` is the filter's estimate of G;
 //!   `pose`, for the controller, is the same with each correction's jump
 //!   spread over about two measurement intervals (a decaying offset, time
 //!   constant at most `output_smoothing_s`), so that a low-rate source (UWB
 //!   at 10 Hz) does not hand the controller steps.
 //!
-//! `no_std`, f32, fixed memory: 104 bytes per tick of history, chosen at
-//! compile time (`PoseEstimator<H>`; by default [`HISTORY_LEN`] = 256
-//! ticks, 26.6 KB), no panics: any non-finite input is refused or replaced, and
-//! a correction that would make the state non-finite is rolled back.
+//! `no_std`, f32, fixed memory chosen at compile time
+//! (`PoseEstimator<H>`): 16 B per tick of history plus 16 snapshots of
+//! 80 B (5.6 KiB for 272 ticks; the former full posterior per tick was
+//! 104 B), no panics: any non-finite input is refused or replaced, and a
+//! prediction or correction that would make the state non-finite is
+//! dropped.
 
 #![allow(clippy::needless_range_loop)] // small matrices read best indexed
 
 mod config;
+mod history;
+mod predict;
 mod repropagation;
 mod types;
 
@@ -53,18 +64,17 @@ pub use types::{
 
 use crate::math::{sin_cos, wrap_angle};
 use crate::types::Pose;
+use history::{Fix, Snapshot, Tick, SNAPSHOTS};
+use predict::{ix, Filter, Input, NoiseSq, SPEED_SCALE_RANGE};
 
-/// Default ticks of history: the oldest measurement that can still be
-/// used is this many ticks old (256 ms at 1 kHz, above the 250 ms latency bound).
-pub const HISTORY_LEN: usize = 256;
+/// Default ticks of history: 272 ticks of inputs with a posterior snapshot
+/// every 17, so that a measurement taken up to 255 ticks ago (255 ms at
+/// 1 kHz, above the 250 ms latency bound) can always be used
+/// ([`PoseEstimator::GUARANTEED_DEPTH_TICKS`]).
+pub const HISTORY_LEN: usize = 272;
 
 /// State dimension: x, y of O_B, θ, gyro bias, speed scale.
 const N: usize = 5;
-/// Largest variances kept \[m², m², rad², (rad/s)², 1\]: without
-/// corrections the covariance grows; beyond these it is scaled down.
-const MAX_VAR: [f32; N] = [1.0e6, 1.0e6, 10.0, 1.0, 0.25];
-/// The speed scale is kept in this range (a wheel-speed ratio).
-const SPEED_SCALE_RANGE: (f32, f32) = (0.2, 1.5);
 /// Packed upper-triangle size.
 const NP: usize = N * (N + 1) / 2;
 /// Smallest diagonal variance kept after a correction (f32 round-off).
@@ -86,97 +96,50 @@ const SMOOTHING_INTERVALS: f32 = 2.0;
 const INTERVAL_GAIN: f32 = 0.1;
 /// Longest tick the prediction integrates \[s\].
 const MAX_DT_S: f32 = 0.1;
+/// Δt used when the caller's is not positive or not finite \[s\].
+const FALLBACK_DT_S: f32 = 1.0e-3;
 
 type Mat = [[f32; N]; N];
 
-/// The configuration's noise parameters squared, once (the products are
-/// the ones the prediction formed every tick, so results are unchanged).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct NoiseSq {
-    gyro: f32,
-    wheel_yaw: f32,
-    speed: f32,
-    bias_walk: f32,
-    scale_walk: f32,
-}
-
-impl NoiseSq {
-    fn of(cfg: &EstimatorConfig) -> Self {
-        let sq = |v: f32| v * v;
-        Self {
-            gyro: sq(cfg.gyro_noise_density),
-            wheel_yaw: sq(cfg.wheel_yaw_noise),
-            speed: sq(cfg.speed_noise_mps_per_sqrt_hz),
-            bias_walk: sq(cfg.gyro_bias_walk),
-            scale_walk: sq(cfg.speed_scale_walk),
-        }
-    }
-}
-
-/// One tick's inputs to the prediction, kept for re-propagation.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct Input {
-    dt_s: f32,
-    ds_m: f32,
-    dtheta_wheel_rad: f32,
-    gyro_radps: f32,
-    gyro_used: bool,
-    still: bool,
-}
-
-/// One tick of history: the posterior at `stamp_us` and the inputs that led to it.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct Entry {
-    stamp_us: u32,
-    x: [f32; N],
-    /// Upper triangle of the covariance, row-major.
-    p: [f32; NP],
-    input: Input,
-}
-
 fn pack(p: &Mat) -> [f32; NP] {
     let mut t = [0.0; NP];
-    let mut k = 0;
     for i in 0..N {
         for j in i..N {
-            t[k] = p[i][j];
-            k += 1;
+            t[ix(i, j)] = p[i][j];
         }
     }
     t
 }
 
 fn unpack(t: &[f32; NP]) -> Mat {
-    let mut p = [[0.0; N]; N];
-    let mut k = 0;
-    for i in 0..N {
-        for j in i..N {
-            p[i][j] = t[k];
-            p[j][i] = t[k];
-            k += 1;
-        }
+    core::array::from_fn(|i| core::array::from_fn(|j| t[ix(i.min(j), i.max(j))]))
+}
+
+/// The tick's Δt, Δs, Δθ when [`PoseEstimator::predict`]'s are out of the
+/// usual range, and whether the increments were plausible: Δt not positive
+/// or not finite becomes 1 ms, beyond `MAX_DT_S` is cut to it; increments
+/// faster than `MAX_SPEED_MPS` or `MAX_YAW_RATE_RADPS` (or not finite)
+/// become 0.
+#[cold]
+fn unusual_increments(dt_s: f32, ds_m: f32, dth_rad: f32) -> (f32, f32, f32, bool) {
+    let dt_s = if dt_s > 0.0 && dt_s <= MAX_DT_S {
+        dt_s
+    } else if dt_s > MAX_DT_S && dt_s.is_finite() {
+        MAX_DT_S
+    } else {
+        FALLBACK_DT_S
+    };
+    let plausible =
+        ds_m.abs() <= MAX_SPEED_MPS * dt_s && dth_rad.abs() <= MAX_YAW_RATE_RADPS * dt_s;
+    if plausible {
+        (dt_s, ds_m, dth_rad, true)
+    } else {
+        (dt_s, 0.0, 0.0, false)
     }
-    p
 }
 
 fn all_finite(x: &[f32; N], p: &Mat) -> bool {
     x.iter().all(|v| v.is_finite()) && p.iter().flatten().all(|v| v.is_finite())
-}
-
-/// [`all_finite`] for a symmetric `p` (only its upper triangle is read),
-/// without branches: v·0 is ±0 for a finite v and NaN for ±∞ or NaN, so
-/// the sum is 0 exactly when every value is finite.
-fn all_finite_sym(x: &[f32; N], p: &Mat) -> bool {
-    let mut z = 0.0f32;
-    for v in x {
-        z += v * 0.0;
-    }
-    for i in 0..N {
-        for v in &p[i][i..] {
-            z += v * 0.0;
-        }
-    }
-    z == 0.0
 }
 
 /// Wheel odometry, a z-gyro and delayed external poses fused in an EKF
@@ -185,12 +148,20 @@ fn all_finite_sym(x: &[f32; N], p: &Mat) -> bool {
 pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
     cfg: EstimatorConfig,
     noise_sq: NoiseSq,
-    x: [f32; N],
-    p: Mat,
-    hist: [Entry; H],
-    /// Index of the newest entry.
+    /// The live state (at the newest tick).
+    filter: Filter,
+    /// Inputs of the last `len` ticks (ring, newest at `head`).
+    ticks: [Tick; H],
     head: usize,
     len: usize,
+    /// Posterior snapshots every `SNAPSHOT_EVERY` ticks (ring, newest at
+    /// `snap_head`, `since_snapshot` ticks before the newest tick).
+    snaps: [Snapshot; SNAPSHOTS],
+    snap_head: usize,
+    snap_len: usize,
+    since_snapshot: usize,
+    /// The posterior at the latest accepted measurement's tick.
+    fix: Option<Fix>,
     now_us: u32,
     last_accepted_stamp_us: Option<u32>,
     consecutive_outliers: u16,
@@ -201,6 +172,8 @@ pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
     offset: [f32; 3],
     /// Running mean of the time between accepted measurements \[s\].
     mean_interval_s: Option<f32>,
+    /// The output offset's time constant \[s\] (from `mean_interval_s`).
+    smoothing_tau_s: f32,
     /// A correction whose re-propagation is not finished (see
     /// [`PoseEstimator::correct_within`]).
     pending: Option<Repropagation>,
@@ -227,20 +200,25 @@ impl<const H: usize> PoseEstimator<H> {
         let (s, c) = sin_cos(th);
         let d = cfg.com_offset_m;
         let x = [g.x_m - d * c, g.y_m - d * s, th, 0.0, 1.0];
-        let mut p = [[0.0; N]; N];
-        p[0][0] = cfg.initial_position_std_m * cfg.initial_position_std_m;
-        p[1][1] = p[0][0];
-        p[2][2] = cfg.initial_heading_std_rad * cfg.initial_heading_std_rad;
-        p[3][3] = cfg.initial_bias_std_radps * cfg.initial_bias_std_radps;
-        p[4][4] = cfg.initial_speed_scale_std * cfg.initial_speed_scale_std;
+        let mut p = [0.0; NP];
+        p[ix(0, 0)] = cfg.initial_position_std_m * cfg.initial_position_std_m;
+        p[ix(1, 1)] = p[ix(0, 0)];
+        p[ix(2, 2)] = cfg.initial_heading_std_rad * cfg.initial_heading_std_rad;
+        p[ix(3, 3)] = cfg.initial_bias_std_radps * cfg.initial_bias_std_radps;
+        p[ix(4, 4)] = cfg.initial_speed_scale_std * cfg.initial_speed_scale_std;
         let mut e = Self {
             noise_sq: NoiseSq::of(&cfg),
+            smoothing_tau_s: cfg.output_smoothing_s,
             cfg,
-            x,
-            p,
-            hist: [Entry::default(); H],
+            filter: Filter::new(x, p),
+            ticks: [Tick::default(); H],
             head: 0,
             len: 0,
+            snaps: [Snapshot::default(); SNAPSHOTS],
+            snap_head: 0,
+            snap_len: 0,
+            since_snapshot: 0,
+            fix: None,
             now_us: 0,
             last_accepted_stamp_us: None,
             consecutive_outliers: 0,
@@ -281,7 +259,7 @@ impl<const H: usize> PoseEstimator<H> {
     /// The full covariance at the latest tick (x, y of O_B, θ, bias,
     /// speed scale).
     pub fn covariance(&self) -> [[f32; N]; N] {
-        self.p
+        unpack(&self.filter.p)
     }
 
     /// One tick: the tick at `now_us` (robot clock) came `dt_s` after the
@@ -295,28 +273,27 @@ impl<const H: usize> PoseEstimator<H> {
         dtheta_wheel_rad: f32,
         gyro: Option<GyroSample>,
     ) -> &Estimate {
-        let dt_s = if dt_s.is_finite() && dt_s > 0.0 {
-            dt_s.min(MAX_DT_S)
-        } else {
-            1.0e-3
-        };
         // Non-finite or physically impossible increments are dropped.
-        let finite = ds_m.abs() <= MAX_SPEED_MPS * dt_s
+        let usual = dt_s > 0.0
+            && dt_s <= MAX_DT_S
+            && ds_m.abs() <= MAX_SPEED_MPS * dt_s
             && dtheta_wheel_rad.abs() <= MAX_YAW_RATE_RADPS * dt_s;
-        let (ds_m, dtheta_wheel_rad) = if finite {
-            (ds_m, dtheta_wheel_rad)
+        let (dt_s, ds_m, dtheta_wheel_rad, plausible) = if usual {
+            (dt_s, ds_m, dtheta_wheel_rad, true)
         } else {
-            (0.0, 0.0)
+            unusual_increments(dt_s, ds_m, dtheta_wheel_rad)
         };
         let gyro_state = match gyro {
-            None => GyroState::Absent,
-            Some(g) if !g.rate_radps.is_finite() => GyroState::NonFinite,
-            Some(g) if g.rate_radps.abs() >= self.cfg.gyro_saturation_radps => GyroState::Saturated,
-            Some(g) if now_us.wrapping_sub(g.stamp_us) > self.cfg.gyro_stale_us => GyroState::Stale,
-            Some(_) => GyroState::Ok,
+            Some(g)
+                if g.rate_radps.abs() < self.cfg.gyro_saturation_radps
+                    && now_us.wrapping_sub(g.stamp_us) <= self.cfg.gyro_stale_us =>
+            {
+                GyroState::Ok
+            }
+            _ => self.gyro_fallback(gyro),
         };
         let gyro_used = gyro_state == GyroState::Ok;
-        if ds_m == 0.0 && dtheta_wheel_rad == 0.0 && finite {
+        if ds_m == 0.0 && dtheta_wheel_rad == 0.0 && plausible {
             self.still_ticks = self.still_ticks.saturating_add(1);
         } else {
             self.still_ticks = 0;
@@ -324,24 +301,19 @@ impl<const H: usize> PoseEstimator<H> {
         let input = Input {
             dt_s,
             ds_m,
-            dtheta_wheel_rad,
-            gyro_radps: gyro.filter(|_| gyro_used).map_or(0.0, |g| g.rate_radps),
+            yaw: match gyro {
+                Some(g) if gyro_used => g.rate_radps,
+                _ => dtheta_wheel_rad,
+            },
             gyro_used,
             still: gyro_used && self.still_ticks >= self.cfg.standstill_ticks,
         };
-        self.propagate(&input);
-        // The output offset decays with time constant
-        // min(output_smoothing_s, SMOOTHING_INTERVALS × the mean interval
-        // between measurements): a jump is spread over about two intervals.
-        let tau = match self.mean_interval_s {
-            Some(i) => self.cfg.output_smoothing_s.min(SMOOTHING_INTERVALS * i),
-            None => self.cfg.output_smoothing_s,
-        };
-        let decay = if tau > 0.0 {
-            1.0 / (1.0 + dt_s / tau)
-        } else {
-            0.0
-        };
+        predict::predict(&mut self.filter, &input, &self.noise_sq);
+        // The output offset decays with time constant τ = min(output_smoothing_s,
+        // SMOOTHING_INTERVALS × the mean interval between measurements):
+        // a jump is spread over about two intervals (factor 1/(1 + Δt/τ)).
+        let tau = self.smoothing_tau_s;
+        let decay = if tau > 0.0 { tau / (tau + dt_s) } else { 0.0 };
         for o in &mut self.offset {
             *o *= decay;
         }
@@ -349,22 +321,29 @@ impl<const H: usize> PoseEstimator<H> {
             self.status.standstill_updates = self.status.standstill_updates.saturating_add(1);
         }
         self.now_us = now_us;
-        self.head = if self.len == 0 {
-            0
-        } else {
-            (self.head + 1) % H
-        };
-        self.len = (self.len + 1).min(H);
-        self.hist[self.head] = Entry {
-            stamp_us: now_us,
-            x: self.x,
-            p: pack(&self.p),
-            input,
-        };
+        self.push_tick(now_us, &input);
         self.status.gyro = gyro_state;
         self.pending_tick();
         self.refresh(&input);
         &self.estimate
+    }
+
+    /// Why the gyro sample is not used.
+    #[cold]
+    fn gyro_fallback(&self, gyro: Option<GyroSample>) -> GyroState {
+        match gyro {
+            None => GyroState::Absent,
+            Some(g) if !g.rate_radps.is_finite() => GyroState::NonFinite,
+            Some(g) if g.rate_radps.abs() >= self.cfg.gyro_saturation_radps => GyroState::Saturated,
+            Some(_) => GyroState::Stale,
+        }
+    }
+
+    /// The prediction of one tick on `f` (to replay and re-propagate
+    /// the history: the live one's arithmetic).
+    #[inline(always)]
+    fn predict_into(&self, f: &mut Filter, u: &Input) {
+        predict::predict(f, u, &self.noise_sq);
     }
 
     /// Uses the pose measurement `m` (taken at `m.stamp_us`, not after the
@@ -379,7 +358,9 @@ impl<const H: usize> PoseEstimator<H> {
     /// ([`Self::is_repropagating`]), the estimate stays the uncorrected one;
     /// once done, state and covariance are bit for bit those [`Self::correct`]
     /// gives (the output smoothing takes the jump when it is applied).
-    /// `Ok` holds the number of ticks re-propagated now.
+    /// `Ok` holds the number of ticks re-propagated now (not counting the
+    /// at most `⌈H/16⌉ − 1` ticks replayed from the snapshot before the
+    /// measurement's stamp, D31).
     pub fn correct_within(
         &mut self,
         m: &PoseMeasurement,
@@ -407,14 +388,13 @@ impl<const H: usize> PoseEstimator<H> {
         if !ok_std(m.position_std_m) || !m.heading_std_rad.is_none_or(ok_std) {
             return Err(RejectReason::BadStdDev);
         }
-        if self.len == 0 {
+        let Some(oldest) = self.oldest_usable() else {
             return Err(RejectReason::TooOld);
-        }
+        };
         if (self.now_us.wrapping_sub(m.stamp_us) as i32) < 0 {
             return Err(RejectReason::FromFuture);
         }
-        let oldest = (self.head + H + 1 - self.len) % H;
-        if (m.stamp_us.wrapping_sub(self.hist[oldest].stamp_us) as i32) < 0 {
+        if (m.stamp_us.wrapping_sub(self.tick_at(oldest).stamp_us) as i32) < 0 {
             return Err(RejectReason::TooOld);
         }
         if let Some(last) = self.last_accepted_stamp_us {
@@ -422,26 +402,29 @@ impl<const H: usize> PoseEstimator<H> {
                 return Err(RejectReason::OutOfOrder);
             }
         }
-        // The entry nearest in time: walk back from the newest to the first
-        // entry at or before the stamp, then take the closer neighbour.
-        let mut back = 0;
-        while back + 1 < self.len {
-            let e = &self.hist[(self.head + H - back) % H];
-            if (e.stamp_us.wrapping_sub(m.stamp_us) as i32) <= 0 {
-                break;
+        // The tick nearest in time: the newest tick at or before the stamp
+        // (binary search on the ages, which grow with `back`), then the
+        // closer of it and the next one.
+        let age = self.now_us.wrapping_sub(m.stamp_us);
+        let (mut lo, mut hi) = (0, oldest);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if self.now_us.wrapping_sub(self.tick_at(mid).stamp_us) >= age {
+                hi = mid;
+            } else {
+                lo = mid + 1;
             }
-            back += 1;
         }
+        let mut back = lo;
         if back > 0 {
-            let before = self.hist[(self.head + H - back) % H].stamp_us;
-            let after = self.hist[(self.head + H - back + 1) % H].stamp_us;
+            let before = self.tick_at(back).stamp_us;
+            let after = self.tick_at(back - 1).stamp_us;
             if after.wrapping_sub(m.stamp_us) < m.stamp_us.wrapping_sub(before) {
                 back -= 1;
             }
         }
-        let idx = (self.head + H - back) % H;
-        let e = self.hist[idx];
-        let (mut x, mut p) = (e.x, unpack(&e.p));
+        let (start, _) = self.posterior_at(back);
+        let (mut x, mut p) = (start.x, unpack(&start.p));
         let resets = self.status.resets;
         match self.update(&mut x, &mut p, m, true) {
             Ok(()) => self.consecutive_outliers = 0,
@@ -459,34 +442,38 @@ impl<const H: usize> PoseEstimator<H> {
             }
             Err(r) => return Err(r),
         }
-        self.hist[idx].x = x;
-        self.hist[idx].p = pack(&p);
+        let corrected = Filter::new(x, pack(&p));
+        let post = Snapshot::of(&corrected);
+        self.fix = Some(Fix { back, post });
+        if let Some(slot) = self.snapshot_slot(back) {
+            self.snaps[slot] = post;
+        }
         if let Some(last) = self.last_accepted_stamp_us {
             let dt = m.stamp_us.wrapping_sub(last) as f32 * 1e-6;
-            self.mean_interval_s = Some(match self.mean_interval_s {
+            let i = match self.mean_interval_s {
                 Some(i) => i + INTERVAL_GAIN * (dt.min(1.0) - i),
                 None => dt.min(1.0),
-            });
+            };
+            self.mean_interval_s = Some(i);
+            self.smoothing_tau_s = self.cfg.output_smoothing_s.min(SMOOTHING_INTERVALS * i);
         }
         self.last_accepted_stamp_us = Some(m.stamp_us);
         self.status.accepted = self.status.accepted.saturating_add(1);
         // Re-propagate the later ticks from their stored inputs.
         self.pending = Some(Repropagation {
             back,
-            x,
-            p,
+            filter: corrected,
             reset: self.status.resets != resets,
         });
         Ok(self.resume(max_ticks))
     }
 
     /// Applies a finished correction: the live state becomes the
-    /// re-propagated `(x, p)`; the jump of the filter's pose goes into the
+    /// re-propagated one; the jump of the filter's pose goes into the
     /// output offset (unless it is big or the pose was reset).
-    fn finish_correction(&mut self, x: [f32; N], p: Mat, reset: bool) {
+    fn finish_correction(&mut self, f: Filter, reset: bool) {
         let before = self.filter_pose();
-        self.x = x;
-        self.p = p;
+        self.filter = f;
         let after = self.filter_pose();
         let jump = [
             after.x_m - before.x_m,
@@ -502,7 +489,7 @@ impl<const H: usize> PoseEstimator<H> {
         } else {
             self.offset = [0.0; 3];
         }
-        let input = self.hist[self.head].input;
+        let input = self.tick_at(0).input();
         self.refresh(&input);
     }
 
@@ -519,85 +506,6 @@ impl<const H: usize> PoseEstimator<H> {
             }
             p[i][i] = big[i];
         }
-    }
-
-    /// The prediction of one tick (also used to re-propagate the history);
-    /// a result that is not finite is dropped (the state is kept).
-    fn propagate(&mut self, u: &Input) {
-        let (x, p) = self.propagated(u);
-        // The covariance is symmetric (mirrored, scaled or symmetrised).
-        if all_finite_sym(&x, &p) {
-            self.x = x;
-            self.p = p;
-        }
-    }
-
-    /// The state and covariance one tick on (not checked).
-    #[inline(always)]
-    fn propagated(&self, u: &Input) -> ([f32; N], Mat) {
-        let cfg = &self.cfg;
-        let sq = &self.noise_sq;
-        let mut xs = self.x;
-        let x = &mut xs;
-        let dt = u.dt_s;
-        let (dth, g, q_th) = if u.gyro_used {
-            ((u.gyro_radps - x[3]) * dt, -dt, sq.gyro * dt)
-        } else {
-            let w = u.dtheta_wheel_rad / dt;
-            let k = cfg.slip_fraction * w;
-            (u.dtheta_wheel_rad, 0.0, (sq.wheel_yaw + k * k) * dt)
-        };
-        let (s, c) = sin_cos(x[2] + 0.5 * dth);
-        let ds = u.ds_m;
-        let dsk = x[4] * ds;
-        x[0] += dsk * c;
-        x[1] += dsk * s;
-        x[2] = wrap_angle(x[2] + dth);
-        // F = I + the partial derivatives ∂(x, y)/∂θ = (a, b),
-        // ∂(x, y)/∂b = g/2·(a, b), ∂θ/∂b = g, ∂(x, y)/∂k = Δs·(cos, sin).
-        let (a, b) = (-dsk * s, dsk * c);
-        let mut np = propagate_covariance(&self.p, a, b, g, ds * c, ds * s);
-        let v = ds / dt;
-        let kv = cfg.slip_fraction * v;
-        let q_p = (sq.speed + kv * kv) * dt;
-        np[0][0] += q_p;
-        np[1][1] += q_p;
-        np[2][2] += q_th;
-        np[3][3] += sq.bias_walk * dt;
-        np[4][4] += sq.scale_walk * dt;
-        // Bounded growth: scale a row and column whose variance is too big.
-        for i in 0..N {
-            if np[i][i].is_nan() || np[i][i] > MAX_VAR[i] {
-                let k = if np[i][i].is_finite() {
-                    crate::math::sqrt(MAX_VAR[i] / np[i][i])
-                } else {
-                    0.0
-                };
-                for j in 0..N {
-                    np[i][j] *= k;
-                    np[j][i] *= k;
-                }
-                np[i][i] = MAX_VAR[i];
-            }
-        }
-        if u.still {
-            // Zero-rate update: standing still, the gyro reads its bias.
-            let r = sq.gyro / dt;
-            let s33 = np[3][3] + r;
-            let innov = u.gyro_radps - xs[3];
-            let k: [f32; N] = core::array::from_fn(|i| np[i][3] / s33);
-            let row3 = np[3];
-            for i in 0..N {
-                xs[i] += k[i] * innov;
-                for j in 0..N {
-                    np[i][j] -= k[i] * row3[j];
-                }
-            }
-            xs[2] = wrap_angle(xs[2]);
-            xs[4] = xs[4].clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
-            symmetrise(&mut np);
-        }
-        (xs, np)
     }
 
     /// The EKF update of `(x, p)` with `m`; with `gate`, refuses an
@@ -700,100 +608,47 @@ impl<const H: usize> PoseEstimator<H> {
     /// The filter's pose of G.
     fn filter_pose(&self) -> Pose {
         let d = self.cfg.com_offset_m;
-        let (s, c) = sin_cos(self.x[2]);
-        Pose::new(self.x[0] + d * c, self.x[1] + d * s, self.x[2])
+        let f = &self.filter;
+        Pose::new(f.x[0] + d * f.cos_th, f.x[1] + d * f.sin_th, f.x[2])
     }
 
-    /// The estimate and status from the live state.
+    /// The estimate and status from the live state; `input` is the newest
+    /// tick's.
+    #[inline(never)]
     fn refresh(&mut self, input: &Input) {
         let g = self.filter_pose();
         let o = self.offset;
-        let dt = if input.dt_s > 0.0 { input.dt_s } else { 1.0 };
-        let yaw = if input.gyro_used {
-            input.gyro_radps - self.x[3]
+        let inv_dt = if input.dt_s > 0.0 {
+            1.0 / input.dt_s
         } else {
-            input.dtheta_wheel_rad / dt
+            1.0
+        };
+        let yaw = if input.gyro_used {
+            input.yaw - self.filter.x[3]
+        } else {
+            input.yaw * inv_dt
         };
         self.estimate = Estimate {
             pose: Pose::new(g.x_m - o[0], g.y_m - o[1], wrap_angle(g.theta_rad - o[2])),
             filter_pose: g,
-            v_mps: input.ds_m / dt,
+            v_mps: input.ds_m * inv_dt,
             yaw_rate_radps: yaw,
         };
-        self.status.covariance_diag = core::array::from_fn(|i| self.p[i][i]);
-        self.status.gyro_bias_radps = self.x[3];
-        self.status.speed_scale = self.x[4];
+        let p = &self.filter.p;
+        self.status.covariance_diag = [
+            p[ix(0, 0)],
+            p[ix(1, 1)],
+            p[ix(2, 2)],
+            p[ix(3, 3)],
+            p[ix(4, 4)],
+        ];
+        self.status.gyro_bias_radps = self.filter.x[3];
+        self.status.speed_scale = self.filter.x[4];
         self.status.since_accepted_us = match self.last_accepted_stamp_us {
             Some(t) => self.now_us.wrapping_sub(t),
             None => u32::MAX,
         };
     }
-}
-
-/// F·P·Fᵀ for the prediction's F = I + E, E's only non-zero entries being
-/// E\[0\]\[2\] = a, E\[1\]\[2\] = b, E\[0\]\[3\] = g·a/2, E\[1\]\[3\] = g·b/2,
-/// E\[2\]\[3\] = g, E\[0\]\[4\] = kc, E\[1\]\[4\] = ks: rows 0-2 of F·P, then
-/// columns 0-2 of (F·P)·Fᵀ (about 80 multiply-adds instead of 250); the
-/// result is made exactly symmetric.
-fn propagate_covariance(p: &Mat, a: f32, b: f32, g: f32, kc: f32, ks: f32) -> Mat {
-    let (ga, gb) = (0.5 * g * a, 0.5 * g * b);
-    // Rows 0-2 of F·P (all columns).
-    let mut fp = [[0.0f32; N]; 3];
-    for j in 0..N {
-        let (p2, p3, p4) = (p[2][j], p[3][j], p[4][j]);
-        fp[0][j] = p[0][j] + a * p2 + ga * p3 + kc * p4;
-        fp[1][j] = p[1][j] + b * p2 + gb * p3 + ks * p4;
-        fp[2][j] = p2 + g * p3;
-    }
-    // The upper triangle of (F·P)·Fᵀ: columns 0-2 of rows 0-2 combine
-    // F·P's columns 2-4; columns 3-4 are F·P's; rows 3-4 are P's.
-    let mut np = *p;
-    for i in 0..3 {
-        let (q2, q3, q4) = (fp[i][2], fp[i][3], fp[i][4]);
-        if i == 0 {
-            np[0][0] = fp[0][0] + (a * q2 + ga * q3 + kc * q4);
-        }
-        if i <= 1 {
-            np[i][1] = fp[i][1] + (b * q2 + gb * q3 + ks * q4);
-        }
-        np[i][2] = q2 + g * q3;
-        np[i][3] = q3;
-        np[i][4] = q4;
-    }
-    for i in 0..N {
-        for j in (i + 1)..N {
-            np[j][i] = np[i][j];
-        }
-    }
-    np
-}
-
-/// The previous formulation of [`propagate_covariance`] (every entry of
-/// (F·P)·Fᵀ, then mirrored), kept to test that the upper-triangle one is
-/// bit for bit the same.
-#[cfg(test)]
-fn propagate_covariance_full(p: &Mat, a: f32, b: f32, g: f32, kc: f32, ks: f32) -> Mat {
-    let (ga, gb) = (0.5 * g * a, 0.5 * g * b);
-    let mut fp = *p;
-    for j in 0..N {
-        let (p2, p3, p4) = (p[2][j], p[3][j], p[4][j]);
-        fp[0][j] = p[0][j] + a * p2 + ga * p3 + kc * p4;
-        fp[1][j] = p[1][j] + b * p2 + gb * p3 + ks * p4;
-        fp[2][j] = p2 + g * p3;
-    }
-    let mut np = fp;
-    for row in np.iter_mut() {
-        let (q2, q3, q4) = (row[2], row[3], row[4]);
-        row[0] += a * q2 + ga * q3 + kc * q4;
-        row[1] += b * q2 + gb * q3 + ks * q4;
-        row[2] = q2 + g * q3;
-    }
-    for i in 0..N {
-        for j in (i + 1)..N {
-            np[j][i] = np[i][j];
-        }
-    }
-    np
 }
 
 fn symmetrise(p: &mut Mat) {
@@ -838,3 +693,7 @@ fn invert3(m: &[[f32; 3]; 3]) -> Option<[[f32; 3]; 3]> {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_history;
+#[cfg(test)]
+mod tests_predict;

@@ -6,9 +6,12 @@
 //! one entry to re-propagate) until the corrected branch reaches the newest
 //! entry and replaces the live state. The arithmetic per entry is the
 //! forward prediction's, on the same stored inputs, so the result equals
-//! [`PoseEstimator::correct`]'s bit for bit (tested).
+//! [`PoseEstimator::correct`]'s bit for bit (tested). The branch rewrites
+//! the posterior snapshots it passes (D31).
 
-use super::{pack, Mat, PoseEstimator, N};
+use super::history::Snapshot;
+use super::predict::Filter;
+use super::PoseEstimator;
 
 /// A correction being re-propagated: the corrected branch's state at the
 /// entry `back` ticks before the newest one.
@@ -17,8 +20,7 @@ pub(super) struct Repropagation {
     /// Entries still to re-propagate (from the branch's entry to the newest).
     pub(super) back: usize,
     /// The branch's state and covariance.
-    pub(super) x: [f32; N],
-    pub(super) p: Mat,
+    pub(super) filter: Filter,
     /// The correction reset the pose (its jump is not smoothed).
     pub(super) reset: bool,
 }
@@ -38,25 +40,21 @@ impl<const H: usize> PoseEstimator<H> {
             return 0;
         };
         let n = r.back.min(max_ticks);
-        let live = (self.x, self.p);
-        self.x = r.x;
-        self.p = r.p;
+        let mut f = r.filter;
+        // Ring index of the branch's tick; each step moves to the next.
+        let mut i = (self.head + H - r.back) % H;
         for k in (r.back - n..r.back).rev() {
-            let i = (self.head + H - k) % H;
-            let input = self.hist[i].input;
-            self.propagate(&input);
-            let e = &mut self.hist[i];
-            e.x = self.x;
-            e.p = pack(&self.p);
+            i = if i + 1 == H { 0 } else { i + 1 };
+            self.predict_into(&mut f, &self.ticks[i].input());
+            if let Some(slot) = self.snapshot_slot(k) {
+                self.snaps[slot] = Snapshot::of(&f);
+            }
         }
         r.back -= n;
-        let (x, p) = (self.x, self.p);
-        (self.x, self.p) = live;
         if r.back == 0 {
-            self.finish_correction(x, p, r.reset);
+            self.finish_correction(f, r.reset);
         } else {
-            r.x = x;
-            r.p = p;
+            r.filter = f;
             self.pending = Some(r);
         }
         n

@@ -33,58 +33,6 @@ fn gyro(rate: f32, stamp_us: u32) -> Option<GyroSample> {
     })
 }
 
-/// The sparse covariance prediction equals the dense F·P·Fᵀ (two methods)
-/// for random symmetric P and partials, to f32 rounding.
-#[test]
-fn sparse_covariance_prediction_equals_dense() {
-    let mut seed = 12345u64;
-    let mut rnd = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    };
-    for _ in 0..200 {
-        let mut p = [[0.0f32; 5]; 5];
-        for i in 0..5 {
-            for j in i..5 {
-                let v = rnd();
-                p[i][j] = v;
-                p[j][i] = v;
-            }
-        }
-        let (a, b, g, kc, ks) = (rnd(), rnd(), rnd(), rnd(), rnd());
-        let mut f = [[0.0f32; 5]; 5];
-        for i in 0..5 {
-            f[i][i] = 1.0;
-        }
-        f[0][2] = a;
-        f[1][2] = b;
-        f[0][3] = 0.5 * g * a;
-        f[1][3] = 0.5 * g * b;
-        f[2][3] = g;
-        f[0][4] = kc;
-        f[1][4] = ks;
-        let sparse = propagate_covariance(&p, a, b, g, kc, ks);
-        let full = propagate_covariance_full(&p, a, b, g, kc, ks);
-        let bits = |m: Mat| m.map(|r| r.map(f32::to_bits));
-        assert_eq!(bits(sparse), bits(full), "upper triangle vs every entry");
-        for i in 0..5 {
-            for j in 0..5 {
-                let dense: f32 = (0..5)
-                    .flat_map(|k| (0..5).map(move |l| (k, l)))
-                    .map(|(k, l)| f[i][k] * p[k][l] * f[j][l])
-                    .sum();
-                assert!(
-                    (sparse[i][j] - dense).abs() < 1e-5,
-                    "{i}{j}: {} vs {dense}",
-                    sparse[i][j]
-                );
-            }
-        }
-    }
-}
-
 #[test]
 fn invalid_config_rejected() {
     let ok = cfg_at(Pose::new(0.0, 0.0, 0.0));
@@ -436,7 +384,7 @@ fn rejections_have_reasons() {
         Err(RejectReason::FromFuture)
     );
     assert_eq!(
-        e.correct(&meas(now - 260_000, p, true)),
+        e.correct(&meas(now - 280_000, p, true)),
         Err(RejectReason::TooOld)
     );
     let nan = Pose::new(f32::NAN, 0.0, 0.0);
