@@ -2,8 +2,8 @@
 //! alarm.
 //!
 //! * SysTick runs on the 25 MHz CPU clock (`CLKSOURCE` = processor clock)
-//!   with a 1 ms reload; its handler counts the wraps. Now = wraps · 1000 µs
-//!   + the counts of the current period / 25. Under QEMU's
+//!   with a 1 ms reload; its handler counts the wraps. Now is wraps · 1000 µs
+//!   plus the counts of the current period / 25. Under QEMU's
 //!   `-icount shift=0` one guest instruction is one virtual ns, so a
 //!   SysTick count is 40 instructions: [`instructions`] is the board's
 //!   `cycles()` counter (resolution 40).
