@@ -66,11 +66,9 @@ impl LinkPipes {
         let mut buf = [0u8; TX_BYTES_PER_TICK];
         let room = self.tx.free_capacity().min(buf.len());
         let n = dev.pop_tx(&mut buf[..room]);
-        if n > 0 {
-            // Fits: at most the free capacity was taken from the device,
-            // and only this task writes the pipe.
-            let _ = self.tx.try_write(&buf[..n]);
-        }
+        // Fits: at most the free capacity was taken from the device, and
+        // only this task writes the pipe.
+        try_write_all(&self.tx, &buf[..n]);
         n
     }
 
@@ -118,6 +116,21 @@ impl LinkPipes {
     }
 }
 
+/// Writes as much of `bytes` as fits into `pipe` without waiting; returns
+/// how much. One `Pipe::try_write` is not enough: it stops at the end of
+/// the pipe's ring buffer, so a chunk that straddles the wrap point would
+/// lose its tail (a telemetry frame in four was cut this way before).
+fn try_write_all<const N: usize>(pipe: &Pipe<CriticalSectionRawMutex, N>, bytes: &[u8]) -> usize {
+    let mut n = 0;
+    while n < bytes.len() {
+        match pipe.try_write(&bytes[n..]) {
+            Ok(k) => n += k,
+            Err(_) => break, // full
+        }
+    }
+    n
+}
+
 /// Port → pipe, forever: reads the port (waiting for bytes) and hands them
 /// to [`LinkPipes::port_received`]. A port read error (framing, overrun) is
 /// skipped: the protocol's CRC catches the damaged frame.
@@ -137,5 +150,40 @@ pub async fn pump_tx<W: embedded_io_async::Write>(port: &mut W, pipes: &LinkPipe
     loop {
         let n = pipes.port_next_tx(&mut buf).await;
         let _ = port.write_all(&buf[..n]).await;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    type SmallPipe = Pipe<CriticalSectionRawMutex, 8>;
+
+    /// A pipe whose ring has 2 bytes before its wrap point and 8 free.
+    fn pipe_near_wrap() -> SmallPipe {
+        let pipe = SmallPipe::new();
+        let mut sink = [0u8; 8];
+        assert_eq!(pipe.try_write(&[9; 6]), Ok(6));
+        assert_eq!(pipe.try_read(&mut sink), Ok(6));
+        pipe
+    }
+
+    /// A chunk that straddles the ring buffer's wrap point arrives whole
+    /// and in order; one `try_write` stops at the wrap (the control).
+    #[test]
+    fn writes_across_the_ring_wrap_are_whole() {
+        let bytes = [10, 11, 12, 13, 14];
+        assert_eq!(pipe_near_wrap().try_write(&bytes), Ok(2));
+
+        let pipe = pipe_near_wrap();
+        assert_eq!(try_write_all(&pipe, &bytes), 5);
+        let mut got = [0u8; 8];
+        let mut n = 0;
+        while let Ok(k) = pipe.try_read(&mut got[n..]) {
+            n += k;
+        }
+        assert_eq!(&got[..n], &bytes);
+        // What does not fit is reported, not written.
+        assert_eq!(try_write_all(&pipe, &[0; 12]), 8);
     }
 }
