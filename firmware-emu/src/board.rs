@@ -22,12 +22,6 @@ pub const CHIP_ID: &str = "mps2-an386-emu";
 /// Board name for the banner.
 pub const CHIP: &str =
     "QEMU mps2-an386 (Cortex-M4F, 25 MHz SysTick; -icount: 1 instruction per ns)";
-/// Control loop rate \[Hz\]: the STM32 boards' (`firmware/src/board.rs`).
-pub const CONTROL_HZ: u64 = 1000;
-/// Watchdog timeout \[µs\]: the STM32 boards' independent watchdog's.
-pub const WATCHDOG_TIMEOUT_US: u32 = 50_000;
-/// Button debounce \[ticks\] (the STM32 boards'; no button here).
-pub const BUTTON_DEBOUNCE_TICKS: u16 = 20;
 /// PWM counts at full duty: the STM32F411 Black Pill's (96 MHz / 20 kHz),
 /// so the duty quantisation is that board's.
 pub const PWM_FULL_SCALE: u16 = 4800;
@@ -76,7 +70,7 @@ impl Board for EmuBoard {
     }
 
     fn start_watchdog(&mut self) {
-        crate::watchdog::start(crate::time::CPU_HZ, WATCHDOG_TIMEOUT_US);
+        crate::watchdog::start(crate::time::CPU_HZ, crate::config::WATCHDOG_TIMEOUT_US);
         // The loop's first period starts now: the plant's phase.
         crate::sim::LOOP_START.signal(Instant::now());
     }

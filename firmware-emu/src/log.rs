@@ -10,8 +10,8 @@ pub fn event(event: &AppEvent<'_>) {
     match event {
         AppEvent::Started => hprintln!(
             "started: control loop at {} Hz, watchdog on (reset {} us after the last feed)",
-            crate::board::CONTROL_HZ,
-            crate::board::WATCHDOG_TIMEOUT_US
+            crate::config::CONTROL_HZ,
+            crate::config::WATCHDOG_TIMEOUT_US
         ),
         AppEvent::State(s) => hprintln!("state: {:?}", s),
         AppEvent::SafeStop(r) => hprintln!("SAFE STOP latched: {:?} (motors disabled)", r),

@@ -59,7 +59,7 @@ fn main() -> ! {
     let (device, timer, button) = match (
         Robot::with_estimator(dev_cfg, cfg, estimator),
         LoopTimer::from_config(&cfg),
-        ArmingButton::new(board::BUTTON_DEBOUNCE_TICKS),
+        ArmingButton::new(config::BUTTON_DEBOUNCE_TICKS),
     ) {
         (Ok(d), Ok(t), Ok(b)) => (d, t, b),
         _ => log::fail("invalid configuration; motors stay disabled"),
@@ -200,7 +200,7 @@ unsafe fn NonMaskableInt() {
     sim::kill_motors();
     hprintln!(
         "WATCHDOG: the control loop stopped feeding; motors off, reset in {} us",
-        board::WATCHDOG_TIMEOUT_US / 2
+        config::WATCHDOG_TIMEOUT_US / 2
     );
     loop {
         cortex_m::asm::nop();

@@ -7,7 +7,7 @@
 //! system (QEMU: a guest reset, the board boots again). A feed
 //! (`WDOGINTCLR`) clears the interrupt and reloads the counter. The load is
 //! half the firmware's timeout, so the board resets
-//! [`WATCHDOG_TIMEOUT_US`](crate::board::WATCHDOG_TIMEOUT_US) after the
+//! [`WATCHDOG_TIMEOUT_US`](crate::config::WATCHDOG_TIMEOUT_US) after the
 //! last feed, and the NMI at half that cuts the motors first.
 
 use core::ptr::write_volatile;

@@ -115,17 +115,8 @@ pub const ENCODER_INPUT_FILTER: FilterValue = FilterValue::FDTS_DIV16_N8;
 /// keep their levels).
 const FREEZE_WATCHDOG_ON_HALT: bool = cfg!(feature = "halt-freezes-watchdog");
 
-/// Control loop rate \[Hz\] (must match the controller's `period_s`).
-pub const CONTROL_HZ: u64 = 1000;
 /// Motor PWM frequency (inaudible, and well above the 1 kHz loop).
 pub const PWM_FREQ: Hertz = khz(20);
-/// Independent watchdog timeout \[µs\]; the control task feeds it every tick.
-pub const WATCHDOG_TIMEOUT_US: u32 = 50_000;
-/// Telemetry every this many ticks (50 -> 20 Hz at 1 kHz).
-pub const TELEMETRY_DECIMATION: u32 = 50;
-/// Button debounce \[ticks\]: held this long counts as one press
-/// (`controller_core::runtime::ArmingButton`).
-pub const BUTTON_DEBOUNCE_TICKS: u16 = 20;
 
 /// Which oscillator the PLL runs from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
@@ -420,7 +411,7 @@ pub fn init() -> Board {
     #[cfg(feature = "stm32f446re")]
     let button = ArmButton(Input::new(p.PC13, Pull::Up));
 
-    let watchdog = IndependentWatchdog::new(p.IWDG, WATCHDOG_TIMEOUT_US);
+    let watchdog = IndependentWatchdog::new(p.IWDG, crate::config::WATCHDOG_TIMEOUT_US);
     // USB needs the 48 MHz clock within ±0.25 %: not on the HSI fallback.
     #[cfg(feature = "stm32f411ce")]
     let link = (clock == ClockSource::Hse).then_some(crate::link::LinkPeripherals {

@@ -17,6 +17,18 @@ use controller_core::{ControllerConfig, ControllerKind, InputLimits, RobotParams
 use wmr_device::{DeviceConfig, LinkConfig};
 use wmr_protocol::{BuiltinReference, BuiltinShape, PoseMsg};
 
+/// Control loop rate \[Hz\] (the controller's `period_s` is its inverse).
+pub const CONTROL_HZ: u64 = 1000;
+/// Watchdog timeout \[µs\]; the control task feeds it at the end of every
+/// completed tick (robot-app), so a loop stalled this long resets the chip.
+pub const WATCHDOG_TIMEOUT_US: u32 = 50_000;
+/// Local telemetry lines every this many ticks (50 -> 20 Hz at 1 kHz;
+/// `rtt-telemetry` only).
+pub const TELEMETRY_DECIMATION: u32 = 50;
+/// Button debounce \[ticks\]: held this long counts as one press
+/// (`controller_core::runtime::ArmingButton`).
+pub const BUTTON_DEBOUNCE_TICKS: u16 = 20;
+
 /// Which of the paper's controllers runs.
 pub const CONTROLLER: ControllerKind = ControllerKind::Proposed;
 
@@ -99,7 +111,7 @@ const RUNTIME: RuntimeConfig = {
         eso: EsoParams::DEFAULT,
         sliding: ControllerConfig::paper(CONTROLLER).sliding,
         torque_limit_nm: TORQUE_LIMIT_NM,
-        period_s: 1.0 / crate::board::CONTROL_HZ as f32,
+        period_s: 1.0 / CONTROL_HZ as f32,
         input_limits: InputLimits::DEFAULT,
     };
     RuntimeConfig {
@@ -167,6 +179,6 @@ pub const DEVICE: DeviceConfig = DeviceConfig {
 /// (`Board::LOGS_STATUS`; the host link carries the telemetry otherwise,
 /// `wmr record`).
 pub const APP: robot_app::AppConfig = robot_app::AppConfig {
-    status_every_ticks: crate::board::CONTROL_HZ as u32,
-    telemetry_every_ticks: crate::board::TELEMETRY_DECIMATION,
+    status_every_ticks: CONTROL_HZ as u32,
+    telemetry_every_ticks: TELEMETRY_DECIMATION,
 };

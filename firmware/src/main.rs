@@ -54,7 +54,7 @@ async fn main(spawner: Spawner) {
         Robot::with_estimator(config::DEVICE, cfg, config::ESTIMATOR),
         LoopTimer::from_config(&cfg)
             .ok()
-            .zip(ArmingButton::new(board::BUTTON_DEBOUNCE_TICKS).ok()),
+            .zip(ArmingButton::new(config::BUTTON_DEBOUNCE_TICKS).ok()),
     ) {
         (Ok(d), Some((timer, button))) => match ControlTask::new(timer, button, config::APP) {
             Ok(t) => (d, t),
@@ -111,10 +111,10 @@ fn banner(board: &board::Board, full_scale: u16, cfg: &controller_core::runtime:
     }
     info!(
         "loop {=u64} Hz, PWM {=u32} Hz full scale {=u16} counts, watchdog {=u32} us",
-        board::CONTROL_HZ,
+        config::CONTROL_HZ,
         board::PWM_FREQ.0,
         full_scale,
-        board::WATCHDOG_TIMEOUT_US,
+        config::WATCHDOG_TIMEOUT_US,
     );
     info!("reference: from the host (wmr upload / drive); button: a circle of 0.5 m radius at 0.2 m/s from the start pose");
     // The full configuration (the host link shows it too: `wmr params get`).
