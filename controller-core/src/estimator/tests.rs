@@ -563,3 +563,146 @@ proptest! {
         }
     }
 }
+
+/// The batch EKF update (the textbook form: S = H P Hᵀ + R, K = P Hᵀ S⁻¹,
+/// x += K ν, P −= K (P Hᵀ)ᵀ, d² = νᵀ S⁻¹ ν) for `n` rows of `h`, in f64.
+fn batch_update(
+    x: &[f32; N],
+    p: &Mat,
+    h: &[[f32; N]; 3],
+    nu: &[f32; 3],
+    r: &[f32; 3],
+    n: usize,
+) -> ([f64; N], [[f64; N]; N], f64) {
+    let p64: [[f64; N]; N] = core::array::from_fn(|i| core::array::from_fn(|j| p[i][j] as f64));
+    let mut pht = [[0.0f64; 3]; N];
+    for i in 0..N {
+        for a in 0..n {
+            pht[i][a] = (0..N).map(|k| p64[i][k] * h[a][k] as f64).sum();
+        }
+    }
+    let mut sm = [[0.0f32; 3]; 3];
+    for a in 0..3 {
+        for b in 0..3 {
+            sm[a][b] = if a < n && b < n {
+                (0..N).map(|k| h[a][k] as f64 * pht[k][b]).sum::<f64>() as f32
+            } else {
+                (a == b) as u8 as f32
+            };
+        }
+        if a < n {
+            sm[a][a] += r[a];
+        }
+    }
+    let si = invert3(&sm).expect("S invertible");
+    let mut d2 = 0.0f64;
+    for a in 0..n {
+        for b in 0..n {
+            d2 += nu[a] as f64 * si[a][b] as f64 * nu[b] as f64;
+        }
+    }
+    let mut nx: [f64; N] = core::array::from_fn(|i| x[i] as f64);
+    let mut np = p64;
+    for i in 0..N {
+        let k: [f64; 3] = core::array::from_fn(|a| {
+            (0..n).map(|b| pht[i][b] * si[b][a] as f64).sum::<f64>()
+        });
+        nx[i] += (0..n).map(|a| k[a] * nu[a] as f64).sum::<f64>();
+        for j in 0..N {
+            np[i][j] -= (0..n).map(|a| k[a] * pht[j][a]).sum::<f64>();
+        }
+    }
+    (nx, np, d2)
+}
+
+/// The sequential scalar updates of `update` equal the batch update (an
+/// equivalence between two methods): on random states, covariances and
+/// measurements with and without heading, the state, covariance and
+/// Mahalanobis distance agree within f32 rounding of the sums involved.
+#[test]
+fn sequential_update_equals_batch() {
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut uni = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    let mut e = est();
+    for case in 0..2000 {
+        // P = A Aᵀ + δ I: symmetric positive definite, entries up to ~1.
+        let a: [[f64; N]; N] = core::array::from_fn(|_| core::array::from_fn(|_| 0.5 * uni()));
+        let p: Mat = core::array::from_fn(|i| {
+            core::array::from_fn(|j| {
+                ((0..N).map(|k| a[i][k] * a[j][k]).sum::<f64>() + if i == j { 1e-3 } else { 0.0 })
+                    as f32
+            })
+        });
+        let x: [f32; N] = [
+            uni() as f32 * 5.0,
+            uni() as f32 * 5.0,
+            uni() as f32 * 3.0,
+            uni() as f32 * 0.01,
+            1.0 + uni() as f32 * 0.1,
+        ];
+        let heading = case % 2 == 0;
+        let m = PoseMeasurement {
+            stamp_us: 0,
+            pose: Pose::new(
+                x[0] + uni() as f32 * 0.3,
+                x[1] + uni() as f32 * 0.3,
+                x[2] + uni() as f32 * 0.3,
+            ),
+            position_std_m: 0.01 + 0.2 * uni().abs() as f32,
+            heading_std_rad: heading.then_some(0.01 + 0.2 * uni().abs() as f32),
+        };
+        let (s, c) = sin_cos(x[2]);
+        let h = [
+            [1.0, 0.0, -D * s, 0.0, 0.0],
+            [0.0, 1.0, D * c, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0, 0.0],
+        ];
+        let nu = [
+            m.pose.x_m - (x[0] + D * c),
+            m.pose.y_m - (x[1] + D * s),
+            if heading {
+                wrap_angle(m.pose.theta_rad - x[2])
+            } else {
+                0.0
+            },
+        ];
+        let rp = m.position_std_m * m.position_std_m;
+        let r = [rp, rp, m.heading_std_rad.map_or(1.0, |v| v * v)];
+        let n = if heading { 3 } else { 2 };
+        let (bx, bp, bd2) = batch_update(&x, &p, &h, &nu, &r, n);
+
+        let (mut sx, mut sp) = (x, p);
+        e.update(&mut sx, &mut sp, &m, false).unwrap();
+        let sd2 = e.status.last_mahalanobis_sq as f64;
+        assert!(
+            (sd2 - bd2).abs() <= 1e-4 * bd2.max(1.0),
+            "case {case}: d² {sd2} vs {bd2}"
+        );
+        // `update` wraps x[2] and clamps x[4] to its range afterwards.
+        for i in 0..N {
+            let want = match i {
+                2 => wrap_angle(bx[i] as f32) as f64,
+                4 => bx[i].clamp(SPEED_SCALE_RANGE.0 as f64, SPEED_SCALE_RANGE.1 as f64),
+                _ => bx[i],
+            };
+            assert!(
+                (sx[i] as f64 - want).abs() <= 1e-4 * (1.0 + want.abs()),
+                "case {case}: x[{i}] {} vs {want}",
+                sx[i]
+            );
+            for j in 0..N {
+                let want = bp[i][j].max(if i == j { MIN_VAR as f64 } else { f64::MIN });
+                assert!(
+                    (sp[i][j] as f64 - want).abs() <= 1e-4,
+                    "case {case}: P[{i}][{j}] {} vs {want}",
+                    sp[i][j]
+                );
+            }
+        }
+    }
+}
