@@ -2,9 +2,11 @@
 //! own embassy task, published to the control task through a cell.
 //!
 //! The control tick never touches the bus: [`imu_task`] probes the chip
-//! (WHO_AM_I), configures it through the `mpu6050-dmp` crate (async,
-//! embedded-hal-async 1.0) and then reads the three gyro axes every
-//! millisecond with DMA, converts the yaw axis to rad/s ([`yaw_rate_radps`])
+//! (WHO_AM_I), resets and configures it (a register-level driver of about
+//! 60 lines over embassy's async I2C with DMA: the `mpu6050-dmp` crate
+//! costs 6.3 KB more flash, see firmware/README.md "IMU") and then reads
+//! the three gyro axes every millisecond, converts the yaw axis to rad/s
+//! ([`yaw_rate_radps`])
 //! and stores the newest [`GyroSample`] in [`LATEST`]. The board's
 //! [`ImuGyro`] hands that sample to the estimator once per tick: `None`
 //! until the first sample (the estimator then runs on the wheels' yaw rate,
@@ -37,12 +39,7 @@ use embassy_stm32::i2c::{self, I2c};
 use embassy_stm32::mode::Async;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
-use embassy_time::{with_timeout, Delay, Duration, Instant, Ticker, Timer};
-use mpu6050_dmp::address::Address;
-use mpu6050_dmp::clock_source::ClockSource;
-use mpu6050_dmp::config::DigitalLowPassFilter;
-use mpu6050_dmp::gyro::GyroFullScale;
-use mpu6050_dmp::sensor_async::Mpu6050;
+use embassy_time::{with_timeout, Duration, Instant, Ticker, Timer};
 
 use crate::board::{ImuPeripherals, IMU_I2C_ADDRESS, IMU_I2C_HZ};
 use crate::config::{IMU_DLPF, IMU_RANGE, IMU_YAW};
@@ -78,9 +75,7 @@ pub const READ_FAILURES_LOST: u32 = 20;
 /// Pause between reconfiguration attempts after a run-time loss \[ms\].
 pub const RETRY_MS: u64 = 1_000;
 
-/// MPU-6050 register addresses this driver reads itself (the crate does
-/// the writes).
-const REG_CONFIG: u8 = 0x1A;
+/// WHO_AM_I (register 117).
 const REG_WHO_AM_I: u8 = 0x75;
 
 /// A sensor axis.
@@ -161,15 +156,6 @@ impl GyroRange {
             Self::Dps500 => 1,
             Self::Dps1000 => 2,
             Self::Dps2000 => 3,
-        }
-    }
-
-    const fn crate_scale(self) -> GyroFullScale {
-        match self {
-            Self::Dps250 => GyroFullScale::Deg250,
-            Self::Dps500 => GyroFullScale::Deg500,
-            Self::Dps1000 => GyroFullScale::Deg1000,
-            Self::Dps2000 => GyroFullScale::Deg2000,
         }
     }
 }
@@ -261,27 +247,51 @@ fn fault(e: i2c::Error) -> ImuFault {
     }
 }
 
-/// The crate's errors carry the bus error; the rest is a NACK-less
-/// "wrong device", which it never returns for the calls used here.
-fn crate_fault(e: mpu6050_dmp::error_async::Error<Bus>) -> ImuFault {
-    use mpu6050_dmp::error_async::Error;
-    match e {
-        Error::WriteError(e) | Error::WriteReadError(e) => fault(e),
-        Error::WrongDevice => ImuFault::UnknownChip(0),
+type Bus = I2c<'static, Async, i2c::Master>;
+
+/// MPU-6050 registers (register map rev 4.2).
+const REG_SMPLRT_DIV: u8 = 0x19;
+const REG_GYRO_XOUT_H: u8 = 0x43;
+const REG_PWR_MGMT_1: u8 = 0x6B;
+/// PWR_MGMT_1: DEVICE_RESET.
+const PWR_RESET: u8 = 0x80;
+/// PWR_MGMT_1: awake (SLEEP = 0), clock = PLL with the X gyro reference
+/// (CLKSEL = 1, recommended over the internal 8 MHz oscillator).
+const PWR_AWAKE_PLL_X: u8 = 0x01;
+/// Wait after DEVICE_RESET \[ms\] (the register map gives no figure; the
+/// reference driver and the `mpu6050-dmp` crate wait 100-200 ms).
+const RESET_WAIT_MS: u64 = 100;
+
+/// The configuration writes after the reset and wake-up, in order:
+/// SMPLRT_DIV = 0 (1 kHz with the DLPF on), CONFIG = DLPF_CFG (FSYNC off),
+/// GYRO_CONFIG = FS_SEL (self-test off). 0x19-0x1B are consecutive and
+/// written in one burst; read back in one burst too.
+const CONFIG_BURST: [u8; 4] = [REG_SMPLRT_DIV, 0, IMU_DLPF, IMU_RANGE.fs_sel() << 3];
+
+/// One write-read with the bus timeout.
+async fn read(bus: &mut Bus, reg: u8, buf: &mut [u8]) -> Result<(), ImuFault> {
+    match with_timeout(
+        Duration::from_millis(BUS_TIMEOUT_MS),
+        bus.write_read(IMU_I2C_ADDRESS, &[reg], buf),
+    )
+    .await
+    {
+        Ok(r) => r.map_err(fault),
+        Err(_) => Err(ImuFault::Timeout),
     }
 }
 
-type Bus = I2c<'static, Async, i2c::Master>;
-type Driver = Mpu6050<Bus>;
-
-/// One bus step with the bus timeout; a timeout counts as a fault.
-async fn timed<T, F>(f: F) -> Result<T, ImuFault>
-where
-    F: core::future::Future<Output = Result<T, ImuFault>>,
-{
-    with_timeout(Duration::from_millis(BUS_TIMEOUT_MS), f)
-        .await
-        .unwrap_or(Err(ImuFault::Timeout))
+/// One write with the bus timeout (`bytes[0]` is the first register).
+async fn write(bus: &mut Bus, bytes: &[u8]) -> Result<(), ImuFault> {
+    match with_timeout(
+        Duration::from_millis(BUS_TIMEOUT_MS),
+        bus.write(IMU_I2C_ADDRESS, bytes),
+    )
+    .await
+    {
+        Ok(r) => r.map_err(fault),
+        Err(_) => Err(ImuFault::Timeout),
+    }
 }
 
 /// Opens I2C1 and spawns the IMU task.
@@ -306,78 +316,28 @@ pub fn start(spawner: &Spawner, p: ImuPeripherals) {
     spawner.spawn(unwrap!(imu_task(bus).ok()));
 }
 
-/// Probes and configures the chip; gives the bus back with the reason on
-/// failure.
-async fn bring_up(mut bus: Bus) -> Result<(Driver, ImuChip), (Bus, ImuFault)> {
+/// Probes the chip (WHO_AM_I), resets, wakes and configures it, and reads
+/// the configuration back.
+async fn bring_up(bus: &mut Bus) -> Result<ImuChip, ImuFault> {
     let mut who = [0u8];
-    let probe = timed(async {
-        bus.write_read(IMU_I2C_ADDRESS, &[REG_WHO_AM_I], &mut who)
-            .await
-            .map_err(fault)
-    })
-    .await
-    .and_then(|()| identify(who[0]));
-    let chip = match probe {
-        Ok(c) => c,
-        Err(e) => return Err((bus, e)),
-    };
-    let mut mpu = match Mpu6050::new(bus, Address(IMU_I2C_ADDRESS)).await {
-        Ok(m) => m,
-        Err(e) => return Err((e.i2c, crate_fault(e.error))),
-    };
-    let configured = async {
-        // Device reset (the crate then waits 200 ms), awake, gyro-X PLL
-        // clock, 1 kHz output (SMPLRT_DIV = 0 with the DLPF
-        // on), low-pass filter, full scale. The crate ORs the fields
-        // into the register: after the reset they are 0.
-        mpu.reset(&mut Delay).await?;
-        mpu.disable_sleep().await?;
-        mpu.set_clock_source(ClockSource::Xgyro).await?;
-        mpu.set_sample_rate_divider(0).await?;
-        mpu.set_digital_lowpass_filter(dlpf_filter(IMU_DLPF))
-            .await?;
-        mpu.set_gyro_full_scale(IMU_RANGE.crate_scale()).await
+    read(bus, REG_WHO_AM_I, &mut who).await?;
+    let chip = identify(who[0])?;
+    write(bus, &[REG_PWR_MGMT_1, PWR_RESET]).await?;
+    Timer::after_millis(RESET_WAIT_MS).await;
+    write(bus, &[REG_PWR_MGMT_1, PWR_AWAKE_PLL_X]).await?;
+    write(bus, &CONFIG_BURST).await?;
+    let mut back = [0u8; 3];
+    read(bus, REG_SMPLRT_DIV, &mut back).await?;
+    if back[0] != 0 || !check_config(back[1], back[2], IMU_DLPF, IMU_RANGE) {
+        return Err(ImuFault::ConfigMismatch(back[1], back[2]));
     }
-    .await;
-    let mut bus = mpu.release();
-    if let Err(e) = configured {
-        return Err((bus, crate_fault(e)));
-    }
-    // Read back CONFIG and GYRO_CONFIG (consecutive registers).
-    let mut regs = [0u8; 2];
-    let readback = timed(async {
-        bus.write_read(IMU_I2C_ADDRESS, &[REG_CONFIG], &mut regs)
-            .await
-            .map_err(fault)
-    })
-    .await;
-    if let Err(e) = readback {
-        return Err((bus, e));
-    }
-    if !check_config(regs[0], regs[1], IMU_DLPF, IMU_RANGE) {
-        return Err((bus, ImuFault::ConfigMismatch(regs[0], regs[1])));
-    }
-    match Mpu6050::new(bus, Address(IMU_I2C_ADDRESS)).await {
-        Ok(m) => Ok((m, chip)),
-        Err(e) => Err((e.i2c, crate_fault(e.error))),
-    }
-}
-
-fn dlpf_filter(dlpf: u8) -> DigitalLowPassFilter {
-    match dlpf {
-        1 => DigitalLowPassFilter::Filter1,
-        2 => DigitalLowPassFilter::Filter2,
-        3 => DigitalLowPassFilter::Filter3,
-        4 => DigitalLowPassFilter::Filter4,
-        5 => DigitalLowPassFilter::Filter5,
-        _ => DigitalLowPassFilter::Filter6,
-    }
+    Ok(chip)
 }
 
 /// Reads the gyro every [`SAMPLE_PERIOD_US`] and publishes the yaw rate
-/// until [`READ_FAILURES_LOST`] reads in a row fail; returns the bus and
-/// the last failure.
-async fn stream(mut mpu: Driver) -> (Bus, ImuFault) {
+/// until [`READ_FAILURES_LOST`] reads in a row fail; returns the last
+/// failure.
+async fn stream(bus: &mut Bus) -> ImuFault {
     let mut ticker = Ticker::every(Duration::from_micros(SAMPLE_PERIOD_US));
     let mut failures = 0u32;
     loop {
@@ -385,9 +345,16 @@ async fn stream(mut mpu: Driver) -> (Bus, ImuFault) {
         // Stamped when the read starts: the registers hold the newest
         // filtered sample (at most 1 ms old, plus the filter's delay).
         let stamp_us = Instant::now().as_micros() as u32;
-        match timed(async { mpu.gyro().await.map_err(crate_fault) }).await {
-            Ok(g) => {
-                let rate_radps = yaw_rate_radps([g.x(), g.y(), g.z()], IMU_YAW, IMU_RANGE);
+        let mut b = [0u8; 6];
+        match read(bus, REG_GYRO_XOUT_H, &mut b).await {
+            Ok(()) => {
+                // Big-endian x, y, z.
+                let raw = [
+                    i16::from_be_bytes([b[0], b[1]]),
+                    i16::from_be_bytes([b[2], b[3]]),
+                    i16::from_be_bytes([b[4], b[5]]),
+                ];
+                let rate_radps = yaw_rate_radps(raw, IMU_YAW, IMU_RANGE);
                 LATEST.lock(|c| {
                     c.set(Some(GyroSample {
                         rate_radps,
@@ -396,7 +363,7 @@ async fn stream(mut mpu: Driver) -> (Bus, ImuFault) {
                 });
                 if failures > 0 {
                     warn!(
-                        "gyro: read failed {=u32} times in a row, reading again",
+                        "gyro: {=u32} failed reads in a row, reading again",
                         failures
                     );
                 }
@@ -405,7 +372,7 @@ async fn stream(mut mpu: Driver) -> (Bus, ImuFault) {
             Err(e) => {
                 failures += 1;
                 if failures >= READ_FAILURES_LOST {
-                    return (mpu.release(), e);
+                    return e;
                 }
             }
         }
@@ -413,14 +380,13 @@ async fn stream(mut mpu: Driver) -> (Bus, ImuFault) {
 }
 
 /// The IMU task: bring-up, then samples; on a boot failure it logs why and
-/// ends (odometry), on a run-time loss it logs it and retries.
+/// ends (odometry), on a run-time loss it logs it and reconfigures.
 #[embassy_executor::task]
-async fn imu_task(bus: Bus) {
-    let mut bus = bus;
+async fn imu_task(mut bus: Bus) {
     let mut booted = false;
     loop {
-        match bring_up(bus).await {
-            Ok((mpu, chip)) => {
+        match bring_up(&mut bus).await {
+            Ok(chip) => {
                 info!(
                     "gyro: {=str} at I2C1 0x{=u8:x}: +-{=u16} deg/s, DLPF_CFG {=u8}, {=u64} us sampling; yaw = {}",
                     chip.name(),
@@ -431,23 +397,20 @@ async fn imu_task(bus: Bus) {
                     IMU_YAW
                 );
                 booted = true;
-                let (b, e) = stream(mpu).await;
+                let e = stream(&mut bus).await;
                 error!(
                     "gyro lost ({} after {=u32} failed reads): heading from the wheels; reconfiguring every {=u64} ms",
                     e, READ_FAILURES_LOST, RETRY_MS
                 );
-                bus = b;
             }
-            Err((b, e)) => {
-                if !booted {
-                    error!(
-                        "gyro: no IMU ({}) at I2C1 0x{=u8:x}: running on odometry (wheel yaw rate)",
-                        e, IMU_I2C_ADDRESS
-                    );
-                    return;
-                }
-                bus = b;
+            Err(e) if !booted => {
+                error!(
+                    "gyro: no IMU ({}) at I2C1 0x{=u8:x}: running on odometry (wheel yaw rate)",
+                    e, IMU_I2C_ADDRESS
+                );
+                return;
             }
+            Err(_) => {}
         }
         Timer::after_millis(RETRY_MS).await;
     }
