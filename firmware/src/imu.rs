@@ -21,8 +21,9 @@
 //! * at run time, [`READ_FAILURES_LOST`] failed reads in a row are logged
 //!   as a lost gyro; the samples stop (stale after 20 ms: wheel yaw rate),
 //!   and the task re-probes and reconfigures the chip every
-//!   [`RETRY_MS`] (a chip that browned out comes back asleep with its
-//!   reset configuration, so it is never read again without reconfiguring).
+//!   [`RETRY_MS`] (a chip that lost power comes back asleep with its reset
+//!   configuration, so after a loss it is reconfigured before it is read
+//!   again; a power glitch shorter than those 20 reads goes unnoticed).
 //!
 //! The pure part (raw counts to rad/s, axis and sign mapping, the WHO_AM_I
 //! decision) is `const fn`, and the `const` assertions at the end of this
