@@ -13,8 +13,10 @@
 //! | left motor DIR | PB13 | GPIO out (high = reverse) |
 //! | driver ENABLE (both) | PB14 | GPIO out (high = enabled, low at boot) |
 //! | arm button | PA0 (F411 "KEY") / PC13 (Nucleo B1) | GPIO in, pull-up, active low |
+//! | IMU SCL / SDA (`imu` feature) | PB8 / PB9 | I2C1 (AF4), 400 kHz, DMA1 stream 6 (TX) / 0 (RX) |
 //!
-//! TIM5 is embassy's time driver; TIM2 is free.
+//! TIM5 is embassy's time driver; TIM2 is free. The host link takes PA11/PA12
+//! (USB, F411) or PA2/PA3 (USART2, F446).
 //!
 //! Motor outputs are never left floating by the firmware: [`outputs_low_early`]
 //! drives them low before the clocks start, the PWM channels stay enabled
@@ -24,7 +26,7 @@
 //! and the first instruction only the external pull-downs hold them (see
 //! the README's pin-state table).
 
-use controller_core::runtime::{DutyCommand, Encoder, MotorDriver, NoGyro, WheelOdometryOnly};
+use controller_core::runtime::{DutyCommand, Encoder, MotorDriver, WheelOdometryOnly};
 use embassy_stm32::gpio::{Input, Level, Output, OutputType, Pull, Speed};
 use embassy_stm32::pac::timer::vals::{FilterValue, Ossi};
 use embassy_stm32::peripherals::{IWDG, TIM1, TIM3, TIM4};
@@ -34,6 +36,52 @@ use embassy_stm32::timer::qei::{self, Qei};
 use embassy_stm32::timer::simple_pwm::{PwmPin, PwmPinConfig, SimplePwm, SimplePwmChannel};
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{pac, rcc, Config};
+
+/// The gyro the control tick samples: the IMU task's newest sample with
+/// the `imu` feature, none without.
+#[cfg(feature = "imu")]
+pub type BoardGyro = crate::imu::ImuGyro;
+/// The gyro the control tick samples: the IMU task's newest sample with
+/// the `imu` feature, none without.
+#[cfg(not(feature = "imu"))]
+pub type BoardGyro = controller_core::runtime::NoGyro;
+
+/// The IMU's 7-bit I2C address: 0x68 (MPU-6050 AD0 low, as on GY-521
+/// modules; 0x69 with AD0 high).
+#[cfg(feature = "imu")]
+pub const IMU_I2C_ADDRESS: u8 = 0x68;
+/// I2C1 clock for the IMU \[Hz\]: fast mode (a gyro read is about 0.25 ms).
+#[cfg(feature = "imu")]
+pub const IMU_I2C_HZ: u32 = 400_000;
+
+/// The IMU's bus: I2C1 on PB8 (SCL) / PB9 (SDA), AF4 on both chips, with
+/// DMA1 stream 6 channel 1 (I2C1_TX) and stream 0 channel 1 (I2C1_RX)
+/// (RM0383 table 27 / RM0390 table 28). None of these is used elsewhere:
+/// PB6/PB7 (also I2C1) are TIM4's encoder inputs, hence the PB8/PB9 pair.
+#[cfg(feature = "imu")]
+pub struct ImuPeripherals {
+    /// I2C1.
+    pub i2c: embassy_stm32::Peri<'static, embassy_stm32::peripherals::I2C1>,
+    /// SCL.
+    pub scl: embassy_stm32::Peri<'static, embassy_stm32::peripherals::PB8>,
+    /// SDA.
+    pub sda: embassy_stm32::Peri<'static, embassy_stm32::peripherals::PB9>,
+    /// TX DMA (DMA1 stream 6).
+    pub tx_dma: embassy_stm32::Peri<'static, embassy_stm32::peripherals::DMA1_CH6>,
+    /// RX DMA (DMA1 stream 0).
+    pub rx_dma: embassy_stm32::Peri<'static, embassy_stm32::peripherals::DMA1_CH0>,
+}
+
+#[cfg(feature = "imu")]
+embassy_stm32::bind_interrupts!(
+    /// The IMU bus's interrupts (I2C1 events and errors, its two DMA streams).
+    pub struct ImuIrqs {
+        I2C1_EV => embassy_stm32::i2c::EventInterruptHandler<embassy_stm32::peripherals::I2C1>;
+        I2C1_ER => embassy_stm32::i2c::ErrorInterruptHandler<embassy_stm32::peripherals::I2C1>;
+        DMA1_STREAM6 => embassy_stm32::dma::InterruptHandler<embassy_stm32::peripherals::DMA1_CH6>;
+        DMA1_STREAM0 => embassy_stm32::dma::InterruptHandler<embassy_stm32::peripherals::DMA1_CH0>;
+    }
+);
 
 #[cfg(all(feature = "stm32f411ce", feature = "stm32f446re"))]
 compile_error!("select exactly one chip feature: stm32f411ce or stm32f446re");
@@ -287,8 +335,13 @@ pub struct Board {
     pub watchdog: IndependentWatchdog<'static, IWDG>,
     /// The host link's port (USB OTG_FS on the F411, USART2 on the F446).
     pub link: Option<crate::link::LinkPeripherals>,
-    /// No IMU yet: the estimator predicts with the wheels' yaw rate.
-    pub gyro: NoGyro,
+    /// The z-gyro ([`BoardGyro`]): with the `imu` feature the IMU task's
+    /// newest sample (none until the IMU answered); without it none, and
+    /// the estimator predicts with the wheels' yaw rate.
+    pub gyro: BoardGyro,
+    /// The IMU's bus and pins, taken by `main` to start the IMU task.
+    #[cfg(feature = "imu")]
+    pub imu: Option<ImuPeripherals>,
     /// External poses come over the host link only.
     pub pose_source: WheelOdometryOnly,
 }
@@ -438,7 +491,15 @@ pub fn init() -> Board {
         button,
         watchdog,
         link,
-        gyro: NoGyro,
+        gyro: BoardGyro::default(),
+        #[cfg(feature = "imu")]
+        imu: Some(ImuPeripherals {
+            i2c: p.I2C1,
+            scl: p.PB8,
+            sda: p.PB9,
+            tx_dma: p.DMA1_CH6,
+            rx_dma: p.DMA1_CH0,
+        }),
         pose_source: WheelOdometryOnly,
     }
 }
@@ -482,12 +543,12 @@ pub fn motors_off_raw() {
 impl robot_app::Board for Board {
     type Encoders = Encoders;
     type Motors = HBridge;
-    type Gyro = NoGyro;
+    type Gyro = BoardGyro;
     type PoseSource = WheelOdometryOnly;
     /// The status and trk/est lines only with `rtt-telemetry` (flash).
     const LOGS_STATUS: bool = cfg!(feature = "rtt-telemetry");
 
-    fn io(&mut self) -> robot_app::BoardIo<'_, Encoders, HBridge, NoGyro, WheelOdometryOnly> {
+    fn io(&mut self) -> robot_app::BoardIo<'_, Encoders, HBridge, BoardGyro, WheelOdometryOnly> {
         robot_app::BoardIo {
             encoders: &mut self.encoders,
             motors: &mut self.motors,

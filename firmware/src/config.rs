@@ -140,7 +140,50 @@ pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {
 /// The pose estimator's tuning: controller-core's example (a MEMS gyro,
 /// external poses from the host link), starting at [`INITIAL_POSE`] with
 /// the robot's centre-of-mass offset.
+#[cfg(not(feature = "imu"))]
 pub const ESTIMATOR: EstimatorConfig = EstimatorConfig::example(ROBOT.com_offset_m, INITIAL_POSE);
+/// The pose estimator's tuning: controller-core's example (a MEMS gyro,
+/// external poses from the host link), starting at [`INITIAL_POSE`] with
+/// the robot's centre-of-mass offset, and the IMU's saturation: a reading
+/// within 2 % of the configured full scale ([`IMU_RANGE`]) counts as
+/// saturated (the chip clips there), so the estimator uses the wheels' yaw
+/// rate for it. ±500 °/s: 0.98 × 8.73 = 8.56 rad/s.
+#[cfg(feature = "imu")]
+pub const ESTIMATOR: EstimatorConfig = EstimatorConfig {
+    gyro_saturation_radps: 0.98 * IMU_RANGE.limit_radps(),
+    ..EstimatorConfig::example(ROBOT.com_offset_m, INITIAL_POSE)
+};
+
+/// How the IMU is mounted (`imu` feature): which sensor axis is the
+/// robot's vertical axis (up) and whether it points down. Default: the
+/// module flat, components up (sensor z up): a counter-clockwise turn seen
+/// from above reads positive, the controller's θ convention. Mounted upside
+/// down: `inverted: true`; mounted on its edge: the axis that is vertical.
+/// Check it by turning the robot by hand: `wmr status` / the `est` line
+/// must show the gyro's yaw rate with the sign of the wheels' one.
+#[cfg(feature = "imu")]
+pub const IMU_YAW: crate::imu::YawMapping = crate::imu::YawMapping {
+    axis: crate::imu::Axis::Z,
+    inverted: false,
+};
+
+/// Gyro full scale (`imu` feature): ±500 °/s = ±8.73 rad/s. A wheeled
+/// robot turns far slower while tracking (the button's circle: 0.4 rad/s);
+/// only a spin in place at full motor speed exceeds it (the example motors,
+/// 40 rad/s no-load × 0.1 m wheels on a 0.2 m half track: at most
+/// 4 / 0.2 = 20 rad/s), and such a reading counts as saturated, so the
+/// estimator uses the wheels meanwhile. One count is 2.7e-4 rad/s.
+#[cfg(feature = "imu")]
+pub const IMU_RANGE: crate::imu::GyroRange = crate::imu::GyroRange::Dps500;
+
+/// Gyro low-pass filter (`imu` feature), the MPU-6050's DLPF_CFG:
+/// 2 = 98 Hz bandwidth, 2.8 ms delay, 1 kHz output rate (MPU-6050 register
+/// map rev 4.2, register 26). Far above the robot's yaw dynamics (a few Hz)
+/// and below the 500 Hz Nyquist rate of the 1 kHz sampling; motor and gear
+/// vibration above 100 Hz is attenuated. 3 (42 Hz, 4.8 ms) for a robot
+/// that vibrates more.
+#[cfg(feature = "imu")]
+pub const IMU_DLPF: u8 = 2;
 
 /// What the arm button drives when the host has loaded nothing: a circle of
 /// 0.5 m radius at 0.2 m/s starting where odometry starts (the origin,

@@ -13,6 +13,8 @@
 
 mod board;
 mod config;
+#[cfg(feature = "imu")]
+mod imu;
 mod link;
 mod log;
 
@@ -62,6 +64,13 @@ async fn main(spawner: Spawner) {
         },
         _ => never_armed(),
     };
+    // The IMU in its own task: it probes and configures the chip while the
+    // control task starts, and never holds it up (board::BoardGyro reads
+    // its newest sample; none until the chip answers).
+    #[cfg(feature = "imu")]
+    if let Some(p) = board.imu.take() {
+        imu::start(&spawner, p);
+    }
     match board.link.take() {
         Some(p) => {
             link::start(&spawner, p);
@@ -128,7 +137,13 @@ fn banner(board: &board::Board, full_scale: u16, cfg: &controller_core::runtime:
     }
     #[cfg(not(feature = "rtt-telemetry"))]
     let _ = cfg;
-    info!("gyro: none (the IMU driver is a later step): heading from the wheels");
+    #[cfg(feature = "imu")]
+    info!(
+        "gyro: MPU-6050 on I2C1 (PB8 SCL, PB9 SDA) at 0x{=u8:x}: probing (heading from the wheels until it answers)",
+        board::IMU_I2C_ADDRESS
+    );
+    #[cfg(not(feature = "imu"))]
+    info!("gyro: none (built without the `imu` feature): heading from the wheels");
     info!(
         "pose source: external poses from the host link (wmr pose-feed), used up to {=usize} ms late; without them wheel odometry only, blind to slip and actuator faults",
         controller_core::estimator::PoseEstimator::<{ config::POSE_HISTORY_TICKS }>::GUARANTEED_DEPTH_TICKS
