@@ -411,7 +411,7 @@ impl<const H: usize> ControlLoop<H> {
                 });
                 (CountSample::default(), stop)
             }
-            None => (self.counts.update(raw, timing.elapsed_s()), None),
+            None => (self.counts.apply(raw, delta, timing.elapsed_s()), None),
         }
     }
 
