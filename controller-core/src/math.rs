@@ -544,11 +544,7 @@ mod tests {
             for &b in &vals {
                 for &c in &vals {
                     let xs = [a, b, c];
-                    assert_eq!(
-                        all_finite(xs),
-                        xs.iter().all(|x| x.is_finite()),
-                        "{xs:?}"
-                    );
+                    assert_eq!(all_finite(xs), xs.iter().all(|x| x.is_finite()), "{xs:?}");
                 }
             }
         }
