@@ -419,7 +419,7 @@ impl<const H: usize> ControlLoop<H> {
     /// and the gyro, then takes up to [`MAX_POSES_PER_TICK`] measurements
     /// from the pose source (late ones are re-propagated to now, at most
     /// [`MAX_REPROPAGATION_PER_TICK`] ticks of history per tick). No plain
-    /// odometry runs beside it (D-T1: without a gyro and external poses the
+    /// odometry runs beside it (D31: without a gyro and external poses the
     /// estimate is wheel odometry). Returns the fused pose of G and whether a
     /// measurement was accepted. The controller's η stays the wheel-derived
     /// one (D26).
