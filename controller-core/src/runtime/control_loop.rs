@@ -297,17 +297,18 @@ impl<const H: usize> ControlLoop<H> {
         let (pose, external_pose) = self.measure_pose(sample.dphi_rad, gyro, pose_source, &timing);
         // 4. Reference and controller, 5. torque -> duty.
         let t_s = self.status.run_ticks as f32 * self.cfg.controller.period_s;
-        let reference = self.pacer.reference(&self.pace, reference, t_s);
+        // The step's input built in place (the reference sampled into it).
+        let input = StepInput {
+            reference: self.pacer.reference(&self.pace, reference, t_s),
+            pose,
+            eta,
+        };
         let mut torque = [0.0f32; 2];
         let mut duty = [DutyCommand::ZERO; 2];
         let mut enabled = false;
         // The step's output is written in place (no copy of its diagnostics).
         let out = if self.running() && stop.is_none() {
-            Some(self.controller.step(&StepInput {
-                reference,
-                pose,
-                eta,
-            }))
+            Some(self.controller.step(&input))
         } else {
             None
         };
@@ -359,7 +360,7 @@ impl<const H: usize> ControlLoop<H> {
             gyro: self.estimator.status().gyro,
             counts: sample,
             eta,
-            reference,
+            reference: input.reference,
             torque_nm: torque,
             duty,
             motors_enabled: enabled,
