@@ -118,6 +118,7 @@ impl EsoParams {
     }
 
     /// [`Self::update`] with the fal slope ζ^(α−1) given.
+    #[inline(always)]
     pub fn update_with_slope(
         &self,
         st: &mut EsoState,

@@ -79,6 +79,7 @@ impl FaultObserverGains {
     /// One observer step over `dt_s`, from the previous error to `te`, with the
     /// measured wheel-derived η held over the step and the reference v_s, ω_s.
     /// Returns the new F̂.
+    #[inline(always)]
     pub fn update(
         &self,
         st: &mut FaultObserverState,

@@ -763,7 +763,7 @@ impl<const H: usize> Device<H> {
             return Err(ErrorCode::NoReference);
         }
         self.control.arm().map_err(|_| ErrorCode::Latched)?;
-        self.vehicle = VirtualVehicle::at_rest(self.control.odometry());
+        self.vehicle = VirtualVehicle::at_rest(self.control.estimator().estimate().pose);
         self.host_armed = host;
         self.last_rx_us = self.now_us;
         self.braking = None;

@@ -7,7 +7,6 @@ use super::error::RuntimeConfigError;
 use super::hardware::Wheel;
 use super::hardware::{Gyro, MotorDriver, PoseSource, WheelEncoders, MAX_POSES_PER_TICK};
 use super::motor::{DutyCommand, MotorModel};
-use super::odometry::Odometry;
 use super::state::{ArmError, ReconfigureError, RunState, Status, StopReason, TickReport};
 use super::timing::TickTiming;
 use crate::controller::{Controller, ControllerConfig, Diagnostics, StepInput};
@@ -34,7 +33,6 @@ pub struct ControlLoop<const H: usize = HISTORY_LEN> {
     controller: Controller,
     motor: MotorModel,
     counts: WheelCounts,
-    odometry: Odometry,
     estimator: PoseEstimator<H>,
     status: Status,
     stall_ticks: [u16; 2],
@@ -68,7 +66,6 @@ impl<const H: usize> ControlLoop<H> {
         let motor = MotorModel::new(cfg.motor)?;
         let counts = WheelCounts::new(cfg.encoder)?;
         cfg.safety.validate()?;
-        let odometry = Odometry::new(cfg.controller.robot, cfg.initial_pose);
         let pacer = Pacer::new(cfg.pacing, &cfg.controller)?;
         let estimator = PoseEstimator::with_history(estimator)?;
         Ok(Self {
@@ -78,7 +75,6 @@ impl<const H: usize> ControlLoop<H> {
             controller,
             motor,
             counts,
-            odometry,
             estimator,
             status: Status {
                 state: RunState::Disarmed,
@@ -125,21 +121,9 @@ impl<const H: usize> ControlLoop<H> {
         self.status.state
     }
 
-    /// Current plain wheel-odometry pose of G (never corrected).
-    pub fn odometry(&self) -> Pose {
-        self.odometry.pose()
-    }
-
-    /// Re-anchors the plain wheel odometry at `pose` (ignored when not
-    /// finite); the estimate is not affected.
-    pub fn set_odometry(&mut self, pose: Pose) {
-        self.odometry.set_pose(pose);
-    }
-
     /// Re-anchors the pose: the estimator restarts at `pose` with its
     /// configured initial uncertainty (history and gyro bias estimate
-    /// dropped), and the plain odometry restarts there too. Refused while
-    /// running or for a non-finite pose.
+    /// dropped). Refused while running or for a non-finite pose.
     pub fn set_pose(&mut self, pose: Pose) -> Result<(), ReconfigureError> {
         if self.running() {
             return Err(ReconfigureError::Running);
@@ -150,7 +134,6 @@ impl<const H: usize> ControlLoop<H> {
         };
         self.estimator =
             PoseEstimator::with_history(cfg).map_err(|e| ReconfigureError::Invalid(e.into()))?;
-        self.odometry.set_pose(pose);
         Ok(())
     }
 
@@ -314,35 +297,50 @@ impl<const H: usize> ControlLoop<H> {
         let (pose, external_pose) = self.measure_pose(sample.dphi_rad, gyro, pose_source, &timing);
         // 4. Reference and controller, 5. torque -> duty.
         let t_s = self.status.run_ticks as f32 * self.cfg.controller.period_s;
-        let reference = self.pacer.reference(&self.pace, reference, t_s);
-        let mut diag = Diagnostics::default();
+        // The step's input built in place (the reference sampled into it).
+        let input = StepInput {
+            reference: self.pacer.reference(&self.pace, reference, t_s),
+            pose,
+            eta,
+        };
         let mut torque = [0.0f32; 2];
         let mut duty = [DutyCommand::ZERO; 2];
         let mut enabled = false;
-        let mut pace = self.pacer.status(&self.pace);
-        if self.running() && stop.is_none() {
-            let out = self.controller.step(&StepInput {
-                reference,
-                pose,
-                eta,
-            });
-            diag = out.diag;
-            stop = self.supervise_step(&diag).or(self.check_stall(&sample));
-            // Governor and health (crate::pacer): a hard fault stops.
-            pace = self
-                .pacer
-                .update(&mut self.pace, &diag, eta, SensingHealth::Ok);
-            if pace.mode == HealthMode::SafeStop {
-                stop = stop.or(Some(StopReason::Health(pace.reason)));
-            }
+        // The step's output is written in place (no copy of its diagnostics).
+        let out = if self.running() && stop.is_none() {
+            Some(self.controller.step(&input))
+        } else {
+            None
+        };
+        if let Some(step) = &out {
+            stop = self
+                .supervise_step(&step.diag)
+                .or(self.check_stall(&sample));
             if stop.is_none() {
-                torque = out.torque_nm;
-                duty = self.duty_for(torque, &sample);
-                motors.set(duty);
-                enabled = true;
-                self.last_torque_nm = torque;
-                self.status.run_ticks = self.status.run_ticks.saturating_add(1);
+                torque = step.torque_nm;
             }
+        }
+        // Governor and health (crate::pacer) after a step: a hard fault stops.
+        let pace = match &out {
+            Some(step) => {
+                let pace = self
+                    .pacer
+                    .update(&mut self.pace, &step.diag, eta, SensingHealth::Ok);
+                if pace.mode == HealthMode::SafeStop {
+                    stop = stop.or(Some(StopReason::Health(pace.reason)));
+                }
+                pace
+            }
+            None => self.pacer.status(&self.pace),
+        };
+        if out.is_some() && stop.is_none() {
+            duty = self.duty_for(torque, &sample);
+            motors.set(duty);
+            enabled = true;
+            self.last_torque_nm = torque;
+            self.status.run_ticks = self.status.run_ticks.saturating_add(1);
+        } else {
+            torque = [0.0; 2];
         }
         // 6. Safe stop.
         if let Some(r) = stop {
@@ -357,17 +355,19 @@ impl<const H: usize> ControlLoop<H> {
             stopped: stop,
             t_s,
             pose,
-            odometry: self.odometry.pose(),
             external_pose,
             estimate: *self.estimator.estimate(),
             gyro: self.estimator.status().gyro,
             counts: sample,
             eta,
-            reference,
+            reference: input.reference,
             torque_nm: torque,
             duty,
             motors_enabled: enabled,
-            diag,
+            diag: match out {
+                Some(step) => step.diag,
+                None => Diagnostics::default(),
+            },
             pace,
         }
     }
@@ -412,15 +412,16 @@ impl<const H: usize> ControlLoop<H> {
                 });
                 (CountSample::default(), stop)
             }
-            None => (self.counts.update(raw, timing.elapsed_s()), None),
+            None => (self.counts.apply(raw, delta, timing.elapsed_s()), None),
         }
     }
 
     /// Step 3: the estimator predicts from this tick's wheel increments
     /// and the gyro, then takes up to [`MAX_POSES_PER_TICK`] measurements
     /// from the pose source (late ones are re-propagated to now, at most
-    /// [`MAX_REPROPAGATION_PER_TICK`] ticks of history per tick). Plain
-    /// odometry runs beside it. Returns the fused pose of G and whether a
+    /// [`MAX_REPROPAGATION_PER_TICK`] ticks of history per tick). No plain
+    /// odometry runs beside it (D32: without a gyro and external poses the
+    /// estimate is wheel odometry). Returns the fused pose of G and whether a
     /// measurement was accepted. The controller's η stays the wheel-derived
     /// one (D26).
     fn measure_pose(
@@ -430,7 +431,6 @@ impl<const H: usize> ControlLoop<H> {
         pose_source: &mut impl PoseSource,
         timing: &TickTiming,
     ) -> (Pose, bool) {
-        self.odometry.update(dphi_rad);
         let inc = self.cfg.controller.robot.eta_from_wheel_rates(dphi_rad);
         self.estimator.predict(
             timing.now_us,

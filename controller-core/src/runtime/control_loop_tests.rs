@@ -273,7 +273,8 @@ fn jump_while_disarmed_is_counted_not_latched_nor_integrated() {
     assert!(rep.stopped.is_none());
     assert_eq!(r.cl.state(), RunState::Disarmed);
     assert_eq!(r.cl.status().encoder_jumps, 1);
-    assert_eq!(r.cl.odometry(), Pose::new(0.0, 0.0, 0.0));
+    // Not integrated: the estimate (wheel odometry here) has not moved.
+    assert_eq!(r.cl.estimator().estimate().pose, Pose::new(0.0, 0.0, 0.0));
 }
 
 /// Encoders frozen while the controller pushes hard: the stop latches
@@ -362,17 +363,18 @@ fn encoder_ticks_give_analytic_speed_and_odometry() {
     let v = 0.1 * 2.0 * core::f32::consts::PI * n as f32 / (24_000.0 * 1e-3);
     assert!((rep.eta.v_mps - v).abs() < 1e-4 * v, "{:?}", rep.eta);
     assert!(rep.eta.omega_radps.abs() < 1e-6);
-    let p = r.cl.odometry();
+    // No gyro, no pose source: the estimate is wheel odometry.
+    let p = rep.estimate.pose;
     assert!((p.x_m - v * ticks as f32 * 1e-3).abs() < 1e-4, "{p:?}");
     assert!(p.y_m.abs() < 1e-6 && p.theta_rad.abs() < 1e-6);
 }
 
 /// An external pose taken at this tick's time is fused: the filter's pose
 /// moves to it at once (2 mm / 5 mrad against a 5 cm / 50 mrad prior), the
-/// pose given to the controller follows within the smoothing time, the
-/// plain odometry is not re-anchored, and the count goes up.
+/// pose given to the controller follows within the smoothing time, and the
+/// count goes up.
 #[test]
-fn external_pose_fused_odometry_untouched() {
+fn external_pose_fused() {
     let mut r = Rig::new(line_cfg(0.0));
     let p = Pose::new(0.03, -0.02, 0.04);
     let t = TickTiming::on_schedule_at(1000, 1000);
@@ -397,7 +399,6 @@ fn external_pose_fused_odometry_untouched() {
             r.cl.tick(&mut r.enc, &mut r.drv, &mut NoGyro, &mut Ext(None), t);
     }
     assert!((rep.pose.x_m - p.x_m).abs() < 2e-3 && (rep.pose.y_m - p.y_m).abs() < 2e-3);
-    assert_eq!(r.cl.odometry(), Pose::new(0.0, 0.0, 0.0));
     assert_eq!(r.cl.status().external_poses, 1);
     assert_eq!(r.cl.estimator_status().accepted, 1);
 }

@@ -150,6 +150,13 @@ impl WheelCounts {
     /// late or bunched-up ticks do not bias it.
     pub fn update(&mut self, raw: [u16; 2], dt_s: f32) -> CountSample {
         let delta = self.peek_delta(raw);
+        self.apply(raw, delta, dt_s)
+    }
+
+    /// [`Self::update`] with `delta` = [`Self::peek_delta`]`(raw)` already
+    /// computed (the runtime peeks first to check for jumps).
+    pub(crate) fn apply(&mut self, raw: [u16; 2], delta: [i32; 2], dt_s: f32) -> CountSample {
+        debug_assert_eq!(delta, self.peek_delta(raw));
         self.resync(raw);
         for (p, d) in self.position.iter_mut().zip(delta) {
             *p = p.wrapping_add(d);

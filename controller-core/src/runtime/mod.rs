@@ -14,7 +14,8 @@
 //! 3. estimates the pose of G ([`PoseEstimator`](crate::estimator::PoseEstimator)):
 //!    predicts from the wheels and the [`Gyro`] (if any), corrects with
 //!    the timestamped, possibly late measurements of a [`PoseSource`] (if
-//!    any); plain wheel odometry ([`Odometry`]) runs beside it for reference;
+//!    any); without either the estimate is wheel odometry ([`Odometry`]
+//!    integrates the same map on its own, outside the loop);
 //! 4. samples the reference at t = (ticks since arming) × period and runs one
 //!    [`Controller::step`](crate::Controller::step);
 //! 5. maps the wheel torques to PWM duty and direction through the motor

@@ -121,8 +121,6 @@ pub struct TickReport {
     pub t_s: f32,
     /// Pose given to the controller: the estimator's fused pose of G.
     pub pose: Pose,
-    /// Plain wheel odometry of G (never corrected), for comparison.
-    pub odometry: Pose,
     /// True when a measurement from the [`PoseSource`](super::PoseSource)
     /// was accepted this tick.
     pub external_pose: bool,
