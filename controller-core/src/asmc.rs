@@ -13,6 +13,7 @@
 
 use crate::error::ConfigError;
 use crate::math::tanh;
+use crate::math::{all_non_negative, all_positive};
 
 /// Adaptive switching gain parameters (per channel, same values for v and ω).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -74,25 +75,23 @@ pub struct SlidingParams {
 impl SlidingParams {
     /// Validates the parameters.
     pub fn validate(self) -> Result<Self, ConfigError> {
-        if !(self.k_s.is_finite() && self.k_s > 0.0) {
+        if !all_positive(&[self.k_s]) {
             return Err(ConfigError::NonPositiveGain);
         }
         match self.switching {
-            Switching::Fixed(k) if !(k.is_finite() && k >= 0.0) => {
-                Err(ConfigError::NonPositiveGain)
-            }
+            Switching::Fixed(k) if !all_non_negative(&[k]) => Err(ConfigError::NonPositiveGain),
             Switching::Adaptive(a) => {
-                let fin = [
+                // ρ_min <= ρ0 <= ρ_max as non-negative differences.
+                if all_non_negative(&[
                     a.gamma,
                     a.dead_zone,
                     a.leakage,
                     a.rho0,
                     a.rho_min,
                     a.rho_max,
-                ]
-                .iter()
-                .all(|x| x.is_finite() && *x >= 0.0);
-                if fin && a.rho_min <= a.rho0 && a.rho0 <= a.rho_max {
+                    a.rho0 - a.rho_min,
+                    a.rho_max - a.rho0,
+                ]) {
                     Ok(self)
                 } else {
                     Err(ConfigError::InvalidAdaptation)

@@ -23,6 +23,7 @@ use crate::eso::{EsoParams, EsoState};
 use crate::fault_observer::{FaultObserverGains, FaultObserverState};
 use crate::kinematic::KinematicGains;
 use crate::math::{all_finite, clamp_abs};
+use crate::math::{all_non_negative, all_positive};
 use crate::model::ReducedModel;
 use crate::params::RobotParams;
 use crate::tracking::{error_rate, tracking_error, TrackingError};
@@ -147,15 +148,15 @@ impl ControllerConfig {
         self.fault_observer.validate()?;
         self.eso.validate()?;
         self.sliding.validate()?;
-        if !(self.torque_limit_nm.is_finite() && self.torque_limit_nm > 0.0) {
+        if !all_positive(&[self.torque_limit_nm]) {
             return Err(ConfigError::NonPositiveTorqueLimit);
         }
-        if !(self.period_s.is_finite() && self.period_s > 0.0 && self.period_s <= 0.1) {
+        // 0 < period <= 0.1 s.
+        if !(all_positive(&[self.period_s]) && all_non_negative(&[0.1 - self.period_s])) {
             return Err(ConfigError::InvalidPeriod);
         }
         let l = self.input_limits;
-        let ok = |x: f32| x.is_finite() && x > 0.0;
-        if !(ok(l.max_position_m) && ok(l.max_speed_mps) && ok(l.max_yaw_rate_radps)) {
+        if !all_positive(&[l.max_position_m, l.max_speed_mps, l.max_yaw_rate_radps]) {
             return Err(ConfigError::InvalidInputLimits);
         }
         Ok(self)

@@ -19,6 +19,7 @@
 //! saturation), so the observer models the real input and does not wind up.
 
 use crate::error::ConfigError;
+use crate::math::all_positive;
 use crate::math::{clamp_abs, powf};
 
 /// fal(e, ζ, α), eq. (19): linear with slope ζ^(α−1) inside |e| <= ζ,
@@ -79,11 +80,13 @@ impl Default for EsoParams {
 impl EsoParams {
     /// Validates the parameters.
     pub fn validate(self) -> Result<Self, ConfigError> {
-        let ok = |x: f32| x.is_finite() && x > 0.0;
-        if !self.lambda.iter().all(|&l| ok(l)) || !self.max_disturbance.iter().all(|&l| ok(l)) {
+        let [l1, l2, l3] = self.lambda;
+        let [d0, d1] = self.max_disturbance;
+        if !all_positive(&[l1, l2, l3, d0, d1]) {
             return Err(ConfigError::NonPositiveGain);
         }
-        if !(ok(self.zeta) && self.alpha > 0.0 && self.alpha < 1.0) {
+        // 0 < α < 1 as two positive values.
+        if !all_positive(&[self.zeta, self.alpha, 1.0 - self.alpha]) {
             return Err(ConfigError::InvalidFal);
         }
         Ok(self)

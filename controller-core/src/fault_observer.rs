@@ -19,6 +19,7 @@
 //! with u = \[v − v_s cos e_θ, ω_s − ω\] (eq. 12, g1 row 1 sign corrected: D6).
 
 use crate::error::ConfigError;
+use crate::math::all_positive;
 use crate::math::{clamp_abs, wrap_angle};
 use crate::tracking::TrackingError;
 
@@ -53,9 +54,8 @@ impl Default for FaultObserverGains {
 impl FaultObserverGains {
     /// Validates the gains.
     pub fn validate(self) -> Result<Self, ConfigError> {
-        let ok = |x: f32| x.is_finite() && x > 0.0;
-        if ok(self.l_v) && ok(self.l_omega) && ok(self.max_estimate[0]) && ok(self.max_estimate[1])
-        {
+        let [m0, m1] = self.max_estimate;
+        if all_positive(&[self.l_v, self.l_omega, m0, m1]) {
             Ok(self)
         } else {
             Err(ConfigError::NonPositiveGain)

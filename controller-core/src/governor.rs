@@ -29,6 +29,7 @@
 //! transcendental.
 
 use crate::error::ConfigError;
+use crate::math::{all_non_negative, all_positive};
 use crate::trajectory::{RefSample, Trajectory};
 
 /// Parameters of the time-scaling governor (validated by [`Governor::new`]).
@@ -80,20 +81,19 @@ impl Default for GovernorParams {
 impl GovernorParams {
     /// Checks every field.
     pub fn validate(self) -> Result<Self, ConfigError> {
-        let pos = |x: f32| x.is_finite() && x > 0.0;
-        let ok = pos(self.saturation_start)
-            && pos(self.saturation_stop)
-            && self.saturation_stop > self.saturation_start
-            && self.saturation_filter_s.is_finite()
-            && self.saturation_filter_s >= 0.0
-            && pos(self.error_start_m)
-            && pos(self.error_stop_m)
-            && self.error_stop_m > self.error_start_m
-            && pos(self.error_min_scale)
-            && self.error_min_scale <= 1.0
-            && pos(self.gain_per_s)
-            && pos(self.max_decrease_per_s)
-            && pos(self.max_increase_per_s);
+        // Orderings as positive differences (see HealthParams::validate).
+        let ok = all_positive(&[
+            self.saturation_start,
+            self.saturation_stop,
+            self.saturation_stop - self.saturation_start,
+            self.error_start_m,
+            self.error_stop_m,
+            self.error_stop_m - self.error_start_m,
+            self.error_min_scale,
+            self.gain_per_s,
+            self.max_decrease_per_s,
+            self.max_increase_per_s,
+        ]) && all_non_negative(&[self.saturation_filter_s, 1.0 - self.error_min_scale]);
         if ok {
             Ok(self)
         } else {

@@ -24,6 +24,7 @@
 //! below `acquired_m`), a failed estimator, or a controller fault.
 
 use crate::error::ConfigError;
+use crate::math::{all_non_negative, all_positive};
 
 /// Health mode, ordered by severity.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Default)]
@@ -178,26 +179,29 @@ impl Default for HealthParams {
 impl HealthParams {
     /// Checks every field.
     pub fn validate(self) -> Result<Self, ConfigError> {
-        let pos = |x: f32| x.is_finite() && x > 0.0;
-        let nonneg = |x: f32| x.is_finite() && x >= 0.0;
-        let ok = pos(self.filter_s)
-            && pos(self.fault_fit_speed_mps)
-            && pos(self.fault_ratio_degraded)
-            && pos(self.fault_ratio_hard)
-            && self.fault_ratio_hard > self.fault_ratio_degraded
-            && pos(self.disturbance_degraded)
-            && pos(self.adaptation_degraded)
-            && pos(self.saturation_degraded)
-            && pos(self.error_degraded_m)
-            && pos(self.acquired_m)
-            && pos(self.lost_path_m)
-            && self.lost_path_m > self.acquired_m
-            && pos(self.exit_fraction)
-            && self.exit_fraction < 1.0
-            && nonneg(self.min_dwell_s)
-            && nonneg(self.hard_dwell_s)
-            && pos(self.degraded_speed_scale)
-            && self.degraded_speed_scale <= 1.0;
+        // Orderings as positive differences: for finite a, b, a − b > 0
+        // exactly when a > b (and a NaN or an infinity fails the check).
+        let ok = all_positive(&[
+            self.filter_s,
+            self.fault_fit_speed_mps,
+            self.fault_ratio_degraded,
+            self.fault_ratio_hard,
+            self.fault_ratio_hard - self.fault_ratio_degraded,
+            self.disturbance_degraded,
+            self.adaptation_degraded,
+            self.saturation_degraded,
+            self.error_degraded_m,
+            self.acquired_m,
+            self.lost_path_m,
+            self.lost_path_m - self.acquired_m,
+            self.exit_fraction,
+            1.0 - self.exit_fraction,
+            self.degraded_speed_scale,
+        ]) && all_non_negative(&[
+            self.min_dwell_s,
+            self.hard_dwell_s,
+            1.0 - self.degraded_speed_scale,
+        ]);
         if ok {
             Ok(self)
         } else {

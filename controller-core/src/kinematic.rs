@@ -2,6 +2,7 @@
 //! analytic derivative η̇_c the dynamic loop needs.
 
 use crate::error::ConfigError;
+use crate::math::{all_non_negative, all_positive};
 use crate::tracking::TrackingError;
 
 /// Gains of eq. (14) (paper Table 2: k_x = 1.2, k_y = 250, k_th = 5).
@@ -61,9 +62,8 @@ impl KinematicGains {
 
     /// Validates the gains.
     pub fn validate(self) -> Result<Self, ConfigError> {
-        let ok = |x: f32| x.is_finite() && x > 0.0;
-        let bound_ok = self.large_error_m.is_finite() && self.large_error_m >= 0.0;
-        if ok(self.k_x) && ok(self.k_y) && ok(self.k_th) && bound_ok {
+        if all_positive(&[self.k_x, self.k_y, self.k_th]) && all_non_negative(&[self.large_error_m])
+        {
             Ok(self)
         } else {
             Err(ConfigError::NonPositiveGain)

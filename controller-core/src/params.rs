@@ -41,25 +41,28 @@ impl RobotParams {
 
     /// Checks every field; returns the first problem found.
     pub fn validate(&self) -> Result<Self, ConfigError> {
-        let pos = |x: f32| x.is_finite() && x > 0.0;
-        let nonneg = |x: f32| x.is_finite() && x >= 0.0;
-        if !pos(self.mass_kg) {
-            return Err(ConfigError::NonPositiveMass);
-        }
-        if !pos(self.inertia_kgm2) {
-            return Err(ConfigError::NonPositiveInertia);
-        }
-        if !nonneg(self.wheel_inertia_kgm2) {
-            return Err(ConfigError::NegativeWheelInertia);
-        }
-        if !pos(self.wheel_radius_m) {
-            return Err(ConfigError::NonPositiveWheelRadius);
-        }
-        if !pos(self.half_track_m) {
-            return Err(ConfigError::NonPositiveHalfTrack);
-        }
-        if !nonneg(self.com_offset_m) {
-            return Err(ConfigError::NegativeComOffset);
+        // (value, zero allowed, the error naming it), checked in order by
+        // one loop (flash, see `math::all_positive`).
+        let checks = [
+            (self.mass_kg, false, ConfigError::NonPositiveMass),
+            (self.inertia_kgm2, false, ConfigError::NonPositiveInertia),
+            (
+                self.wheel_inertia_kgm2,
+                true,
+                ConfigError::NegativeWheelInertia,
+            ),
+            (
+                self.wheel_radius_m,
+                false,
+                ConfigError::NonPositiveWheelRadius,
+            ),
+            (self.half_track_m, false, ConfigError::NonPositiveHalfTrack),
+            (self.com_offset_m, true, ConfigError::NegativeComOffset),
+        ];
+        for (x, zero_ok, err) in checks {
+            if !(x.is_finite() && (x > 0.0 || (zero_ok && x == 0.0))) {
+                return Err(err);
+            }
         }
         Ok(*self)
     }

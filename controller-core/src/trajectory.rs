@@ -2,7 +2,7 @@
 //! time derivatives (which the analytic η̇_c of the dynamic loop needs).
 
 use crate::error::ConfigError;
-use crate::math::{atan2, sin_cos, sqrt};
+use crate::math::{all_positive, atan2, sin_cos, sqrt};
 use crate::types::Pose;
 
 /// One sample of the reference (virtual vehicle) at time t.
@@ -111,8 +111,7 @@ impl PaperCurve {
 
     /// Validates the parameters.
     pub fn validate(self) -> Result<Self, ConfigError> {
-        let ok = |x: f32| x.is_finite() && x > 0.0;
-        if ok(self.ax_m) && ok(self.ay_m) && ok(self.w_radps) {
+        if all_positive(&[self.ax_m, self.ay_m, self.w_radps]) {
             Ok(self)
         } else {
             Err(ConfigError::InvalidTrajectory)
@@ -287,11 +286,10 @@ pub enum Reference {
 impl Reference {
     /// Checks the parameters of the chosen trajectory.
     pub fn validate(self) -> Result<Self, ConfigError> {
-        let ok = |x: f32| x.is_finite() && x > 0.0;
         let valid = match &self {
             Self::Paper(p) => p.validate().is_ok(),
-            Self::Circle(c) => ok(c.radius_m) && ok(c.speed_mps),
-            Self::FigureEight(f) => ok(f.amplitude_m) && ok(f.w_radps),
+            Self::Circle(c) => all_positive(&[c.radius_m, c.speed_mps]),
+            Self::FigureEight(f) => all_positive(&[f.amplitude_m, f.w_radps]),
             Self::Line(l) => l.start.is_finite() && l.speed_mps.is_finite(),
         };
         if valid {

@@ -103,13 +103,18 @@ impl LinkConfig {
 
     /// Checks every field.
     pub fn validate(self) -> Result<Self, DeviceConfigError> {
-        let in_range = |x: f32, hi: f32| x.is_finite() && x > 0.0 && x <= hi;
+        // (value, upper bound): 0 < value <= bound (NaN fails), one loop.
+        let in_range = [
+            (self.accel_mps2, 20.0),
+            (self.ang_accel_radps2, 50.0),
+            (self.brake_decel_mps2, 20.0),
+            (self.max_speed_mps, 10.0),
+            (self.max_yaw_rate_radps, 30.0),
+        ]
+        .iter()
+        .all(|&(x, hi)| x > 0.0 && x <= hi);
         let ok = (50..=10_000).contains(&self.link_timeout_ms)
-            && in_range(self.accel_mps2, 20.0)
-            && in_range(self.ang_accel_radps2, 50.0)
-            && in_range(self.brake_decel_mps2, 20.0)
-            && in_range(self.max_speed_mps, 10.0)
-            && in_range(self.max_yaw_rate_radps, 30.0)
+            && in_range
             && self.telemetry_rate_hz <= 1000;
         if ok {
             Ok(self)

@@ -604,9 +604,8 @@ fn batch_update(
     let mut nx: [f64; N] = core::array::from_fn(|i| x[i] as f64);
     let mut np = p64;
     for i in 0..N {
-        let k: [f64; 3] = core::array::from_fn(|a| {
-            (0..n).map(|b| pht[i][b] * si[b][a] as f64).sum::<f64>()
-        });
+        let k: [f64; 3] =
+            core::array::from_fn(|a| (0..n).map(|b| pht[i][b] * si[b][a] as f64).sum::<f64>());
         nx[i] += (0..n).map(|a| k[a] * nu[a] as f64).sum::<f64>();
         for j in 0..N {
             np[i][j] -= (0..n).map(|a| k[a] * pht[j][a]).sum::<f64>();

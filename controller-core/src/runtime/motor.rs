@@ -60,24 +60,29 @@ impl MotorParams {
 
     /// Checks every field; returns the first problem.
     pub fn validate(self) -> Result<Self, RuntimeConfigError> {
-        let pos = |x: f32| x.is_finite() && x > 0.0;
-        if !pos(self.torque_constant_nm_per_a) {
-            return Err(RuntimeConfigError::NonPositiveTorqueConstant);
-        }
-        if !pos(self.winding_resistance_ohm) {
-            return Err(RuntimeConfigError::NonPositiveResistance);
-        }
-        if !pos(self.gear_ratio) {
-            return Err(RuntimeConfigError::NonPositiveGearRatio);
-        }
-        if !(pos(self.gear_efficiency) && self.gear_efficiency <= 1.0) {
-            return Err(RuntimeConfigError::InvalidGearEfficiency);
-        }
-        if !pos(self.supply_voltage_v) {
-            return Err(RuntimeConfigError::NonPositiveSupplyVoltage);
-        }
-        if !(pos(self.max_duty_fraction) && self.max_duty_fraction <= 1.0) {
-            return Err(RuntimeConfigError::InvalidMaxDuty);
+        // (value, upper bound, the error naming it): 0 < value <= bound,
+        // checked in order by one loop (flash, see `math::all_positive`).
+        use RuntimeConfigError as E;
+        let checks = [
+            (
+                self.torque_constant_nm_per_a,
+                f32::MAX,
+                E::NonPositiveTorqueConstant,
+            ),
+            (
+                self.winding_resistance_ohm,
+                f32::MAX,
+                E::NonPositiveResistance,
+            ),
+            (self.gear_ratio, f32::MAX, E::NonPositiveGearRatio),
+            (self.gear_efficiency, 1.0, E::InvalidGearEfficiency),
+            (self.supply_voltage_v, f32::MAX, E::NonPositiveSupplyVoltage),
+            (self.max_duty_fraction, 1.0, E::InvalidMaxDuty),
+        ];
+        for (x, hi, err) in checks {
+            if !(x > 0.0 && x <= hi) {
+                return Err(err);
+            }
         }
         if self.duty_full_scale == 0 {
             return Err(RuntimeConfigError::ZeroDutyResolution);
