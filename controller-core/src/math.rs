@@ -245,7 +245,7 @@ pub mod fast {
     const PIO2_1: f32 = 1.570_312_5;
     const PIO2_2: f32 = 4.837_513e-4;
     const PIO2_3: f32 = 7.549_79e-8;
-    /// Beyond this |x|, sin/cos first reduce with an exact fmod by 2π_f32.
+    /// Beyond this |x|, sin/cos first remove whole turns (see `sin_cos`).
     const SINCOS_DIRECT_MAX: f32 = 8192.0;
 
     /// sin and cos on |r| <= π/4 (Cephes sinf/cosf minimax, ~1 ulp).
@@ -273,9 +273,27 @@ pub mod fast {
             if !x.is_finite() {
                 return (f32::NAN, f32::NAN);
             }
-            // Rare: exact remainder by the f32 value of 2π (phase error
-            // |x|·1.7e-7 relative, meaningless anyway at these magnitudes).
-            x = libm::fmodf(x, 2.0 * PI);
+            // Rare: remove whole turns, 2π·trunc(x/2π) in f32, until x is in
+            // the direct range (one pass below 2^25 rad, at most five up to
+            // f32::MAX: each shrinks |x| by ~2^22). The phase error, |x|·1e-7
+            // relative, is meaningless anyway at these magnitudes; the result
+            // stays a bounded sin/cos pair (tested). Not libm's fmodf: its
+            // exact remainder costs 1.1 KiB of flash with the u64 division.
+            for _ in 0..8 {
+                if x.abs() <= SINCOS_DIRECT_MAX {
+                    break;
+                }
+                let turns = x * (0.5 * core::f32::consts::FRAC_1_PI);
+                let whole = if turns.abs() < 8_388_608.0 {
+                    turns as i32 as f32
+                } else {
+                    turns // |turns| >= 2^23: already an integer
+                };
+                x -= 2.0 * PI * whole;
+            }
+            if !(x.abs() <= SINCOS_DIRECT_MAX) {
+                x = 0.0;
+            }
         }
         let k = round_i32(x * FRAC_2_PI);
         let kf = k as f32;
@@ -611,7 +629,16 @@ mod tests {
             assert!(es < bound && ec < bound, "±{range}: sin {es:e} cos {ec:e}");
         }
         // Beyond the direct range: still bounded, periodic, finite.
-        for &x in &[1.0e4f32, -3.0e5, 1.0e7, 3.0e38] {
+        for &x in &[
+            1.0e4f32,
+            -3.0e5,
+            1.0e7,
+            3.3e7,
+            -1.0e12,
+            3.0e38,
+            f32::MAX,
+            f32::MIN,
+        ] {
             let (s, c) = fast::sin_cos(x);
             assert!(
                 s.abs() <= 1.0 + 1e-6 && c.abs() <= 1.0 + 1e-6,
@@ -619,6 +646,12 @@ mod tests {
             );
             assert!((s * s + c * c - 1.0).abs() < 1e-5);
         }
+        // Just beyond it the turns removed in f32 cost a phase error of
+        // |x|·(2π − 2π_f32)/2π ≈ 2.8e-8·|x| plus rounding: within 1e-7·|x|.
+        let e = max_abs_err(8192.0, 1.0e5, 200_000, fast::sin, f64::sin);
+        assert!(e < 1.0e-2, "sin on [8192, 1e5]: {e:e}");
+        let e = max_abs_err(-1.0e5, -8192.0, 200_000, fast::cos, f64::cos);
+        assert!(e < 1.0e-2, "cos on [-1e5, -8192]: {e:e}");
         let (s, c) = fast::sin_cos(f32::NAN);
         assert!(s.is_nan() && c.is_nan());
         assert!(fast::sin(f32::INFINITY).is_nan());
