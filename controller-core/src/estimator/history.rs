@@ -16,6 +16,7 @@
 //! on the same inputs, the replayed state is the one the filter had at
 //! that tick, bit for bit.
 
+use super::gyro_scale;
 use super::predict::{Filter, Input};
 use super::{PoseEstimator, N, NP};
 
@@ -180,6 +181,16 @@ impl<const H: usize> PoseEstimator<H> {
             if self.snap_len < SNAPSHOTS {
                 self.snap_len += 1;
             }
+            // The gyro-vs-wheel update of the speed scale closes the
+            // interval (D36), before the snapshot, as in the re-propagation.
+            self.windows[self.snap_head] = core::mem::take(&mut self.window);
+            let before = self.filter_pose();
+            gyro_scale::update(
+                &mut self.filter,
+                &self.windows[self.snap_head],
+                &self.noise_sq,
+            );
+            self.smooth_jump(before, false);
             self.snaps[self.snap_head] = Snapshot::of(&self.filter);
             self.since_snapshot = 0;
         }

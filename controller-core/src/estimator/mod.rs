@@ -50,6 +50,7 @@
 #![allow(clippy::needless_range_loop)] // small matrices read best indexed
 
 mod config;
+mod gyro_scale;
 mod history;
 mod predict;
 mod repropagation;
@@ -64,6 +65,7 @@ pub use types::{
 
 use crate::math::{sin_cos, wrap_angle};
 use crate::types::Pose;
+use gyro_scale::Window;
 use history::{Fix, Snapshot, Tick, SNAPSHOTS};
 use predict::{ix, Filter, Input, NoiseSq, SPEED_SCALE_RANGE};
 
@@ -160,6 +162,10 @@ pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
     snap_head: usize,
     snap_len: usize,
     since_snapshot: usize,
+    /// The gyro-vs-wheel yaw sums since the latest snapshot, and those of
+    /// the interval ending at each snapshot (`gyro_scale.rs`, D36).
+    window: Window,
+    windows: [Window; SNAPSHOTS],
     /// The posterior at the latest accepted measurement's tick.
     fix: Option<Fix>,
     now_us: u32,
@@ -218,6 +224,8 @@ impl<const H: usize> PoseEstimator<H> {
             snap_head: 0,
             snap_len: 0,
             since_snapshot: 0,
+            window: Window::default(),
+            windows: [Window::default(); SNAPSHOTS],
             fix: None,
             now_us: 0,
             last_accepted_stamp_us: None,
@@ -309,6 +317,7 @@ impl<const H: usize> PoseEstimator<H> {
             still: gyro_used && self.still_ticks >= self.cfg.standstill_ticks,
         };
         predict::predict(&mut self.filter, &input, &self.noise_sq);
+        self.window.add(&input, dtheta_wheel_rad);
         // The output offset decays with time constant τ = min(output_smoothing_s,
         // SMOOTHING_INTERVALS × the mean interval between measurements):
         // a jump is spread over about two intervals (factor 1/(1 + Δt/τ)).
@@ -474,6 +483,15 @@ impl<const H: usize> PoseEstimator<H> {
     fn finish_correction(&mut self, f: Filter, reset: bool) {
         let before = self.filter_pose();
         self.filter = f;
+        self.smooth_jump(before, reset);
+        let input = self.tick_at(0).input();
+        self.refresh(&input);
+    }
+
+    /// The live filter's pose of G moved from `before` (a correction or
+    /// the gyro-vs-wheel update): the jump goes into the output offset
+    /// (unless it is big or the pose was reset).
+    fn smooth_jump(&mut self, before: Pose, reset: bool) {
         let after = self.filter_pose();
         let jump = [
             after.x_m - before.x_m,
@@ -489,8 +507,6 @@ impl<const H: usize> PoseEstimator<H> {
         } else {
             self.offset = [0.0; 3];
         }
-        let input = self.tick_at(0).input();
-        self.refresh(&input);
     }
 
     /// Position and heading variances to a wide prior, their correlations

@@ -50,6 +50,11 @@ pub(super) struct NoiseSq {
     pub(super) bias_walk: f32,
     pub(super) scale_walk: f32,
     pub(super) slip: f32,
+    /// Smallest |wheel turn| \[rad\] of a window whose gyro-vs-wheel yaw
+    /// updates the speed scale (∞ when off; `gyro_scale.rs`).
+    pub(super) scale_min_turn: f32,
+    /// `gyro_scale_yaw_noise`² plus the gyro's.
+    pub(super) scale_yaw: f32,
 }
 
 impl NoiseSq {
@@ -62,6 +67,12 @@ impl NoiseSq {
             bias_walk: sq(cfg.gyro_bias_walk),
             scale_walk: sq(cfg.speed_scale_walk),
             slip: sq(cfg.slip_fraction),
+            scale_min_turn: if cfg.gyro_speed_scale {
+                cfg.gyro_scale_min_turn_rad
+            } else {
+                f32::INFINITY
+            },
+            scale_yaw: sq(cfg.gyro_scale_yaw_noise) + sq(cfg.gyro_noise_density),
         }
     }
 }
@@ -268,15 +279,23 @@ fn bound_variances(p: &mut [f32; NP]) {
 /// Zero-rate update: standing still, the gyro reads its bias (a scalar
 /// Kalman update with h = e₃, r = gyro noise² / Δt).
 fn zero_rate_update(x: &mut [f32; N], p: &mut [f32; NP], u: &Input, nq: &NoiseSq) {
-    let r = nq.gyro / u.dt_s;
-    let s33 = p[ix(3, 3)] + r;
-    let innov = u.yaw - x[3];
-    let row3: [f32; N] = core::array::from_fn(|j| p[ix(3.min(j), 3.max(j))]);
-    let k: [f32; N] = core::array::from_fn(|i| row3[i] / s33);
+    let mut h = [0.0; N];
+    h[3] = 1.0;
+    scalar_update(x, p, &h, u.yaw - x[3], nq.gyro / u.dt_s);
+}
+
+/// The scalar Kalman update of (x, P) with measurement row `h`,
+/// innovation `innov` and noise variance `r`: K = P·h / (hᵀ·P·h + r),
+/// x += K·innov, P −= K·(P·h)ᵀ; θ wrapped, the speed scale kept in range.
+pub(super) fn scalar_update(x: &mut [f32; N], p: &mut [f32; NP], h: &[f32; N], innov: f32, r: f32) {
+    let ph: [f32; N] =
+        core::array::from_fn(|i| (0..N).map(|j| p[ix(i.min(j), i.max(j))] * h[j]).sum());
+    let s = (0..N).map(|i| h[i] * ph[i]).sum::<f32>() + r;
+    let k: [f32; N] = core::array::from_fn(|i| ph[i] / s);
     for i in 0..N {
         x[i] += k[i] * innov;
         for j in i..N {
-            p[ix(i, j)] -= k[i] * row3[j];
+            p[ix(i, j)] -= k[i] * ph[j];
         }
     }
     x[2] = wrap_angle(x[2]);

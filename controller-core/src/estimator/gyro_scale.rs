@@ -1,0 +1,80 @@
+//! The speed scale seen by the gyro (docs/DECISIONS.md D36): a
+//! pseudo-measurement of s from the gyro's yaw against the wheels'.
+//!
+//! The actuator fault ε of the paper (eq. 10) moves the body at (1 − ε)·η,
+//! v and ω alike, and uniform slip on a slippery floor does the same: the
+//! body turns by s·Δθ_wheel while the wheels report Δθ_wheel. The gyro
+//! reads the body's rate plus its bias, so over a window of ticks with the
+//! gyro in use
+//!
+//! ```text
+//! z = Σ g·Δt = b·T + s·W + noise,   T = Σ Δt,   W = Σ Δθ_wheel
+//! ν = z − b·T − s·W,   H = [0, 0, 0, T, W],
+//! R = (σ_g² + σ_wheel²)·T + slip²·W²/T
+//! ```
+//!
+//! (σ_g the gyro noise density, σ_wheel the wheel-yaw noise, slip² W²/T
+//! the slip fraction's term of the wheel yaw, exact for a constant rate and
+//! a lower bound of Σ slip²·Δθ²/Δt otherwise). A scalar Kalman update with
+//! it makes s observable whenever the robot turns, without an external
+//! pose. It is applied only when |W| >= `gyro_scale_min_turn_rad` (a
+//! window driving straight says nothing about s, and would only feed b with
+//! yaw the wheels cannot see).
+//!
+//! The window is the history's snapshot interval (K = 17 ticks by
+//! default): the sums are inputs only (they do not depend on the state),
+//! so they are kept once per snapshot (12 B × 16) instead of per tick, and
+//! the update is applied on the tick that takes a snapshot, before it, by
+//! the live tick and by the re-propagation alike: the replayed ticks apply
+//! it identically, bit for bit (D25, D31).
+
+use super::predict::{scalar_update, Filter, Input, NoiseSq};
+use super::N;
+
+/// Sums over a window of the ticks with the gyro in use (not standing
+/// still): inputs only.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct Window {
+    /// Σ gyro rate·Δt \[rad\] (bias not removed).
+    gyro_rad: f32,
+    /// Σ the wheels' Δθ \[rad\].
+    wheel_rad: f32,
+    /// Σ Δt \[s\].
+    dt_s: f32,
+}
+
+impl Window {
+    /// Adds the tick `u` whose wheels turned by `wheel_dth_rad`.
+    #[inline(always)]
+    pub(super) fn add(&mut self, u: &Input, wheel_dth_rad: f32) {
+        if u.gyro_used && !u.still {
+            self.gyro_rad += u.yaw * u.dt_s;
+            self.wheel_rad += wheel_dth_rad;
+            self.dt_s += u.dt_s;
+        }
+    }
+}
+
+/// Applies the window's pseudo-measurement to `f` (if the wheels turned by
+/// at least `nq.scale_min_turn` over it); a non-finite result is dropped.
+#[inline(never)]
+pub(super) fn update(f: &mut Filter, w: &Window, nq: &NoiseSq) {
+    let wr = w.wheel_rad;
+    // Always true with the update off (the threshold is ∞); a NaN (the
+    // inputs are validated: not expected) gives a non-finite result, dropped.
+    if wr.abs() < nq.scale_min_turn {
+        return;
+    }
+    let t = w.dt_s;
+    let (mut x, mut p) = (f.x, f.p);
+    let innov = w.gyro_rad - x[3] * t - x[4] * wr;
+    let r = nq.scale_yaw * t + nq.slip * wr * wr / t;
+    let mut h = [0.0; N];
+    h[3] = t;
+    h[4] = wr;
+    scalar_update(&mut x, &mut p, &h, innov, r);
+    let next = Filter::new(x, p);
+    if next.is_finite() {
+        *f = next;
+    }
+}
