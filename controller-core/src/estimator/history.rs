@@ -5,7 +5,9 @@
 //! packed covariance, 80 B), [`SNAPSHOTS`] of them. Besides, the posterior
 //! at the latest accepted measurement's tick (`Fix`): measurements are used
 //! in timestamp order, so a later one never lands before it, and replaying
-//! from it keeps that correction.
+//! from it keeps that correction. Per snapshot too, the gyro-vs-wheel sums of
+//! the interval it closes (12 B, [`super::gyro_scale`], D36): the snapshot's
+//! tick applies that update, live and re-propagated alike.
 //!
 //! A measurement nearest to the tick `back` ticks before the newest starts
 //! from the newest snapshot at or before that tick (or the fix, if later),

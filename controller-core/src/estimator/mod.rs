@@ -11,7 +11,12 @@
 //!   the wheels' Δθ when the gyro is absent, stale, saturated or not
 //!   finite ([`GyroState`]); O_B moves by k·Δs along θ + Δθ/2. After
 //!   `standstill_ticks` with both wheels still, the gyro's reading is a
-//!   measurement of its bias (zero-rate update). The covariance update
+//!   measurement of its bias (zero-rate update). On the tick that closes
+//!   each snapshot interval (17 ticks), the gyro's yaw against the wheels'
+//!   over it updates the speed scale k (and b): the body turns by k times
+//!   what the wheels report, so k is seen without external poses whenever
+//!   the robot turns (`gyro_scale.rs`, D36; the re-propagation applies it on
+//!   the same ticks from the same stored sums). The covariance update
 //!   F·P·Fᵀ + Q is written out over F's seven non-zero partials on the
 //!   packed upper triangle of P, in place, with one sin/cos per tick
 //!   (`predict.rs`; tested against the dense f64 update).
@@ -42,8 +47,8 @@
 //!
 //! `no_std`, f32, fixed memory chosen at compile time
 //! (`PoseEstimator<H>`): 16 B per tick of history plus 16 snapshots of
-//! 80 B (5.6 KiB for 272 ticks; the former full posterior per tick was
-//! 104 B), no panics: any non-finite input is refused or replaced, and a
+//! 80 B and their interval's gyro-vs-wheel sums of 12 B (5.8 KiB for 272
+//! ticks; the former full posterior per tick was 104 B), no panics: any non-finite input is refused or replaced, and a
 //! prediction or correction that would make the state non-finite is
 //! dropped.
 
