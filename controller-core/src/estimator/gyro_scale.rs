@@ -29,7 +29,6 @@
 //! it identically, bit for bit (D25, D31).
 
 use super::predict::{scalar_update, Filter, Input, NoiseSq};
-use super::N;
 
 /// Sums over a window of the ticks with the gyro in use (not standing
 /// still): inputs only.
@@ -69,10 +68,7 @@ pub(super) fn update(f: &mut Filter, w: &Window, nq: &NoiseSq) {
     let (mut x, mut p) = (f.x, f.p);
     let innov = w.gyro_rad - x[3] * t - x[4] * wr;
     let r = nq.scale_yaw * t + nq.slip * wr * wr / t;
-    let mut h = [0.0; N];
-    h[3] = t;
-    h[4] = wr;
-    scalar_update(&mut x, &mut p, &h, innov, r);
+    scalar_update(&mut x, &mut p, [t, wr], innov, r);
     let next = Filter::new(x, p);
     if next.is_finite() {
         *f = next;
