@@ -17,7 +17,7 @@ fn main() {
         Some("mocap") => Sensing::Mocap,
         _ => Sensing::Imu,
     };
-    let tunings: Vec<(String, EstimatorConfig)> = vec![
+    let mut tunings: Vec<(String, EstimatorConfig)> = vec![
         (
             "off".into(),
             EstimatorConfig {
@@ -27,6 +27,22 @@ fn main() {
         ),
         ("on".into(), base),
     ];
+    for (yn, mt) in [
+        (0.07f32, 0.005f32),
+        (0.1, 0.005),
+        (0.2, 0.005),
+        (0.15, 0.002),
+        (0.15, 0.01),
+    ] {
+        tunings.push((
+            format!("yn{yn}mt{mt}"),
+            EstimatorConfig {
+                gyro_scale_yaw_noise: yn,
+                gyro_scale_min_turn_rad: mt,
+                ..base
+            },
+        ));
+    }
     let mut scns = vec![];
     for s in 1..=3u64 {
         scns.push(Scenario {

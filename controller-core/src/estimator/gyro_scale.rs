@@ -28,7 +28,8 @@
 //! the live tick and by the re-propagation alike: the replayed ticks apply
 //! it identically, bit for bit (D25, D31).
 
-use super::predict::{scalar_update, Filter, Input, NoiseSq};
+use super::predict::{ix, Filter, Input, NoiseSq, SPEED_SCALE_RANGE};
+use super::N;
 
 /// Sums over a window of the ticks with the gyro in use (not standing
 /// still): inputs only.
@@ -55,7 +56,11 @@ impl Window {
 }
 
 /// Applies the window's pseudo-measurement to `f` (if the wheels turned by
-/// at least `nq.scale_min_turn` over it); a non-finite result is dropped.
+/// at least `nq.scale_min_turn` over it) as a Schmidt (consider-state)
+/// update: only b and s take the gain; x, y, θ are not corrected, their
+/// covariance with b and s is (P'ᶜᵃ = Pᶜᵃ − (P·h)ᶜ·Kᵃ, P'ᶜᶜ unchanged). So the
+/// pose does not jump (no sin/cos, nothing for the output smoothing) and
+/// only 9 covariance entries change; a non-finite result is dropped.
 #[inline(never)]
 pub(super) fn update(f: &mut Filter, w: &Window, nq: &NoiseSq) {
     let wr = w.wheel_rad;
@@ -65,12 +70,47 @@ pub(super) fn update(f: &mut Filter, w: &Window, nq: &NoiseSq) {
         return;
     }
     let t = w.dt_s;
-    let (mut x, mut p) = (f.x, f.p);
+    let x = &f.x;
+    let p = &f.p;
     let innov = w.gyro_rad - x[3] * t - x[4] * wr;
     let r = nq.scale_yaw * t + nq.slip * wr * wr / t;
-    scalar_update(&mut x, &mut p, [t, wr], innov, r);
-    let next = Filter::new(x, p);
-    if next.is_finite() {
-        *f = next;
+    // P·h with h = [0, 0, 0, T, W].
+    let ph: [f32; N] =
+        core::array::from_fn(|i| p[ix(i.min(3), i.max(3))] * t + p[ix(i.min(4), i.max(4))] * wr);
+    let inv = 1.0 / (t * ph[3] + wr * ph[4] + r);
+    let (k3, k4) = (ph[3] * inv, ph[4] * inv);
+    let b = x[3] + k3 * innov;
+    let s = (x[4] + k4 * innov).clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
+    let np = [
+        p[ix(0, 3)] - ph[0] * k3,
+        p[ix(0, 4)] - ph[0] * k4,
+        p[ix(1, 3)] - ph[1] * k3,
+        p[ix(1, 4)] - ph[1] * k4,
+        p[ix(2, 3)] - ph[2] * k3,
+        p[ix(2, 4)] - ph[2] * k4,
+        p[ix(3, 3)] - ph[3] * k3,
+        p[ix(3, 4)] - ph[4] * k3,
+        p[ix(4, 4)] - ph[4] * k4,
+    ];
+    let sum = np.iter().fold(b + s, |a, v| a + v);
+    if sum.is_finite() {
+        f.x[3] = b;
+        f.x[4] = s;
+        for (k, v) in [
+            ix(0, 3),
+            ix(0, 4),
+            ix(1, 3),
+            ix(1, 4),
+            ix(2, 3),
+            ix(2, 4),
+            ix(3, 3),
+            ix(3, 4),
+            ix(4, 4),
+        ]
+        .into_iter()
+        .zip(np)
+        {
+            f.p[k] = v;
+        }
     }
 }

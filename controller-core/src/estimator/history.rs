@@ -186,13 +186,11 @@ impl<const H: usize> PoseEstimator<H> {
             // The gyro-vs-wheel update of the speed scale closes the
             // interval (D36), before the snapshot, as in the re-propagation.
             self.windows[self.snap_head] = core::mem::take(&mut self.window);
-            let before = self.filter_pose();
             gyro_scale::update(
                 &mut self.filter,
                 &self.windows[self.snap_head],
                 &self.noise_sq,
             );
-            self.smooth_jump(before, false);
             self.snaps[self.snap_head] = Snapshot::of(&self.filter);
             self.since_snapshot = 0;
         }

@@ -488,15 +488,6 @@ impl<const H: usize> PoseEstimator<H> {
     fn finish_correction(&mut self, f: Filter, reset: bool) {
         let before = self.filter_pose();
         self.filter = f;
-        self.smooth_jump(before, reset);
-        let input = self.tick_at(0).input();
-        self.refresh(&input);
-    }
-
-    /// The live filter's pose of G moved from `before` (a correction or
-    /// the gyro-vs-wheel update): the jump goes into the output offset
-    /// (unless it is big or the pose was reset).
-    fn smooth_jump(&mut self, before: Pose, reset: bool) {
         let after = self.filter_pose();
         let jump = [
             after.x_m - before.x_m,
@@ -512,6 +503,8 @@ impl<const H: usize> PoseEstimator<H> {
         } else {
             self.offset = [0.0; 3];
         }
+        let input = self.tick_at(0).input();
+        self.refresh(&input);
     }
 
     /// Position and heading variances to a wide prior, their correlations

@@ -279,30 +279,15 @@ fn bound_variances(p: &mut [f32; NP]) {
 /// Zero-rate update: standing still, the gyro reads its bias (a scalar
 /// Kalman update with h = e₃, r = gyro noise² / Δt).
 fn zero_rate_update(x: &mut [f32; N], p: &mut [f32; NP], u: &Input, nq: &NoiseSq) {
-    scalar_update(x, p, [1.0, 0.0], u.yaw - x[3], nq.gyro / u.dt_s);
-}
-
-/// The scalar Kalman update of (x, P) with the measurement row
-/// h = \[0, 0, 0, h₃, h₄\] (`h34`), innovation `innov` and noise variance
-/// `r`: K = P·h / (hᵀ·P·h + r), x += K·innov, P −= K·(P·h)ᵀ; θ wrapped, the
-/// speed scale kept in range. h = e₃ is the zero-rate update (the products
-/// with 1 and 0 are exact), \[T, W\] the gyro-vs-wheel one (`gyro_scale.rs`).
-pub(super) fn scalar_update(
-    x: &mut [f32; N],
-    p: &mut [f32; NP],
-    h34: [f32; 2],
-    innov: f32,
-    r: f32,
-) {
-    let [h3, h4] = h34;
-    let ph: [f32; N] =
-        core::array::from_fn(|i| p[ix(i.min(3), i.max(3))] * h3 + p[ix(i.min(4), i.max(4))] * h4);
-    let inv = 1.0 / (h3 * ph[3] + h4 * ph[4] + r);
-    let k: [f32; N] = core::array::from_fn(|i| ph[i] * inv);
+    let r = nq.gyro / u.dt_s;
+    let s33 = p[ix(3, 3)] + r;
+    let innov = u.yaw - x[3];
+    let row3: [f32; N] = core::array::from_fn(|j| p[ix(3.min(j), 3.max(j))]);
+    let k: [f32; N] = core::array::from_fn(|i| row3[i] / s33);
     for i in 0..N {
         x[i] += k[i] * innov;
         for j in i..N {
-            p[ix(i, j)] -= k[i] * ph[j];
+            p[ix(i, j)] -= k[i] * row3[j];
         }
     }
     x[2] = wrap_angle(x[2]);

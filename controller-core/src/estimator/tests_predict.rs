@@ -255,9 +255,12 @@ fn zero_rate_update_equals_dense_kalman_update() {
 }
 
 /// The gyro-vs-wheel update of the speed scale (gyro_scale.rs, D36) is the
-/// scalar Kalman update with h = [0, 0, 0, T, W], ν = Σg·Δt − b·T − s·W,
-/// r = (σ_s² + σ_g²)·T + slip²·W²/T: compared with the dense f64 form on
-/// random states and covariances (scale kept inside its range).
+/// Schmidt (consider-state) scalar Kalman update with h = [0, 0, 0, T, W],
+/// ν = Σg·Δt − b·T − s·W, r = (σ_s² + σ_g²)·T + slip²·W²/T and the gain
+/// of x, y, θ zeroed: compared with the dense f64 Joseph form
+/// P' = (I − K·hᵀ)·P·(I − K·hᵀ)ᵀ + K·r·Kᵀ, K = (0, 0, 0, (P·h)₃, (P·h)₄) / S
+/// (valid for any gain), on random states and covariances (scale kept
+/// inside its range). The pose and its covariance are unchanged.
 #[test]
 fn gyro_scale_update_equals_dense_kalman_update() {
     use super::gyro_scale::{update, Window};
@@ -297,13 +300,25 @@ fn gyro_scale_update_equals_dense_kalman_update() {
         let s = (0..5).map(|i| h[i] * ph[i]).sum::<f64>() + rr;
         let innov = z - x[3] * t - x[4] * wr;
         let gp = unpack(&got.p);
+        let k: [f64; 5] = core::array::from_fn(|i| if i >= 3 { ph[i] / s } else { 0.0 });
+        // Joseph form with this gain.
+        let a: M64 = core::array::from_fn(|i| {
+            core::array::from_fn(|j| f64::from(u8::from(i == j)) - k[i] * h[j])
+        });
+        let mut want_p = mul(&mul(&a, &p), &transpose(&a));
         for i in 0..5 {
-            let want = x[i] + ph[i] / s * innov;
-            let err = if i == 2 {
-                (wrap_angle((got.x[i] as f64 - want) as f32) as f64).abs()
-            } else {
-                (got.x[i] as f64 - want).abs()
-            };
+            for j in 0..5 {
+                want_p[i][j] += k[i] * rr * k[j];
+            }
+        }
+        assert_eq!(
+            &got.x[..3],
+            &f.x[..3],
+            "case {case}: the pose is not corrected"
+        );
+        for i in 0..5 {
+            let want = x[i] + k[i] * innov;
+            let err = (got.x[i] as f64 - want).abs();
             let clamped = i == 4 && !(0.2..=1.5).contains(&want);
             assert!(
                 clamped || err <= 1e-5 * (want.abs() + 1e-3),
@@ -311,13 +326,12 @@ fn gyro_scale_update_equals_dense_kalman_update() {
                 got.x[i]
             );
             for j in 0..5 {
-                let gain_term = ph[i] * ph[j] / s;
-                let want = p[i][j] - gain_term;
-                let scale = p[i][j].abs() + gain_term.abs();
+                let scale = p[i][j].abs() + (ph[i] * ph[j] / s).abs();
                 assert!(
-                    (gp[i][j] as f64 - want).abs() <= 1e-5 * scale + 1e-12,
-                    "case {case} P[{i}][{j}]: {} vs {want}",
-                    gp[i][j]
+                    (gp[i][j] as f64 - want_p[i][j]).abs() <= 1e-5 * scale + 1e-12,
+                    "case {case} P[{i}][{j}]: {} vs {}",
+                    gp[i][j],
+                    want_p[i][j]
                 );
             }
         }
