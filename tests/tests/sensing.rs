@@ -96,11 +96,11 @@ fn mocap_proposed_near_ideal_and_half_of_baselines() {
 ///
 /// Under IMU only nothing measures position: the lateral skid (0.1 m/s) is
 /// invisible and every controller tracks a drifting estimate (window RMS
-/// 1.1-1.4 m). The actuator fault's 20 % loss of body speed is seen by the
-/// gyro against the wheels' yaw (the estimator's gyro-vs-wheel speed scale,
-/// docs/DECISIONS.md D36), so the fused pose shows it and the proposed
-/// controller's fault observer compensates it (seed 1: proposed 1.252 m,
-/// baselines 1.314 and 1.308 m; without that update all three were
+/// 0.86-0.98 m). The actuator fault's 20 % loss of body speed is seen by
+/// the gyro against the wheels' yaw (the estimator's gyro-vs-wheel speed
+/// scale, docs/DECISIONS.md D36), so the fused pose shows it and the
+/// proposed controller's fault observer compensates it (seed 1: proposed
+/// 0.866 m, baselines 0.926 and 0.927 m; without that update all three were
 /// ≈ 1.6 m and the proposed 0.5 % above the better baseline).
 #[test]
 fn uwb_and_imu_proposed_not_worse_than_baselines() {

@@ -15,8 +15,9 @@
 //!
 //! (σ_g the gyro noise density, σ_wheel the wheel-yaw noise, slip² W²/T
 //! the slip fraction's term of the wheel yaw, exact for a constant rate and
-//! a lower bound of Σ slip²·Δθ²/Δt otherwise). A scalar Kalman update with
-//! it makes s observable whenever the robot turns, without an external
+//! a lower bound of Σ slip²·Δθ²/Δt otherwise). A scalar Kalman update of b
+//! and s with it (Schmidt form: the pose is not corrected, so it never
+//! jumps) makes s observable whenever the robot turns, without an external
 //! pose. It is applied only when |W| >= `gyro_scale_min_turn_rad` (a
 //! window driving straight says nothing about s, and would only feed b with
 //! yaw the wheels cannot see).

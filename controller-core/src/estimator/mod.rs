@@ -13,7 +13,8 @@
 //!   `standstill_ticks` with both wheels still, the gyro's reading is a
 //!   measurement of its bias (zero-rate update). On the tick that closes
 //!   each snapshot interval (17 ticks), the gyro's yaw against the wheels'
-//!   over it updates the speed scale k (and b): the body turns by k times
+//!   over it updates the speed scale k and b (not the pose, which does not
+//!   jump: a Schmidt update): the body turns by k times
 //!   what the wheels report, so k is seen without external poses whenever
 //!   the robot turns (`gyro_scale.rs`, D36; the re-propagation applies it on
 //!   the same ticks from the same stored sums). The covariance update
