@@ -56,20 +56,6 @@ impl Window {
     }
 }
 
-/// The covariance entries the update changes: every (c, a) with a the bias
-/// or the scale, c <= a.
-const CHANGED: [(usize, usize); 9] = [
-    (0, 3),
-    (1, 3),
-    (2, 3),
-    (3, 3),
-    (0, 4),
-    (1, 4),
-    (2, 4),
-    (3, 4),
-    (4, 4),
-];
-
 /// Applies the window's pseudo-measurement to `f` (if the wheels turned by
 /// at least `nq.scale_min_turn` over it) as a Schmidt (consider-state)
 /// update: only b and s take the gain; x, y, θ are not corrected, their
@@ -93,20 +79,39 @@ pub(super) fn update(f: &mut Filter, w: &Window, nq: &NoiseSq) {
     let ph: [f32; N] =
         core::array::from_fn(|i| p[ix(i.min(3), i.max(3))] * t + p[ix(i.min(4), i.max(4))] * wr);
     let inv = 1.0 / (t * ph[3] + wr * ph[4] + r);
-    let b = x[3] + ph[3] * inv * innov;
-    let s = (x[4] + ph[4] * inv * innov).clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
-    // The changed entries (c, a), a ∈ {b, s}: P'ᶜᵃ = Pᶜᵃ − (P·h)ᶜ·(P·h)ᵃ / S.
-    let mut np = [0.0f32; CHANGED.len()];
-    let mut sum = b + s;
-    for (n, &(c, a)) in CHANGED.iter().enumerate() {
-        np[n] = p[ix(c, a)] - ph[c] * ph[a] * inv;
-        sum += np[n];
-    }
+    let (k3, k4) = (ph[3] * inv, ph[4] * inv);
+    let b = x[3] + k3 * innov;
+    let s = (x[4] + k4 * innov).clamp(SPEED_SCALE_RANGE.0, SPEED_SCALE_RANGE.1);
+    let np = [
+        p[ix(0, 3)] - ph[0] * k3,
+        p[ix(0, 4)] - ph[0] * k4,
+        p[ix(1, 3)] - ph[1] * k3,
+        p[ix(1, 4)] - ph[1] * k4,
+        p[ix(2, 3)] - ph[2] * k3,
+        p[ix(2, 4)] - ph[2] * k4,
+        p[ix(3, 3)] - ph[3] * k3,
+        p[ix(3, 4)] - ph[4] * k3,
+        p[ix(4, 4)] - ph[4] * k4,
+    ];
+    let sum = np.iter().fold(b + s, |a, v| a + v);
     if sum.is_finite() {
         f.x[3] = b;
         f.x[4] = s;
-        for (n, &(c, a)) in CHANGED.iter().enumerate() {
-            f.p[ix(c, a)] = np[n];
+        for (k, v) in [
+            ix(0, 3),
+            ix(0, 4),
+            ix(1, 3),
+            ix(1, 4),
+            ix(2, 3),
+            ix(2, 4),
+            ix(3, 3),
+            ix(3, 4),
+            ix(4, 4),
+        ]
+        .into_iter()
+        .zip(np)
+        {
+            f.p[k] = v;
         }
     }
 }
