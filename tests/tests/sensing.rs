@@ -14,10 +14,6 @@ use hil_sim::{run, Scenario};
 
 const SEEDS: [u64; 3] = [1, 2, 3];
 
-/// IMU-only sensing: the proposed controller's window RMS may exceed the
-/// better baseline's by this factor (see the test's documentation).
-const IMU_ONLY_TOLERANCE: f64 = 1.02;
-
 /// Case 2 at β = 0.1, ε = 0.2 and the paper preset, per seed.
 fn case2_scenarios() -> Vec<Scenario> {
     SEEDS
@@ -95,16 +91,17 @@ fn mocap_proposed_near_ideal_and_half_of_baselines() {
 }
 
 /// UWB (10 Hz, 100 ms, 5 cm, no heading) and IMU only (encoders + gyro):
-/// measured for the three controllers. Under UWB the proposed controller is
-/// not worse than either baseline.
+/// measured for the three controllers; the proposed controller is not
+/// worse than either baseline under either.
 ///
-/// Under IMU only the target (not worse than either baseline) is
-/// NOT met strictly: nothing measures position, so the actuator fault's
-/// 20 % loss of body speed is invisible (the estimator's speed scale needs
-/// position fixes) and every controller tracks a drifting estimate; the
-/// window RMS is about 1.6 m for all three and the proposed controller is
-/// within 1 % of the better baseline (seed 1: 1.6171 vs 1.6088 m). The test
-/// asserts that stated tolerance: at most 2 % above the better baseline.
+/// Under IMU only nothing measures position: the lateral skid (0.1 m/s) is
+/// invisible and every controller tracks a drifting estimate (window RMS
+/// 0.86-0.98 m). The actuator fault's 20 % loss of body speed is seen by
+/// the gyro against the wheels' yaw (the estimator's gyro-vs-wheel speed
+/// scale, docs/DECISIONS.md D36), so the fused pose shows it and the
+/// proposed controller's fault observer compensates it (seed 1: proposed
+/// 0.866 m, baselines 0.926 and 0.927 m; without that update all three were
+/// ≈ 1.6 m and the proposed 0.5 % above the better baseline).
 #[test]
 fn uwb_and_imu_proposed_not_worse_than_baselines() {
     for sensing in [Sensing::Uwb, Sensing::Imu] {
@@ -118,12 +115,8 @@ fn uwb_and_imu_proposed_not_worse_than_baselines() {
                 sensing.name()
             );
             assert!(o.iter().all(|r| r.stop.is_none()), "{}", scn.name);
-            let tol = match sensing {
-                Sensing::Imu => IMU_ONLY_TOLERANCE,
-                _ => 1.0,
-            };
             assert!(
-                prop <= tol * smc.min(asmc),
+                prop <= smc.min(asmc),
                 "{} {}: {prop} vs {smc}, {asmc}",
                 scn.name,
                 sensing.name()

@@ -90,6 +90,18 @@ pub struct EstimatorConfig {
     /// Ticks with both wheels still before the gyro's reading is taken as
     /// its bias (zero-rate update).
     pub standstill_ticks: u16,
+    /// The gyro's yaw against the wheels' updates the speed scale (a
+    /// pseudo-measurement every history snapshot interval, D36): it assumes
+    /// one scale for v and ω (the actuator fault, uniform slip); one wheel
+    /// slipping alone biases it (external poses, when present, still
+    /// correct it).
+    pub gyro_speed_scale: bool,
+    /// Smallest |wheel turn| \[rad\] over the interval for that update
+    /// (driving straight says nothing about the scale).
+    pub gyro_scale_min_turn_rad: f32,
+    /// White noise of the body's yaw rate about s × the wheels' in that
+    /// update \[rad/s/√Hz\] (uneven wheel slip, quantisation).
+    pub gyro_scale_yaw_noise: f32,
 }
 
 impl EstimatorConfig {
@@ -116,6 +128,9 @@ impl EstimatorConfig {
             max_consecutive_outliers: 10,
             standstill_ticks: 200,
             output_smoothing_s: 0.2,
+            gyro_speed_scale: true,
+            gyro_scale_min_turn_rad: 0.005,
+            gyro_scale_yaw_noise: 0.15,
         }
     }
 
@@ -135,6 +150,8 @@ impl EstimatorConfig {
             self.gyro_noise_density,
             self.gyro_bias_walk,
             self.wheel_yaw_noise,
+            self.gyro_scale_min_turn_rad,
+            self.gyro_scale_yaw_noise,
         ];
         let slip_ok = self.slip_fraction.is_finite() && self.slip_fraction >= 0.0;
         if !(noises.iter().all(|&x| pos(x)) && slip_ok) {

@@ -5,7 +5,9 @@
 //! packed covariance, 80 B), [`SNAPSHOTS`] of them. Besides, the posterior
 //! at the latest accepted measurement's tick (`Fix`): measurements are used
 //! in timestamp order, so a later one never lands before it, and replaying
-//! from it keeps that correction.
+//! from it keeps that correction. Per snapshot too, the gyro-vs-wheel sums of
+//! the interval it closes (12 B, [`super::gyro_scale`], D36): the snapshot's
+//! tick applies that update, live and re-propagated alike.
 //!
 //! A measurement nearest to the tick `back` ticks before the newest starts
 //! from the newest snapshot at or before that tick (or the fix, if later),
@@ -16,6 +18,7 @@
 //! on the same inputs, the replayed state is the one the filter had at
 //! that tick, bit for bit.
 
+use super::gyro_scale;
 use super::predict::{Filter, Input};
 use super::{PoseEstimator, N, NP};
 
@@ -180,6 +183,14 @@ impl<const H: usize> PoseEstimator<H> {
             if self.snap_len < SNAPSHOTS {
                 self.snap_len += 1;
             }
+            // The gyro-vs-wheel update of the speed scale closes the
+            // interval (D36), before the snapshot, as in the re-propagation.
+            self.windows[self.snap_head] = core::mem::take(&mut self.window);
+            gyro_scale::update(
+                &mut self.filter,
+                &self.windows[self.snap_head],
+                &self.noise_sq,
+            );
             self.snaps[self.snap_head] = Snapshot::of(&self.filter);
             self.since_snapshot = 0;
         }

@@ -11,7 +11,13 @@
 //!   the wheels' Δθ when the gyro is absent, stale, saturated or not
 //!   finite ([`GyroState`]); O_B moves by k·Δs along θ + Δθ/2. After
 //!   `standstill_ticks` with both wheels still, the gyro's reading is a
-//!   measurement of its bias (zero-rate update). The covariance update
+//!   measurement of its bias (zero-rate update). On the tick that closes
+//!   each snapshot interval (17 ticks), the gyro's yaw against the wheels'
+//!   over it updates the speed scale k and b (not the pose, which does not
+//!   jump: a Schmidt update): the body turns by k times
+//!   what the wheels report, so k is seen without external poses whenever
+//!   the robot turns (`gyro_scale.rs`, D36; the re-propagation applies it on
+//!   the same ticks from the same stored sums). The covariance update
 //!   F·P·Fᵀ + Q is written out over F's seven non-zero partials on the
 //!   packed upper triangle of P, in place, with one sin/cos per tick
 //!   (`predict.rs`; tested against the dense f64 update).
@@ -42,14 +48,15 @@
 //!
 //! `no_std`, f32, fixed memory chosen at compile time
 //! (`PoseEstimator<H>`): 16 B per tick of history plus 16 snapshots of
-//! 80 B (5.6 KiB for 272 ticks; the former full posterior per tick was
-//! 104 B), no panics: any non-finite input is refused or replaced, and a
+//! 80 B and their interval's gyro-vs-wheel sums of 12 B (5.8 KiB for 272
+//! ticks; the former full posterior per tick was 104 B), no panics: any non-finite input is refused or replaced, and a
 //! prediction or correction that would make the state non-finite is
 //! dropped.
 
 #![allow(clippy::needless_range_loop)] // small matrices read best indexed
 
 mod config;
+mod gyro_scale;
 mod history;
 mod predict;
 mod repropagation;
@@ -64,6 +71,7 @@ pub use types::{
 
 use crate::math::{sin_cos, wrap_angle};
 use crate::types::Pose;
+use gyro_scale::Window;
 use history::{Fix, Snapshot, Tick, SNAPSHOTS};
 use predict::{ix, Filter, Input, NoiseSq, SPEED_SCALE_RANGE};
 
@@ -160,6 +168,10 @@ pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
     snap_head: usize,
     snap_len: usize,
     since_snapshot: usize,
+    /// The gyro-vs-wheel yaw sums since the latest snapshot, and those of
+    /// the interval ending at each snapshot (`gyro_scale.rs`, D36).
+    window: Window,
+    windows: [Window; SNAPSHOTS],
     /// The posterior at the latest accepted measurement's tick.
     fix: Option<Fix>,
     now_us: u32,
@@ -218,6 +230,8 @@ impl<const H: usize> PoseEstimator<H> {
             snap_head: 0,
             snap_len: 0,
             since_snapshot: 0,
+            window: Window::default(),
+            windows: [Window::default(); SNAPSHOTS],
             fix: None,
             now_us: 0,
             last_accepted_stamp_us: None,
@@ -309,6 +323,7 @@ impl<const H: usize> PoseEstimator<H> {
             still: gyro_used && self.still_ticks >= self.cfg.standstill_ticks,
         };
         predict::predict(&mut self.filter, &input, &self.noise_sq);
+        self.window.add(&input, dtheta_wheel_rad);
         // The output offset decays with time constant τ = min(output_smoothing_s,
         // SMOOTHING_INTERVALS × the mean interval between measurements):
         // a jump is spread over about two intervals (factor 1/(1 + Δt/τ)).

@@ -50,6 +50,11 @@ pub(super) struct NoiseSq {
     pub(super) bias_walk: f32,
     pub(super) scale_walk: f32,
     pub(super) slip: f32,
+    /// Smallest |wheel turn| \[rad\] of a window whose gyro-vs-wheel yaw
+    /// updates the speed scale (∞ when off; `gyro_scale.rs`).
+    pub(super) scale_min_turn: f32,
+    /// `gyro_scale_yaw_noise`² plus the gyro's.
+    pub(super) scale_yaw: f32,
 }
 
 impl NoiseSq {
@@ -62,6 +67,12 @@ impl NoiseSq {
             bias_walk: sq(cfg.gyro_bias_walk),
             scale_walk: sq(cfg.speed_scale_walk),
             slip: sq(cfg.slip_fraction),
+            scale_min_turn: if cfg.gyro_speed_scale {
+                cfg.gyro_scale_min_turn_rad
+            } else {
+                f32::INFINITY
+            },
+            scale_yaw: sq(cfg.gyro_scale_yaw_noise) + sq(cfg.gyro_noise_density),
         }
     }
 }

@@ -9,6 +9,7 @@
 //! [`PoseEstimator::correct`]'s bit for bit (tested). The branch rewrites
 //! the posterior snapshots it passes (D31).
 
+use super::gyro_scale;
 use super::history::Snapshot;
 use super::predict::Filter;
 use super::PoseEstimator;
@@ -47,6 +48,8 @@ impl<const H: usize> PoseEstimator<H> {
             i = if i + 1 == H { 0 } else { i + 1 };
             self.predict_into(&mut f, &self.ticks[i].input());
             if let Some(slot) = self.snapshot_slot(k) {
+                // The tick closes a gyro-vs-wheel interval (D36), as live.
+                gyro_scale::update(&mut f, &self.windows[slot], &self.noise_sq);
                 self.snaps[slot] = Snapshot::of(&f);
             }
         }

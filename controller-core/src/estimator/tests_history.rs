@@ -88,12 +88,13 @@ fn tick_round_trips_its_inputs() {
     assert_eq!(core::mem::size_of::<Tick>(), 16);
 }
 
-/// The history is a few KiB: 16 B per tick plus 16 snapshots of 80 B
-/// (the former 104 B per tick would be 28 KiB for 272 ticks).
+/// The history is a few KiB: 16 B per tick plus 16 snapshots of 80 B and
+/// their gyro-vs-wheel sums of 12 B (D36) (the former 104 B per tick would
+/// be 28 KiB for 272 ticks).
 #[test]
 fn history_fits_a_few_kib() {
     let size = core::mem::size_of::<PoseEstimator<HISTORY_LEN>>();
-    assert!(size <= 16 * HISTORY_LEN + 16 * 80 + 640, "{size} B");
+    assert!(size <= 16 * HISTORY_LEN + 16 * (80 + 12) + 640, "{size} B");
     const { assert!(DEPTH >= 250 && K == 17) };
 }
 
@@ -195,5 +196,61 @@ fn oldest_edge_holds_at_every_phase() {
         let mut m = d.measurement(stamp(DEPTH as u32), false);
         m.position_std_m = 1.0;
         assert_eq!(e.correct(&m), Ok(()), "{extra}");
+    }
+}
+
+/// The gyro-vs-wheel update of the speed scale (D36) is part of the ticks
+/// the history replays: it is applied on each snapshot's tick, live and
+/// re-propagated alike. With it on (the Drive's wheels over-report the yaw
+/// by 10 %, so it moves the state), a measurement delivered late over one
+/// to fifteen snapshot intervals, at phases before, on and after a
+/// snapshot, whole or in slices of 24 ticks, gives the on-time state bit
+/// for bit; and the update does change the state (it is exercised).
+#[test]
+fn late_equals_on_time_with_the_gyro_speed_scale() {
+    let run = |cfg: EstimatorConfig, taken: u32, deliver: u32, slice: Option<usize>| {
+        let mut e = PoseEstimator::new(cfg).unwrap();
+        let mut d = Drive::new();
+        let mut m = None;
+        for k in 1..=taken + 300 {
+            d.tick(&mut e, k);
+            if let Some(b) = slice {
+                e.resume(b);
+            }
+            if k == taken {
+                m = Some(d.measurement(k * 1000, true));
+            }
+            if k == deliver {
+                match slice {
+                    Some(b) => e.correct_within(&m.unwrap(), b).map(|_| ()).unwrap(),
+                    None => e.correct(&m.unwrap()).unwrap(),
+                }
+            }
+        }
+        e.resume(usize::MAX);
+        e
+    };
+    let on = EstimatorConfig::example(0.05, Pose::new(0.0, 0.0, 0.0));
+    assert!(on.gyro_speed_scale);
+    let off = EstimatorConfig {
+        gyro_speed_scale: false,
+        ..on
+    };
+    for taken in [400, 400 + K as u32 - 1, 400 + K as u32, 401] {
+        let on_time = run(on, taken, taken, None);
+        for delay in [1, K as u32, 2 * K as u32 + 3, 100, DEPTH as u32] {
+            for slice in [None, Some(24)] {
+                let late = run(on, taken, taken + delay, slice);
+                assert_eq!(
+                    state_bits(&on_time),
+                    state_bits(&late),
+                    "taken {taken}, delay {delay}, slice {slice:?}"
+                );
+            }
+        }
+        assert_ne!(
+            state_bits(&on_time),
+            state_bits(&run(off, taken, taken, None))
+        );
     }
 }

@@ -253,3 +253,92 @@ fn zero_rate_update_equals_dense_kalman_update() {
         }
     }
 }
+
+/// The gyro-vs-wheel update of the speed scale (gyro_scale.rs, D36) is the
+/// Schmidt (consider-state) scalar Kalman update with h = [0, 0, 0, T, W],
+/// ν = Σg·Δt − b·T − s·W, r = (σ_s² + σ_g²)·T + slip²·W²/T and the gain
+/// of x, y, θ zeroed: compared with the dense f64 Joseph form
+/// P' = (I − K·hᵀ)·P·(I − K·hᵀ)ᵀ + K·r·Kᵀ, K = (0, 0, 0, (P·h)₃, (P·h)₄) / S
+/// (valid for any gain), on random states and covariances (scale kept
+/// inside its range). The pose and its covariance are unchanged.
+#[test]
+fn gyro_scale_update_equals_dense_kalman_update() {
+    use super::gyro_scale::{update, Window};
+    let cfg = EstimatorConfig::example(0.05, Pose::new(0.0, 0.0, 0.0));
+    let nq = NoiseSq::of(&cfg);
+    let mut r = Rnd(0x5CA1E);
+    let mut applied = 0;
+    for case in 0..500 {
+        let (f, _) = random_case(&mut r);
+        let mut w = Window::default();
+        let (dt, g, wheel) = (1e-3, 2.0 * r.next(), 2.0e-3 * r.next());
+        let n = 17;
+        for _ in 0..n {
+            let u = Input {
+                dt_s: dt,
+                ds_m: 0.0,
+                yaw: g,
+                gyro_used: true,
+                still: false,
+            };
+            w.add(&u, wheel);
+        }
+        let mut got = f;
+        update(&mut got, &w, &nq);
+        let (t, wr, z) = (17e-3f64, 17.0 * wheel as f64, 17e-3 * g as f64);
+        if wr.abs() < cfg.gyro_scale_min_turn_rad as f64 {
+            assert_eq!(got, f, "case {case}: no update below the turn threshold");
+            continue;
+        }
+        applied += 1;
+        let p = unpack(&f.p).map(|row| row.map(|v| v as f64));
+        let x = f.x.map(|v| v as f64);
+        let h = [0.0, 0.0, 0.0, t, wr];
+        let ph: [f64; 5] = core::array::from_fn(|i| (0..5).map(|j| p[i][j] * h[j]).sum());
+        let rr = (sq(cfg.gyro_scale_yaw_noise) + sq(cfg.gyro_noise_density)) * t
+            + sq(cfg.slip_fraction) * wr * wr / t;
+        let s = (0..5).map(|i| h[i] * ph[i]).sum::<f64>() + rr;
+        let innov = z - x[3] * t - x[4] * wr;
+        let gp = unpack(&got.p);
+        let k: [f64; 5] = core::array::from_fn(|i| if i >= 3 { ph[i] / s } else { 0.0 });
+        // Joseph form with this gain.
+        let a: M64 = core::array::from_fn(|i| {
+            core::array::from_fn(|j| f64::from(u8::from(i == j)) - k[i] * h[j])
+        });
+        let mut want_p = mul(&mul(&a, &p), &transpose(&a));
+        for i in 0..5 {
+            for j in 0..5 {
+                want_p[i][j] += k[i] * rr * k[j];
+            }
+        }
+        assert_eq!(
+            &got.x[..3],
+            &f.x[..3],
+            "case {case}: the pose is not corrected"
+        );
+        for i in 0..5 {
+            let want = x[i] + k[i] * innov;
+            let err = (got.x[i] as f64 - want).abs();
+            let clamped = i == 4 && !(0.2..=1.5).contains(&want);
+            assert!(
+                clamped || err <= 1e-5 * (want.abs() + 1e-3),
+                "case {case} x[{i}]: {} vs {want}",
+                got.x[i]
+            );
+            for j in 0..5 {
+                let scale = p[i][j].abs() + (ph[i] * ph[j] / s).abs();
+                assert!(
+                    (gp[i][j] as f64 - want_p[i][j]).abs() <= 1e-5 * scale + 1e-12,
+                    "case {case} P[{i}][{j}]: {} vs {}",
+                    gp[i][j],
+                    want_p[i][j]
+                );
+            }
+        }
+    }
+    assert!(applied > 200, "{applied}");
+}
+
+fn sq(v: f32) -> f64 {
+    v as f64 * v as f64
+}
