@@ -136,11 +136,11 @@ impl EstimatorConfig {
 
     /// Checks every field.
     pub fn validate(self) -> Result<Self, EstimatorConfigError> {
-        let pos = |x: f32| x.is_finite() && x > 0.0;
+        use crate::math::{all_non_negative, all_positive};
         if !(self.initial_pose.is_finite() && self.com_offset_m.is_finite()) {
             return Err(EstimatorConfigError::NonFinitePose);
         }
-        let noises = [
+        if !(all_positive(&[
             self.initial_position_std_m,
             self.initial_heading_std_rad,
             self.initial_bias_std_radps,
@@ -152,18 +152,14 @@ impl EstimatorConfig {
             self.wheel_yaw_noise,
             self.gyro_scale_min_turn_rad,
             self.gyro_scale_yaw_noise,
-        ];
-        let slip_ok = self.slip_fraction.is_finite() && self.slip_fraction >= 0.0;
-        if !(noises.iter().all(|&x| pos(x)) && slip_ok) {
+        ]) && all_non_negative(&[self.slip_fraction, self.output_smoothing_s]))
+        {
             return Err(EstimatorConfigError::InvalidNoise);
         }
-        if !(self.output_smoothing_s.is_finite() && self.output_smoothing_s >= 0.0) {
-            return Err(EstimatorConfigError::InvalidNoise);
-        }
-        if !(pos(self.chi2_gate_2dof) && pos(self.chi2_gate_3dof)) {
+        if !all_positive(&[self.chi2_gate_2dof, self.chi2_gate_3dof]) {
             return Err(EstimatorConfigError::InvalidGate);
         }
-        if !pos(self.gyro_saturation_radps) || self.gyro_stale_us == 0 {
+        if !all_positive(&[self.gyro_saturation_radps]) || self.gyro_stale_us == 0 {
             return Err(EstimatorConfigError::InvalidGyroLimit);
         }
         if self.max_consecutive_outliers == 0 || self.standstill_ticks == 0 {

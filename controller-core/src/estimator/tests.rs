@@ -718,6 +718,7 @@ fn sequential_update_equals_batch() {
 /// actuator fault ε = 0.2 makes them) give s → 1/1.25 = 0.8 within 0.03
 /// after 20 s of an S-curve (the gyro biased by 0.01 rad/s); with the
 /// update off it stays at 1, and the position is the better for it.
+#[cfg(feature = "gyro-speed-scale")]
 #[test]
 fn gyro_speed_scale_finds_the_fault_without_fixes() {
     let run = |on: bool| {

@@ -206,6 +206,7 @@ fn oldest_edge_holds_at_every_phase() {
 /// to fifteen snapshot intervals, at phases before, on and after a
 /// snapshot, whole or in slices of 24 ticks, gives the on-time state bit
 /// for bit; and the update does change the state (it is exercised).
+#[cfg(feature = "gyro-speed-scale")]
 #[test]
 fn late_equals_on_time_with_the_gyro_speed_scale() {
     let run = |cfg: EstimatorConfig, taken: u32, deliver: u32, slice: Option<usize>| {

@@ -261,6 +261,7 @@ fn zero_rate_update_equals_dense_kalman_update() {
 /// P' = (I − K·hᵀ)·P·(I − K·hᵀ)ᵀ + K·r·Kᵀ, K = (0, 0, 0, (P·h)₃, (P·h)₄) / S
 /// (valid for any gain), on random states and covariances (scale kept
 /// inside its range). The pose and its covariance are unchanged.
+#[cfg(feature = "gyro-speed-scale")]
 #[test]
 fn gyro_scale_update_equals_dense_kalman_update() {
     use super::gyro_scale::{update, Window};
