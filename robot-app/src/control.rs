@@ -50,8 +50,8 @@ pub struct ControlTask {
     button: ArmingButton,
     cfg: AppConfig,
     state: RunStateMsg,
+    /// Completed ticks (each fed the watchdog once).
     ticks: u32,
-    feeds: u32,
     cycles: CycleStats,
     link_max: u32,
     link_ticks: u32,
@@ -74,7 +74,6 @@ impl ControlTask {
             cfg,
             state: RunStateMsg::Hold,
             ticks: 0,
-            feeds: 0,
             cycles: CycleStats::new(),
             link_max: 0,
             link_ticks: 0,
@@ -88,7 +87,7 @@ impl ControlTask {
 
     /// Watchdog feeds so far (one per completed tick).
     pub fn watchdog_feeds(&self) -> u32 {
-        self.feeds
+        self.ticks
     }
 
     /// Runs forever: starts the watchdog, then one [`tick`](Self::tick) per
@@ -166,12 +165,11 @@ impl ControlTask {
         if B::LOGS_STATUS && every(self.ticks, self.cfg.telemetry_every_ticks) {
             board.event(&AppEvent::Telemetry(&rep));
         }
-        // The tick completed: the loop is alive.
-        self.feeds = self.feeds.wrapping_add(1);
         if B::LOGS_STATUS && every(self.ticks, self.cfg.status_every_ticks) {
             let status = self.status(pipes);
             board.event(&AppEvent::Status(status));
         }
+        // The tick completed: the loop is alive.
         board.feed_watchdog();
     }
 
@@ -188,7 +186,7 @@ impl ControlTask {
             tick_cycles_max: c.max(),
             tick_cycles_max_link: self.link_max,
             link_ticks: self.link_ticks,
-            watchdog_feeds: self.feeds,
+            watchdog_feeds: self.ticks,
             rx_dropped_bytes: pipes.rx_dropped_bytes(),
         };
         self.link_max = 0;
