@@ -25,6 +25,13 @@
 //! buffer drained by [`Device::pop_tx`] (a frame that does not fit is
 //! dropped and counted). Boot state is hold: motors off until a mode is
 //! loaded and armed.
+//!
+//! Modules, each using only those listed before it (checked by
+//! `tests/layers.rs`): [`framing`] (bytes and frames), [`reference`] (the
+//! references), [`params`] (configuration and parameters), `telemetry`
+//! (telemetry and events), `selection` (which reference drives each tick,
+//! controlled stops), `requests` (request handling against the state);
+//! [`Device`] here wires them.
 #![no_std]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
