@@ -298,11 +298,9 @@ impl Board {
     /// The H-bridge inputs from the pins: PWM on PA8/PA9 (TIM1 CH1/CH2 on
     /// AF1, or a GPIO output level), DIR on PB12/PB13, ENABLE on PB14.
     pub fn bridge(&self) -> Result<BridgeInputs, String> {
-        let enc = [0u16; 2];
         let mut pwm = [(0u32, 1u32); 2];
         for (i, pin) in [8u32, 9].into_iter().enumerate() {
             let port = &self.gpio[0];
-            let full = self.tim1.output(i, enc[0]).ok();
             pwm[i] = match port.mode(pin) {
                 gpio::Mode::Output => (port.odr_bit(pin) as u32, 1),
                 gpio::Mode::Alternate(1) => match self.tim1.output(i, 0)? {
@@ -313,7 +311,6 @@ impl Board {
                 // Input, analog, another AF: the board's pull-down.
                 _ => (0, 1),
             };
-            let _ = full;
         }
         let b = &self.gpio[1];
         let out = |pin: u32| b.mode(pin) == gpio::Mode::Output && b.odr_bit(pin);
@@ -506,8 +503,25 @@ impl Board {
                 self.scb.read(addr - 0xE000_E000, &self.nvic, va)
             }
             0xE004_2000..=0xE004_2FFF => self.dbgmcu.read(addr - 0xE004_2000),
-            _ => Err(format!("{} +0x{:X}", Self::periph_name(addr), addr & 0xFFF)),
+            _ => Err(Self::unknown(addr)),
         }
+    }
+
+    /// The name of an address no model covers.
+    fn unknown(addr: u32) -> String {
+        let p = Self::periph_name(addr);
+        let reg = match (p, addr & 0xFFF) {
+            ("USB_OTG_FS", 0x000) => " GOTGCTL",
+            ("USB_OTG_FS", 0x008) => " GAHBCFG",
+            ("USB_OTG_FS", 0x00C) => " GUSBCFG",
+            ("USB_OTG_FS", 0x010) => " GRSTCTL",
+            ("USB_OTG_FS", 0x014) => " GINTSTS",
+            ("USB_OTG_FS", 0x018) => " GINTMSK",
+            ("USB_OTG_FS", 0x038) => " GCCFG",
+            ("USB_OTG_FS", 0x03C) => " CID",
+            _ => "",
+        };
+        format!("{p} +0x{:X}{reg}", addr & 0xFFF)
     }
 
     fn vectactive(&self) -> u32 {
@@ -595,7 +609,7 @@ impl Board {
             0xE000_E100..=0xE000_E4EF | 0xE000_EF00 => self.nvic.write(addr - 0xE000_E000, value, mask),
             0xE000_E000..=0xE000_EFFF => self.scb.write(addr - 0xE000_E000, value, mask, &mut self.nvic),
             0xE004_2000..=0xE004_2FFF => self.dbgmcu.write(addr - 0xE004_2000, value, mask),
-            _ => Err(format!("{} +0x{:X}", Self::periph_name(addr), addr & 0xFFF)),
+            _ => Err(Self::unknown(addr)),
         }
     }
 
@@ -961,8 +975,7 @@ impl<'a> Machine<'a> {
             let pc = self.uc.reg_read(RegisterARM::PC).map_err(|e| format!("{e:?}"))?;
             let r = self.uc.emu_start(pc | 1, 0, 0, 0);
             if let Some(e) = self.uc.get_data_mut().error.take() {
-                let pc = self.uc.reg_read(RegisterARM::PC).unwrap_or(0);
-                return Err(format!("{e} (PC 0x{pc:08X})"));
+                return Err(e);
             }
             match r {
                 Ok(()) => {}
