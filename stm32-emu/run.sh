@@ -14,7 +14,7 @@
 #       at most MAX_DROPPED_FRAMES telemetry frames missing;
 #   (c) it stops on link silence: after the record the host goes quiet while
 #       the robot still runs; within LINK_SILENCE_S the firmware has stopped
-#       it (wmr status: not running, last stop LinkLost) and the motors are off;
+#       it (wmr status: not running, last stop LinkSilence) and the motors are off;
 #   (d) a stalled loop latches: the harness holds the CPU for 10 ms while the
 #       robot runs (armed by the button); the runtime latches a stop
 #       (wmr status: last stop LoopOverrun), the motors go off, no reset;
@@ -37,6 +37,10 @@ cd "$(dirname "$0")"
 ROOT="$(cd .. && pwd)"
 
 RECORD_S="${RECORD_S:-10}"
+# Telemetry rate: 50 Hz fits USART2's 115 200 baud (one frame is about
+# 160 B: 8 kB/s of the line's 11.5 kB/s). At wmr's default 100 Hz the link
+# is over capacity, and the image's link stops transmitting: (h) below.
+RATE_HZ="${RATE_HZ:-50}"
 REL_TOL_RMS="${REL_TOL_RMS:-0.10}"
 MAX_DROPPED_FRAMES="${MAX_DROPPED_FRAMES:-10}"
 FAULT_CUT_US="${FAULT_CUT_US:-200}"
@@ -146,8 +150,8 @@ drive() {
     grep -q "state Hold" <<<"$st" || fail "$chip did not boot in hold"
     step "wmr upload trajectories/square.toml"
     wmr upload "$ROOT/trajectories/square.toml" || fail "wmr upload ($chip)"
-    step "wmr record --seconds $RECORD_S --arm (100 Hz telemetry)"
-    rec="$(wmr record --seconds "$RECORD_S" --out "$csv" --arm --quiet)" || fail "wmr record ($chip)"
+    step "wmr record --seconds $RECORD_S --rate $RATE_HZ --arm"
+    rec="$(wmr record --seconds "$RECORD_S" --rate "$RATE_HZ" --out "$csv" --arm --quiet)" || fail "wmr record ($chip)"
     echo "$rec"
     step "link silence: the host stays quiet for $LINK_SILENCE_S s while the robot runs"
     sleep "$LINK_SILENCE_S"
@@ -178,7 +182,7 @@ boots="$(grep -c "\] boot " "$LOG" || true)"
 [ "$boots" -eq 1 ] || fail "the image booted $boots times"
 
 step "(c) link silence"
-grep -q "last stop LinkLost" <<<"$emu_st" || fail "no link-loss stop after $LINK_SILENCE_S s of silence: $emu_st"
+grep -q "last stop LinkSilence" <<<"$emu_st" || fail "no link-loss stop after $LINK_SILENCE_S s of silence: $emu_st"
 grep -q "state Running" <<<"$emu_st" && fail "still running after the host went silent"
 grep "motors off" "$LOG" | tail -1
 tail_motor="$(grep -E "motors (off|driven)" "$LOG" | tail -1)"
@@ -212,7 +216,7 @@ for who in emulated-f446re hil-sim; do
     printf '%-22s %10.4f %10.4f %12.3f %10.3f\n' "$who" "$(json rms_pos_err_m "$r")" \
         "$(json final_pos_err_m "$r")" "$(json torque_rms_nm "$r")" "$(json saturated_fraction "$r")"
 done
-min_rows=$((RECORD_S * 100 - 10))
+min_rows=$((RECORD_S * RATE_HZ - 5))
 [ "$rows" -ge "$min_rows" ] || fail "$rows telemetry rows recorded, expected >= $min_rows"
 [ "$dropped" -le "$MAX_DROPPED_FRAMES" ] || fail "$dropped telemetry frames missing (> $MAX_DROPPED_FRAMES)"
 within_rel "$rms" "$ref_rms" "$REL_TOL_RMS" ||
@@ -272,6 +276,24 @@ echo "$s"
 grep -q "executor idle reached" "$OUT_DIR/f411.log" || fail "the F411 image did not reach the executor"
 grep -q "USB_OTG_FS" <<<"$s" || fail "the F411 image stopped elsewhere than at USB OTG_FS: $s"
 echo "OK: F411CE reached the executor and its first USB OTG_FS access ($(json error "$s" | head -c 0)$(sed -n 's/.*"error":"\([^"]*\)".*/\1/p' <<<"$s"))"
+
+step "(h) known firmware issue: telemetry beyond the line rate (wmr's default 100 Hz) stops USART2's transmitter"
+# embassy-stm32 0.6's BufferedUartTx::write returns Pending without
+# registering a waker when its ring lacks room for the whole chunk
+# (usart/buffered.rs); robot-app's pump_tx then never runs again and the
+# link goes silent until a reset. Reported, not failed: the fix belongs
+# to firmware/ (README "Findings").
+start_emu --elf "$ELF446"
+PORT="$PTY"
+wait_for_log "IWDG started" 20
+wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "wmr upload (h)"
+if out="$(wmr record --seconds 3 --rate 100 --out "$OUT_DIR/emu_100hz.csv" --arm --quiet 2>&1)"; then
+    known_issue="not reproduced: 100 Hz telemetry recorded ($out)"
+else
+    known_issue="reproduced: $out"
+fi
+cleanup
+echo "KNOWN ISSUE (100 Hz telemetry over USART2): $known_issue"
 
 step "speed"
 s="$(headless speed --elf "$ELF446" --press 0.5 --seconds 10)"

@@ -152,6 +152,7 @@ fn run() -> Result<i32, String> {
     let mut tx_pending: Vec<u8> = Vec::new();
     let mut buf = [0u8; 512];
     let poll_ps = 1_000_000_000; // 1 ms
+    let trace = std::env::var_os("STM32_EMU_TRACE_LINK").is_some();
     let mut poll = |m: &mut Machine| -> Result<(), String> {
         let now = m.board().now_ps();
         // Host link.
@@ -159,10 +160,20 @@ fn run() -> Result<i32, String> {
             loop {
                 match master.read(&mut buf) {
                     Ok(0) => break,
-                    Ok(n) => m.board().usart2.host_send(&buf[..n], now),
+                    Ok(n) => {
+                        if trace {
+                            let t = now as f64 / PS;
+                            eprintln!("[link t={t:10.6}] host -> {n} B");
+                        }
+                        m.board().usart2.host_send(&buf[..n], now)
+                    }
                     Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut | std::io::ErrorKind::Interrupted) => break,
                     Err(_) => break, // no host: EIO while the slave is closed
                 }
+            }
+            if trace && !m.board().usart2.tx_out.is_empty() {
+                let t = now as f64 / PS;
+                eprintln!("[link t={t:10.6}] device -> {} B", m.board().usart2.tx_out.len());
             }
             tx_pending.append(&mut m.board().usart2.tx_out);
             if !tx_pending.is_empty() {
@@ -266,8 +277,8 @@ fn run() -> Result<i32, String> {
     s += &format!("\"idle_reached\":{},\"loop_started\":{},", d.idle_reached, d.loop_started);
     s += &format!("\"feeds\":{},\"tim5_irqs\":{},\"usart2_irqs\":{},\"hardfaults\":{},", d.stats.feeds, taken(16 + 50), taken(16 + 38), taken(3));
     s += &format!(
-        "\"usart2_rx_bytes\":{},\"usart2_overruns\":{},",
-        d.usart2.rx_bytes, d.usart2.overruns
+        "\"usart2_rx_bytes\":{},\"usart2_tx_bytes\":{},\"usart2_overruns\":{},",
+        d.usart2.rx_bytes, d.usart2.tx_bytes, d.usart2.overruns
     );
     if let Some(b) = bridge {
         s += &format!(

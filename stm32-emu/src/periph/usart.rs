@@ -49,8 +49,10 @@ pub struct Usart {
     idle_at_ps: Option<u128>,
     /// Bytes sent to the host.
     pub tx_out: Vec<u8>,
-    /// Counters: bytes received, overruns.
+    /// Bytes received from the host.
     pub rx_bytes: u64,
+    /// Bytes transmitted to the host.
+    pub tx_bytes: u64,
     /// Overrun events (a byte lost because RXNE was still set).
     pub overruns: u64,
     /// Kernel clock (its APB) \[Hz\].
@@ -78,6 +80,7 @@ impl Usart {
             idle_at_ps: None,
             tx_out: Vec::new(),
             rx_bytes: 0,
+            tx_bytes: 0,
             overruns: 0,
             clk_hz,
         }
@@ -128,6 +131,7 @@ impl Usart {
                 break;
             }
             self.tx_out.push(b);
+            self.tx_bytes += 1;
             self.shifting = self.tdr.take().map(|n| (n, done + self.frame_ps()));
             if self.shifting.is_some() {
                 self.sr |= sr::TXE;
