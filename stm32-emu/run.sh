@@ -68,7 +68,7 @@ fail() {
 
 EPID=""
 cleanup() {
-    exec 3<&- 2>/dev/null || true
+    exec 3<&-
     if [ -n "$EPID" ] && kill -0 "$EPID" 2>/dev/null; then
         kill "$EPID" 2>/dev/null || true
         wait "$EPID" 2>/dev/null || true
@@ -112,6 +112,7 @@ echo "build times: images ${t_fw} s, stm32-emu (with Unicorn's C) ${t_emu} s"
 # Starts the emulator with args "$@" and USART2 on a pty; sets EPID, PTY.
 start_emu() {
     : >"$LOG"
+    rm -f "$OUT_DIR/emu.out"
     "$EMU" --pty --realtime "$@" >"$OUT_DIR/emu.out" 2>"$LOG" </dev/null &
     EPID=$!
     local t_end=$((SECONDS + 10))

@@ -125,6 +125,11 @@ fn run() -> Result<i32, String> {
     let image = stm32_emu::elf::Image::parse(&bytes).map_err(|e| format!("{}: {e}", a.elf))?;
     let mut m = Machine::new(a.chip, image)?;
     m.board().verbose = !a.quiet;
+    if !a.quiet {
+        for e in &m.board().events {
+            eprintln!("[stm32-emu t={:10.6} s] {}", e.t_s, e.what);
+        }
+    }
 
     // The host link: a pty pair, the slave kept open (hosts come and go).
     let mut link = if a.pty {
