@@ -35,17 +35,20 @@ impl Image {
         }
         let symbols = file
             .symbols()
-            .filter_map(|s| Some((s.name().ok()?.to_string(), s.address() as u32, s.size() as u32)))
+            .filter_map(|s| {
+                Some((
+                    s.name().ok()?.to_string(),
+                    s.address() as u32,
+                    s.size() as u32,
+                ))
+            })
             .collect();
         Ok(Self { segments, symbols })
     }
 
     /// The address of symbol `name` (thumb bit cleared).
     pub fn symbol(&self, name: &str) -> Option<u32> {
-        self.symbols
-            .iter()
-            .find(|s| s.0 == name)
-            .map(|s| s.1 & !1)
+        self.symbols.iter().find(|s| s.0 == name).map(|s| s.1 & !1)
     }
 }
 
@@ -65,6 +68,7 @@ fn load_address(bytes: &[u8], file_off: u64) -> Option<u64> {
     let phnum = u16_at(0x2C)? as usize;
     (0..phnum).find_map(|i| {
         let h = phoff + i * phentsize;
-        (u32_at(h)? == 1 && u32_at(h + 4)? as u64 == file_off).then(|| u32_at(h + 12).map(u64::from))?
+        (u32_at(h)? == 1 && u32_at(h + 4)? as u64 == file_off)
+            .then(|| u32_at(h + 12).map(u64::from))?
     })
 }

@@ -13,8 +13,8 @@ use crate::periph::nvic::{exc, Nvic};
 use crate::periph::rcc::{Rcc, ResetCause};
 use crate::periph::timer::{ChannelOutput, Kind, Timer};
 use crate::periph::{
-    dbgmcu::Dbgmcu, flash::Flash, gpio, gpio::Port, iwdg::Iwdg, pwr::Pwr, scb::Scb,
-    systick::Dwt, systick::SysTick, usart::Usart, PS_PER_S,
+    dbgmcu::Dbgmcu, flash::Flash, gpio, gpio::Port, iwdg::Iwdg, pwr::Pwr, scb::Scb, systick::Dwt,
+    systick::SysTick, usart::Usart, PS_PER_S,
 };
 use crate::robot::{BridgeInputs, Robot};
 use unicorn_engine::unicorn_const::{uc_error, Arch, HookType, MemType, Mode, Prot};
@@ -181,6 +181,10 @@ pub struct Board {
     pub stats: Stats,
     /// Fault armed for the next TIM3.CNT read.
     fault_on_encoder_read: bool,
+    /// When a fault was injected \[ps\] and the cycle count then.
+    pub fault_at: Option<(u128, u64)>,
+    /// From the injected fault to every motor pin low: (ps, instructions).
+    pub cut_after_fault: Option<(u128, u64)>,
     /// Print events as they happen.
     pub verbose: bool,
     /// Time of the last idle (WFE) in this boot, if reached.
@@ -241,6 +245,8 @@ impl Board {
             events: Vec::new(),
             stats: Stats::default(),
             fault_on_encoder_read: false,
+            fault_at: None,
+            cut_after_fault: None,
             verbose: false,
             idle_reached: false,
             loop_started: false,
@@ -326,6 +332,11 @@ impl Board {
         let b = self.bridge()?;
         let now = self.now_ps();
         self.robot.advance(now, &b)?;
+        if let (Some((t, c)), None) = (self.fault_at, self.cut_after_fault) {
+            if b.all_low() {
+                self.cut_after_fault = Some((now - t, self.cycles - c));
+            }
+        }
         if b != self.last_bridge {
             let was_off = self.last_bridge.motors_off();
             self.last_bridge = b;
@@ -353,7 +364,12 @@ impl Board {
     /// Updates the NVIC's device interrupt lines from the models.
     fn update_lines(&mut self) {
         let now = self.now_ps();
-        for t in [&mut self.tim1, &mut self.tim3, &mut self.tim4, &mut self.tim5] {
+        for t in [
+            &mut self.tim1,
+            &mut self.tim3,
+            &mut self.tim4,
+            &mut self.tim5,
+        ] {
             t.sync(now);
         }
         self.usart2.sync(now);
@@ -361,7 +377,11 @@ impl Board {
         self.nvic.set_line(irq::TIM1_UP, u);
         self.nvic.set_line(irq::TIM1_CC, c);
         self.nvic.set_line(irq::TIM1_BRK, b);
-        for (t, n) in [(&self.tim3, irq::TIM3), (&self.tim4, irq::TIM4), (&self.tim5, irq::TIM5)] {
+        for (t, n) in [
+            (&self.tim3, irq::TIM3),
+            (&self.tim4, irq::TIM4),
+            (&self.tim5, irq::TIM5),
+        ] {
             let (u, c, _) = t.irq_lines();
             self.nvic.set_line(n, u || c);
         }
@@ -457,7 +477,11 @@ impl Board {
             }
             0x4000_0400 | 0x4000_0800 => {
                 let right = addr & !0x3FF == 0x4000_0400;
-                self.clock_on(if right { "TIM3" } else { "TIM4" }, 0x40, if right { 1 } else { 2 })?;
+                self.clock_on(
+                    if right { "TIM3" } else { "TIM4" },
+                    0x40,
+                    if right { 1 } else { 2 },
+                )?;
                 let pos = self.encoder_pos()?;
                 if right && off == 0x24 && self.fault_on_encoder_read {
                     self.fault_on_encoder_read = false;
@@ -468,7 +492,10 @@ impl Board {
                         self.scb.hfsr |= 1 << 30; // FORCED
                         self.nvic.set_pending(exc::HARD_FAULT);
                     }
-                    self.event("fault injected: bus error on TIM3.CNT read (imprecise BusFault)".into());
+                    self.fault_at = Some((now, self.cycles));
+                    self.event(
+                        "fault injected: bus error on TIM3.CNT read (imprecise BusFault)".into(),
+                    );
                     self.stop_req = true;
                 }
                 if right {
@@ -566,7 +593,11 @@ impl Board {
             }
             0x4000_0400 | 0x4000_0800 => {
                 let right = addr & !0x3FF == 0x4000_0400;
-                self.clock_on(if right { "TIM3" } else { "TIM4" }, 0x40, if right { 1 } else { 2 })?;
+                self.clock_on(
+                    if right { "TIM3" } else { "TIM4" },
+                    0x40,
+                    if right { 1 } else { 2 },
+                )?;
                 let pos = self.encoder_pos()?;
                 if right {
                     self.tim3.write(off, value, mask, now, pos[0])
@@ -602,12 +633,20 @@ impl Board {
 
     fn write_ppb(&mut self, addr: u32, value: u32, mask: u32) -> Result<(), String> {
         match addr {
-            0xE000_1000..=0xE000_1FFF => self.dwt.write(addr - 0xE000_1000, value, mask, self.cycles),
-            0xE000_E010..=0xE000_E01F => {
-                self.systick.write(addr - 0xE000_E010, value, mask, self.cycles)
+            0xE000_1000..=0xE000_1FFF => {
+                self.dwt.write(addr - 0xE000_1000, value, mask, self.cycles)
             }
-            0xE000_E100..=0xE000_E4EF | 0xE000_EF00 => self.nvic.write(addr - 0xE000_E000, value, mask),
-            0xE000_E000..=0xE000_EFFF => self.scb.write(addr - 0xE000_E000, value, mask, &mut self.nvic),
+            0xE000_E010..=0xE000_E01F => {
+                self.systick
+                    .write(addr - 0xE000_E010, value, mask, self.cycles)
+            }
+            0xE000_E100..=0xE000_E4EF | 0xE000_EF00 => {
+                self.nvic.write(addr - 0xE000_E000, value, mask)
+            }
+            0xE000_E000..=0xE000_EFFF => {
+                self.scb
+                    .write(addr - 0xE000_E000, value, mask, &mut self.nvic)
+            }
             0xE004_2000..=0xE004_2FFF => self.dbgmcu.write(addr - 0xE004_2000, value, mask),
             _ => Err(Self::unknown(addr)),
         }
@@ -649,11 +688,7 @@ impl Board {
                     self.pwr = Pwr::default();
                 }
             }
-            0x24 => {
-                if bits & 1 != 0 {
-                    self.tim1 = Timer::new("TIM1", Kind::Advanced, apb2t);
-                }
-            }
+            0x24 if bits & 1 != 0 => self.tim1 = Timer::new("TIM1", Kind::Advanced, apb2t),
             _ => {}
         }
     }
@@ -668,7 +703,6 @@ pub struct Machine<'a> {
     /// The CPU is held (the harness's stall) until this time \[ps\].
     stalled_until: Option<u128>,
 }
-
 
 /// Thumb instructions in `[addr, addr + size)` of the flash image.
 fn count_insns(code: &[u8], addr: u64, size: u32) -> u64 {
@@ -704,23 +738,37 @@ impl<'a> Machine<'a> {
             }
         }
         let ue = |e: uc_error| format!("unicorn: {e:?}");
-        let mut uc = Unicorn::new_with_data(Arch::ARM, Mode::THUMB | Mode::MCLASS, Board::new(chip, code.clone()))
+        let mut uc = Unicorn::new_with_data(
+            Arch::ARM,
+            Mode::THUMB | Mode::MCLASS,
+            Board::new(chip, code.clone()),
+        )
+        .map_err(ue)?;
+        uc.ctl_set_cpu_model(ArmCpuModel::CORTEX_M4 as i32)
             .map_err(ue)?;
-        uc.ctl_set_cpu_model(ArmCpuModel::CORTEX_M4 as i32).map_err(ue)?;
-        uc.mem_map(FLASH_BASE as u64, chip.flash_size() as u64, Prot::READ | Prot::EXEC)
-            .map_err(ue)?;
+        uc.mem_map(
+            FLASH_BASE as u64,
+            chip.flash_size() as u64,
+            Prot::READ | Prot::EXEC,
+        )
+        .map_err(ue)?;
         uc.mem_write(FLASH_BASE as u64, &code).map_err(ue)?;
-        uc.mem_map(RAM_BASE as u64, chip.ram_size() as u64, Prot::ALL).map_err(ue)?;
+        uc.mem_map(RAM_BASE as u64, chip.ram_size() as u64, Prot::ALL)
+            .map_err(ue)?;
         for (base, size) in [(0x4000_0000u64, 0x2000_0000u64), (0xE000_0000, 0x10_0000)] {
             uc.mmio_map(
                 base,
                 size,
-                Some(move |uc: &mut Unicorn<Board>, off: u64, size: usize| -> u64 {
-                    mmio_read(uc, (base + off) as u32, size)
-                }),
-                Some(move |uc: &mut Unicorn<Board>, off: u64, size: usize, v: u64| {
-                    mmio_write(uc, (base + off) as u32, size, v as u32)
-                }),
+                Some(
+                    move |uc: &mut Unicorn<Board>, off: u64, size: usize| -> u64 {
+                        mmio_read(uc, (base + off) as u32, size)
+                    },
+                ),
+                Some(
+                    move |uc: &mut Unicorn<Board>, off: u64, size: usize, v: u64| {
+                        mmio_write(uc, (base + off) as u32, size, v as u32)
+                    },
+                ),
             )
             .map_err(ue)?;
         }
@@ -738,7 +786,7 @@ impl<'a> Machine<'a> {
             }
         })
         .map_err(ue)?;
-        uc.add_intr_hook(|uc, intno| intr_hook(uc, intno)).map_err(ue)?;
+        uc.add_intr_hook(intr_hook).map_err(ue)?;
         // SEV: hooked at every halfword 0xBF40 of the image (only real
         // instruction starts ever fire).
         for (i, w) in code.chunks_exact(2).enumerate() {
@@ -834,7 +882,8 @@ impl<'a> Machine<'a> {
         self.uc.mem_read(FLASH_BASE as u64, &mut vt).map_err(ue)?;
         let sp = u32::from_le_bytes(vt[0..4].try_into().unwrap_or_default());
         let pc = u32::from_le_bytes(vt[4..8].try_into().unwrap_or_default());
-        if !(RAM_BASE..=RAM_BASE + self.uc.get_data().chip.ram_size()).contains(&sp) || pc & 1 == 0 {
+        if !(RAM_BASE..=RAM_BASE + self.uc.get_data().chip.ram_size()).contains(&sp) || pc & 1 == 0
+        {
             return Err(format!(
                 "vector table: initial SP 0x{sp:08X} / reset vector 0x{pc:08X} invalid"
             ));
@@ -862,7 +911,9 @@ impl<'a> Machine<'a> {
         self.uc.reg_write(RegisterARM::FAULTMASK, 0).map_err(ue)?;
         self.uc.reg_write(RegisterARM::IPSR, 0).map_err(ue)?;
         self.uc.reg_write(RegisterARM::SP, sp as u64).map_err(ue)?;
-        self.uc.reg_write(RegisterARM::LR, 0xFFFF_FFFF).map_err(ue)?;
+        self.uc
+            .reg_write(RegisterARM::LR, 0xFFFF_FFFF)
+            .map_err(ue)?;
         self.uc.reg_write(RegisterARM::PC, pc as u64).map_err(ue)?;
         self.sleeping = false;
         self.stalled_until = None;
@@ -875,7 +926,8 @@ impl<'a> Machine<'a> {
         let now = self.uc.get_data().now_ps();
         self.stalled_until = Some(now + ps);
         let ms = ps as f64 * 1e-9;
-        self.board().event(format!("stall injected: CPU held for {ms:.1} ms"));
+        self.board()
+            .event(format!("stall injected: CPU held for {ms:.1} ms"));
     }
 
     /// Injects a fault.
@@ -885,6 +937,7 @@ impl<'a> Machine<'a> {
             Fault::HardFault => {
                 d.scb.hfsr |= 1 << 30;
                 d.nvic.set_pending(exc::HARD_FAULT);
+                d.fault_at = Some((d.now_ps(), d.cycles));
                 d.event("fault injected: HardFault pended".into());
             }
             Fault::BusFaultOnEncoderRead => d.fault_on_encoder_read = true,
@@ -932,7 +985,11 @@ impl<'a> Machine<'a> {
             }
             let deadline_ps = {
                 let d = self.uc.get_data();
-                let mut t = d.next_event_ps().unwrap_or(u128::MAX).min(until_ps).min(next_poll);
+                let mut t = d
+                    .next_event_ps()
+                    .unwrap_or(u128::MAX)
+                    .min(until_ps)
+                    .min(next_poll);
                 if let Some(s) = self.stalled_until {
                     t = t.min(s);
                 }
@@ -972,7 +1029,10 @@ impl<'a> Machine<'a> {
                 d.masked_pending = d.nvic.highest_pending().is_some();
                 d.stats.slices += 1;
             }
-            let pc = self.uc.reg_read(RegisterARM::PC).map_err(|e| format!("{e:?}"))?;
+            let pc = self
+                .uc
+                .reg_read(RegisterARM::PC)
+                .map_err(|e| format!("{e:?}"))?;
             let r = self.uc.emu_start(pc | 1, 0, 0, 0);
             if let Some(e) = self.uc.get_data_mut().error.take() {
                 return Err(e);
@@ -991,7 +1051,10 @@ impl<'a> Machine<'a> {
     /// WFE/WFI (PC past them) sleep; UDF is a UsageFault (escalated to
     /// HardFault); anything else fails.
     fn invalid_insn(&mut self) -> Result<(), String> {
-        let pc = self.uc.reg_read(RegisterARM::PC).map_err(|e| format!("{e:?}"))? as u32;
+        let pc = self
+            .uc
+            .reg_read(RegisterARM::PC)
+            .map_err(|e| format!("{e:?}"))? as u32;
         let hw = |a: u32| -> u16 {
             let mut b = [0u8; 2];
             let _ = self.uc.mem_read(a as u64, &mut b);
@@ -1120,7 +1183,8 @@ fn enter_exception(uc: &mut Unicorn<Board>, e: usize) -> Result<(), String> {
         }
     };
     let mut v = [0u8; 4];
-    uc.mem_read((vtor + 4 * e as u32) as u64, &mut v).map_err(ue)?;
+    uc.mem_read((vtor + 4 * e as u32) as u64, &mut v)
+        .map_err(ue)?;
     let handler = u32::from_le_bytes(v);
     uc.reg_write(RegisterARM::SP, frame_sp as u64).map_err(ue)?;
     uc.reg_write(
@@ -1129,10 +1193,16 @@ fn enter_exception(uc: &mut Unicorn<Board>, e: usize) -> Result<(), String> {
     )
     .map_err(ue)?;
     uc.reg_write(RegisterARM::IPSR, e as u64).map_err(ue)?;
-    uc.reg_write(RegisterARM::PC, (handler | 1) as u64).map_err(ue)?;
-    if matches!(e, exc::HARD_FAULT | exc::BUS_FAULT | exc::USAGE_FAULT | exc::MEM_MANAGE | exc::NMI) {
+    uc.reg_write(RegisterARM::PC, (handler | 1) as u64)
+        .map_err(ue)?;
+    if matches!(
+        e,
+        exc::HARD_FAULT | exc::BUS_FAULT | exc::USAGE_FAULT | exc::MEM_MANAGE | exc::NMI
+    ) {
         let d = uc.get_data_mut();
-        d.event(format!("exception {e} entered (handler 0x{handler:08X}, return 0x{pc:08X})"));
+        d.event(format!(
+            "exception {e} entered (handler 0x{handler:08X}, return 0x{pc:08X})"
+        ));
     }
     Ok(())
 }
@@ -1147,7 +1217,10 @@ fn intr_hook(uc: &mut Unicorn<Board>, intno: u32) {
         }
         _ => {
             let pc = rd(uc, RegisterARM::PC);
-            bad(uc, format!("CPU exception {intno} at PC 0x{pc:08X}: not modelled"));
+            bad(
+                uc,
+                format!("CPU exception {intno} at PC 0x{pc:08X}: not modelled"),
+            );
         }
     }
 }
@@ -1156,14 +1229,19 @@ fn exception_return(uc: &mut Unicorn<Board>) -> Result<(), String> {
     let ue = |x: uc_error| format!("exception return: {x:?}");
     let exc_return = rd(uc, RegisterARM::PC) | 1;
     if exc_return & 0xF != 0x9 && exc_return & 0xF != 0x1 {
-        return Err(format!("EXC_RETURN 0x{exc_return:08X}: only MSP returns are modelled"));
+        return Err(format!(
+            "EXC_RETURN 0x{exc_return:08X}: only MSP returns are modelled"
+        ));
     }
     let cur = (rd(uc, RegisterARM::IPSR) & 0x1FF) as usize;
     uc.get_data_mut().nvic.deactivate(cur)?;
     let sp = rd(uc, RegisterARM::SP);
     let mut b = [0u8; 32];
     uc.mem_read(sp as u64, &mut b).map_err(ue)?;
-    let w: Vec<u32> = b.chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().unwrap_or_default())).collect();
+    let w: Vec<u32> = b
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes(c.try_into().unwrap_or_default()))
+        .collect();
     let xpsr = w[7];
     let new_sp = sp + 32 + if xpsr & (1 << 9) != 0 { 4 } else { 0 };
     let ipsr = xpsr & 0x1FF;
@@ -1183,7 +1261,8 @@ fn exception_return(uc: &mut Unicorn<Board>) -> Result<(), String> {
     ] {
         uc.reg_write(r, v as u64).map_err(ue)?;
     }
-    uc.reg_write(RegisterARM::XPSR, (xpsr & !(1 << 9)) as u64).map_err(ue)?;
+    uc.reg_write(RegisterARM::XPSR, (xpsr & !(1 << 9)) as u64)
+        .map_err(ue)?;
     uc.reg_write(RegisterARM::IPSR, ipsr as u64).map_err(ue)?;
     let fp = uc.get_data_mut().fp_stack.pop();
     if let Some(fp) = fp {
@@ -1192,7 +1271,8 @@ fn exception_return(uc: &mut Unicorn<Board>) -> Result<(), String> {
         }
         uc.reg_write(RegisterARM::FPSCR, fp[16]).map_err(ue)?;
     }
-    uc.reg_write(RegisterARM::PC, (w[6] | 1) as u64).map_err(ue)?;
+    uc.reg_write(RegisterARM::PC, (w[6] | 1) as u64)
+        .map_err(ue)?;
     {
         let d = uc.get_data_mut();
         d.event_reg = true;
@@ -1223,7 +1303,10 @@ fn mmio_read(uc: &mut Unicorn<Board>, addr: u32, size: usize) -> u64 {
         Err(what) => {
             let pc = rd(uc, RegisterARM::PC);
             uc.get_data_mut().unmodelled_addr = Some(addr);
-            bad(uc, format!("unmodelled read of {size} B at 0x{addr:08X}: {what} (PC 0x{pc:08X})"));
+            bad(
+                uc,
+                format!("unmodelled read of {size} B at 0x{addr:08X}: {what} (PC 0x{pc:08X})"),
+            );
             0
         }
     }
@@ -1256,6 +1339,23 @@ fn mmio_write(uc: &mut Unicorn<Board>, addr: u32, size: usize, value: u32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An unknown register fails with its address and name, never a zero;
+    /// so does a modelled peripheral with its RCC clock off.
+    #[test]
+    fn unknown_registers_and_gated_clocks_fail() {
+        let mut b = Board::new(ChipKind::F446re, vec![0xFF; 1024]);
+        let e = b.read_word(0x4000_0024).unwrap_err();
+        assert!(e.contains("TIM2"), "{e}");
+        let e = b.write_word(0x5000_0010, 1, !0).unwrap_err();
+        assert!(e.contains("USB_OTG_FS") && e.contains("GRSTCTL"), "{e}");
+        let e = b.read_word(0x4000_0C24).unwrap_err();
+        assert!(e.contains("TIM5") && e.contains("clock off"), "{e}");
+        b.write_word(0x4002_3840, 1 << 3, !0).unwrap(); // APB1ENR TIM5EN
+        assert!(b.read_word(0x4000_0C24).is_ok());
+        let e = b.read_word(0x4000_0C4C).unwrap_err();
+        assert!(e.contains("DMAR"), "{e}");
+    }
 
     /// Thumb-2 lengths: 0b11101/0b11110/0b11111 prefixes are 32-bit.
     #[test]

@@ -37,7 +37,9 @@ fn usage() -> String {
 }
 
 fn num(s: &str, what: &str) -> Result<f64, String> {
-    let v: f64 = s.parse().map_err(|_| format!("{what}: `{s}` is not a number"))?;
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("{what}: `{s}` is not a number"))?;
     if !v.is_finite() || v < 0.0 {
         return Err(format!("{what}: {v} must be finite and >= 0"));
     }
@@ -59,7 +61,10 @@ fn parse_args() -> Result<Args, String> {
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
-        let mut val = || it.next().ok_or_else(|| format!("{k} needs a value\n{}", usage()));
+        let mut val = || {
+            it.next()
+                .ok_or_else(|| format!("{k} needs a value\n{}", usage()))
+        };
         match k.as_str() {
             "--elf" => a.elf = val()?,
             "--chip" => {
@@ -172,21 +177,31 @@ fn run() -> Result<i32, String> {
                         }
                         m.board().usart2.host_send(&buf[..n], now)
                     }
-                    Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut | std::io::ErrorKind::Interrupted) => break,
+                    Err(e)
+                        if matches!(
+                            e.kind(),
+                            std::io::ErrorKind::WouldBlock
+                                | std::io::ErrorKind::TimedOut
+                                | std::io::ErrorKind::Interrupted
+                        ) =>
+                    {
+                        break
+                    }
                     Err(_) => break, // no host: EIO while the slave is closed
                 }
             }
             if trace && !m.board().usart2.tx_out.is_empty() {
                 let t = now as f64 / PS;
-                eprintln!("[link t={t:10.6}] device -> {} B", m.board().usart2.tx_out.len());
+                eprintln!(
+                    "[link t={t:10.6}] device -> {} B",
+                    m.board().usart2.tx_out.len()
+                );
             }
             tx_pending.append(&mut m.board().usart2.tx_out);
             if !tx_pending.is_empty() {
-                match master.write(&tx_pending) {
-                    Ok(n) => {
-                        tx_pending.drain(..n);
-                    }
-                    Err(_) => {}
+                // A full pty (EAGAIN) or no host (EIO): keep the bytes for later.
+                if let Ok(n) = master.write(&tx_pending) {
+                    tx_pending.drain(..n);
                 }
                 // Nobody reading: a real UART's bytes are lost on the wire.
                 if tx_pending.len() > 64 * 1024 {
@@ -269,18 +284,36 @@ fn run() -> Result<i32, String> {
     s += &format!("\"ok\":{},", result.is_ok());
     s += &format!(
         "\"error\":\"{}\",",
-        result.as_ref().err().map_or(String::new(), |e| e.replace('"', "'"))
+        result
+            .as_ref()
+            .err()
+            .map_or(String::new(), |e| e.replace('"', "'"))
     );
-    s += &format!("\"emulated_s\":{emu_s:.6},\"wall_s\":{wall:.3},\"speed_x\":{:.2},", emu_s / wall.max(1e-9));
-    s += &format!("\"instructions\":{},\"slices\":{},\"sleeps\":{},", d.stats.instructions, d.stats.slices, d.stats.sleeps);
+    s += &format!(
+        "\"emulated_s\":{emu_s:.6},\"wall_s\":{wall:.3},\"speed_x\":{:.2},",
+        emu_s / wall.max(1e-9)
+    );
+    s += &format!(
+        "\"instructions\":{},\"slices\":{},\"sleeps\":{},",
+        d.stats.instructions, d.stats.slices, d.stats.sleeps
+    );
     s += &format!("\"boots\":{},\"iwdg_resets\":{iwdg_resets},", d.stats.boots);
     s += &format!(
         "\"csr_at_boot\":\"0x{:08X}\",\"iwdgrstf\":{},",
         d.csr_at_boot,
         d.csr_at_boot & csr::IWDGRSTF != 0
     );
-    s += &format!("\"idle_reached\":{},\"loop_started\":{},", d.idle_reached, d.loop_started);
-    s += &format!("\"feeds\":{},\"tim5_irqs\":{},\"usart2_irqs\":{},\"hardfaults\":{},", d.stats.feeds, taken(16 + 50), taken(16 + 38), taken(3));
+    s += &format!(
+        "\"idle_reached\":{},\"loop_started\":{},",
+        d.idle_reached, d.loop_started
+    );
+    s += &format!(
+        "\"feeds\":{},\"tim5_irqs\":{},\"usart2_irqs\":{},\"hardfaults\":{},",
+        d.stats.feeds,
+        taken(16 + 50),
+        taken(16 + 38),
+        taken(3)
+    );
     s += &format!(
         "\"usart2_rx_bytes\":{},\"usart2_tx_bytes\":{},\"usart2_overruns\":{},",
         d.usart2.rx_bytes, d.usart2.tx_bytes, d.usart2.overruns
@@ -296,10 +329,19 @@ fn run() -> Result<i32, String> {
         );
     }
     if let Some(c) = cut_after_fault {
-        s += &format!("\"motors_cut_after_fault_us\":{:.1},", c * 1e6);
+        s += &format!("\"motors_cut_after_fault_poll_us\":{:.1},", c * 1e6);
+    }
+    if let Some((ps, n)) = d.cut_after_fault {
+        s += &format!(
+            "\"motors_cut_after_fault_us\":{:.3},\"motors_cut_after_fault_insn\":{n},",
+            ps as f64 * 1e-6
+        );
     }
     s += &format!("\"pose\":[{:.4},{:.4},{:.4}],", pose[0], pose[1], pose[2]);
-    s += &format!("\"sysclk_hz\":{},\"plant_steps\":{}", d.sysclk_hz, d.robot.steps);
+    s += &format!(
+        "\"sysclk_hz\":{},\"plant_steps\":{}",
+        d.sysclk_hz, d.robot.steps
+    );
     s += "}";
     match &a.summary {
         Some(f) => std::fs::write(f, format!("{s}\n")).map_err(|e| format!("{f}: {e}"))?,

@@ -102,7 +102,9 @@ impl Robot {
         while self.t_ps + STEP_PS <= now_ps {
             let t_s = self.t_ps as f64 * 1e-12;
             let still = self.still;
-            self.state = self.plant.rk4_step(&self.state, t_s, dt, &drive, &mut |_| still);
+            self.state = self
+                .plant
+                .rk4_step(&self.state, t_s, dt, &drive, &mut |_| still);
             if !Plant::state_is_finite(&self.state) {
                 return Err(format!("plant diverged at t = {t_s:.4} s"));
             }

@@ -37,8 +37,17 @@ fn run(seconds: f64) -> (u64, u64, u64, bool) {
 fn boots_runs_the_loop_deterministically() {
     let a = run(0.3);
     assert!(a.3, "executor idle reached");
-    assert!((290..=300).contains(&a.1), "watchdog feeds in 0.3 s: {}", a.1);
-    assert!(a.2 >= a.1, "a TIM5 interrupt behind every tick: {} < {}", a.2, a.1);
+    assert!(
+        (290..=300).contains(&a.1),
+        "watchdog feeds in 0.3 s: {}",
+        a.1
+    );
+    assert!(
+        a.2 >= a.1,
+        "a TIM5 interrupt behind every tick: {} < {}",
+        a.2,
+        a.1
+    );
     let b = run(0.3);
     assert_eq!(a, b, "two runs differ");
 }

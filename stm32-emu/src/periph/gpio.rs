@@ -102,7 +102,9 @@ impl Port {
     }
 
     fn idr(&self) -> u32 {
-        (0..16).filter(|&p| self.level(p)).fold(0, |a, p| a | (1 << p))
+        (0..16)
+            .filter(|&p| self.level(p))
+            .fold(0, |a, p| a | (1 << p))
     }
 
     /// Reads the register at `off`.

@@ -210,7 +210,11 @@ impl Nvic {
     /// Writes NVIC registers.
     pub fn write(&mut self, off: u32, value: u32, mask: u32) -> Access<()> {
         let v = value & mask;
-        let bits = |n: usize| (0..32).filter(move |b| v & (1 << b) != 0).map(move |b| 32 * n + b);
+        let bits = |n: usize| {
+            (0..32)
+                .filter(move |b| v & (1 << b) != 0)
+                .map(move |b| 32 * n + b)
+        };
         match off {
             0x100..=0x11C => {
                 for i in bits((off as usize - 0x100) / 4).filter(|&i| i < self.n_irq) {
@@ -276,7 +280,11 @@ mod tests {
         assert_eq!(n.to_take(false, 0x30, false), Some(16 + 50));
         n.activate(16 + 50);
         n.set_line(38, true);
-        assert_eq!(n.to_take(false, 0, false), None, "0x40 does not preempt 0x20");
+        assert_eq!(
+            n.to_take(false, 0, false),
+            None,
+            "0x40 does not preempt 0x20"
+        );
         n.deactivate(16 + 50).unwrap();
         assert_eq!(n.to_take(false, 0, false), Some(16 + 38));
         n.set_pending(exc::HARD_FAULT);

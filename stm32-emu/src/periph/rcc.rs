@@ -298,7 +298,10 @@ mod tests {
         let c = r.clocks().unwrap();
         assert_eq!(c.sysclk_hz, 168_000_000);
         assert_eq!((c.pclk1_hz, c.pclk2_hz), (42_000_000, 84_000_000));
-        assert_eq!((c.timclk_apb1_hz, c.timclk_apb2_hz), (84_000_000, 168_000_000));
+        assert_eq!(
+            (c.timclk_apb1_hz, c.timclk_apb2_hz),
+            (84_000_000, 168_000_000)
+        );
     }
 
     /// Without an HSE, SW = HSE never switches (SWS stays HSI), and the

@@ -95,7 +95,11 @@ impl Scb {
             }
             0xD24 => {
                 let mut v = self.shcsr & 0x7_0000;
-                for (e, bit) in [(exc::MEM_MANAGE, 0), (exc::BUS_FAULT, 1), (exc::USAGE_FAULT, 3)] {
+                for (e, bit) in [
+                    (exc::MEM_MANAGE, 0),
+                    (exc::BUS_FAULT, 1),
+                    (exc::USAGE_FAULT, 3),
+                ] {
                     if nvic.is_active(e) {
                         v |= 1 << bit;
                     }

@@ -295,7 +295,8 @@ mod tests {
     fn pacing_overrun_idle() {
         let mut u = Usart::new("USART2", 42_000_000);
         u.write(0x08, 365, !0, 0).unwrap();
-        u.write(0x0C, (1 << 13) | (1 << 3) | (1 << 2), !0, 0).unwrap();
+        u.write(0x0C, (1 << 13) | (1 << 3) | (1 << 2), !0, 0)
+            .unwrap();
         assert_eq!(u.baud(), 42_000_000 / 365);
         let f = u.frame_ps();
         assert_eq!(f, (10u128 * 1_000_000_000_000).div_ceil(115_068));
