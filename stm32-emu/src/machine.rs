@@ -327,6 +327,33 @@ impl Board {
         })
     }
 
+    /// The pins and timers the harness wires to the robot (firmware/src/
+    /// board.rs) as the firmware configured them when its loop starts: a
+    /// changed pin map fails the run instead of leaving the robot unwired.
+    fn wiring_check(&self) -> Result<(), String> {
+        use gpio::Mode::{Alternate, Output};
+        let want: [(usize, u32, gpio::Mode, &str); 9] = [
+            (0, 8, Alternate(1), "PA8 right PWM (TIM1_CH1, AF1)"),
+            (0, 9, Alternate(1), "PA9 left PWM (TIM1_CH2, AF1)"),
+            (0, 6, Alternate(2), "PA6 right encoder A (TIM3_CH1, AF2)"),
+            (0, 7, Alternate(2), "PA7 right encoder B (TIM3_CH2, AF2)"),
+            (1, 6, Alternate(2), "PB6 left encoder A (TIM4_CH1, AF2)"),
+            (1, 7, Alternate(2), "PB7 left encoder B (TIM4_CH2, AF2)"),
+            (1, 12, Output, "PB12 right DIR (output)"),
+            (1, 13, Output, "PB13 left DIR (output)"),
+            (1, 14, Output, "PB14 ENABLE (output)"),
+        ];
+        for (port, pin, mode, what) in want {
+            let got = self.gpio[port].mode(pin);
+            if got != mode {
+                return Err(format!(
+                    "board wiring: {what} expected, the firmware set {got:?}: the harness's robot would be unwired (update stm32-emu's pin map)"
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Advances the robot to now with the bridge as it is.
     fn sync_robot(&mut self) -> Result<(), String> {
         let b = self.bridge()?;
@@ -617,6 +644,7 @@ impl Board {
                     self.stats.feeds += 1;
                 }
                 if !was && self.iwdg.running {
+                    self.wiring_check()?;
                     self.loop_started = true;
                     let t = self.iwdg.timeout_ps() as f64 * 1e-9;
                     self.event(format!("IWDG started (timeout after a feed {t:.1} ms)"));
@@ -1355,6 +1383,30 @@ mod tests {
         assert!(b.read_word(0x4000_0C24).is_ok());
         let e = b.read_word(0x4000_0C4C).unwrap_err();
         assert!(e.contains("DMAR"), "{e}");
+    }
+
+    /// Pins at their reset state (PA8 an input) fail the wiring check by
+    /// name; configured as board.rs does, they pass.
+    #[test]
+    fn wiring_check_names_the_pin() {
+        let mut b = Board::new(ChipKind::F446re, vec![0xFF; 1024]);
+        let e = b.wiring_check().unwrap_err();
+        assert!(e.contains("PA8"), "{e}");
+        b.write_word(0x4002_3830, 0b11, !0).unwrap(); // GPIOA/B clocks
+                                                      // PA6-PA9 AF (MODER 10), AF2 on 6/7 and AF1 on 8/9.
+        b.write_word(0x4002_0000, 0b10101010 << 12, 0xFF << 12)
+            .unwrap();
+        b.write_word(0x4002_0020, 0x22 << 24, 0xFF << 24).unwrap();
+        b.write_word(0x4002_0024, 0x11, 0xFF).unwrap();
+        // PB6/PB7 AF2, PB12-14 outputs.
+        b.write_word(
+            0x4002_0400,
+            (0b1010 << 12) | (0b010101 << 24),
+            (0xF << 12) | (0x3F << 24),
+        )
+        .unwrap();
+        b.write_word(0x4002_0420, 0x22 << 24, 0xFF << 24).unwrap();
+        b.wiring_check().unwrap();
     }
 
     /// Thumb-2 lengths: 0b11101/0b11110/0b11111 prefixes are 32-bit.
