@@ -1038,7 +1038,12 @@ impl<'a> Machine<'a> {
                 self.sleeping = false;
                 enter_exception(&mut self.uc, e)?;
             } else if self.sleeping {
-                let wake = self.uc.get_data().nvic.highest_pending().is_some();
+                // WFE/WFI wake on an exception that would preempt with
+                // PRIMASK ignored (B1.5.19), or on any pending one with SEVONPEND.
+                let basepri = self.uc.reg_read(RegisterARM::BASEPRI).unwrap_or(0) as u8;
+                let d = self.uc.get_data();
+                let wake = d.nvic.to_take(false, basepri, false).is_some()
+                    || (d.scb.sevonpend() && d.nvic.highest_pending().is_some());
                 if wake {
                     self.sleeping = false;
                 } else {
