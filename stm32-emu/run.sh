@@ -12,9 +12,9 @@
 #       the same robot, encoders, motors, the F446's 8400-count PWM, no gyro),
 #       driven by the same wmr commands (firmware-emu/run.sh's method), with
 #       at most MAX_DROPPED_FRAMES telemetry frames missing;
-#   (c) it stops on link silence: after the record the host goes quiet while
-#       the robot still runs; within LINK_SILENCE_S the firmware has stopped
-#       it (wmr status: not running, last stop LinkSilence) and the motors are off;
+#   (c) it stops on link silence: after the record the host goes quiet for
+#       LINK_SILENCE_S of emulated time while the robot still runs; by then
+#       the firmware has stopped it (wmr status: not running, last stop LinkSilence) and the motors are off;
 #   (d) a stalled loop latches: the harness holds the CPU for 10 ms while the
 #       robot runs (armed by the button); the runtime latches a stop
 #       (wmr status: last stop LoopOverrun), the motors go off, no reset;
@@ -155,8 +155,19 @@ drive() {
     step "wmr record --seconds $RECORD_S --rate $RATE_HZ --arm"
     rec="$(wmr record --seconds "$RECORD_S" --rate "$RATE_HZ" --out "$csv" --arm --quiet)" || fail "wmr record ($chip)"
     echo "$rec"
-    step "link silence: the host stays quiet for $LINK_SILENCE_S s while the robot runs"
-    sleep "$LINK_SILENCE_S"
+    step "link silence: the host stays quiet for $LINK_SILENCE_S s of robot time while the robot runs"
+    if [ "$chip" = stm32f446re ]; then
+        # Emulated time (the log's once-a-second lines): the emulator may run
+        # slower than the wall clock on a loaded machine.
+        local e0 t_end=$((SECONDS + 60))
+        e0="$(emu_now)"
+        until le "$(awk -v a="$e0" -v b="$LINK_SILENCE_S" 'BEGIN { print a + b + 1 }')" "$(emu_now)"; do
+            [ "$SECONDS" -lt "$t_end" ] || fail "the emulator did not advance $LINK_SILENCE_S s within 60 s"
+            sleep 0.2
+        done
+    else
+        sleep "$LINK_SILENCE_S"
+    fi
     st="$(wmr status)" || fail "wmr status after the silence ($chip)"
     echo "$st"
 }

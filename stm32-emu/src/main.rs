@@ -163,6 +163,7 @@ fn run() -> Result<i32, String> {
     let mut buf = [0u8; 512];
     let poll_ps = 1_000_000_000; // 1 ms
     let trace = std::env::var_os("STM32_EMU_TRACE_LINK").is_some();
+    let mut next_alive = 1.0;
     let mut poll = |m: &mut Machine| -> Result<(), String> {
         let now = m.board().now_ps();
         // Host link.
@@ -213,6 +214,11 @@ fn run() -> Result<i32, String> {
         }
         // Script.
         let t_s = now as f64 / PS;
+        if !a.quiet && t_s >= next_alive {
+            // A line per emulated second: scripts read the emulated time.
+            next_alive += 1.0;
+            m.board().event("alive".into());
+        }
         if let Some(at) = a.press {
             if !pressed && t_s >= at {
                 pressed = true;
