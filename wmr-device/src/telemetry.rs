@@ -36,6 +36,8 @@ pub(crate) fn counters(s: &Status, link: &LinkCounters) -> Counters {
 pub(crate) struct TelemetryScheduler {
     seq: u32,
     countdown: u32,
+    /// Frames not sent because of a non-finite value.
+    nonfinite: u32,
     reported_state: RunStateMsg,
 }
 
@@ -44,8 +46,14 @@ impl TelemetryScheduler {
         Self {
             seq: 0,
             countdown: 0,
+            nonfinite: 0,
             reported_state: RunStateMsg::Hold,
         }
+    }
+
+    /// Frames not sent because a value in them was not finite.
+    pub fn nonfinite_frames(&self) -> u32 {
+        self.nonfinite
     }
 
     /// The rate or the groups changed: the next tick sends a frame.
@@ -143,6 +151,12 @@ impl TelemetryScheduler {
             counters: (sel & TELEMETRY_COUNTERS != 0).then(|| counters(status, &framing.counters)),
         };
         self.seq = self.seq.wrapping_add(1);
+        // Nothing non-finite goes on the wire: the frame is skipped (its
+        // sequence number too, so the host sees the gap) and counted.
+        if !t.is_finite() {
+            bump(&mut self.nonfinite);
+            return;
+        }
         framing.send(&Reply::Telemetry(t));
     }
 }
