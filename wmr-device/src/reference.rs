@@ -15,6 +15,8 @@ use wmr_protocol::{BuiltinReference, BuiltinShape, PoseMsg, Waypoint, SEGMENT_PO
 
 /// Largest accepted speed scale.
 pub const MAX_SPEED_SCALE: f32 = 10.0;
+/// Smallest accepted speed scale (a reference slowed a hundredfold).
+pub const MIN_SPEED_SCALE: f32 = 0.01;
 /// Waypoints the trajectory buffer holds.
 pub const WAYPOINT_CAPACITY: usize = 64;
 
@@ -130,7 +132,7 @@ impl PlacedReference {
         };
         let shape = shape.validate().ok()?;
         let s = r.speed_scale;
-        if !(s.is_finite() && s > 0.0 && s <= MAX_SPEED_SCALE) {
+        if !(s >= MIN_SPEED_SCALE && s <= MAX_SPEED_SCALE) {
             return None;
         }
         let r0 = shape.sample(0.0).pose;

@@ -264,23 +264,19 @@ impl<const H: usize> Handler<H> {
                 if self.session.pending_pose.is_some() {
                     return Err(ErrorCode::PoseQueueFull);
                 }
-                // A zero heading std dev means "no heading" (position only);
-                // a negative one is refused like any bad std dev.
-                let h = std_dev[2];
+                // One position std dev (the larger); a zero, negative or
+                // NaN one in x or y is refused (NaN marks it). A zero
+                // heading std dev means "no heading" (position only).
+                let (sx, sy, h) = (std_dev[0], std_dev[1], std_dev[2]);
                 let m = PoseMeasurement {
                     stamp_us: t_robot_us,
                     pose: pose_from_msg(pose),
-                    position_std_m: std_dev[0].max(std_dev[1]),
-                    heading_std_rad: if h == 0.0 { None } else { Some(h) },
-                };
-                // NaN wins over max: a NaN x or y std dev must not hide.
-                let m = PoseMeasurement {
-                    position_std_m: if finite(&std_dev[..2]) {
-                        m.position_std_m
+                    position_std_m: if sx > 0.0 && sy > 0.0 {
+                        sx.max(sy)
                     } else {
                         f32::NAN
                     },
-                    ..m
+                    heading_std_rad: if h == 0.0 { None } else { Some(h) },
                 };
                 // The estimator's own rules, for the tick that will use it.
                 self.control
