@@ -319,48 +319,49 @@ impl Fuzz {
     }
 }
 
-/// True when `req` is bad by construction, whatever the state: a value
-/// NaN, infinite or outside its physical range.
-fn bad_by_construction(req: &Request, f: &mut Fuzz) -> bool {
+/// False when `req` is bad by construction, whatever the state: a value
+/// NaN, infinite or outside its physical range (written as "in range",
+/// so that NaN fails every test).
+fn values_in_range(req: &Request, f: &mut Fuzz) -> bool {
     let finite = |xs: &[f32]| xs.iter().all(|x| x.is_finite());
+    let within = |x: f32, lo: f32, hi: f32| x >= lo && x <= hi;
+    let lengths_ok = |ls: &[f32]| ls.iter().all(|&l| within(l, 0.01, 1000.0));
     let lim = f.limits;
     match req {
-        Request::SetPose(p) => !p.is_finite(),
+        Request::SetPose(p) => p.is_finite(),
         Request::ExternalPose { pose, std_dev, .. } => {
-            let pos_std = |s: f32| s > 0.0 && s <= 1000.0;
-            !(pose.x_m.is_finite() && pose.y_m.is_finite())
-                || !pos_std(std_dev[0])
-                || !pos_std(std_dev[1])
-                || !(std_dev[2] >= 0.0 && std_dev[2] <= 1000.0)
+            finite(&[pose.x_m, pose.y_m])
+                && std_dev[0] > 0.0
+                && std_dev[0] <= 1000.0
+                && std_dev[1] > 0.0
+                && std_dev[1] <= 1000.0
+                && within(std_dev[2], 0.0, 1000.0)
         }
         Request::SetReference(r) => {
-            let lengths_ok = |ls: &[f32]| ls.iter().all(|&l| (0.01..=1000.0).contains(&l));
-            let shape_bad = match r.shape {
+            let shape_ok = match r.shape {
                 BuiltinShape::PaperCurve {
                     ax_m,
                     ay_m,
                     w_radps,
-                } => !finite(&[w_radps]) || !lengths_ok(&[ax_m, ay_m]),
+                } => finite(&[w_radps]) && lengths_ok(&[ax_m, ay_m]),
                 BuiltinShape::Circle {
                     radius_m,
                     speed_mps,
-                } => !lengths_ok(&[radius_m]) || !(speed_mps > 0.0) || speed_mps > 10.0,
+                } => lengths_ok(&[radius_m]) && speed_mps > 0.0 && speed_mps <= 10.0,
                 BuiltinShape::FigureEight {
                     amplitude_m,
                     w_radps,
-                } => !lengths_ok(&[amplitude_m]) || !finite(&[w_radps]),
+                } => lengths_ok(&[amplitude_m]) && finite(&[w_radps]),
                 BuiltinShape::Line { speed_mps } => {
-                    !(speed_mps.abs() * r.speed_scale <= lim.top_speed_mps)
+                    speed_mps.abs() * r.speed_scale <= lim.top_speed_mps
                 }
             };
-            shape_bad
-                || !(r.speed_scale >= 0.01 && r.speed_scale <= 10.0)
-                || r.start.is_some_and(|p| !p.is_finite())
+            shape_ok && within(r.speed_scale, 0.01, 10.0) && r.start.is_none_or(|p| p.is_finite())
         }
-        Request::TrajectorySegment { points, .. } => points.iter().any(|w| {
-            !(finite(&[w.t_s, w.pose.theta_rad])
+        Request::TrajectorySegment { points, .. } => points.iter().all(|w| {
+            finite(&[w.t_s, w.pose.theta_rad])
                 && w.pose.x_m.abs() <= 1000.0
-                && w.v_mps.abs() <= lim.top_speed_mps)
+                && w.v_mps.abs() <= lim.top_speed_mps
         }),
         Request::Velocity {
             v_mps,
@@ -368,17 +369,14 @@ fn bad_by_construction(req: &Request, f: &mut Fuzz) -> bool {
             timeout_ms,
         } => {
             let l = *f.robot.device().link_config();
-            !(v_mps.abs() <= l.max_speed_mps)
-                || !(omega_radps.abs() <= l.max_yaw_rate_radps)
-                || !(1..=5000).contains(timeout_ms)
+            v_mps.abs() <= l.max_speed_mps
+                && omega_radps.abs() <= l.max_yaw_rate_radps
+                && (1..=5000).contains(timeout_ms)
         }
         Request::SetParam { id, value } => {
-            !value.is_finite()
-                || lim
-                    .range(*id)
-                    .is_some_and(|(lo, hi)| !(*value >= lo && *value <= hi))
+            value.is_finite() && lim.range(*id).is_none_or(|(lo, hi)| within(*value, lo, hi))
         }
-        _ => false,
+        _ => true,
     }
 }
 
@@ -399,7 +397,7 @@ fn run_session(session: Vec<Step>) {
                 // one tick later).
                 let future = matches!(req, Request::ExternalPose { t_robot_us, .. }
                     if (t_robot_us.wrapping_sub(f.robot.now_us()) as i32) > 2_000);
-                let bad = bad_by_construction(&req, &mut f) || future;
+                let bad = !values_in_range(&req, &mut f) || future;
                 let before = (f.robot.device().state(), f.robot.device().mode());
                 let answer = f.request(&req, seq);
                 let refused = matches!(answer, Reply::Nack { .. });
@@ -421,10 +419,10 @@ fn run_session(session: Vec<Step>) {
                             u.2 = *free;
                         }
                     }
-                    (Request::SetReference(_) | Request::Velocity { .. }, Reply::Ack { .. }) => {
-                        if before.0 != RunStateMsg::Running {
-                            f.upload = None;
-                        }
+                    (Request::SetReference(_) | Request::Velocity { .. }, Reply::Ack { .. })
+                        if before.0 != RunStateMsg::Running =>
+                    {
+                        f.upload = None;
                     }
                     (Request::Arm, Reply::Ack { .. })
                         if before == (RunStateMsg::Hold, ModeMsg::Trajectory) =>

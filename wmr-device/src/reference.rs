@@ -132,7 +132,7 @@ impl PlacedReference {
         };
         let shape = shape.validate().ok()?;
         let s = r.speed_scale;
-        if !(s >= MIN_SPEED_SCALE && s <= MAX_SPEED_SCALE) {
+        if !(MIN_SPEED_SCALE..=MAX_SPEED_SCALE).contains(&s) {
             return None;
         }
         let r0 = shape.sample(0.0).pose;

@@ -205,6 +205,12 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
             )
             .map_err(io)?;
             writeln!(out, "counters: {:?}", s.counters).map_err(io)?;
+            writeln!(
+                out,
+                "external poses refused by the estimator after their ack: {:?}; telemetry frames withheld (non-finite): {}",
+                s.pose_rejects, s.nonfinite_telemetry
+            )
+            .map_err(io)?;
         }
         Command::Arm => {
             link.command(&Request::Arm)?;
