@@ -328,7 +328,7 @@ fn values_in_range(req: &Request, f: &mut Fuzz) -> bool {
     let lengths_ok = |ls: &[f32]| ls.iter().all(|&l| within(l, 0.01, 1000.0));
     let lim = f.limits;
     match req {
-        Request::SetPose(p) => p.is_finite(),
+        Request::SetPose(p) => p.is_finite() && p.x_m.abs() <= 1000.0 && p.y_m.abs() <= 1000.0,
         Request::ExternalPose { pose, std_dev, .. } => {
             finite(&[pose.x_m, pose.y_m])
                 && std_dev[0] > 0.0

@@ -4,7 +4,7 @@
 //! its reply; the arm/disarm transitions and the link watchdog.
 
 use crate::framing::{bump, Framing, RX_BYTES_PER_TICK};
-use crate::limits::RobotLimits;
+use crate::limits::{RobotLimits, MAX_POSITION_M};
 use crate::params::{self, in_hold, DeviceConfig, MAX_TELEMETRY_RATE_HZ, MAX_VELOCITY_TIMEOUT_MS};
 use crate::reference::{pose_from_msg, PlacedReference, SegmentError, VirtualVehicle};
 use crate::selection::{Mode, Selected, Selector, VelocityCmd};
@@ -248,7 +248,10 @@ impl<const H: usize> Handler<H> {
             },
             Request::SetPose(p) => {
                 in_hold(self.control.state())?;
-                if !p.is_finite() {
+                // Within the physical range of positions (D41): a pose at
+                // 3.4e38 m makes the tracking error, and η_c, infinite.
+                let ok = |c: f32| c.abs() <= MAX_POSITION_M;
+                if !(ok(p.x_m) && ok(p.y_m) && p.theta_rad.is_finite()) {
                     return Err(ErrorCode::InvalidValue);
                 }
                 self.control

@@ -895,6 +895,15 @@ fn absurd_gains_and_references_are_refused() {
         let a = rig.request(&paper, 4);
         assert_eq!(nack(&a).is_none(), ok, "paper at scale {scale}: {a:?}");
     }
+    let far = PoseMsg {
+        x_m: 3.4e38,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    };
+    assert_eq!(
+        nack(&rig.request(&Request::SetPose(far), 7)),
+        Some(ErrorCode::InvalidValue)
+    );
     let wp = |v_mps: f32, x_m: f32| Waypoint {
         t_s: 0.0,
         pose: PoseMsg {
