@@ -16,7 +16,8 @@
 //! * no trajectory is armed before its upload is complete (or the buffer
 //!   full, D42).
 //!
-//! Bounded for CI (about a minute on a loaded 2-core machine); run it for
+//! Bounded for CI (300 sessions, about 10 s on a loaded 2-core machine once
+//! built); run it for
 //! hours with more cases, e.g.
 //! `WMR_FUZZ_CASES=10000000 cargo test --release -p hil-sim --test device_fuzz`
 //! (`WMR_FUZZ_CASES` is the number of sessions; the frame-decoder fuzz of

@@ -28,10 +28,11 @@
 //!
 //! Modules, each using only those listed before it (checked by
 //! `tests/layers.rs`): [`framing`] (bytes and frames), [`limits`] (the
-//! physical limits, D41), [`reference`] (the references), [`params`] (configuration and parameters), `telemetry`
-//! (telemetry and events), `selection` (which reference drives each tick,
-//! controlled stops), `requests` (request handling against the state);
-//! [`Device`] here wires them.
+//! physical limits, D41), [`reference`](mod@reference) (the references),
+//! [`params`] (configuration and parameters), `telemetry` (telemetry and
+//! events), `selection` (which reference drives each tick, controlled
+//! stops), `requests` (request handling against the state); [`Device`]
+//! here wires them.
 #![no_std]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]

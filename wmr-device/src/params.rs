@@ -22,15 +22,16 @@ pub struct LinkConfig {
     /// Controlled stop after this long without a valid frame while running
     /// under host control \[ms\] (50..=10000).
     pub link_timeout_ms: u32,
-    /// Acceleration limit of velocity commands \[m/s²\].
+    /// Acceleration limit of velocity commands \[m/s²\] ([`MIN_ACCEL_MPS2`]..=[`MAX_ACCEL_MPS2`]).
     pub accel_mps2: f32,
-    /// Angular acceleration limit of velocity commands \[rad/s²\].
+    /// Angular acceleration of velocity commands and of the braking
+    /// profile \[rad/s²\] ([`MIN_ANG_ACCEL_RADPS2`]..=[`MAX_ANG_ACCEL_RADPS2`]).
     pub ang_accel_radps2: f32,
-    /// Deceleration of a controlled stop \[m/s²\].
+    /// Deceleration of a controlled stop \[m/s²\] ([`MIN_BRAKE_DECEL_MPS2`]..=[`MAX_ACCEL_MPS2`]).
     pub brake_decel_mps2: f32,
-    /// Largest |v| of a velocity command \[m/s\].
+    /// Largest |v| of a velocity command \[m/s\] (up to the robot's top speed).
     pub max_speed_mps: f32,
-    /// Largest |ω| of a velocity command \[rad/s\].
+    /// Largest |ω| of a velocity command \[rad/s\] (up to the robot's top yaw rate).
     pub max_yaw_rate_radps: f32,
     /// Telemetry rate \[Hz\] (0 = off).
     pub telemetry_rate_hz: u16,

@@ -58,8 +58,8 @@ impl PlacedReference {
 
     /// Validates and places `r`; `None` when a parameter is not finite or
     /// out of its physical range (D41): lengths in
-    /// [`SHAPE_LENGTH_M`](crate::limits::SHAPE_LENGTH_M), the start within
-    /// [`MAX_POSITION_M`](crate::limits::MAX_POSITION_M), and the shape's
+    /// [`SHAPE_LENGTH_M`], the start within
+    /// [`MAX_POSITION_M`], and the shape's
     /// peak speed and yaw rate (bounded analytically, times the speed
     /// scale) within the robot's top speed and yaw rate.
     pub fn within(r: &BuiltinReference, lim: &RobotLimits) -> Option<Self> {

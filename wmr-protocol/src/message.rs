@@ -235,7 +235,8 @@ pub enum ErrorCode {
     NoReference,
     /// A safe stop is latched: clear it first.
     Latched,
-    /// A value is NaN, infinite or out of its range.
+    /// A value is NaN, infinite or outside its physical range
+    /// (docs/protocol.md, "Parameters" and the requests' rows).
     InvalidValue,
     /// The parameter cannot be written.
     ReadOnly,
@@ -684,7 +685,7 @@ impl ErrorCode {
             Self::Busy => "not allowed while running (disarm first)",
             Self::NoReference => "no reference, trajectory or velocity command loaded",
             Self::Latched => "a safe stop is latched (clear it first)",
-            Self::InvalidValue => "value NaN, infinite or out of range",
+            Self::InvalidValue => "value NaN, infinite or outside its physical range",
             Self::ReadOnly => "parameter is read-only",
             Self::BufferFull => "trajectory buffer full",
             Self::OutOfOrder => "segment does not continue the upload",
