@@ -205,6 +205,12 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
             )
             .map_err(io)?;
             writeln!(out, "counters: {:?}", s.counters).map_err(io)?;
+            writeln!(
+                out,
+                "external poses refused by the estimator after their ack: {:?}; telemetry frames withheld (non-finite): {}",
+                s.pose_rejects, s.nonfinite_telemetry
+            )
+            .map_err(io)?;
         }
         Command::Arm => {
             link.command(&Request::Arm)?;
@@ -612,7 +618,7 @@ fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(
     let t0 = Instant::now();
     let offset = clock_offset(link, t0, 5)?;
     let std = [a.std[0], a.std[1], a.std[2]];
-    let (mut sent, mut refused) = (0u64, 0u64);
+    let mut tally = PoseTally::default();
     let mut send = |link: &mut Link, line: &str, n: usize| -> Result<(), LinkError> {
         match parse_pose_line(line, std) {
             Ok(None) => Ok(()),
@@ -632,9 +638,9 @@ fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(
                     std_dev: s,
                 };
                 match link.command(&req) {
-                    Ok(_) => sent += 1,
+                    Ok(_) => tally.accepted(),
                     Err(LinkError::Nack(_, e)) => {
-                        refused += 1;
+                        tally.refused(e);
                         eprintln!("line {n}: refused: {}", e.reason());
                     }
                     Err(e) => return Err(e),
@@ -663,13 +669,79 @@ fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(
             }
         }
     }
-    writeln!(out, "{sent} poses sent, {refused} refused").map_err(io)?;
+    writeln!(out, "{tally}").map_err(io)?;
     Ok(())
+}
+
+/// What `pose-feed` sent and what the robot refused, by reason.
+#[derive(Debug, Default)]
+pub struct PoseTally {
+    sent: u64,
+    refused: Vec<(ErrorCode, u64)>,
+}
+
+impl PoseTally {
+    /// One pose sent and acknowledged.
+    pub fn accepted(&mut self) {
+        self.sent += 1;
+    }
+
+    /// One pose sent and refused with `e`.
+    pub fn refused(&mut self, e: ErrorCode) {
+        self.sent += 1;
+        match self.refused.iter_mut().find(|(c, _)| *c == e) {
+            Some((_, n)) => *n += 1,
+            None => self.refused.push((e, 1)),
+        }
+    }
+
+    /// Poses refused, all reasons.
+    pub fn refused_total(&self) -> u64 {
+        self.refused.iter().map(|(_, n)| n).sum()
+    }
+}
+
+impl std::fmt::Display for PoseTally {
+    /// `N poses sent, M refused` and one `  K: reason` line per reason.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} poses sent, {} refused",
+            self.sent,
+            self.refused_total()
+        )?;
+        for (e, n) in &self.refused {
+            write!(f, "\n  {n}: {}", e.reason())?;
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pose_tally_counts_refusals_by_reason() {
+        let mut t = PoseTally::default();
+        t.accepted();
+        t.refused(ErrorCode::PoseBadStdDev);
+        t.refused(ErrorCode::PoseNonFinite);
+        t.refused(ErrorCode::PoseBadStdDev);
+        assert_eq!(t.refused_total(), 3);
+        let text = t.to_string();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("4 poses sent, 3 refused"));
+        assert_eq!(
+            lines.next(),
+            Some(format!("  2: {}", ErrorCode::PoseBadStdDev.reason()).as_str())
+        );
+        assert_eq!(
+            lines.next(),
+            Some(format!("  1: {}", ErrorCode::PoseNonFinite.reason()).as_str())
+        );
+        assert_eq!(lines.next(), None);
+    }
 
     #[test]
     fn pose_lines() {
