@@ -42,7 +42,7 @@ use reference::{
     pose_from_msg, pose_to_msg, PlacedReference, SegmentError, VirtualVehicle, WaypointBuffer,
 };
 use wmr_protocol::{
-    encode, BuiltinReference, Counters, Decoded, ErrorCode, EstimatorTelemetry, Event,
+    encode, BoardReport, BuiltinReference, Counters, Decoded, ErrorCode, EstimatorTelemetry, Event,
     FrameDecoder, ModeMsg, ParamId, Reply, Request, RobotInfo, RunStateMsg, StatusMsg, StopCode,
     Telemetry, TelemetrySelection, TrackingTelemetry, MAX_FRAME, PROTOCOL_VERSION, TELEMETRY_ALL,
     TELEMETRY_COUNTERS, TELEMETRY_ESTIMATORS, TELEMETRY_TRACKING,
@@ -251,6 +251,7 @@ pub struct Device<const H: usize = HISTORY_LEN> {
     pending_cause: Option<StopCode>,
     telemetry_seq: u32,
     telemetry_countdown: u32,
+    board: BoardReport,
 }
 
 fn stop_code(r: StopReason) -> StopCode {
@@ -317,7 +318,14 @@ impl<const H: usize> Device<H> {
             pending_cause: None,
             telemetry_seq: 0,
             telemetry_countdown: 0,
+            board: BoardReport::default(),
         })
+    }
+
+    /// What the board reports in the status (its reset cause, set once
+    /// at boot, and its link port's losses, kept current by the board).
+    pub fn board_report_mut(&mut self) -> &mut BoardReport {
+        &mut self.board
     }
 
     /// The runtime.
@@ -582,6 +590,7 @@ impl<const H: usize> Device<H> {
             t_robot_us: self.now_us,
             buffered_points: self.waypoints.len() as u16,
             counters: self.counters(),
+            board: self.board,
         }
     }
 
