@@ -9,7 +9,10 @@
 //!   button, events for the board's log;
 //! * [`link`]: the host link's two bounded byte pipes and the pumps that
 //!   move bytes between them and a byte-stream port (a UART) without the
-//!   control task ever waiting on the port.
+//!   control task ever waiting on the port;
+//! * [`imu`]: the gyro's logic above the registers (conversion, probe and
+//!   read-back checks, the frozen/implausible monitor, the retry backoff,
+//!   the sample cell the control tick reads).
 //!
 //! A board provides encoders, a motor driver, a gyro, a board-side pose
 //! source, the button, the watchdog, a cycle counter and a log sink. Three
@@ -28,6 +31,7 @@
 
 pub mod board;
 pub mod control;
+pub mod imu;
 pub mod link;
 
 pub use board::{AppEvent, Board, BoardIo, StatusSummary};
