@@ -16,6 +16,7 @@ pub fn banner(
         env!("CARGO_PKG_VERSION")
     );
     info!("chip: {=str}", board::CHIP);
+    info!("last reset: {} (RCC_CSR)", board.reset_cause);
     if board.clock == board::ClockSource::HsiFallback {
         error!(
             "HSE did not start within {=u32} ms: running on the internal HSI (same SYSCLK, ~1 % accuracy, no USB)",

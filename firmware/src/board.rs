@@ -287,6 +287,8 @@ impl ArmButton {
 pub struct Board {
     /// The oscillator the clocks run from.
     pub clock: ClockSource,
+    /// Why the chip last reset (RCC_CSR at boot).
+    pub reset_cause: wmr_protocol::ResetCause,
     /// `(right, left)` encoders.
     pub encoders: Encoders,
     /// Motor driver, disabled.
@@ -359,6 +361,7 @@ pub fn outputs_low_early() {
 /// PWM channels enabled at duty 0 (driven low by TIM1). Call
 /// [`outputs_low_early`] first.
 pub fn init() -> Board {
+    let reset_cause = read_reset_cause();
     let clock = start_hse();
     let p = embassy_stm32::init(clock_config(clock));
     if clock == ClockSource::Hse {
@@ -443,6 +446,7 @@ pub fn init() -> Board {
 
     Board {
         clock,
+        reset_cause,
         encoders,
         motors: HBridge {
             pwm,
@@ -467,6 +471,16 @@ pub fn init() -> Board {
         }),
         pose_source: WheelOdometryOnly,
     }
+}
+
+/// The last reset's cause from the RCC_CSR flags (RM0383 §6.3.20 /
+/// RM0390 §6.3.21; decoded by `robot_app::reset`), then clears them
+/// (RMVF) so the next boot reports its own reset only. Read before
+/// embassy's init, which touches the register (LSION).
+fn read_reset_cause() -> wmr_protocol::ResetCause {
+    let csr = pac::RCC.csr().read();
+    pac::RCC.csr().modify(|w| w.set_rmvf(true));
+    robot_app::reset::from_stm32f4_csr(csr.0)
 }
 
 fn qei_config() -> qei::Config {

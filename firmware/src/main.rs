@@ -96,6 +96,7 @@ async fn main(spawner: Spawner) {
     // twice (the argument and the local it is moved into).
     static ROBOT: StaticCell<Robot> = StaticCell::new();
     let device = ROBOT.init(device);
+    device.board_report_mut().reset_cause = board.reset_cause;
     spawner.spawn(unwrap!(control(board, device, task).ok()));
 }
 

@@ -33,10 +33,11 @@ pub mod board;
 pub mod control;
 pub mod imu;
 pub mod link;
+pub mod reset;
 
 pub use board::{AppEvent, Board, BoardIo, StatusSummary};
 pub use control::{control_task, AppConfig, AppConfigError, ControlTask};
-pub use link::{pump_rx, pump_tx, LinkPipes};
+pub use link::{pump_rx, pump_rx_ring, pump_tx, LinkPipes};
 
 // Re-exported for the boards.
 pub use controller_core::runtime::{ArmingButton, LoopTimer};
