@@ -19,7 +19,7 @@ pub fn banner(
     info!("last reset: {} (RCC_CSR)", board.reset_cause);
     if board.clock == board::ClockSource::HsiFallback {
         error!(
-            "HSE did not start within {=u32} ms: running on the internal HSI (same SYSCLK, ~1 % accuracy, no USB)",
+            "HSE did not start within {=u32} polls (0.3-0.4 s): running on the internal HSI (same SYSCLK, ~1 % accuracy, no USB)",
             board::HSE_STARTUP_TIMEOUT_MS
         );
     }

@@ -89,8 +89,11 @@ const HSE: rcc::Hse = rcc::Hse {
     mode: rcc::HseMode::Bypass,
 };
 
-/// Longest wait for HSE ready at boot \[ms\] (crystals start in a few ms;
-/// ST's HAL allows 100 ms). Beyond it the board runs on the HSI.
+/// Polls of HSE ready at boot, each after a busy wait of at least 1 ms
+/// (crystals start in a few ms; ST's HAL allows 100 ms). Beyond them the
+/// board runs on the HSI. `cortex_m::asm::delay` waits *at least* its
+/// cycle count, not exactly: the whole wait is at least 100 ms and
+/// 0.3-0.4 s in practice (issue 21), while the outputs stay low.
 pub const HSE_STARTUP_TIMEOUT_MS: u32 = 100;
 
 /// Encoder input pulls. `Up` for open-collector encoders (add external
