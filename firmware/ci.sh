@@ -11,7 +11,8 @@
 # `dsb` that closes them, firmware/src/fault.rs), must not touch the stack
 # (no push, no store or load through sp, no sub sp; the panic handler is
 # allowed the compiler's frame prologue `push {r7, lr}; mov r7, sp`, see
-# fault.rs), and must contain the six motor-off stores. Negative control:
+# fault.rs), and must contain the six motor-off stores; the vector table's
+# NMI and HardFault entries must be those symbols. Negative control:
 # the same check on a build with the `ci-fault-entry-pushes` feature (a
 # push before the stores) must fail, or this script fails.
 #
@@ -46,7 +47,8 @@ SIZE="$(rustc --print sysroot)/lib/rustlib/$HOST/bin/llvm-size"
 [ -x "$SIZE" ] || { echo "llvm-size not found at $SIZE" >&2; exit 1; }
 OBJDUMP="$(rustc --print sysroot)/lib/rustlib/$HOST/bin/llvm-objdump"
 NM="$(rustc --print sysroot)/lib/rustlib/$HOST/bin/llvm-nm"
-[ -x "$OBJDUMP" ] && [ -x "$NM" ] || { echo "llvm-objdump/llvm-nm not found beside $SIZE" >&2; exit 1; }
+OBJCOPY="$(rustc --print sysroot)/lib/rustlib/$HOST/bin/llvm-objcopy"
+[ -x "$OBJDUMP" ] && [ -x "$NM" ] && [ -x "$OBJCOPY" ] || { echo "llvm-objdump/llvm-nm/llvm-objcopy not found beside $SIZE" >&2; exit 1; }
 
 # check_entry ELF SYMBOL PROLOGUE_OK: prints one line per entry; returns 1
 # when the entry touches the stack before its motor-off stores end (the
@@ -82,6 +84,23 @@ check_fault_entries() {
     local elf=$1 ok=0 panic_sym
     for sym in HardFault NonMaskableInt DefaultHandler _defmt_panic; do
         check_entry "$elf" "$sym" 0 || ok=1
+    done
+    # The vector table's NMI (word 2) and HardFault (word 3) entries are
+    # the checked symbols (Thumb bit set), not cortex-m-rt's defaults.
+    local vt words want
+    vt=$(mktemp)
+    "$OBJCOPY" -O binary --only-section=.vector_table "$elf" "$vt"
+    read -r -a words < <(od -An -tx4 -N16 "$vt")
+    rm -f "$vt"
+    for pair in 2:NonMaskableInt 3:HardFault; do
+        want=$("$NM" "$elf" | awk -v s="${pair#*:}" '$3 == s { print $1; exit }')
+        [ -n "$want" ] && want=$(printf '%08x' $((0x$want + 1)))
+        if [ "${words[${pair%%:*}]:-}" != "$want" ]; then
+            echo "    vector ${pair%%:*} is 0x${words[${pair%%:*}]:-none}, not ${pair#*:} (0x$want)"
+            ok=1
+        else
+            echo "    vector ${pair%%:*} -> ${pair#*:} (0x$want)"
+        fi
     done
     panic_sym=$("$NM" "$elf" | awk '$3 ~ /rust_begin_unwind/ { print $3; exit }')
     if [ -z "$panic_sym" ]; then
