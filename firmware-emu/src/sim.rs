@@ -134,9 +134,15 @@ pub fn report() -> PlantReport {
 }
 
 /// Advances the robot one control period per period, half a period after
-/// each control tick, from the loop's start on. Never returns; a diverged
-/// plant ends the run (a failed run, exit code 1).
-pub async fn plant_task(cfg: controller_core::runtime::RuntimeConfig, period_us: u32) -> ! {
+/// each control tick, from the loop's start on. Returns only when the
+/// simulation cannot go on (invalid motor parameters, no hardware, a
+/// diverged plant), with the reason: the caller ends the run (a failed
+/// run, exit code 1). Returning it rather than failing here keeps this
+/// module below the log (`log` reads [`report`]; nothing here names `log`).
+pub async fn plant_task(
+    cfg: controller_core::runtime::RuntimeConfig,
+    period_us: u32,
+) -> &'static str {
     let t0 = LOOP_START.wait().await;
     let plant = Plant::new(PlantParams::from_robot(&config::ROBOT, 1.0, 1.0));
     let p0 = cfg.initial_pose;
@@ -146,7 +152,7 @@ pub async fn plant_task(cfg: controller_core::runtime::RuntimeConfig, period_us:
     };
     let model = match MotorModel::new(cfg.motor) {
         Ok(m) => m,
-        Err(_) => crate::log::fail("plant: invalid motor parameters"),
+        Err(_) => return "plant: invalid motor parameters",
     };
     let dt_s = period_us as f64 * 1e-6;
     let still = Perturbation::default();
@@ -160,7 +166,7 @@ pub async fn plant_task(cfg: controller_core::runtime::RuntimeConfig, period_us:
         .await;
         let c0 = crate::time::instructions();
         let Some(bridge) = with_hw(|hw| hw.bridge) else {
-            crate::log::fail("plant: no hardware");
+            return "plant: no hardware";
         };
         let drive = MotorDrive {
             model,
@@ -170,7 +176,7 @@ pub async fn plant_task(cfg: controller_core::runtime::RuntimeConfig, period_us:
         let t_s = (t0_us + k * period_us as u64) as f64 * 1e-6;
         st = plant.rk4_step(&st, t_s, dt_s, &drive, &mut |_| still);
         if !Plant::state_is_finite(&st) {
-            crate::log::fail("plant: state diverged");
+            return "plant: state diverged";
         }
         let yaw_rate = plant.q_dot(&st, &still)[2];
         with_hw(|hw| {

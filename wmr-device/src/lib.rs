@@ -56,7 +56,7 @@ use limits::RobotLimits;
 use reference::PlacedReference;
 use requests::Handler;
 use selection::Mode;
-use wmr_protocol::{Counters, ModeMsg, RunStateMsg, StopCode};
+use wmr_protocol::{BoardReport, Counters, ModeMsg, RunStateMsg, StopCode};
 
 pub use framing::{RX_BYTES_PER_TICK, RX_CAPACITY, TX_CAPACITY};
 pub use params::{DeviceConfig, DeviceConfigError, LinkConfig, MAX_VELOCITY_TIMEOUT_MS};
@@ -117,6 +117,12 @@ impl<const H: usize> Device<H> {
             framing: Framing::new(),
             handler: Handler::new(cfg, control, limits),
         })
+    }
+
+    /// What the board reports in the status (its reset cause, set once
+    /// at boot, and its link port's losses, kept current by the board).
+    pub fn board_report_mut(&mut self) -> &mut BoardReport {
+        &mut self.handler.session.board
     }
 
     /// The runtime.

@@ -13,7 +13,7 @@ use controller_core::estimator::{PoseMeasurement, RejectReason};
 use controller_core::runtime::{ControlLoop, MotorDriver, RunState, StopReason, TickReport};
 use controller_core::trajectory::RefSample;
 use wmr_protocol::{
-    Counters, Decoded, ErrorCode, Event, PoseRejects, Reply, Request, RobotInfo, RunStateMsg,
+    BoardReport, Counters, Decoded, ErrorCode, Event, PoseRejects, Reply, Request, RobotInfo, RunStateMsg,
     StatusMsg, StopCode, PROTOCOL_VERSION, TELEMETRY_ALL,
 };
 
@@ -35,6 +35,9 @@ pub(crate) struct Session {
     pub last_stop: Option<StopCode>,
     /// The stop not yet reported in an event.
     pub pending_cause: Option<StopCode>,
+    /// What the board reports in the status (its reset cause, set once at
+    /// boot, and its link port's losses, kept current by the board).
+    pub board: BoardReport,
 }
 
 fn stop_code(r: StopReason) -> StopCode {
@@ -101,6 +104,7 @@ impl<const H: usize> Handler<H> {
                 pending_pose: None,
                 last_stop: None,
                 pending_cause: None,
+                board: BoardReport::default(),
             },
         }
     }
@@ -210,6 +214,7 @@ impl<const H: usize> Handler<H> {
                 }
             },
             nonfinite_telemetry: self.telemetry.nonfinite_frames(),
+            board: self.session.board,
         }
     }
 

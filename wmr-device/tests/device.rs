@@ -194,6 +194,28 @@ fn boots_in_hold_and_refuses_to_arm_without_a_mode() {
     assert!(rig.drv.enabled);
 }
 
+/// The board's report (reset cause, the port's losses) reaches the host in
+/// the status reply as the board set it; unknown until it does.
+#[test]
+fn status_carries_the_board_report() {
+    let mut rig = Rig::new();
+    let Reply::Status { status, .. } = rig.request(&Request::GetStatus, 1) else {
+        panic!("no status");
+    };
+    assert_eq!(status.board, wmr_protocol::BoardReport::default());
+    assert_eq!(status.board.reset_cause, wmr_protocol::ResetCause::Unknown);
+    let report = wmr_protocol::BoardReport {
+        reset_cause: wmr_protocol::ResetCause::IndependentWatchdog,
+        port_rx_dropped: 7,
+        port_rx_errors: 3,
+    };
+    *rig.dev.board_report_mut() = report;
+    let Reply::Status { status, .. } = rig.request(&Request::GetStatus, 2) else {
+        panic!("no status");
+    };
+    assert_eq!(status.board, report);
+}
+
 #[test]
 fn hello_reports_version_and_robot() {
     let mut rig = Rig::new();

@@ -420,6 +420,48 @@ pub struct StatusMsg {
     /// Telemetry frames not sent because a value in them was NaN or
     /// infinite (a runtime fault; the frame's sequence number is skipped).
     pub nonfinite_telemetry: u32,
+    /// What the board itself reports: its last reset's cause and its link
+    /// port's own losses (protocol 3).
+    pub board: BoardReport,
+}
+
+/// Why the robot's MCU last reset, read from its reset controller at boot
+/// (STM32: the RCC_CSR flags, then cleared).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ResetCause {
+    /// Not known (a board without a reset controller, e.g. simulated).
+    #[default]
+    Unknown,
+    /// Power-on (or power-down) reset: the supply came up.
+    PowerOn,
+    /// Brown-out: the supply dipped below the BOR threshold.
+    BrownOut,
+    /// The NRST pin (the reset button or a debugger), nothing else flagged.
+    Pin,
+    /// Software reset (SYSRESETREQ: a debugger's reset or the firmware's).
+    Software,
+    /// The independent watchdog: the control loop stopped feeding it.
+    IndependentWatchdog,
+    /// The window watchdog.
+    WindowWatchdog,
+    /// Low-power management (entering standby or stop when not allowed).
+    LowPower,
+}
+
+/// The board's own report in [`StatusMsg`]: the last reset's cause and the
+/// link port's losses before the protocol handler, since boot.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BoardReport {
+    /// Why the MCU last reset.
+    pub reset_cause: ResetCause,
+    /// Received bytes the port dropped before the protocol handler (its
+    /// receive pipe or the UART's ring buffer full).
+    pub port_rx_dropped: u32,
+    /// Receive errors the port's hardware flagged (UART overrun, framing,
+    /// noise, parity).
+    pub port_rx_errors: u32,
 }
 
 /// External pose measurements the estimator refused, by reason.

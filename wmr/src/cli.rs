@@ -211,6 +211,12 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
                 s.pose_rejects, s.nonfinite_telemetry
             )
             .map_err(io)?;
+            writeln!(
+                out,
+                "board: last reset {:?}, port rx dropped {}, port rx errors {}",
+                s.board.reset_cause, s.board.port_rx_dropped, s.board.port_rx_errors
+            )
+            .map_err(io)?;
         }
         Command::Arm => {
             link.command(&Request::Arm)?;
