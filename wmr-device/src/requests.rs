@@ -13,8 +13,8 @@ use controller_core::estimator::{PoseMeasurement, RejectReason};
 use controller_core::runtime::{ControlLoop, MotorDriver, RunState, StopReason, TickReport};
 use controller_core::trajectory::RefSample;
 use wmr_protocol::{
-    BoardReport, Counters, Decoded, ErrorCode, Event, PoseRejects, Reply, Request, RobotInfo, RunStateMsg,
-    StatusMsg, StopCode, PROTOCOL_VERSION, TELEMETRY_ALL,
+    BoardReport, Counters, Decoded, ErrorCode, Event, PoseRejects, Reply, Request, RobotInfo,
+    RunStateMsg, StatusMsg, StopCode, PROTOCOL_VERSION, TELEMETRY_ALL,
 };
 
 /// One request's answer.
