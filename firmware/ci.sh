@@ -12,7 +12,9 @@
 # (no push, no store or load through sp, no sub sp; the panic handler is
 # allowed the compiler's frame prologue `push {r7, lr}; mov r7, sp`, see
 # fault.rs), and must contain the six motor-off stores; the vector table's
-# NMI and HardFault entries must be those symbols. Negative control:
+# NMI and HardFault entries must be those symbols, and Reset must start by
+# calling the board's __pre_init (the motor lines low before the RAM
+# initialisation, firmware/src/board.rs). Negative control:
 # the same check on a build with the `ci-fault-entry-pushes` feature (a
 # push before the stores) must fail, or this script fails.
 #
@@ -102,6 +104,23 @@ check_fault_entries() {
             echo "    vector ${pair%%:*} -> ${pair#*:} (0x$want)"
         fi
     done
+    # Reset's first instruction calls the board's __pre_init (motor lines
+    # low before the RAM initialisation), not cortex-m-rt's empty default,
+    # and __pre_init does not use the stack.
+    local first pre def
+    first=$("$OBJDUMP" -d --no-show-raw-insn --disassemble-symbols=Reset "$elf" | awk '/^ *[0-9a-f]+:/ { print; exit }')
+    pre=$("$NM" "$elf" | awk '$3 == "__pre_init" { print $1; exit }')
+    def=$("$NM" "$elf" | awk '$3 == "DefaultPreInit" { print $1; exit }')
+    if ! grep -q "bl.*<__pre_init>" <<<"$first" || [ -z "$pre" ] || [ "$pre" = "$def" ]; then
+        echo "    Reset does not start with the board's __pre_init (first: ${first:-none})"
+        ok=1
+    elif "$OBJDUMP" -d --no-show-raw-insn --disassemble-symbols=__pre_init "$elf" |
+        awk '/^ *[0-9a-f]+:/' | grep -Eq '(^|[^a-z])sp([^a-z]|$)|	(push|pop|stm)'; then
+        echo "    __pre_init uses the stack"
+        ok=1
+    else
+        echo "    Reset -> __pre_init (0x$pre): motor lines low before the RAM initialisation"
+    fi
     panic_sym=$("$NM" "$elf" | awk '$3 ~ /rust_begin_unwind/ { print $3; exit }')
     if [ -z "$panic_sym" ]; then
         echo "    panic handler (rust_begin_unwind): not found"

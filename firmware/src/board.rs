@@ -313,6 +313,57 @@ pub struct Board {
     pub pose_source: WheelOdometryOnly,
 }
 
+// The motor outputs driven low at the very start of the reset handler,
+// before cortex-m-rt zeroes .bss and copies .data (about 1.5 ms on the
+// 16 MHz reset clock, during which the pins would otherwise float):
+// cortex-m-rt's `Reset` calls `__pre_init` first. Assembly, registers
+// only, no RAM (none is initialised yet); the same writes as
+// [`outputs_low_early`], which `main` repeats (idempotent). RCC AHB1ENR
+// (0x4002_3830) GPIOAEN | GPIOBEN, read back; GPIOB (0x4002_0400) and
+// GPIOA (0x4002_0000): BSRR resets PB12-14 / PA8-9, PUPDR pull-downs on
+// PB14, PA8, PA9, MODER outputs on PB12-14, PA8-9.
+core::arch::global_asm!(
+    ".section .text.__pre_init,\"ax\",%progbits",
+    ".global __pre_init",
+    ".type __pre_init,%function",
+    ".thumb_func",
+    "__pre_init:",
+    "movw r0, #0x3830",
+    "movt r0, #0x4002",
+    "ldr r1, [r0]",
+    "orr r1, r1, #3",
+    "str r1, [r0]",
+    "ldr r1, [r0]",
+    "movw r0, #0x0400",
+    "movt r0, #0x4002",
+    "movw r2, #0x0000",
+    "movt r2, #0x4002",
+    "movw r1, #0x0000",
+    "movt r1, #0x7000",
+    "str r1, [r0, #0x18]",
+    "movw r1, #0x0000",
+    "movt r1, #0x0300",
+    "str r1, [r2, #0x18]",
+    "ldr r1, [r0, #0x0C]",
+    "bic r1, r1, #0x30000000",
+    "orr r1, r1, #0x20000000",
+    "str r1, [r0, #0x0C]",
+    "ldr r1, [r2, #0x0C]",
+    "bic r1, r1, #0xF0000",
+    "orr r1, r1, #0xA0000",
+    "str r1, [r2, #0x0C]",
+    "ldr r1, [r0]",
+    "bic r1, r1, #0x3F000000",
+    "orr r1, r1, #0x15000000",
+    "str r1, [r0]",
+    "ldr r1, [r2]",
+    "bic r1, r1, #0xF0000",
+    "orr r1, r1, #0x50000",
+    "str r1, [r2]",
+    "bx lr",
+    ".size __pre_init, . - __pre_init",
+);
+
 /// Drives the motor outputs low with raw register writes, before anything
 /// else runs (call it first in `main`, before [`init`]): ENABLE (PB14), DIR
 /// (PB12, PB13) and PWM (PA8, PA9) as push-pull outputs at 0, with pull-downs
@@ -321,12 +372,12 @@ pub struct Board {
 /// GPIO clocks (it does not reset the ports), so this state holds until
 /// [`init`] reconfigures the pins.
 ///
-/// Not a `#[pre_init]`: cortex-m-rt 0.7 deprecates it (Rust before RAM
-/// initialisation is undefined behaviour), and it would gain only the RAM
-/// initialisation (about 15 KB of .bss/.data zeroed and copied word by
-/// word: about 1.5 ms at 16 MHz);
-/// the pins float from reset to here in any case, which is what the
-/// external pull-downs are for.
+/// The `__pre_init` assembly above has done the same before the RAM
+/// initialisation (Rust cannot run there: cortex-m-rt 0.7 deprecates
+/// `#[pre_init]`, Rust before RAM initialisation is undefined behaviour);
+/// this repeats it in Rust, idempotently. The pins float from reset to the
+/// first instructions in any case, which is what the external pull-downs
+/// are for.
 pub fn outputs_low_early() {
     pac::RCC.ahb1enr().modify(|w| {
         w.set_gpioaen(true);
