@@ -37,7 +37,7 @@ pub mod reset;
 
 pub use board::{AppEvent, Board, BoardIo, StatusSummary};
 pub use control::{control_task, AppConfig, AppConfigError, ControlTask};
-pub use link::{pump_rx, pump_rx_ring, pump_tx, LinkPipes};
+pub use link::{pump_rx, pump_rx_ring, pump_tx, LinkPipes, TX_CHUNK_BYTES};
 
 // Re-exported for the boards.
 pub use controller_core::runtime::{ArmingButton, LoopTimer};

@@ -293,13 +293,30 @@ pub async fn pump_rx_ring<R: embedded_io_async::BufRead>(port: &mut R, pipes: &L
     }
 }
 
-/// Pipe → port, forever: waits for queued bytes and writes them all. A
+/// Bytes [`pump_tx`] hands the port at once: at most the smallest driver
+/// ring it feeds (embassy-stm32's `BufferedUartTx` refuses a write longer
+/// than its ring; the firmware's is 256 B).
+pub const TX_CHUNK_BYTES: usize = 64;
+
+/// Pipe → port, forever: waits for queued bytes, writes them and waits
+/// until the port has sent them (`flush`) before taking the next chunk. A
 /// UART always drains at its baud rate; a write error drops the chunk.
+///
+/// The flush is not optional: embassy-stm32 0.6's `BufferedUartTx::write`
+/// writes all of a chunk or nothing, and when its ring has less room than
+/// the chunk it returns `Pending` *without registering a waker*, so a
+/// write into a partly full ring is never polled again and the link goes
+/// silent for good (found by stm32-emu on the F446 image at 100 Hz
+/// telemetry, D50). After a flush the ring is empty, so every write fits
+/// at once, and the flush itself waits on the driver's waker. What the
+/// line cannot carry stays in the pipe, and the control task drops and
+/// counts what no longer fits there (`tx_discarded`).
 pub async fn pump_tx<W: embedded_io_async::Write>(port: &mut W, pipes: &LinkPipes) -> ! {
-    let mut buf = [0u8; 64];
+    let mut buf = [0u8; TX_CHUNK_BYTES];
     loop {
         let n = pipes.port_next_tx(&mut buf).await;
         let _ = port.write_all(&buf[..n]).await;
+        let _ = port.flush().await;
     }
 }
 

@@ -152,3 +152,130 @@ fn reset_cause_from_the_rcc_flags() {
     // The reset value's other bits (LSION, LSIRDY, RMVF) name no cause.
     assert_eq!(from_stm32f4_csr(0b11 | RMVF), ResetCause::Unknown);
 }
+
+/// The ring and waker of [`EmbassyLikeUartTx`], shared with the test's
+/// "interrupt".
+#[derive(Default)]
+struct UartState {
+    ring: std::collections::VecDeque<u8>,
+    waker: Option<Waker>,
+}
+
+/// A model of embassy-stm32 0.6's `BufferedUartTx` (usart/buffered.rs):
+/// a 256 B ring that the interrupt drains at the baud rate; `write` takes
+/// all of a chunk or nothing and, when the ring lacks room, returns
+/// `Pending` without registering a waker (the driver's behaviour); `flush`
+/// registers the waker, which the interrupt wakes on transmission complete.
+struct EmbassyLikeUartTx(std::rc::Rc<std::cell::RefCell<UartState>>);
+
+const UART_RING_BYTES: usize = 256;
+
+impl embedded_io_async::ErrorType for EmbassyLikeUartTx {
+    type Error = core::convert::Infallible;
+}
+
+impl embedded_io_async::Write for EmbassyLikeUartTx {
+    async fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+        core::future::poll_fn(|_cx| {
+            let mut st = self.0.borrow_mut();
+            if UART_RING_BYTES - st.ring.len() < buf.len() {
+                return core::task::Poll::Pending; // no waker registered
+            }
+            st.ring.extend(buf);
+            core::task::Poll::Ready(Ok(buf.len()))
+        })
+        .await
+    }
+
+    async fn flush(&mut self) -> Result<(), Self::Error> {
+        core::future::poll_fn(|cx| {
+            let mut st = self.0.borrow_mut();
+            if st.ring.is_empty() {
+                core::task::Poll::Ready(Ok(()))
+            } else {
+                st.waker = Some(cx.waker().clone());
+                core::task::Poll::Pending
+            }
+        })
+        .await
+    }
+}
+
+/// A waker that sets a flag: the test polls the pump only when woken, as
+/// an executor does.
+fn flag_waker(flag: &std::sync::Arc<std::sync::atomic::AtomicBool>) -> Waker {
+    struct Flag(std::sync::Arc<std::sync::atomic::AtomicBool>);
+    impl std::task::Wake for Flag {
+        fn wake(self: std::sync::Arc<Self>) {
+            self.0.store(true, std::sync::atomic::Ordering::SeqCst);
+        }
+    }
+    Waker::from(std::sync::Arc::new(Flag(flag.clone())))
+}
+
+/// Bytes queued, bytes sent on the line and bytes left in the pipe after
+/// 1 s of telemetry faster than the line (160 B every 10 ms against 11 B/ms
+/// at 115 200 baud: wmr's default 100 Hz on a UART) and 1 s to drain, with
+/// `pump` between the pipe and the embassy-like driver.
+fn uart_flood<F: Future>(
+    pump: impl FnOnce(EmbassyLikeUartTx, &'static LinkPipes) -> F,
+) -> (usize, usize, usize) {
+    let pipes: &'static LinkPipes = Box::leak(Box::new(LinkPipes::new()));
+    let state = std::rc::Rc::new(std::cell::RefCell::new(UartState::default()));
+    let mut pump = pin!(pump(EmbassyLikeUartTx(state.clone()), pipes));
+    let woken = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let waker = flag_waker(&woken);
+    let mut cx = Context::from_waker(&waker);
+    let (mut queued, mut sent) = (0usize, 0usize);
+    for ms in 0..2_000u32 {
+        if ms < 1_000 && ms % 10 == 0 {
+            queued += pipes.queue_tx(&[0xA5; 160]);
+        }
+        // The interrupt: 11 bytes per ms leave the ring; transmission
+        // complete wakes the flush.
+        let wake = {
+            let mut st = state.borrow_mut();
+            for _ in 0..11 {
+                sent += st.ring.pop_front().is_some() as usize;
+            }
+            if st.ring.is_empty() {
+                st.waker.take()
+            } else {
+                None
+            }
+        };
+        if let Some(w) = wake {
+            w.wake();
+        }
+        if woken.swap(false, std::sync::atomic::Ordering::SeqCst) {
+            let _ = pump.as_mut().poll(&mut cx);
+        }
+    }
+    (queued, sent, pipes.tx_len())
+}
+
+/// The UART pump keeps sending for as long as bytes are queued, and the
+/// line carries everything the pipe accepted (the excess is refused by the
+/// pipe and counted by the control task, never a silent link). The
+/// control: a pump that writes without flushing stalls for good on the
+/// driver's waker-less `Pending` (the bug stm32-emu found on the F446 image).
+#[test]
+fn the_uart_pump_never_stalls_on_a_full_driver_ring() {
+    let (queued, sent, left) =
+        uart_flood(|mut port, pipes| async move { robot_app::pump_tx(&mut port, pipes).await });
+    assert!(queued > 4_000, "the pipe took {queued} B");
+    assert_eq!(left, 0, "bytes left in the pipe");
+    assert_eq!(sent, queued, "every byte the pipe took reaches the line");
+
+    let (queued, sent, left) = uart_flood(|mut port, pipes| async move {
+        let mut chunk = [0u8; robot_app::TX_CHUNK_BYTES];
+        loop {
+            let n = pipes.port_next_tx(&mut chunk).await;
+            let _ = embedded_io_async::Write::write_all(&mut port, &chunk[..n]).await;
+        }
+    });
+    assert!(
+        sent < queued / 2 && left > 0,
+        "the control must stall: {sent} of {queued} B sent, {left} left"
+    );
+}
