@@ -258,3 +258,38 @@ fn drive_at_byte_faults_runs_to_its_end() {
         assert!(out.contains("stopped: Hold (VelocityTimeout)"), "{out}");
     }
 }
+
+/// `wmr record --arm` of the square through a 1 s cut: the robot stops on
+/// link silence; the log is written, but the exit is not a success (before,
+/// wmr printed "the run ended" and exited 0, or waited on for reference time
+/// that no longer advanced).
+#[test]
+fn record_arm_through_a_cut_line_is_not_a_success() {
+    let _s = serial();
+    let rig = Rig::start();
+    let (r, _) = finish(&rig.wmr(&["upload", square()]), "upload");
+    r.unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("run.csv");
+    let run = rig.wmr(&[
+        "record",
+        "--arm",
+        "--quiet",
+        "--seconds",
+        "10",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    std::thread::sleep(Duration::from_secs(2));
+    rig.set(Line::Cut);
+    std::thread::sleep(Duration::from_secs(1));
+    rig.set(Line::Clean);
+    let (r, out) = finish(&run, "record --arm");
+    let e = r.expect_err("the run was stopped by the cut");
+    assert!(
+        e.contains("stopped unexpectedly") && e.contains("LinkSilence"),
+        "{e}\n{out}"
+    );
+    assert!(out.contains("\"rows\""), "the summary is printed: {out}");
+    assert!(std::fs::metadata(&csv).unwrap().len() > 0);
+}

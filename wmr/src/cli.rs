@@ -516,9 +516,11 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
     let mut dropped = 0u64;
     let mut rows = Vec::new();
     let mut seen_running = false;
+    let mut ended: Option<Stop> = None;
+    let keep_alive = link.timing().keep_alive;
     loop {
         // Keep the link alive (the robot brakes after link_timeout_ms of silence).
-        if last_ping.elapsed() >= Duration::from_millis(100) {
+        if last_ping.elapsed() >= keep_alive {
             link.send(&Request::ClockSync {
                 host_time_us: host_us(t0),
             })?;
@@ -549,14 +551,19 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
                 if elapsed_ms >= total_ms {
                     break;
                 }
+                // The run ended and its event was lost: telemetry says so.
+                if seen_running && matches!(t.state, RunStateMsg::Hold | RunStateMsg::Stopped) {
+                    ended = Some(Stop {
+                        state: t.state,
+                        cause: None,
+                    });
+                    break;
+                }
             }
             Some(Reply::Event(Event::StateChanged { state, cause }))
                 if seen_running && matches!(state, RunStateMsg::Hold | RunStateMsg::Stopped) =>
             {
-                pb.println(format!(
-                    "the run ended: {state:?} ({})",
-                    cause.map_or_else(|| "-".into(), |c| format!("{c:?}"))
-                ));
+                ended = Some(Stop { state, cause });
                 break;
             }
             _ => {}
@@ -567,6 +574,13 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
         }
     }
     pb.finish_and_clear();
+    // The cause of a stop seen only in telemetry: the status's last stop.
+    if let Some(s) = &mut ended {
+        if s.cause.is_none() {
+            s.cause = status(link).ok().and_then(|st| st.last_stop);
+        }
+        eprintln!("the run ended: {s}");
+    }
     let _ = link.command(&Request::SetTelemetry {
         selection: TELEMETRY_ALL,
         rate_hz: 0,
@@ -585,7 +599,16 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
     };
     let json = serde_json::to_string(&summary).map_err(|e| LinkError::Io(e.to_string()))?;
     writeln!(out, "{json}").map_err(io)?;
-    Ok(())
+    // With --arm the run is ours: only its end or a disarm is a success (the
+    // log up to the stop is written either way).
+    match ended {
+        Some(s) if a.arm => expect_cause(
+            s,
+            &[StopCode::TrajectoryEnd, StopCode::Disarmed],
+            "the recording",
+        ),
+        _ => Ok(()),
+    }
 }
 
 /// Clock offset robot − host \[µs\] from `n` exchanges, the one with the
