@@ -262,6 +262,38 @@ mod tests {
         }
     }
 
+    /// The loop asks at (k + 1)·h the instant the last RK4 step asked at
+    /// k·h + h; where the two sums differ in their last bits it is still one
+    /// instant: the same value, no recomputation (D57; it used to recompute
+    /// the three phasors with sin/cos there).
+    #[test]
+    fn same_instant_by_another_sum_is_one_query() {
+        let p = PerturbationProfile {
+            window_s: [0.0, 100.0],
+            beta_radps: 0.15,
+            fault_eps: 0.2,
+            skid_scale: 0.05,
+            disturbance_nm: 1.0,
+            fault_eps_end: None,
+        };
+        let h = 1e-3;
+        let mut g = PerturbationGrid::new(p, 0.5 * h);
+        let mut other_sum = 0;
+        for k in 0..5000 {
+            let t = k as f64 * h;
+            g.at(t);
+            g.at(t + 0.5 * h);
+            let end = g.at(t + h);
+            let next_t = (k + 1) as f64 * h;
+            let next = g.at(next_t);
+            if (t + h).to_bits() != next_t.to_bits() {
+                other_sum += 1;
+                assert_eq!(end, next, "k = {k}");
+            }
+        }
+        assert!(other_sum > 100, "{other_sum}");
+    }
+
     #[test]
     fn nothing_outside_the_window() {
         let p = PerturbationProfile {
