@@ -57,10 +57,7 @@ impl ReducedModel {
             p.half_track_m,
             p.com_offset_m,
         );
-        let m1_diag = [
-            m + 2.0 * iw / (r * r),
-            i + 3.0 * m * d * d + 2.0 * iw * h * h / (r * r),
-        ];
+        let m1_diag = crate::params::m1_diagonal(m, i, iw, r, h, d);
         let b1 = [[1.0 / r, 1.0 / r], [h / r, -h / r]];
         let n = [
             [b1[0][0] / m1_diag[0], b1[0][1] / m1_diag[0]],

@@ -24,6 +24,7 @@
 //! larger δ falls back to sin/cos).
 
 use crate::math::sin_cos;
+use controller_core::params::{eta_from_wheel_rates, m1_diagonal, wheel_rates};
 use controller_core::RobotParams;
 use core::cell::Cell;
 
@@ -57,13 +58,10 @@ impl PlantParams {
         }
     }
 
-    /// Diagonal of M1.
+    /// Diagonal of M1 (controller-core's [`m1_diagonal`], in f64).
     pub fn m1_diag(&self) -> [f64; 2] {
         let (m, i, iw, r, h, d) = self.unpack();
-        [
-            m + 2.0 * iw / (r * r),
-            i + 3.0 * m * d * d + 2.0 * iw * h * h / (r * r),
-        ]
+        m1_diagonal(m, i, iw, r, h, d)
     }
 
     fn unpack(&self) -> (f64, f64, f64, f64, f64, f64) {
@@ -148,9 +146,13 @@ fn sin_cos_offset(theta0: f64, sc0: (f64, f64), delta: f64) -> (f64, f64) {
     if delta.abs() > SMALL_ANGLE_RAD {
         return sin_cos(theta0 + delta);
     }
+    // Horner with the reciprocals as constants (six divisions in a chain
+    // cost more than the rest of a stage; the products differ from the
+    // quotients by an ulp of terms below 10⁻⁴: D57).
     let d2 = delta * delta;
-    let sd = delta * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0)));
-    let cd = 1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0));
+    let sd =
+        delta * (1.0 - d2 * (1.0 / 6.0) * (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0))));
+    let cd = 1.0 - d2 * 0.5 * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0)));
     let (s0, c0) = sc0;
     (s0 * cd + c0 * sd, c0 * cd - s0 * sd)
 }
@@ -220,35 +222,34 @@ impl Plant {
     }
 
     /// Physical parameters.
+    #[inline]
     pub fn params(&self) -> &PlantParams {
         &self.params
     }
 
-    /// σ = \[σ_v, σ_ω\] of eq. (3) for wheel slip ϖ (with the sign fixed: D15).
+    /// σ = \[σ_v, σ_ω\] of eq. (3) for wheel slip ϖ (with the sign fixed: D15):
+    /// the η that wheel rates ϖ would give (controller-core's
+    /// [`eta_from_wheel_rates`], in f64).
+    #[inline]
     pub fn sigma(&self, slip: [f64; 2]) -> [f64; 2] {
         let (r, h) = (self.params.wheel_radius_m, self.params.half_track_m);
-        [
-            0.5 * r * (slip[0] + slip[1]),
-            0.5 * r * (slip[0] - slip[1]) / h,
-        ]
+        eta_from_wheel_rates(r, h, slip)
     }
 
     /// η = ν + σ: the wheel-imposed velocities the encoders see.
+    #[inline]
     pub fn eta(&self, st: &PlantState, p: &Perturbation) -> [f64; 2] {
         let s = self.sigma(p.wheel_slip_radps);
         [st.nu[0] + s[0], st.nu[1] + s[1]]
     }
 
     /// Wheel rates φ̇ = \[(v + hω)/r, (v − hω)/r\] \[rad/s\] (eq. 3, rows 4-5).
+    #[inline]
     pub fn wheel_rates_radps(&self, st: &PlantState, p: &Perturbation) -> [f64; 2] {
-        let k = &self.k;
-        let eta = self.eta(st, p);
-        [
-            (eta[0] + k.h * eta[1]) * k.inv_r,
-            (eta[0] - k.h * eta[1]) * k.inv_r,
-        ]
+        wheel_rates(self.k.inv_r, self.k.h, self.eta(st, p))
     }
 
+    #[inline]
     fn forcing(&self, p: &Perturbation) -> Forcing {
         let k = &self.k;
         let sr = p.wheel_slip_rate_radps2;
@@ -270,6 +271,7 @@ impl Plant {
     }
 
     /// q̇ (eq. 3 with the fault of eq. 10).
+    #[inline]
     pub fn q_dot(&self, st: &PlantState, p: &Perturbation) -> [f64; 5] {
         self.q_dot_f(st, &self.forcing(p), sin_cos(st.q[2]))
     }
@@ -283,16 +285,18 @@ impl Plant {
         let vb = f.healthy * eta[0] - f.sigma[0];
         let wb = f.healthy * eta[1] - f.sigma[1];
         let dl = f.skid_mps;
+        let [rate_r, rate_l] = wheel_rates(k.inv_r, k.h, eta);
         [
             vb * c - k.d * wb * s - s * dl,
             vb * s + k.d * wb * c + c * dl,
             wb,
-            (eta[0] + k.h * eta[1]) * k.inv_r,
-            (eta[0] - k.h * eta[1]) * k.inv_r,
+            rate_r,
+            rate_l,
         ]
     }
 
     /// ν̇ from eq. (6) for wheel torques `[right, left]`.
+    #[inline]
     pub fn nu_dot(&self, st: &PlantState, p: &Perturbation, torque_nm: [f64; 2]) -> [f64; 2] {
         let sc = sin_cos(st.q[2]);
         let f = self.forcing(p);
@@ -349,6 +353,7 @@ impl Plant {
     /// the perturbations at time t (asked at t, t + h/2 and t + h: a
     /// [`PerturbationGrid`](crate::PerturbationGrid) of step h/2 serves them
     /// cheaply), `drive` the wheel torques at each stage.
+    #[inline]
     pub fn rk4_step(
         &self,
         st: &PlantState,
@@ -397,6 +402,7 @@ impl Plant {
     /// True when every state component is finite. (One sum: a NaN or an
     /// infinity in any component makes it non-finite; finite components
     /// only overflow it beyond 10³⁰⁷, a diverged state anyway.)
+    #[inline]
     pub fn state_is_finite(st: &PlantState) -> bool {
         let [a, b, c, d, e] = st.q;
         let [f, g] = st.nu;
