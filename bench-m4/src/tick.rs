@@ -147,12 +147,13 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
         initial_pose,
         ..RuntimeConfig::example(ControllerKind::Proposed)
     };
-    let mut est = EstimatorConfig::example(cfg.controller.robot.com_offset_m, initial_pose);
+    let mut est = EstimatorConfig::EXAMPLE;
     est.gyro_saturation_radps = PRESET_GYRO.saturation_radps as f32;
     let mut control: ControlLoop<HISTORY_LEN> =
         ControlLoop::with_estimator(cfg, est).unwrap_or_else(|_| fail("runtime config"));
     let mut shadow: PoseEstimator<HISTORY_LEN> =
-        PoseEstimator::with_history(est).unwrap_or_else(|_| fail("estimator config"));
+        PoseEstimator::with_history(est, cfg.controller.robot.com_offset_m, initial_pose)
+            .unwrap_or_else(|_| fail("estimator config"));
     let mut whole = shadow.clone();
     let mut timer = LoopTimer::from_config(&cfg).unwrap_or_else(|_| fail("loop timer"));
     if control.arm().is_err() {

@@ -57,27 +57,18 @@ pub const KINEMATIC_GAINS: KinematicGains = KinematicGains {
 /// d = 0.05 m): measure and replace for a real robot.
 pub const ROBOT: RobotParams = RobotParams::paper();
 
-/// Motors, gearbox, supply and PWM (example 24 V gear-motor, see
-/// `MotorParams::EXAMPLE`). `duty_full_scale` is replaced at start-up by the
-/// PWM timer's real resolution.
-pub const MOTOR: MotorParams = MotorParams {
-    torque_constant_nm_per_a: 0.05, // k [N·m/A] = back-EMF [V·s/rad], motor side
-    winding_resistance_ohm: 0.5,    // R [Ω], winding + bridge on-resistance
-    gear_ratio: 12.0,               // motor revs per wheel rev
-    gear_efficiency: 0.85,          // η_g
-    supply_voltage_v: 24.0,         // battery [V]
-    max_duty_fraction: 0.95,        // duty limit (bootstrap drivers need < 1)
-    duty_full_scale: 4800,          // placeholder: set from the timer at boot
-};
+/// Motors, gearbox, supply and PWM: controller-core's example 24 V
+/// gear-motor (`MotorParams::EXAMPLE`: k = 0.05 N·m/A, R = 0.5 Ω, 12:1 at
+/// 85 %, 24 V, duty limit 0.95), the same values the simulator drives.
+/// `duty_full_scale` is replaced at start-up by the PWM timer's real
+/// resolution. Measure and replace for a real robot.
+pub const MOTOR: MotorParams = MotorParams::EXAMPLE;
 
-/// Encoders: counts per *wheel* revolution after ×4 decoding and gearbox
-/// (500 lines × 4 × 12 = 24 000), which counter runs backwards when driving
-/// forward, and the speed window.
-pub const ENCODER: EncoderParams = EncoderParams {
-    counts_per_wheel_rev: 24_000.0,
-    inverted: MIRRORED_LEFT, // left encoder mirrored
-    speed_window_ticks: 4,   // 4 ms window: 0.065 rad/s quantization, 2 ms delay
-};
+/// Encoders: counts per *wheel* revolution after ×4 decoding and gearbox,
+/// which counter runs backwards when driving forward, and the speed window:
+/// controller-core's example (`EncoderParams::EXAMPLE`: 500 lines × 4 × 12
+/// = 24 000 counts/rev, left mirrored, 4 ms window), the simulator's too.
+pub const ENCODER: EncoderParams = EncoderParams::EXAMPLE;
 
 /// Per wheel `[right, left]`: flip the DIR output (left motor mirrored).
 pub const MOTOR_INVERTED: [bool; 2] = MIRRORED_LEFT;
@@ -143,20 +134,21 @@ pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {
 }
 
 /// The pose estimator's tuning: controller-core's example (a MEMS gyro,
-/// external poses from the host link), starting at [`INITIAL_POSE`] with
-/// the robot's centre-of-mass offset.
+/// external poses from the host link). It starts at the runtime's initial
+/// pose ([`INITIAL_POSE`]) with the robot's centre-of-mass offset, both
+/// taken from the runtime configuration by the control loop.
 #[cfg(not(feature = "imu"))]
-pub const ESTIMATOR: EstimatorConfig = EstimatorConfig::example(ROBOT.com_offset_m, INITIAL_POSE);
+pub const ESTIMATOR: EstimatorConfig = EstimatorConfig::EXAMPLE;
 /// The pose estimator's tuning: controller-core's example (a MEMS gyro,
-/// external poses from the host link), starting at [`INITIAL_POSE`] with
-/// the robot's centre-of-mass offset, and the IMU's saturation: a reading
+/// external poses from the host link; start pose and centre-of-mass offset
+/// from the runtime configuration), and the IMU's saturation: a reading
 /// within 2 % of the configured full scale ([`IMU_RANGE`]) counts as
 /// saturated (the chip clips there), so the estimator uses the wheels' yaw
 /// rate for it. ±500 °/s: 0.98 × 8.73 = 8.56 rad/s.
 #[cfg(feature = "imu")]
 pub const ESTIMATOR: EstimatorConfig = EstimatorConfig {
     gyro_saturation_radps: 0.98 * IMU_RANGE.limit_radps(),
-    ..EstimatorConfig::example(ROBOT.com_offset_m, INITIAL_POSE)
+    ..EstimatorConfig::EXAMPLE
 };
 
 /// How the IMU is mounted (`imu` feature): which sensor axis is the

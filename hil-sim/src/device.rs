@@ -51,12 +51,10 @@ impl SimRobot {
             },
             ..scn.clone()
         };
-        let (sensors, mut estimator) = SimSensors::of(scn)?;
+        let (sensors, estimator) = SimSensors::of(scn)?;
         let controller = controller_config(scn, kind);
         let cfg = scn.runtime_config(controller, crate::hil::HilOptions::default().safety);
         let p0 = scn.initial_pose;
-        estimator.com_offset_m = controller.robot.com_offset_m;
-        estimator.initial_pose = cfg.initial_pose;
         let dev_cfg = DeviceConfig {
             chip: "sim",
             capabilities: CAP_EXTERNAL_POSE | CAP_TRAJECTORY | CAP_VELOCITY | CAP_SIMULATED,

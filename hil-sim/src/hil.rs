@@ -21,7 +21,7 @@ use controller_core::estimator::{EstimatorConfig, EstimatorStatus, GyroSample, P
 use controller_core::runtime::{
     ControlLoop, Gyro, LoopTimer, PoseSource, SafetyLimits, StopReason,
 };
-use controller_core::{ControllerConfig, ControllerKind, Pose};
+use controller_core::{ControllerConfig, ControllerKind};
 use sim_robot::sensors::PoseSourceStats;
 use sim_robot::{MotorDrive, SimDriver, SimEncoders, SimGyro, SimPoseSource};
 
@@ -141,10 +141,10 @@ pub struct SensingReport {
 }
 
 /// The estimator tuning for a set of simulated sensors, as a user would
-/// set it from the data sheets: [`EstimatorConfig::example`] with the
+/// set it from the data sheets: [`EstimatorConfig::EXAMPLE`] with the
 /// gyro's full scale.
 pub fn sensing_estimator_config(sensors: &SensorSetup) -> EstimatorConfig {
-    let mut est = EstimatorConfig::example(0.0, Pose::default());
+    let mut est = EstimatorConfig::EXAMPLE;
     if let Some(g) = sensors.gyro {
         est.gyro_saturation_radps = g.saturation_radps as f32;
     }
@@ -177,9 +177,7 @@ impl RuntimeSide {
         }
         let (sensors, sensing_est) = SimSensors::of(scn)?;
         let cfg = scn.runtime_config(controller, opts.safety);
-        let mut est = opts.estimator.unwrap_or(sensing_est);
-        est.com_offset_m = controller.robot.com_offset_m;
-        est.initial_pose = cfg.initial_pose;
+        let est = opts.estimator.unwrap_or(sensing_est);
         let mut control =
             ControlLoop::with_estimator(cfg, est).map_err(|e| format!("runtime config: {e}"))?;
         let timer = LoopTimer::from_config(&cfg).map_err(|e| format!("loop timer: {e}"))?;

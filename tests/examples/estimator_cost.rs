@@ -11,8 +11,8 @@ use std::hint::black_box;
 use std::time::Instant;
 
 fn main() {
-    let cfg = EstimatorConfig::example(0.05, Pose::new(0.0, 0.0, 0.0));
-    let mut e = PoseEstimator::new(cfg).unwrap();
+    let cfg = EstimatorConfig::EXAMPLE;
+    let mut e = PoseEstimator::new(cfg, 0.05, Pose::new(0.0, 0.0, 0.0)).unwrap();
     let n = 200_000u32;
     let t0 = Instant::now();
     for k in 1..=n {
@@ -24,7 +24,7 @@ fn main() {
     }
     let predict_ns = t0.elapsed().as_nanos() as f64 / n as f64;
     let correct = |latency_ticks: u32, reps: u32| {
-        let mut e = PoseEstimator::new(cfg).unwrap();
+        let mut e = PoseEstimator::new(cfg, 0.05, Pose::new(0.0, 0.0, 0.0)).unwrap();
         let mut k = 0u32;
         let mut spent = 0u128;
         for _ in 0..reps {

@@ -4,13 +4,13 @@
 //! and the worst ratio proposed / better baseline. A development aid.
 //! `cargo run --release -p closed-loop-tests --example imu_scale_scan -- [imu|uwb|mocap]`
 use controller_core::estimator::EstimatorConfig;
-use controller_core::{ControllerKind, Pose};
+use controller_core::ControllerKind;
 use hil_sim::hil::{run_hil, HilOptions};
 use hil_sim::scenario::Sensing;
 use hil_sim::Scenario;
 
 fn main() {
-    let base = EstimatorConfig::example(0.0, Pose::default());
+    let base = EstimatorConfig::EXAMPLE;
     let args: Vec<String> = std::env::args().collect();
     let sensing = match args.get(1).map(|s| s.as_str()) {
         Some("uwb") => Sensing::Uwb,

@@ -3,7 +3,7 @@
 //! `cargo run --release -p closed-loop-tests --example sensing_tuning -- [seeds]`
 
 use controller_core::estimator::EstimatorConfig;
-use controller_core::{ControllerKind, Pose};
+use controller_core::ControllerKind;
 use hil_sim::hil::{run_hil, HilOptions};
 use hil_sim::scenario::Sensing;
 use hil_sim::Scenario;
@@ -13,7 +13,7 @@ fn main() {
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(1);
-    let base = EstimatorConfig::example(0.0, Pose::default());
+    let base = EstimatorConfig::EXAMPLE;
     let mut tunings: Vec<(String, EstimatorConfig)> = vec![("example".into(), base)];
     for tau in [0.0f32, 0.1, 0.3] {
         tunings.push((

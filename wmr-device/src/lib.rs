@@ -94,11 +94,9 @@ pub struct Device<const H: usize = HISTORY_LEN> {
 
 impl<const H: usize> Device<H> {
     /// Validates both configurations and builds a device in hold, with the
-    /// example estimator tuning ([`EstimatorConfig::example`]).
+    /// example estimator tuning ([`EstimatorConfig::EXAMPLE`]).
     pub fn new(cfg: DeviceConfig, runtime: RuntimeConfig) -> Result<Self, DeviceConfigError> {
-        let estimator =
-            EstimatorConfig::example(runtime.controller.robot.com_offset_m, runtime.initial_pose);
-        Self::with_estimator(cfg, runtime, estimator)
+        Self::with_estimator(cfg, runtime, EstimatorConfig::EXAMPLE)
     }
 
     /// [`Self::new`] with a given estimator tuning (`H` ticks of history:

@@ -1,13 +1,12 @@
 //! The estimator's parameters, validated at construction.
 
-use crate::types::Pose;
-
 /// A rejected [`EstimatorConfig`] field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum EstimatorConfigError {
-    /// The initial pose or the centre-of-mass offset is not finite.
+    /// The start pose or the centre-of-mass offset given to
+    /// [`PoseEstimator::new`](super::PoseEstimator::new) is not finite.
     NonFinitePose,
     /// A standard deviation or noise density is negative, zero where it
     /// must be positive, or not finite.
@@ -38,17 +37,18 @@ pub const CHI2_999_2DOF: f32 = 13.82;
 /// Chi-square 99.9 % quantile, 3 degrees of freedom (position and heading).
 pub const CHI2_999_3DOF: f32 = 16.27;
 
-/// Parameters of the [`PoseEstimator`](super::PoseEstimator).
+/// Tuning of the [`PoseEstimator`](super::PoseEstimator): noise, gates,
+/// counts. The robot's geometry (the centre-of-mass offset) and the start
+/// pose are not here: they belong to the robot and to the loop that owns
+/// the estimator, which passes them to
+/// [`PoseEstimator::new`](super::PoseEstimator::new) (one description, no
+/// second copy to patch).
 ///
 /// Noise densities are continuous-time: over a tick of `dt` the variance
 /// added is density²·dt.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct EstimatorConfig {
-    /// Distance d from the axle midpoint to G \[m\] (measurements are of G).
-    pub com_offset_m: f32,
-    /// Pose of G where the estimate starts.
-    pub initial_pose: Pose,
     /// Initial std. dev. of each position coordinate \[m\].
     pub initial_position_std_m: f32,
     /// Initial std. dev. of the heading \[rad\].
@@ -105,41 +105,33 @@ pub struct EstimatorConfig {
 }
 
 impl EstimatorConfig {
-    /// Example tuning for a small robot with a MEMS gyro, starting at
-    /// `initial_pose` with G `com_offset_m` ahead of the axle.
-    pub const fn example(com_offset_m: f32, initial_pose: Pose) -> Self {
-        Self {
-            com_offset_m,
-            initial_pose,
-            initial_position_std_m: 0.05,
-            initial_heading_std_rad: 0.05,
-            initial_bias_std_radps: 0.02,
-            initial_speed_scale_std: 0.1,
-            speed_scale_walk: 0.05,
-            speed_noise_mps_per_sqrt_hz: 0.02,
-            slip_fraction: 0.02,
-            gyro_noise_density: 0.001,
-            gyro_bias_walk: 0.0005,
-            wheel_yaw_noise: 0.05,
-            gyro_saturation_radps: 34.0,
-            gyro_stale_us: 20_000,
-            chi2_gate_2dof: CHI2_999_2DOF,
-            chi2_gate_3dof: CHI2_999_3DOF,
-            max_consecutive_outliers: 10,
-            standstill_ticks: 200,
-            output_smoothing_s: 0.2,
-            gyro_speed_scale: true,
-            gyro_scale_min_turn_rad: 0.005,
-            gyro_scale_yaw_noise: 0.15,
-        }
-    }
+    /// Example tuning for a small robot with a MEMS gyro.
+    pub const EXAMPLE: Self = Self {
+        initial_position_std_m: 0.05,
+        initial_heading_std_rad: 0.05,
+        initial_bias_std_radps: 0.02,
+        initial_speed_scale_std: 0.1,
+        speed_scale_walk: 0.05,
+        speed_noise_mps_per_sqrt_hz: 0.02,
+        slip_fraction: 0.02,
+        gyro_noise_density: 0.001,
+        gyro_bias_walk: 0.0005,
+        wheel_yaw_noise: 0.05,
+        gyro_saturation_radps: 34.0,
+        gyro_stale_us: 20_000,
+        chi2_gate_2dof: CHI2_999_2DOF,
+        chi2_gate_3dof: CHI2_999_3DOF,
+        max_consecutive_outliers: 10,
+        standstill_ticks: 200,
+        output_smoothing_s: 0.2,
+        gyro_speed_scale: true,
+        gyro_scale_min_turn_rad: 0.005,
+        gyro_scale_yaw_noise: 0.15,
+    };
 
     /// Checks every field.
     pub fn validate(self) -> Result<Self, EstimatorConfigError> {
         use crate::math::{all_non_negative, all_positive};
-        if !(self.initial_pose.is_finite() && self.com_offset_m.is_finite()) {
-            return Err(EstimatorConfigError::NonFinitePose);
-        }
         if !(all_positive(&[
             self.initial_position_std_m,
             self.initial_heading_std_rad,

@@ -155,6 +155,9 @@ fn all_finite(x: &[f32; N], p: &Mat) -> bool {
 #[derive(Clone, Debug)]
 pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
     cfg: EstimatorConfig,
+    /// Distance d from the axle midpoint to G \[m\] (measurements are of G),
+    /// given by the owner from the robot's parameters.
+    com_offset_m: f32,
     noise_sq: NoiseSq,
     /// The live state (at the newest tick).
     filter: Filter,
@@ -192,25 +195,37 @@ pub struct PoseEstimator<const H: usize = HISTORY_LEN> {
 }
 
 impl PoseEstimator {
-    /// Validates `cfg` and starts at its initial pose, bias 0, with
-    /// [`HISTORY_LEN`] ticks of history.
-    pub fn new(cfg: EstimatorConfig) -> Result<Self, EstimatorConfigError> {
-        Self::with_history(cfg)
+    /// Validates `cfg` and starts with G at `start` (bias 0, speed scale 1),
+    /// G `com_offset_m` ahead of the axle midpoint (the robot's
+    /// [`RobotParams::com_offset_m`](crate::RobotParams::com_offset_m)),
+    /// with [`HISTORY_LEN`] ticks of history.
+    pub fn new(
+        cfg: EstimatorConfig,
+        com_offset_m: f32,
+        start: Pose,
+    ) -> Result<Self, EstimatorConfigError> {
+        Self::with_history(cfg, com_offset_m, start)
     }
 }
 
 impl<const H: usize> PoseEstimator<H> {
-    /// Validates `cfg` and starts at its initial pose, bias 0, with `H`
-    /// (>= 1) ticks of history.
-    pub fn with_history(cfg: EstimatorConfig) -> Result<Self, EstimatorConfigError> {
+    /// As [`PoseEstimator::new`], with `H` (>= 1) ticks of history.
+    pub fn with_history(
+        cfg: EstimatorConfig,
+        com_offset_m: f32,
+        start: Pose,
+    ) -> Result<Self, EstimatorConfigError> {
         if H == 0 {
             return Err(EstimatorConfigError::InvalidCount);
         }
         let cfg = cfg.validate()?;
-        let g = cfg.initial_pose;
+        if !(start.is_finite() && com_offset_m.is_finite()) {
+            return Err(EstimatorConfigError::NonFinitePose);
+        }
+        let g = start;
         let th = wrap_angle(g.theta_rad);
         let (s, c) = sin_cos(th);
-        let d = cfg.com_offset_m;
+        let d = com_offset_m;
         let x = [g.x_m - d * c, g.y_m - d * s, th, 0.0, 1.0];
         let mut p = [0.0; NP];
         p[ix(0, 0)] = cfg.initial_position_std_m * cfg.initial_position_std_m;
@@ -222,6 +237,7 @@ impl<const H: usize> PoseEstimator<H> {
             noise_sq: NoiseSq::of(&cfg),
             smoothing_tau_s: cfg.output_smoothing_s,
             cfg,
+            com_offset_m,
             filter: Filter::new(x, p),
             ticks: [Tick::default(); H],
             head: 0,
@@ -253,6 +269,11 @@ impl<const H: usize> PoseEstimator<H> {
     /// The validated configuration.
     pub fn config(&self) -> &EstimatorConfig {
         &self.cfg
+    }
+
+    /// The centre-of-mass offset d \[m\] it was built with.
+    pub fn com_offset_m(&self) -> f32 {
+        self.com_offset_m
     }
 
     /// The estimate at the latest tick.
@@ -549,7 +570,7 @@ impl<const H: usize> PoseEstimator<H> {
         m: &PoseMeasurement,
         gate: bool,
     ) -> Result<(), RejectReason> {
-        let d = self.cfg.com_offset_m;
+        let d = self.com_offset_m;
         let (s, c) = sin_cos(x[2]);
         let n = if m.heading_std_rad.is_some() { 3 } else { 2 };
         let nu = [
@@ -629,7 +650,7 @@ impl<const H: usize> PoseEstimator<H> {
 
     /// The filter's pose of G.
     fn filter_pose(&self) -> Pose {
-        let d = self.cfg.com_offset_m;
+        let d = self.com_offset_m;
         let f = &self.filter;
         Pose::new(f.x[0] + d * f.cos_th, f.x[1] + d * f.sin_th, f.x[2])
     }

@@ -9,12 +9,13 @@ use proptest::prelude::*;
 const D: f32 = 0.05;
 const DT: f32 = 1e-3;
 
-fn cfg_at(p: Pose) -> EstimatorConfig {
-    EstimatorConfig::example(D, p)
+/// The example tuning with G at `p`, `D` ahead of the axle.
+fn est_at(cfg: EstimatorConfig, p: Pose) -> PoseEstimator {
+    PoseEstimator::new(cfg, D, p).unwrap()
 }
 
 fn est() -> PoseEstimator {
-    PoseEstimator::new(cfg_at(Pose::new(0.0, 0.0, 0.0))).unwrap()
+    est_at(EstimatorConfig::EXAMPLE, Pose::new(0.0, 0.0, 0.0))
 }
 
 fn meas(stamp_us: u32, pose: Pose, heading: bool) -> PoseMeasurement {
@@ -35,12 +36,19 @@ fn gyro(rate: f32, stamp_us: u32) -> Option<GyroSample> {
 
 #[test]
 fn invalid_config_rejected() {
-    let ok = cfg_at(Pose::new(0.0, 0.0, 0.0));
+    let ok = EstimatorConfig::EXAMPLE;
+    let origin = Pose::new(0.0, 0.0, 0.0);
+    assert!(PoseEstimator::new(ok, D, origin).is_ok());
+    // The start and the geometry the owner passes are checked too.
+    assert_eq!(
+        PoseEstimator::new(ok, D, Pose::new(f32::NAN, 0.0, 0.0)).err(),
+        Some(EstimatorConfigError::NonFinitePose)
+    );
+    assert_eq!(
+        PoseEstimator::new(ok, f32::INFINITY, origin).err(),
+        Some(EstimatorConfigError::NonFinitePose)
+    );
     let bad = [
-        EstimatorConfig {
-            initial_pose: Pose::new(f32::NAN, 0.0, 0.0),
-            ..ok
-        },
         EstimatorConfig {
             gyro_noise_density: 0.0,
             ..ok
@@ -63,7 +71,7 @@ fn invalid_config_rejected() {
         },
     ];
     for b in bad {
-        assert!(PoseEstimator::new(b).is_err(), "{b:?}");
+        assert!(PoseEstimator::new(b, D, origin).is_err(), "{b:?}");
     }
 }
 
@@ -73,10 +81,11 @@ fn invalid_config_rejected() {
 fn without_gyro_it_is_wheel_odometry() {
     let robot = crate::RobotParams::paper();
     let mut o = crate::runtime::Odometry::new(robot, Pose::new(0.05, 0.0, 0.3));
-    let mut e = PoseEstimator::new(EstimatorConfig::example(
+    let mut e = PoseEstimator::new(
+        EstimatorConfig::EXAMPLE,
         robot.com_offset_m,
         Pose::new(0.05, 0.0, 0.3),
-    ))
+    )
     .unwrap();
     let dphi = [0.004f32, 0.002];
     let inc = robot.eta_from_wheel_rates(dphi);
@@ -184,12 +193,11 @@ fn gyro_fallbacks_reported_and_wheel_rate_used() {
 /// variance of x is 1/(1/P0 + n/σ²) (the Kalman filter of a constant).
 #[test]
 fn static_position_variance_matches_information_sum() {
-    let mut c = cfg_at(Pose::new(1.0, 2.0, 0.0));
+    let mut c = EstimatorConfig::EXAMPLE;
     c.speed_noise_mps_per_sqrt_hz = 1e-9;
     c.wheel_yaw_noise = 1e-9;
     c.gyro_noise_density = 1e-9;
-    c.com_offset_m = 0.0;
-    let mut e = PoseEstimator::new(c).unwrap();
+    let mut e = PoseEstimator::new(c, 0.0, Pose::new(1.0, 2.0, 0.0)).unwrap();
     let sigma = 0.01f32;
     let n = 20;
     for k in 1..=n {
@@ -430,7 +438,7 @@ fn rejections_have_reasons() {
 #[test]
 fn heading_innovation_wraps() {
     let th0 = -PI + 0.01;
-    let mut e = PoseEstimator::new(cfg_at(Pose::new(0.0, 0.0, th0))).unwrap();
+    let mut e = est_at(EstimatorConfig::EXAMPLE, Pose::new(0.0, 0.0, th0));
     e.predict(1000, DT, 0.0, 0.0, None);
     let g = e.estimate().pose;
     let m = meas(1000, Pose::new(g.x_m, g.y_m, PI - 0.01), true);
@@ -722,11 +730,13 @@ fn sequential_update_equals_batch() {
 #[test]
 fn gyro_speed_scale_finds_the_fault_without_fixes() {
     let run = |on: bool| {
-        let mut e = PoseEstimator::new(EstimatorConfig {
-            gyro_speed_scale: on,
-            ..cfg_at(Pose::new(0.0, 0.0, 0.0))
-        })
-        .unwrap();
+        let mut e = est_at(
+            EstimatorConfig {
+                gyro_speed_scale: on,
+                ..EstimatorConfig::EXAMPLE
+            },
+            Pose::new(0.0, 0.0, 0.0),
+        );
         let (mut x, mut y, mut th) = (0.0f32, 0.0f32, 0.0f32);
         for k in 1..=20_000u32 {
             let t = k as f32 * DT;

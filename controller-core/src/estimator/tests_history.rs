@@ -10,7 +10,7 @@ const K: usize = PoseEstimator::<HISTORY_LEN>::SNAPSHOT_EVERY;
 const DEPTH: usize = PoseEstimator::<HISTORY_LEN>::GUARANTEED_DEPTH_TICKS;
 
 fn est() -> PoseEstimator {
-    PoseEstimator::new(EstimatorConfig::example(0.05, Pose::new(0.0, 0.0, 0.0))).unwrap()
+    PoseEstimator::new(EstimatorConfig::EXAMPLE, 0.05, Pose::new(0.0, 0.0, 0.0)).unwrap()
 }
 
 /// The robot's motion at tick k (an S-curve at 0.6 m/s) and the estimator's
@@ -210,7 +210,7 @@ fn oldest_edge_holds_at_every_phase() {
 #[test]
 fn late_equals_on_time_with_the_gyro_speed_scale() {
     let run = |cfg: EstimatorConfig, taken: u32, deliver: u32, slice: Option<usize>| {
-        let mut e = PoseEstimator::new(cfg).unwrap();
+        let mut e = PoseEstimator::new(cfg, 0.05, Pose::new(0.0, 0.0, 0.0)).unwrap();
         let mut d = Drive::new();
         let mut m = None;
         for k in 1..=taken + 300 {
@@ -231,7 +231,7 @@ fn late_equals_on_time_with_the_gyro_speed_scale() {
         e.resume(usize::MAX);
         e
     };
-    let on = EstimatorConfig::example(0.05, Pose::new(0.0, 0.0, 0.0));
+    let on = EstimatorConfig::EXAMPLE;
     assert!(on.gyro_speed_scale);
     let off = EstimatorConfig {
         gyro_speed_scale: false,

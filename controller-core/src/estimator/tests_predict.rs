@@ -157,7 +157,7 @@ fn random_case(r: &mut Rnd) -> (Filter, Input) {
 /// rounding (≤ 2⁻²⁴·π).
 #[test]
 fn closed_form_prediction_equals_dense_reference() {
-    let cfg = EstimatorConfig::example(0.05, Pose::new(0.0, 0.0, 0.0));
+    let cfg = EstimatorConfig::EXAMPLE;
     let nq = NoiseSq::of(&cfg);
     let mut r = Rnd(0x5EED);
     for case in 0..2000 {
@@ -210,7 +210,7 @@ fn closed_form_prediction_equals_dense_reference() {
 /// dense f64 form P − P·h·hᵀ·P / (hᵀ·P·h + r), x + P·h·(z − b) / (hᵀ·P·h + r).
 #[test]
 fn zero_rate_update_equals_dense_kalman_update() {
-    let cfg = EstimatorConfig::example(0.05, Pose::new(0.0, 0.0, 0.0));
+    let cfg = EstimatorConfig::EXAMPLE;
     let nq = NoiseSq::of(&cfg);
     let mut r = Rnd(0xB1A5);
     for case in 0..500 {
@@ -265,7 +265,7 @@ fn zero_rate_update_equals_dense_kalman_update() {
 #[test]
 fn gyro_scale_update_equals_dense_kalman_update() {
     use super::gyro_scale::{update, Window};
-    let cfg = EstimatorConfig::example(0.05, Pose::new(0.0, 0.0, 0.0));
+    let cfg = EstimatorConfig::EXAMPLE;
     let nq = NoiseSq::of(&cfg);
     let mut r = Rnd(0x5CA1E);
     let mut applied = 0;

@@ -44,16 +44,18 @@ pub struct ControlLoop<const H: usize = HISTORY_LEN> {
 
 impl ControlLoop {
     /// Validates `cfg` and builds a disarmed loop with the example pose
-    /// estimator ([`EstimatorConfig::example`] at the initial pose) and
-    /// [`HISTORY_LEN`] ticks of history.
+    /// estimator tuning ([`EstimatorConfig::EXAMPLE`]) and [`HISTORY_LEN`]
+    /// ticks of history.
     pub fn new(cfg: RuntimeConfig) -> Result<Self, RuntimeConfigError> {
-        let est = EstimatorConfig::example(cfg.controller.robot.com_offset_m, cfg.initial_pose);
-        Self::with_estimator(cfg, est)
+        Self::with_estimator(cfg, EstimatorConfig::EXAMPLE)
     }
 }
 
 impl<const H: usize> ControlLoop<H> {
-    /// Validates `cfg` and `estimator` and builds a disarmed loop.
+    /// Validates `cfg` and `estimator` (the estimator's tuning) and builds
+    /// a disarmed loop. The estimator starts at `cfg.initial_pose` with the
+    /// controller's robot geometry (`cfg.controller.robot.com_offset_m`):
+    /// the runtime configuration is the one description of both.
     pub fn with_estimator(
         cfg: RuntimeConfig,
         estimator: EstimatorConfig,
@@ -67,7 +69,11 @@ impl<const H: usize> ControlLoop<H> {
         let counts = WheelCounts::new(cfg.encoder)?;
         cfg.safety.validate()?;
         let pacer = Pacer::new(cfg.pacing, &cfg.controller)?;
-        let estimator = PoseEstimator::with_history(estimator)?;
+        let estimator = PoseEstimator::with_history(
+            estimator,
+            cfg.controller.robot.com_offset_m,
+            cfg.initial_pose,
+        )?;
         Ok(Self {
             pace: pacer.initial_state(),
             pacer,
@@ -128,12 +134,12 @@ impl<const H: usize> ControlLoop<H> {
         if self.running() {
             return Err(ReconfigureError::Running);
         }
-        let cfg = EstimatorConfig {
-            initial_pose: pose,
-            ..*self.estimator.config()
-        };
-        self.estimator =
-            PoseEstimator::with_history(cfg).map_err(|e| ReconfigureError::Invalid(e.into()))?;
+        self.estimator = PoseEstimator::with_history(
+            *self.estimator.config(),
+            self.cfg.controller.robot.com_offset_m,
+            pose,
+        )
+        .map_err(|e| ReconfigureError::Invalid(e.into()))?;
         Ok(())
     }
 

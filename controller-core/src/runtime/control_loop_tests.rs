@@ -94,6 +94,34 @@ impl Rig {
     }
 }
 
+/// The estimator starts where the runtime configuration says, with the
+/// controller's robot geometry (one description: nothing to patch), and a
+/// re-anchored pose keeps that geometry. G's pose is what the estimator
+/// reports; the axle midpoint it keeps internally is d behind it, so a
+/// wrong d would move the reported start by |Δd|.
+#[test]
+fn estimator_takes_geometry_and_start_from_the_runtime_configuration() {
+    let mut cfg = line_cfg(0.5);
+    cfg.controller.robot.com_offset_m = 0.12;
+    cfg.initial_pose = Pose::new(1.5, -0.5, 0.7);
+    let mut cl = ControlLoop::new(cfg).unwrap();
+    assert_eq!(cl.estimator().com_offset_m(), 0.12);
+    let p = cl.estimator().estimate().pose;
+    let start = cfg.initial_pose;
+    for (a, b) in [
+        (p.x_m, start.x_m),
+        (p.y_m, start.y_m),
+        (p.theta_rad, start.theta_rad),
+    ] {
+        assert!((a - b).abs() < 1e-6, "start {p:?} != {start:?}");
+    }
+    let again = Pose::new(-2.0, 3.0, -1.0);
+    cl.set_pose(again).unwrap();
+    assert_eq!(cl.estimator().com_offset_m(), 0.12);
+    let p = cl.estimator().estimate().pose;
+    assert!((p.x_m - again.x_m).abs() < 1e-6 && (p.y_m - again.y_m).abs() < 1e-6);
+}
+
 #[test]
 fn motors_disabled_until_armed() {
     let mut r = Rig::new(line_cfg(0.5));

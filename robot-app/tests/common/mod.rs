@@ -318,10 +318,7 @@ impl Rig {
             Device::<H>::with_estimator(
                 device_config(),
                 cfg,
-                controller_core::estimator::EstimatorConfig::example(
-                    cfg.controller.robot.com_offset_m,
-                    cfg.initial_pose,
-                ),
+                controller_core::estimator::EstimatorConfig::EXAMPLE,
             )
             .expect("device"),
         );
