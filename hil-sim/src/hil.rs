@@ -1,6 +1,6 @@
 //! Hardware-in-the-loop on the host: the firmware's runtime
 //! ([`controller_core::runtime::ControlLoop`]) closed through the simulated
-//! robot's hardware ([`sim_robot::hardware`]): 16-bit quadrature counters at
+//! world's hardware ([`sim_robot::World`]): 16-bit quadrature counters at
 //! the scenario's resolution (wrapping, mirrored mounting) and an H-bridge
 //! taking integer duty at the scenario's PWM resolution into the runtime's own
 //! DC-motor model, whose torque depends on the wheel speed (back-EMF).
@@ -13,17 +13,16 @@
 //! estimation, the pose estimator, the controller, torque-to-duty mapping
 //! and the safety supervisor are the code the firmware runs.
 
-use crate::control_side::{Actuation, ControlOutput, ControlSide, Sensed};
+use crate::control_side::{ControlOutput, ControlSide};
 use crate::scenario::{Scenario, Sensing};
 use crate::sensing::SensorSetup;
 use crate::sim::{run_loop, trace_every, SimOutput};
-use controller_core::estimator::{EstimatorConfig, EstimatorStatus, GyroSample, PoseMeasurement};
-use controller_core::runtime::{
-    ControlLoop, Gyro, LoopTimer, PoseSource, SafetyLimits, StopReason,
-};
+use controller_core::estimator::{EstimatorConfig, EstimatorStatus};
+use controller_core::runtime::{ControlLoop, LoopTimer, RuntimeConfig, SafetyLimits, StopReason};
 use controller_core::{ControllerConfig, ControllerKind, Pose};
 use sim_robot::sensors::PoseSourceStats;
-use sim_robot::{MotorDrive, SimDriver, SimEncoders, SimGyro, SimPoseSource};
+use sim_robot::world::{Actuation, Reading};
+use sim_robot::World;
 
 /// Options of a HIL run beyond the scenario: safety thresholds and fault
 /// injection. Resolution, sensing and motors come from the [`Scenario`].
@@ -49,87 +48,6 @@ impl Default for HilOptions {
     }
 }
 
-/// The preset's gyro, if it has one.
-/// The simulated gyro and external pose source of a scenario's sensing
-/// preset (either may be absent), as the runtime's [`Gyro`] and
-/// [`PoseSource`]: shared by the HIL runs and the simulated robot behind the
-/// host link.
-pub struct SimSensors {
-    gyro: MaybeGyro,
-    pose_source: MaybePose,
-}
-
-impl SimSensors {
-    /// The sensors of `scn`'s sensing preset (seeded from the scenario) and
-    /// the estimator tuning for them.
-    pub fn of(scn: &Scenario) -> Result<(Self, EstimatorConfig), String> {
-        let sensors = SensorSetup::of(scn)?;
-        let gyro = match sensors.gyro {
-            Some(m) => {
-                Some(SimGyro::new(m, scn.seed ^ GYRO_SEED_SALT).map_err(|e| format!("gyro: {e}"))?)
-            }
-            None => None,
-        };
-        let pose_source = match sensors.pose {
-            Some(m) => Some(
-                SimPoseSource::new(m, scn.seed ^ POSE_SEED_SALT)
-                    .map_err(|e| format!("pose source: {e}"))?,
-            ),
-            None => None,
-        };
-        let est = sensing_estimator_config(&sensors);
-        Ok((
-            Self {
-                gyro: MaybeGyro(gyro),
-                pose_source: MaybePose(pose_source),
-            },
-            est,
-        ))
-    }
-
-    /// The true motion at time `t_s`: the gyro's yaw rate \[rad/s\] and the
-    /// pose of G for the pose source.
-    pub fn update(&mut self, t_s: f64, yaw_rate_radps: f64, true_pose: [f64; 3]) {
-        if let Some(g) = &mut self.gyro.0 {
-            g.update(t_s, yaw_rate_radps);
-        }
-        if let Some(p) = &mut self.pose_source.0 {
-            p.update(t_s, true_pose);
-        }
-    }
-
-    /// The runtime's gyro and pose source.
-    pub fn parts(&mut self) -> (&mut impl Gyro, &mut impl PoseSource) {
-        (&mut self.gyro, &mut self.pose_source)
-    }
-
-    /// The pose source's counters (None without one).
-    pub fn pose_stats(&self) -> Option<PoseSourceStats> {
-        self.pose_source.0.as_ref().map(|p| p.stats)
-    }
-}
-
-struct MaybeGyro(Option<SimGyro>);
-
-impl Gyro for MaybeGyro {
-    fn sample(&mut self) -> Option<GyroSample> {
-        self.0.as_mut().and_then(|g| g.sample())
-    }
-}
-
-/// The preset's external pose source, if it has one.
-struct MaybePose(Option<SimPoseSource>);
-
-impl PoseSource for MaybePose {
-    fn measurement(&mut self) -> Option<PoseMeasurement> {
-        self.0.as_mut().and_then(|p| p.measurement())
-    }
-}
-
-/// Seeds of the gyro and pose-source noise, derived from the scenario's.
-const GYRO_SEED_SALT: u64 = 0x6779_726F;
-const POSE_SEED_SALT: u64 = 0x706F_7365;
-
 /// What the sensing did over a run: the estimator's final status and the
 /// pose source's counters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -151,34 +69,22 @@ pub fn sensing_estimator_config(sensors: &SensorSetup) -> EstimatorConfig {
     est
 }
 
-/// The runtime as the controller side of [`run_loop`].
+/// The runtime as the controller side of [`run_loop`], reading and
+/// writing the world's simulated hardware ([`sim_robot::World::io`]).
 pub struct RuntimeSide {
     control: ControlLoop,
     /// Measures each tick against the schedule, as in the firmware; the
     /// simulated clock advances exactly one period per step.
     timer: LoopTimer,
-    encoders: SimEncoders,
-    bridge: SimDriver,
-    sensors: SimSensors,
-    opts: HilOptions,
     /// First safe stop latched, with the step it happened at.
     pub stop: Option<(usize, StopReason)>,
 }
 
 impl RuntimeSide {
-    /// The runtime for `scn` (firmware sensing) with `controller`, armed.
-    pub fn new(
-        scn: &Scenario,
-        controller: ControllerConfig,
-        opts: HilOptions,
-    ) -> Result<Self, String> {
-        if scn.sensing == Sensing::Ideal {
-            return Err("the firmware runtime needs a firmware sensing preset, not ideal".into());
-        }
-        let (sensors, sensing_est) = SimSensors::of(scn)?;
-        let cfg = scn.runtime_config(controller, opts.safety);
-        let mut est = opts.estimator.unwrap_or(sensing_est);
-        est.com_offset_m = controller.robot.com_offset_m;
+    /// The runtime of `cfg` with the estimator `est` (its initial pose and
+    /// centre-of-mass offset taken from `cfg`), armed.
+    pub fn new(cfg: RuntimeConfig, mut est: EstimatorConfig) -> Result<Self, String> {
+        est.com_offset_m = cfg.controller.robot.com_offset_m;
         est.initial_pose = cfg.initial_pose;
         let mut control =
             ControlLoop::with_estimator(cfg, est).map_err(|e| format!("runtime config: {e}"))?;
@@ -187,22 +93,13 @@ impl RuntimeSide {
         Ok(Self {
             control,
             timer,
-            encoders: SimEncoders::new(&cfg.encoder),
-            bridge: SimDriver::default(),
-            sensors,
-            opts,
             stop: None,
         })
     }
-}
 
-impl RuntimeSide {
-    /// What the sensing did so far.
-    pub fn sensing_report(&self) -> SensingReport {
-        SensingReport {
-            estimator: *self.control.estimator_status(),
-            pose_source: self.sensors.pose_stats(),
-        }
+    /// The estimator's status now.
+    pub fn estimator_status(&self) -> EstimatorStatus {
+        *self.control.estimator_status()
     }
 }
 
@@ -211,37 +108,20 @@ impl ControlSide for RuntimeSide {
         self.control.config().controller.kind
     }
 
-    fn step(&mut self, sensed: &Sensed) -> ControlOutput {
-        self.encoders.set_angles(sensed.wheel_angle_rad);
-        if let Some((wheel, t_dead)) = self.opts.dead_encoder {
-            if sensed.t_s >= t_dead {
-                self.encoders.kill(wheel);
-            }
-        }
-        self.sensors
-            .update(sensed.t_s, sensed.yaw_rate_radps, sensed.true_pose);
+    fn step(&mut self, step: usize, _reading: &Reading, world: &mut World) -> ControlOutput {
         // A µs counter that wraps, like the firmware's (the sensors stamp
         // their samples in the same clock).
-        let now_us = (sensed.step as u64 * self.timer.period_us() as u64) as u32;
+        let now_us = (step as u64 * self.timer.period_us() as u64) as u32;
         let timing = self.timer.tick(now_us);
-        let (gyro, pose_source) = self.sensors.parts();
-        let rep = self.control.tick(
-            &mut self.encoders,
-            &mut self.bridge,
-            gyro,
-            pose_source,
-            timing,
-        );
+        let io = world.io();
+        let rep = self
+            .control
+            .tick(io.encoders, io.motors, io.gyro, io.pose_source, timing);
         if let (Some(reason), None) = (rep.stopped, self.stop) {
-            self.stop = Some((sensed.step, reason));
+            self.stop = Some((step, reason));
         }
-        let cfg = self.control.config();
         ControlOutput {
-            actuation: Actuation::Motor(MotorDrive {
-                model: *self.control.motor_model(),
-                bridge: self.bridge,
-                inverted: cfg.motor_inverted,
-            }),
+            actuation: Actuation::Bridge(world.bridge()),
             eta_measured: [rep.eta.v_mps as f64, rep.eta.omega_radps as f64],
             diag: rep.diag,
             reference: rep.reference,
@@ -274,13 +154,26 @@ pub fn run_runtime(
     trace_every: usize,
 ) -> Result<HilOutput, String> {
     scn.validate()?;
-    let mut side = RuntimeSide::new(scn, controller, opts)?;
-    let mut sim = run_loop(scn, &controller.robot, &mut side, trace_every)?;
-    sim.sensing = Some(side.sensing_report());
+    if scn.sensing == Sensing::Ideal {
+        return Err("the firmware runtime needs a firmware sensing preset, not ideal".into());
+    }
+    let cfg = scn.runtime_config(controller, opts.safety);
+    let sensors = SensorSetup::of(scn)?;
+    let est = opts
+        .estimator
+        .unwrap_or_else(|| sensing_estimator_config(&sensors));
+    let mut side = RuntimeSide::new(cfg, est)?;
+    let mut world = crate::world::hardware_world(scn, &cfg, opts.dead_encoder)?;
+    let mut sim = run_loop(scn, &mut world, &mut side, trace_every)?;
+    let sensing = SensingReport {
+        estimator: side.estimator_status(),
+        pose_source: world.pose_stats(),
+    };
+    sim.sensing = Some(sensing);
     Ok(HilOutput {
         sim,
         stop: side.stop,
-        sensing: side.sensing_report(),
+        sensing,
     })
 }
 

@@ -26,6 +26,7 @@ pub mod scenario_file;
 pub mod sensing;
 pub mod shard;
 pub mod sim;
+pub mod world;
 
 pub use metrics::Metrics;
 pub use scenario::Scenario;

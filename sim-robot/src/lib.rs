@@ -24,8 +24,13 @@ pub mod math;
 pub mod perturbation;
 pub mod plant;
 pub mod sensors;
+pub mod world;
 
 pub use hardware::{MotorDrive, SimDriver, SimEncoders};
 pub use perturbation::{PerturbationGrid, PerturbationProfile};
 pub use plant::{Drive, Perturbation, Plant, PlantParams, PlantState, TorqueScaled};
 pub use sensors::{GyroModel, PoseSourceModel, SimGyro, SimPoseSource};
+pub use world::{
+    Actuation, DeadEncoder, Faults, HardwareSensing, IdealSensing, Instruments, Reading, World,
+    WorldConfig, WorldError,
+};
