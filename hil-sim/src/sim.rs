@@ -13,7 +13,7 @@
 use crate::control_side::{ControlOutput, ControlSide};
 use crate::metrics::{Metrics, MetricsAcc};
 use crate::scenario::{Scenario, Sensing};
-use controller_core::health::{EstimatorStatus, HealthMode};
+use controller_core::health::{EstimatorHealth, HealthMode};
 use controller_core::pacer::{PacerState, PacingConfig};
 use controller_core::trajectory::{Reference, Trajectory};
 use controller_core::{Controller, ControllerConfig, ControllerKind, StepInput};
@@ -132,7 +132,7 @@ impl ControlSide for IdealSide {
         });
         let pace = self
             .pacer
-            .update(&mut self.pace, &out.diag, eta, EstimatorStatus::Ok);
+            .update(&mut self.pace, &out.diag, eta, EstimatorHealth::Ok);
         let torque = if pace.mode == HealthMode::SafeStop || reading.ideal.is_none() {
             [0.0; 2]
         } else {

@@ -24,6 +24,13 @@ pub mod math;
 pub mod perturbation;
 pub mod plant;
 pub mod sensors;
+/// The fakes tests share (feature `test-doubles`): controller-core's
+/// scripted encoder, recording motor driver, one-shot pose source and line
+/// configuration, next to this crate's simulated hardware.
+#[cfg(feature = "test-doubles")]
+pub mod test_doubles {
+    pub use controller_core::runtime::test_doubles::*;
+}
 pub mod world;
 
 pub use hardware::{MotorDrive, SimDriver, SimEncoders};
