@@ -11,7 +11,6 @@
 
 pub mod bench;
 pub mod cli;
-pub mod cli_link;
 pub mod control_side;
 pub mod device;
 pub mod hil;

@@ -7,7 +7,8 @@
 //! A sweep produces one [`SimRecord`] per run index × controller; the
 //! statistics are computed from those records by one function,
 //! [`stats_from_records`], whether they come from one process
-//! ([`run_montecarlo`]) or from shard files merged later (`crate::shard`).
+//! ([`run_montecarlo`]) or from shard files merged later (the shard module,
+//! which builds on this one).
 
 use crate::metrics::Metrics;
 use crate::rng::Rng;

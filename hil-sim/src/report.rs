@@ -1,11 +1,16 @@
 //! Human and machine output of runs: the metrics table, the JSON objects of
-//! `run --json` / `compare --json` / `metrics.json`, and the trace CSV.
+//! `run --json` / `compare --json` / `metrics.json`, the text of every
+//! subcommand (`compare`, `run`, `montecarlo`, `merge`), and the trace CSV.
 
 use crate::metrics::Metrics;
-use crate::scenario::Scenario;
+use crate::montecarlo::{stats_table, ControllerStats, McConfig, McRecords, McResult};
+use crate::scenario::{Scenario, Sensing};
+use crate::shard::{Merged, ShardHeader};
+use crate::sim::SimOutput;
 use controller_core::ControllerKind;
 use serde::Serialize;
 use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
 /// One run as printed by `run --json` and stored in `metrics.json`: the
 /// [`Metrics`] keys at the top level plus `controller` and `scenario`.
@@ -229,6 +234,299 @@ pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutpu
         );
     }
     s
+}
+
+// ---- `compare` ----
+
+/// One row of `compare`: a paper case with one controller.
+#[derive(Debug, Serialize)]
+pub struct CompareRow {
+    /// Paper case (1 or 2).
+    pub case: u8,
+    /// The run.
+    #[serde(flatten)]
+    pub report: RunReport,
+}
+
+/// A case's simulations: the paper case number, its scenario and one output
+/// per controller (in [`ControllerKind::ALL`] order).
+pub type CaseRuns = (u8, Scenario, Vec<SimOutput>);
+
+/// One [`CompareRow`] per case × controller, in the order of `results`.
+pub fn compare_rows(results: &[CaseRuns]) -> Vec<CompareRow> {
+    results
+        .iter()
+        .flat_map(|(c, s, runs)| {
+            runs.iter().map(move |o| CompareRow {
+                case: *c,
+                report: RunReport::new(o.kind, s, o),
+            })
+        })
+        .collect()
+}
+
+/// The rows as pretty JSON (the content of `metrics.json` and of `compare --json`).
+pub fn compare_json(rows: &[CompareRow]) -> Result<String, String> {
+    serde_json::to_string_pretty(rows).map_err(|e| e.to_string())
+}
+
+/// Title of a case's figures, e.g. `Case 2 (β = 0.183 rad/s, ε = 0.152)`.
+pub fn case_plot_title(case: u8, scn: &Scenario) -> String {
+    format!(
+        "Case {case} (β = {:.3} rad/s{})",
+        scn.beta,
+        if scn.eps > 0.0 {
+            format!(", ε = {:.3}", scn.eps)
+        } else {
+            String::new()
+        }
+    )
+}
+
+/// The text `compare` prints without `--json`: the scenarios, the metrics
+/// table with its legend, the timing and where the files went.
+pub fn compare_text(
+    results: &[CaseRuns],
+    rows: &[CompareRow],
+    sim_time: std::time::Duration,
+    metrics_path: &Path,
+    plot_files: Option<(&[Vec<PathBuf>], &Path)>,
+) -> String {
+    let mut text = String::new();
+    for (c, s, _) in results {
+        text += &format!("case {c}: {}\n", scenario_summary(s));
+    }
+    text.push('\n');
+    let table_rows: Vec<(Vec<String>, crate::Metrics)> = rows
+        .iter()
+        .map(|r| {
+            (
+                vec![r.case.to_string(), r.report.controller.to_string()],
+                r.report.metrics.clone(),
+            )
+        })
+        .collect();
+    text += &metrics_table(&["case", "controller"], &table_rows);
+    text += "\nrms: whole run; rms_win/max_win: perturbation window 10-35 s; rms_t>5: t >= 5 s; \
+settle: error stays < 0.1 m until the window;\nsat: steps at the torque limit; F_rmse: RMS |F̂ − F| over the window (proposed only)\n";
+    text += &format!(
+        "\n6 simulations in {:.0} ms ({} threads); metrics written to {}\n",
+        sim_time.as_secs_f64() * 1e3,
+        rayon::current_num_threads(),
+        metrics_path.display()
+    );
+    if let Some((files, dir)) = plot_files {
+        if !files.is_empty() {
+            text += &format!(
+                "{} plot files written to {} (case<N>_{{xy,errors,velocities,torques,faults}}.{{png,svg}})\n",
+                files.iter().map(Vec::len).sum::<usize>(),
+                dir.display()
+            );
+        }
+    }
+    text
+}
+
+/// The second part of `compare`'s text: the same runs with the reference
+/// governor, the health machine and the large-error bound (the defaults
+/// beyond the paper), with their columns.
+pub fn beyond_paper_text(
+    rows: &[CompareRow],
+    metrics_path: &Path,
+    plot_files: Option<(&[Vec<PathBuf>], &Path)>,
+) -> String {
+    let table_rows: Vec<(Vec<String>, crate::Metrics)> = rows
+        .iter()
+        .map(|r| {
+            (
+                vec![r.case.to_string(), r.report.controller.to_string()],
+                r.report.metrics.clone(),
+            )
+        })
+        .collect();
+    let mut text = String::from(
+        "\nBeyond the paper (the simulator's and the runtime's default): reference governor, \
+health machine, large-error bound of the kinematic law; error against the governed reference\n\n",
+    );
+    text += &crate::report::metrics_table_with(
+        &["case", "controller"],
+        &table_rows,
+        &crate::report::PACE_COLUMNS,
+    );
+    text +=
+        "\nlag: t − τ at the end (how far the governed reference is behind the nominal clock); \
+s_min: smallest time scale;\ndegr: steps in a degraded health mode; h_tr: health transitions\n";
+    text += &format!("\nmetrics written to {}\n", metrics_path.display());
+    if let Some((files, dir)) = plot_files {
+        if !files.is_empty() {
+            text += &format!(
+                "{} plot files written to {} (case<N>_gov_{{xy,errors,velocities,torques,faults,pacing}}.{{png,svg}})\n",
+                files.iter().map(Vec::len).sum::<usize>(),
+                dir.display()
+            );
+        }
+    }
+    text
+}
+
+/// The sensing block of `compare`: one table of Case 2 per preset and
+/// controller, with the estimator's counts.
+pub fn compare_sensing_text(results: &[(Sensing, Scenario, Vec<SimOutput>)]) -> String {
+    let rows: Vec<(Vec<String>, crate::Metrics)> = results
+        .iter()
+        .flat_map(|(sensing, _, runs)| {
+            runs.iter().map(move |o| {
+                (
+                    vec![sensing.name().to_string(), o.kind.name().to_string()],
+                    o.metrics.clone(),
+                )
+            })
+        })
+        .collect();
+    let mut text = String::from(
+        "\ncase 2 through the firmware runtime, paper setting (what sensing costs on a robot; docs/scenario.md):\n",
+    );
+    text += &metrics_table(&["sensing", "controller"], &rows);
+    text += "mocap: encoders, gyro, pose at 100 Hz 10 ms late 2 mm / 0.005 rad; odometry: encoders only\n";
+    text
+}
+
+/// The content of `metrics_sensing.json`: one object per sensing preset and
+/// controller of Case 2 (`case`, `sensing`, `report`), pretty JSON.
+pub fn compare_sensing_json(
+    results: &[(Sensing, Scenario, Vec<SimOutput>)],
+) -> Result<String, String> {
+    let sensing_rows: Vec<serde_json::Value> = results
+        .iter()
+        .flat_map(|(s, scn, runs)| {
+            runs.iter().map(move |o| {
+                serde_json::json!({
+                    "case": 2,
+                    "sensing": s.name(),
+                    "report": RunReport::new(o.kind, scn, o),
+                })
+            })
+        })
+        .collect();
+    serde_json::to_string_pretty(&sensing_rows).map_err(|e| e.to_string())
+}
+
+// ---- `run` ----
+
+/// What `run` prints: one JSON object with `json`, else the human summary
+/// and, with a CSV (`csv`: its path and the rows written), where it went.
+pub fn run_text(
+    kind: ControllerKind,
+    scn: &Scenario,
+    res: &SimOutput,
+    csv: Option<&Path>,
+    json: bool,
+) -> String {
+    if json {
+        RunReport::new(kind, scn, res).to_json() + "\n"
+    } else {
+        let mut t = human_summary(kind, scn, res);
+        if let Some(p) = csv {
+            t += &format!(
+                "  trace: {} rows written to {}\n",
+                res.trace.len(),
+                p.display()
+            );
+        }
+        t
+    }
+}
+
+// ---- `montecarlo` and `merge` ----
+
+/// The error of a sweep with `failed` simulations, after its output;
+/// `where_` says where their messages are.
+pub fn failed_error(failed: usize, where_: &str) -> Result<(), String> {
+    if failed > 0 {
+        return Err(format!("{failed} simulations failed ({where_})"));
+    }
+    Ok(())
+}
+
+/// The sweep's description and statistics table, as both `montecarlo` and
+/// `merge` print them (followed by one line on timing or shard files).
+pub fn mc_text(sweep: &McConfig, stats: &[ControllerStats]) -> String {
+    format!("{}\n\n{}\n", sweep.describe(), stats_table(stats))
+}
+
+/// What an unsharded `montecarlo` prints: the statistics (table or JSON)
+/// and the throughput; `file` is where `--out` wrote the records.
+pub fn mc_report(
+    cfg: &McConfig,
+    rec: &McRecords,
+    file: Option<&Path>,
+    json: bool,
+) -> Result<String, String> {
+    let res = McResult::from_records(rec);
+    if json {
+        return Ok(serde_json::to_string_pretty(&res).map_err(|e| e.to_string())? + "\n");
+    }
+    let mut t = mc_text(cfg, &res.stats)
+        + &format!(
+            "{} simulations in {:.2} s on {} threads: {:.1} runs/s\n",
+            res.simulations, res.elapsed_s, res.threads, res.runs_per_s
+        );
+    if let Some(path) = file {
+        t += &format!("raw results written to {}\n", path.display());
+    }
+    Ok(t)
+}
+
+/// What `montecarlo --shard` prints: the shard, its throughput and its file
+/// (no statistics: those come from `merge`).
+pub fn shard_report(
+    cfg: &McConfig,
+    header: &ShardHeader,
+    rec: &McRecords,
+    file: &Path,
+    json: bool,
+) -> Result<String, String> {
+    let [start, end] = header.runs;
+    if json {
+        let v = serde_json::json!({
+            "file": file.display().to_string(),
+            "shard": header.shard,
+            "runs": header.runs,
+            "simulations": rec.records.len(),
+            "elapsed_s": rec.elapsed_s,
+            "runs_per_s": rec.sims_per_s(),
+            "threads": rec.threads,
+        });
+        return Ok(serde_json::to_string_pretty(&v).map_err(|e| e.to_string())? + "\n");
+    }
+    Ok(format!(
+        "{}\nshard {}/{}: runs {start}..{end}, {} simulations in {:.2} s on {} threads: {:.1} runs/s\n\
+         raw results written to {} (combine with `hil-sim merge FILE...`)\n",
+        cfg.describe(),
+        header.shard.index,
+        header.shard.count,
+        rec.records.len(),
+        rec.elapsed_s,
+        rec.threads,
+        rec.sims_per_s(),
+        file.display()
+    ))
+}
+
+/// What `merge` prints: the merged statistics (table or JSON) and where
+/// they came from.
+pub fn merge_text(m: &Merged, json: bool) -> Result<String, String> {
+    Ok(if json {
+        serde_json::to_string_pretty(m).map_err(|e| e.to_string())? + "\n"
+    } else {
+        mc_text(&m.sweep, &m.stats)
+            + &format!(
+                "{} simulations merged from {} shard files (the shards ran {:.2} s in total)\n",
+                m.simulations,
+                m.shard_files.len(),
+                m.shards_elapsed_s
+            )
+    })
 }
 
 pub use track_log::csv::{read_trace_csv, write_trace_csv, CSV_HEADER};

@@ -1,0 +1,68 @@
+//! `hil-sim device --pty`: the simulated robot behind a pseudo-terminal.
+
+use super::controller_arg::ControllerArg;
+use super::scenario_args::ScenarioArgs;
+use crate::device::{open_pty, serve, SimRobot};
+use clap::Args;
+use controller_core::ControllerKind;
+use std::io::Write;
+use std::sync::atomic::AtomicBool;
+
+/// `device` options.
+#[derive(Debug, Args)]
+pub struct DeviceArgs {
+    /// Serve on a new pseudo-terminal (the only transport so far); its path is
+    /// the first line on stdout.
+    #[arg(long, required = true)]
+    pub pty: bool,
+    /// Run N times faster than real time (robot time is simulated time).
+    #[arg(long, default_value_t = 1.0, value_name = "N")]
+    pub speed: f64,
+    /// Controller the runtime runs.
+    #[arg(long, value_enum, default_value = "proposed")]
+    pub controller: ControllerArg,
+    /// Stop after this much robot time [s] (default: run until killed).
+    #[arg(long, value_name = "s")]
+    pub for_s: Option<f64>,
+    /// The simulated robot: sensing, resolution, perturbations (their window is
+    /// in robot time since start) and initial pose; the trajectory comes from
+    /// the host.
+    #[command(flatten)]
+    pub scenario: ScenarioArgs,
+}
+
+/// `hil-sim device --pty`.
+pub fn device(a: &DeviceArgs, out: &mut dyn Write) -> Result<(), String> {
+    if !(a.speed.is_finite() && a.speed > 0.0 && a.speed <= 1000.0) {
+        return Err("--speed must be in (0, 1000]".into());
+    }
+    let scn = a.scenario.build()?;
+    let kind: ControllerKind = a.controller.into();
+    let mut robot = SimRobot::new(&scn, kind)?;
+    let (mut master, _slave, path) = open_pty()?;
+    writeln!(out, "{path}").map_err(|e| e.to_string())?;
+    out.flush().map_err(|e| e.to_string())?;
+    eprintln!(
+        "simulated robot on {path} ({} sensing, {} controller, {}x real time); talk to it with `wmr --port {path} status`",
+        match scn.sensing {
+            crate::scenario::Sensing::Ideal => "mocap",
+            s => s.name(),
+        },
+        kind.name(),
+        a.speed
+    );
+    let stop = AtomicBool::new(false);
+    match a.for_s {
+        None => serve(&mut robot, &mut master, a.speed, &stop),
+        Some(t) => {
+            let ticks = (t / scn.control_period_s).round() as u64;
+            std::thread::scope(|s| {
+                let h = s.spawn(|| serve(&mut robot, &mut master, a.speed, &stop));
+                let period = std::time::Duration::from_secs_f64(scn.control_period_s / a.speed);
+                std::thread::sleep(period * ticks as u32);
+                stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                h.join().map_err(|_| "device thread panicked".to_string())?
+            })
+        }
+    }
+}

@@ -1,0 +1,85 @@
+//! The `hil-sim` command line (clap derive): one file per subcommand
+//! (`compare`, `run`, `montecarlo`, `merge`, `bench`, `device`, `report`), the
+//! shared arguments in files of their own ([`ScenarioArgs`], [`ControllerArg`]),
+//! the text of every subcommand in [`crate::report`]. The binary is a thin
+//! wrapper around [`main_entry`]; everything here is library code so tests can
+//! drive it. The subcommand files use only the argument files and the modules
+//! below the CLI; nothing below imports from here.
+
+pub mod bench;
+pub mod compare;
+pub mod controller_arg;
+pub mod device;
+pub mod merge;
+pub mod montecarlo;
+pub mod report;
+pub mod run;
+pub mod scenario_args;
+#[cfg(test)]
+mod tests;
+
+pub use controller_arg::ControllerArg;
+pub use scenario_args::ScenarioArgs;
+
+use clap::{Parser, Subcommand};
+use std::io::Write;
+
+/// Host simulator: the controller-core controllers against the paper's
+/// differential-drive robot with slip, skid, disturbance and actuator fault.
+#[derive(Debug, Parser)]
+#[command(name = "hil-sim", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Both paper cases x the three controllers: metrics table, plots, metrics.json.
+    Compare(compare::CompareArgs),
+    /// One scenario with one controller.
+    Run(Box<run::RunArgs>),
+    /// N random paper scenarios per controller, in parallel: mean/p95/max of every metric
+    /// (or, with --shard, one slice of the runs written to a file for `merge`).
+    Montecarlo(montecarlo::McArgs),
+    /// Combines shard files of `montecarlo --shard` into the statistics of one run.
+    Merge(merge::MergeArgs),
+    /// Time per 40 s paper scenario and Monte-Carlo throughput on this machine.
+    Bench(bench::BenchArgs),
+    /// The simulated robot behind the host link: prints a pseudo-terminal's path
+    /// (first stdout line) for `wmr --port PATH ...`.
+    Device(Box<device::DeviceArgs>),
+    /// Metrics and plots of a trace CSV (`hil-sim run --csv` or `wmr record`).
+    Report(report::ReportArgs),
+}
+
+/// Executes a parsed command line, writing results to `out`.
+pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
+    match &cli.command {
+        Command::Compare(a) => compare::compare(a, out),
+        Command::Run(a) => run::run(a, out),
+        Command::Montecarlo(a) => montecarlo::montecarlo(a, out),
+        Command::Merge(a) => merge::merge(a, out),
+        Command::Bench(a) => bench::bench(a, out),
+        Command::Device(a) => device::device(a, out),
+        Command::Report(a) => report::report(a, out),
+    }
+}
+
+/// The binary: parse (clap prints usage errors and exits 2), execute, print
+/// any error to stderr and return the exit code (0 or 1).
+pub fn main_entry() -> i32 {
+    let cli = Cli::parse();
+    let stdout = std::io::stdout();
+    let mut lock = stdout.lock();
+    match execute(&cli, &mut lock) {
+        Ok(()) => 0,
+        Err(e) => {
+            let _ = lock.flush();
+            eprintln!("error: {e}");
+            1
+        }
+    }
+}

@@ -1,0 +1,280 @@
+//! Tests of the command line as a whole: parsing, errors, each subcommand's output.
+
+use super::*;
+use crate::scenario::{Scenario, Sensing, TrajectoryKind};
+use controller_core::ControllerKind;
+
+fn parse(args: &[&str]) -> Result<Cli, clap::Error> {
+    Cli::try_parse_from(std::iter::once("hil-sim").chain(args.iter().copied()))
+}
+
+fn run_to_string(args: &[&str]) -> Result<String, String> {
+    let cli = parse(args).map_err(|e| e.to_string())?;
+    let mut buf = Vec::new();
+    execute(&cli, &mut buf)?;
+    Ok(String::from_utf8(buf).unwrap())
+}
+
+#[test]
+fn argument_errors_are_rejected_by_the_parser() {
+    for bad in [
+        &["run", "--controller", "pid"][..],
+        &["run", "--case", "3"],
+        &["run", "--trajectory", "spiral"],
+        &["run", "--beta", "abc"],
+        &["run", "--case", "1", "--scenario", "x.toml"],
+        &["montecarlo"],
+        &["montecarlo", "--runs", "0"],
+        &["frobnicate"],
+    ] {
+        assert!(parse(bad).is_err(), "{bad:?} should not parse");
+    }
+    let e = parse(&["run", "--controller", "pid"])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("smc") && e.contains("proposed"), "{e}");
+}
+
+#[test]
+fn invalid_values_give_errors_not_panics() {
+    let e = run_to_string(&["run", "--eps", "1.5", "--json"]).unwrap_err();
+    assert!(e.contains("eps must be"), "{e}");
+    let e = run_to_string(&["run", "--duration=-1"]).unwrap_err();
+    assert!(e.contains("duration"), "{e}");
+    let e = run_to_string(&["run", "--torque-limit", "NaN"]).unwrap_err();
+    assert!(e.contains("torque"), "{e}");
+    let e = run_to_string(&["run", "--scenario", "/nonexistent/x.toml"]).unwrap_err();
+    assert!(e.contains("cannot read"), "{e}");
+}
+
+#[test]
+fn flags_override_the_preset_and_the_file() {
+    let cli = parse(&[
+        "run",
+        "--case",
+        "1",
+        "--seed",
+        "4",
+        "--beta",
+        "0.15",
+        "--mass-scale",
+        "1.1",
+        "--trajectory",
+        "figure8",
+        "--k-y",
+        "10",
+        "--sensing",
+        "odometry",
+        "--encoder-cpr",
+        "1024",
+    ])
+    .unwrap();
+    let Command::Run(a) = cli.command else {
+        panic!()
+    };
+    let s = a.scenario.build().unwrap();
+    assert_eq!(s.name, "case1");
+    assert_eq!((s.beta, s.eps, s.seed), (0.15, 0.0, 4));
+    assert_eq!(s.mass_scale, 1.1);
+    assert_eq!(s.trajectory, TrajectoryKind::Figure8);
+    assert_eq!(s.k_y, Some(10.0));
+    assert_eq!(s.encoder_cpr, 1024);
+
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("s.toml");
+    std::fs::write(
+        &f,
+        "name = \"file\"\nbeta = 0.01\nsensing = \"mocap\"\npwm_levels = 255\npose_rate_hz = 50.0\n",
+    )
+    .unwrap();
+    let a = ScenarioArgs {
+        scenario: Some(f),
+        beta: Some(0.02),
+        ..Default::default()
+    };
+    let s = a.build().unwrap();
+    assert_eq!((s.name.as_str(), s.beta, s.pwm_levels), ("file", 0.02, 255));
+}
+
+#[test]
+fn sensing_flags_override_the_preset() {
+    let cli = parse(&[
+        "run",
+        "--sensing",
+        "uwb",
+        "--pose-rate",
+        "20",
+        "--pose-outage",
+        "20,22",
+        "--gyro-bias",
+        "-0.01",
+    ])
+    .unwrap();
+    let Command::Run(a) = cli.command else {
+        panic!()
+    };
+    let s = a.scenario.build().unwrap();
+    assert_eq!(s.sensing, Sensing::Uwb);
+    assert_eq!(s.pose_rate_hz, Some(20.0));
+    assert_eq!(s.pose_outage_s, Some([20.0, 22.0]));
+    assert_eq!(s.gyro_bias_radps, Some(-0.01));
+    let cli = parse(&["run", "--sensing", "mocap", "--pose-outage", "20"]).unwrap();
+    let Command::Run(a) = cli.command else {
+        panic!()
+    };
+    assert!(a.scenario.build().unwrap_err().contains("START,END"));
+    let e = run_to_string(&["run", "--sensing", "odometry", "--pose-rate", "5"]).unwrap_err();
+    assert!(e.contains("pose_*"), "{e}");
+    let text = run_to_string(&[
+        "run",
+        "--sensing",
+        "mocap",
+        "--duration",
+        "2",
+        "--pose-outlier-fraction",
+        "0.2",
+    ])
+    .unwrap();
+    assert!(
+        text.contains("sensing mocap") && text.contains("outliers injected"),
+        "{text}"
+    );
+}
+
+#[test]
+fn run_json_is_one_object_with_every_metric_key() {
+    let text =
+        run_to_string(&["run", "--duration", "2", "--json", "--controller", "asmc"]).unwrap();
+    assert_eq!(text.trim_end().lines().count(), 1);
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let o = v.as_object().unwrap();
+    for k in [
+        "rms_pos_err_m",
+        "rms_pos_err_window_m",
+        "max_pos_err_window_m",
+        "rms_pos_err_after5_m",
+        "final_pos_err_m",
+        "settling_time_s",
+        "torque_rms_nm",
+        "max_abs_torque_nm",
+        "chatter",
+        "saturated_fraction",
+        "fault_est_rmse",
+        "controller",
+        "scenario",
+    ] {
+        assert!(o.contains_key(k), "missing {k}");
+    }
+    assert!(o["fault_est_rmse"].is_null());
+    assert_eq!(o["controller"], "asmc");
+    let text = run_to_string(&["run", "--duration", "2", "--json"]).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert!(v["fault_est_rmse"].is_number());
+}
+
+#[test]
+fn run_csv_has_header_and_one_row_per_10ms() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("t.csv");
+    let text = run_to_string(&["run", "--duration", "1.5", "--csv", f.to_str().unwrap()]).unwrap();
+    assert!(text.contains("150 rows"), "{text}");
+    let csv = std::fs::read_to_string(&f).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines[0], crate::report::CSV_HEADER);
+    assert_eq!(lines.len(), 151);
+    let t_last: f64 = lines[150].split(',').next().unwrap().parse().unwrap();
+    assert!((t_last - 1.49).abs() < 1e-9);
+    run_to_string(&[
+        "run",
+        "--duration",
+        "1",
+        "--csv",
+        f.to_str().unwrap(),
+        "--csv-every",
+        "1",
+    ])
+    .unwrap();
+    assert_eq!(std::fs::read_to_string(&f).unwrap().lines().count(), 1001);
+}
+
+#[test]
+fn compare_without_plots_writes_metrics_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let text = run_to_string(&["compare", "--out", out, "--no-plots"]).unwrap();
+    assert_eq!(
+        text.lines()
+            .filter(|l| l.starts_with(|c: char| c.is_ascii_digit()) && l.contains("proposed"))
+            .count(),
+        4,
+        "the paper table and the governed one: {text}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("metrics.json")).unwrap())
+            .unwrap();
+    assert_eq!(v.as_array().unwrap().len(), 6);
+    assert_eq!(v[5]["case"], 2);
+    assert_eq!(v[5]["controller"], "proposed");
+    // The paper's setting: no governor, so no governor metrics.
+    assert!(v[5].get("time_lag_final_s").is_none());
+    assert_eq!(v[5]["scenario"]["governor"], false);
+    let g: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("metrics_governor.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(g.as_array().unwrap().len(), 6);
+    assert!(g[5]["time_lag_final_s"].as_f64().unwrap() >= 0.0);
+    assert!(
+        g[5]["scenario"].get("governor").is_none(),
+        "on: the default"
+    );
+}
+
+/// `hil-sim report` of a CSV logged at every control step gives the
+/// simulation's own metrics (same accumulator, same values); a file that
+/// is not a trace is a clear error.
+#[test]
+fn report_of_a_full_trace_csv_equals_the_run() {
+    let scn = Scenario {
+        duration_s: 6.0,
+        window_s: [2.0, 4.0],
+        ..Scenario::paper_case(1, 2, None, None)
+    };
+    let cfg = crate::sim::controller_config(&scn, ControllerKind::Asmc);
+    let out = crate::sim::run_with(&scn, cfg, 1).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("t.csv");
+    let f = std::fs::File::create(&csv).unwrap();
+    crate::report::write_trace_csv(std::io::BufWriter::new(f), &out.trace).unwrap();
+    let cli = Cli::try_parse_from([
+        "hil-sim",
+        "report",
+        csv.to_str().unwrap(),
+        "--window",
+        "2",
+        "4",
+        "--controller",
+        "asmc",
+        "--no-plots",
+        "--json",
+    ])
+    .unwrap();
+    let mut buf = Vec::new();
+    execute(&cli, &mut buf).unwrap();
+    let m: crate::Metrics = serde_json::from_slice(&buf).unwrap();
+    let s = &out.metrics;
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * (1.0 + b.abs());
+    assert!(close(m.rms_pos_err_m, s.rms_pos_err_m));
+    assert!(close(m.rms_pos_err_window_m, s.rms_pos_err_window_m));
+    assert!(close(m.torque_rms_nm, s.torque_rms_nm));
+    assert!(close(m.chatter, s.chatter));
+
+    std::fs::write(dir.path().join("bad.csv"), "a,b\n").unwrap();
+    let bad = dir.path().join("bad.csv");
+    let cli = Cli::try_parse_from(["hil-sim", "report", bad.to_str().unwrap()]).unwrap();
+    let e = execute(&cli, &mut Vec::new()).unwrap_err();
+    assert!(
+        e.contains("bad.csv") && e.contains("not a trace CSV"),
+        "{e}"
+    );
+}

@@ -1,0 +1,225 @@
+//! Parameters: the device's configuration ([`DeviceConfig`], [`LinkConfig`]),
+//! its validation, and the [`ParamId`]s the host reads and writes.
+
+use crate::reference::PlacedReference;
+use controller_core::runtime::{ControlLoop, ReconfigureError, RunState, RuntimeConfigError};
+use wmr_protocol::{BuiltinReference, ErrorCode, ParamId, TelemetrySelection, TELEMETRY_ALL};
+
+/// Longest velocity-command timeout \[ms\].
+pub const MAX_VELOCITY_TIMEOUT_MS: u16 = 5000;
+
+/// Link settings of the device; every field is a [`ParamId`] the host can
+/// read, and write where the protocol allows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LinkConfig {
+    /// Controlled stop after this long without a valid frame while running
+    /// under host control \[ms\] (50..=10000).
+    pub link_timeout_ms: u32,
+    /// Acceleration limit of velocity commands \[m/s²\].
+    pub accel_mps2: f32,
+    /// Angular acceleration limit of velocity commands \[rad/s²\].
+    pub ang_accel_radps2: f32,
+    /// Deceleration of a controlled stop \[m/s²\].
+    pub brake_decel_mps2: f32,
+    /// Largest |v| of a velocity command \[m/s\].
+    pub max_speed_mps: f32,
+    /// Largest |ω| of a velocity command \[rad/s\].
+    pub max_yaw_rate_radps: f32,
+    /// Telemetry rate \[Hz\] (0 = off).
+    pub telemetry_rate_hz: u16,
+    /// Telemetry groups.
+    pub telemetry_selection: TelemetrySelection,
+}
+
+impl LinkConfig {
+    /// Defaults: 500 ms link timeout, 1 m/s² and 3 rad/s² for velocity
+    /// commands, 1 m/s² braking, 1 m/s and 3 rad/s command limits,
+    /// telemetry off.
+    pub const DEFAULT: Self = Self {
+        link_timeout_ms: 500,
+        accel_mps2: 1.0,
+        ang_accel_radps2: 3.0,
+        brake_decel_mps2: 1.0,
+        max_speed_mps: 1.0,
+        max_yaw_rate_radps: 3.0,
+        telemetry_rate_hz: 0,
+        telemetry_selection: TELEMETRY_ALL,
+    };
+
+    /// Checks every field.
+    pub fn validate(self) -> Result<Self, DeviceConfigError> {
+        // (value, upper bound): 0 < value <= bound (NaN fails), one loop.
+        let in_range = [
+            (self.accel_mps2, 20.0),
+            (self.ang_accel_radps2, 50.0),
+            (self.brake_decel_mps2, 20.0),
+            (self.max_speed_mps, 10.0),
+            (self.max_yaw_rate_radps, 30.0),
+        ]
+        .iter()
+        .all(|&(x, hi)| x > 0.0 && x <= hi);
+        let ok = (50..=10_000).contains(&self.link_timeout_ms)
+            && in_range
+            && self.telemetry_rate_hz <= 1000;
+        if ok {
+            Ok(self)
+        } else {
+            Err(DeviceConfigError::InvalidLink)
+        }
+    }
+}
+
+/// Everything a [`Device`](crate::Device) is built from besides the runtime.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DeviceConfig {
+    /// Chip or board name sent in the handshake (≤ 16 bytes).
+    pub chip: &'static str,
+    /// `CAP_*` bits sent in the handshake.
+    pub capabilities: u16,
+    /// Link settings.
+    pub link: LinkConfig,
+    /// What the arm button drives when the host has loaded nothing
+    /// (`None`: the button arms only a loaded mode).
+    pub button_reference: Option<BuiltinReference>,
+}
+
+impl DeviceConfig {
+    /// Checks the link settings, the chip name and the button reference.
+    pub fn validate(self) -> Result<Self, DeviceConfigError> {
+        self.link.validate()?;
+        if self.chip.len() > 16 {
+            return Err(DeviceConfigError::ChipName);
+        }
+        if let Some(b) = &self.button_reference {
+            PlacedReference::new(b).ok_or(DeviceConfigError::ButtonReference)?;
+        }
+        Ok(self)
+    }
+}
+
+/// A device configuration rejected at construction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum DeviceConfigError {
+    /// The runtime configuration.
+    Runtime(RuntimeConfigError),
+    /// A link setting is out of range.
+    InvalidLink,
+    /// The chip name is longer than 16 bytes.
+    ChipName,
+    /// The button reference is invalid.
+    ButtonReference,
+}
+
+impl core::fmt::Display for DeviceConfigError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Runtime(e) => write!(f, "runtime: {e}"),
+            Self::InvalidLink => f.write_str("link setting out of range"),
+            Self::ChipName => f.write_str("chip name longer than 16 bytes"),
+            Self::ButtonReference => f.write_str("invalid button reference"),
+        }
+    }
+}
+
+/// The value of parameter `id`.
+pub(crate) fn read<const H: usize>(
+    control: &ControlLoop<H>,
+    link: &LinkConfig,
+    id: ParamId,
+) -> f32 {
+    let c = &control.config().controller;
+    let s = &control.config().safety;
+    let l = link;
+    match id {
+        ParamId::TorqueLimitNm => c.torque_limit_nm,
+        ParamId::Kx => c.kinematic.k_x,
+        ParamId::Ky => c.kinematic.k_y,
+        ParamId::Ktheta => c.kinematic.k_th,
+        ParamId::Ks => c.sliding.k_s,
+        ParamId::StallTorqueNm => s.stall_torque_nm,
+        ParamId::StallTicks => s.stall_ticks as f32,
+        ParamId::TelemetryRateHz => l.telemetry_rate_hz as f32,
+        ParamId::LinkTimeoutMs => l.link_timeout_ms as f32,
+        ParamId::AccelMps2 => l.accel_mps2,
+        ParamId::AngAccelRadps2 => l.ang_accel_radps2,
+        ParamId::BrakeDecelMps2 => l.brake_decel_mps2,
+        ParamId::MaxSpeedMps => l.max_speed_mps,
+        ParamId::MaxYawRateRadps => l.max_yaw_rate_radps,
+        ParamId::ControlPeriodS => c.period_s,
+    }
+}
+
+/// Refused while running.
+pub(crate) fn in_hold(state: RunState) -> Result<(), ErrorCode> {
+    match state {
+        RunState::Running => Err(ErrorCode::Busy),
+        _ => Ok(()),
+    }
+}
+
+/// Writes parameter `id` (telemetry and the link timeout in any state,
+/// the rest in hold only); nothing changes when it is refused.
+// Out of line: one copy (smaller firmware; the call costs nothing here).
+#[inline(never)]
+pub(crate) fn write<const H: usize>(
+    control: &mut ControlLoop<H>,
+    link: &mut LinkConfig,
+    id: ParamId,
+    value: f32,
+) -> Result<(), ErrorCode> {
+    if !value.is_finite() {
+        return Err(ErrorCode::InvalidValue);
+    }
+    let as_int = |hi: f32| -> Result<u32, ErrorCode> {
+        if value >= 0.0 && value <= hi && value == (value as u32) as f32 {
+            Ok(value as u32)
+        } else {
+            Err(ErrorCode::InvalidValue)
+        }
+    };
+    // Any state: telemetry and the link timeout.
+    match id {
+        ParamId::TelemetryRateHz => {
+            link.telemetry_rate_hz = as_int(1000.0)? as u16;
+            return Ok(());
+        }
+        ParamId::LinkTimeoutMs => {
+            let mut l = *link;
+            l.link_timeout_ms = as_int(u32::MAX as f32)?;
+            *link = l.validate().map_err(|_| ErrorCode::InvalidValue)?;
+            return Ok(());
+        }
+        ParamId::ControlPeriodS => return Err(ErrorCode::ReadOnly),
+        _ => {}
+    }
+    in_hold(control.state())?;
+    let mut c = control.config().controller;
+    let mut s = control.config().safety;
+    let mut l = *link;
+    match id {
+        ParamId::TorqueLimitNm => c.torque_limit_nm = value,
+        ParamId::Kx => c.kinematic.k_x = value,
+        ParamId::Ky => c.kinematic.k_y = value,
+        ParamId::Ktheta => c.kinematic.k_th = value,
+        ParamId::Ks => c.sliding.k_s = value,
+        ParamId::StallTorqueNm => s.stall_torque_nm = value,
+        ParamId::StallTicks => s.stall_ticks = as_int(u16::MAX as f32)? as u16,
+        ParamId::AccelMps2 => l.accel_mps2 = value,
+        ParamId::AngAccelRadps2 => l.ang_accel_radps2 = value,
+        ParamId::BrakeDecelMps2 => l.brake_decel_mps2 = value,
+        ParamId::MaxSpeedMps => l.max_speed_mps = value,
+        ParamId::MaxYawRateRadps => l.max_yaw_rate_radps = value,
+        ParamId::TelemetryRateHz | ParamId::LinkTimeoutMs | ParamId::ControlPeriodS => {}
+    }
+    let l = l.validate().map_err(|_| ErrorCode::InvalidValue)?;
+    control.reconfigure(c, s).map_err(|e| match e {
+        ReconfigureError::Running => ErrorCode::Busy,
+        _ => ErrorCode::InvalidValue,
+    })?;
+    *link = l;
+    Ok(())
+}

@@ -1,0 +1,458 @@
+//! Request handling: each decoded request checked against the state
+//! (no arming without a loaded mode or with a latched stop, configuration
+//! only in hold) and answered with an ack, a nack with a typed error, or
+//! its reply; the arm/disarm transitions and the link watchdog.
+
+use crate::framing::{bump, Framing, RX_BYTES_PER_TICK};
+use crate::params::{self, in_hold, DeviceConfig, MAX_VELOCITY_TIMEOUT_MS};
+use crate::reference::{pose_from_msg, PlacedReference, SegmentError, VirtualVehicle};
+use crate::selection::{Mode, Selected, Selector, VelocityCmd};
+use crate::telemetry::{counters, TelemetryScheduler};
+use controller_core::estimator::PoseMeasurement;
+use controller_core::runtime::{ControlLoop, MotorDriver, RunState, StopReason, TickReport};
+use controller_core::trajectory::RefSample;
+use wmr_protocol::{
+    Counters, Decoded, ErrorCode, Event, Reply, Request, RobotInfo, RunStateMsg, StatusMsg,
+    StopCode, PROTOCOL_VERSION, TELEMETRY_ALL,
+};
+
+/// External poses older than this are refused \[µs\].
+pub const MAX_POSE_AGE_US: i32 = 100_000;
+/// External poses stamped further ahead than this are refused \[µs\].
+pub const MAX_POSE_LEAD_US: i32 = 10_000;
+
+/// One request's answer.
+type Answer = Result<Option<Reply>, ErrorCode>;
+
+/// The host session: who armed, when the host was last heard, the pose it
+/// sent for the next tick, and the stops to report.
+pub(crate) struct Session {
+    /// Armed under host control (the link watchdog runs).
+    pub host_armed: bool,
+    /// Robot time of the last valid frame \[µs\].
+    pub last_rx_us: u32,
+    /// Robot time of this tick \[µs\].
+    pub now_us: u32,
+    /// The host's pose measurement for the next tick.
+    pub pending_pose: Option<PoseMeasurement>,
+    /// The last stop's cause.
+    pub last_stop: Option<StopCode>,
+    /// The stop not yet reported in an event.
+    pub pending_cause: Option<StopCode>,
+}
+
+fn stop_code(r: StopReason) -> StopCode {
+    match r {
+        StopReason::ControllerInput(_) => StopCode::ControllerInput,
+        StopReason::EncoderJump { .. } => StopCode::EncoderJump,
+        StopReason::EncoderStalled { .. } => StopCode::EncoderStalled,
+        StopReason::LoopOverrun { .. } => StopCode::LoopOverrun,
+        StopReason::Commanded => StopCode::Commanded,
+        _ => StopCode::Other,
+    }
+}
+
+fn finite(xs: &[f32]) -> bool {
+    xs.iter().all(|x| x.is_finite())
+}
+
+/// The state requests are checked against, and what they change.
+pub(crate) struct Handler<const H: usize> {
+    pub cfg: DeviceConfig,
+    pub control: ControlLoop<H>,
+    pub selector: Selector,
+    pub telemetry: TelemetryScheduler,
+    pub session: Session,
+}
+
+impl<const H: usize> Handler<H> {
+    pub fn new(cfg: DeviceConfig, control: ControlLoop<H>) -> Self {
+        Self {
+            cfg,
+            control,
+            selector: Selector::new(),
+            telemetry: TelemetryScheduler::new(),
+            session: Session {
+                host_armed: false,
+                last_rx_us: 0,
+                now_us: 0,
+                pending_pose: None,
+                last_stop: None,
+                pending_cause: None,
+            },
+        }
+    }
+
+    pub fn period_s(&self) -> f32 {
+        self.control.config().controller.period_s
+    }
+
+    fn running(&self) -> bool {
+        self.control.state() == RunState::Running
+    }
+
+    /// The run state as the host sees it.
+    pub fn state(&self) -> RunStateMsg {
+        match self.control.state() {
+            RunState::Disarmed => RunStateMsg::Hold,
+            RunState::Running if self.selector.braking.is_some() => RunStateMsg::Stopping,
+            RunState::Running => RunStateMsg::Running,
+            RunState::Stopped(_) => RunStateMsg::Stopped,
+        }
+    }
+
+    pub fn counters(&self, framing: &Framing) -> Counters {
+        counters(self.control.status(), &framing.counters)
+    }
+
+    /// Decodes at most [`RX_BYTES_PER_TICK`] received bytes and answers
+    /// every request in them.
+    // Out of line: one copy (smaller firmware; the call costs nothing here).
+    #[inline(never)]
+    pub fn process_rx(&mut self, framing: &mut Framing, motors: &mut impl MotorDriver) {
+        let mut chunk = [0u8; RX_BYTES_PER_TICK];
+        let n = framing.take_rx(&mut chunk);
+        let mut rest = &chunk[..n];
+        let mut frame_error_sent = false;
+        while !rest.is_empty() {
+            let (decoded, r) = framing.decoder.feed::<Request>(rest);
+            rest = r;
+            match decoded {
+                None => {}
+                Some(Decoded::Frame { seq, msg }) => {
+                    bump(&mut framing.counters.rx_frames);
+                    self.session.last_rx_us = self.session.now_us;
+                    let answer = self.handle(seq, msg, framing, motors);
+                    answer_with(framing, seq, answer);
+                }
+                Some(Decoded::OtherVersion { seq, msg, .. }) => {
+                    bump(&mut framing.counters.rx_errors);
+                    let answer = match msg {
+                        Some(Request::Hello { .. }) => Ok(Some(self.hello(seq))),
+                        _ => Err(ErrorCode::VersionMismatch),
+                    };
+                    answer_with(framing, seq, answer);
+                }
+                Some(Decoded::Error { seq, error }) => {
+                    bump(&mut framing.counters.rx_errors);
+                    match seq {
+                        Some(seq) => answer_with(framing, seq, Err(error)),
+                        // At most one per tick: a flood of garbage cannot
+                        // crowd telemetry and answers out of the link.
+                        None if !frame_error_sent => {
+                            frame_error_sent = framing.send(&Reply::FrameError { error });
+                        }
+                        None => {}
+                    }
+                }
+            }
+        }
+    }
+
+    fn hello(&self, seq: u16) -> Reply {
+        let c = self.control.config().controller;
+        let mut chip = heapless::String::new();
+        let _ = chip.push_str(self.cfg.chip);
+        Reply::Hello {
+            seq,
+            version: PROTOCOL_VERSION,
+            capabilities: self.cfg.capabilities,
+            chip,
+            robot: RobotInfo {
+                wheel_radius_m: c.robot.wheel_radius_m,
+                half_track_m: c.robot.half_track_m,
+                mass_kg: c.robot.mass_kg,
+                control_period_s: c.period_s,
+                torque_limit_nm: c.torque_limit_nm,
+            },
+        }
+    }
+
+    fn status(&self, framing: &Framing) -> StatusMsg {
+        StatusMsg {
+            state: self.state(),
+            mode: self.selector.mode_msg(),
+            last_stop: self.session.last_stop,
+            t_robot_us: self.session.now_us,
+            buffered_points: self.selector.waypoints.len() as u16,
+            counters: self.counters(framing),
+        }
+    }
+
+    // Out of line: one copy (smaller firmware; the call costs nothing here).
+    #[inline(never)]
+    fn handle(
+        &mut self,
+        seq: u16,
+        req: Request,
+        framing: &Framing,
+        motors: &mut impl MotorDriver,
+    ) -> Answer {
+        let now_us = self.session.now_us;
+        match req {
+            Request::Hello { .. } => Ok(Some(self.hello(seq))),
+            Request::GetStatus => Ok(Some(Reply::Status {
+                seq,
+                status: self.status(framing),
+            })),
+            Request::Arm => self.arm(true).map(|_| None),
+            Request::Disarm => {
+                self.disarm(motors, StopCode::Disarmed);
+                Ok(None)
+            }
+            Request::EmergencyStop => {
+                self.control.stop(motors);
+                self.on_stop(StopCode::Commanded);
+                Ok(None)
+            }
+            Request::ClearStop => match self.control.state() {
+                RunState::Stopped(_) => {
+                    self.control.reset();
+                    Ok(None)
+                }
+                _ => Err(ErrorCode::WrongMode),
+            },
+            Request::SetPose(p) => {
+                in_hold(self.control.state())?;
+                if !p.is_finite() {
+                    return Err(ErrorCode::InvalidValue);
+                }
+                self.control
+                    .set_pose(pose_from_msg(p))
+                    .map_err(|_| ErrorCode::InvalidValue)?;
+                Ok(None)
+            }
+            Request::ExternalPose {
+                t_robot_us,
+                pose,
+                std_dev,
+            } => {
+                if !pose.is_finite() || !finite(&std_dev) || std_dev.iter().any(|s| *s < 0.0) {
+                    return Err(ErrorCode::InvalidValue);
+                }
+                let age = now_us.wrapping_sub(t_robot_us) as i32;
+                if !(-MAX_POSE_LEAD_US..=MAX_POSE_AGE_US).contains(&age) {
+                    return Err(ErrorCode::Stale);
+                }
+                // Validated again, with a reason, by the estimator; a zero
+                // heading std dev means "no heading" (position only).
+                self.session.pending_pose = Some(PoseMeasurement {
+                    stamp_us: t_robot_us,
+                    pose: pose_from_msg(pose),
+                    position_std_m: std_dev[0].max(std_dev[1]),
+                    heading_std_rad: (std_dev[2] > 0.0).then_some(std_dev[2]),
+                });
+                Ok(None)
+            }
+            Request::ClockSync { host_time_us } => Ok(Some(Reply::ClockSync {
+                seq,
+                host_time_us,
+                robot_time_us: now_us,
+            })),
+            Request::SetReference(r) => {
+                in_hold(self.control.state())?;
+                let placed = PlacedReference::new(&r).ok_or(ErrorCode::InvalidValue)?;
+                self.selector.mode = Mode::Builtin(placed);
+                self.selector.waypoints.clear();
+                Ok(None)
+            }
+            Request::TrajectoryBegin { total_points } => {
+                in_hold(self.control.state())?;
+                if total_points < 2 {
+                    return Err(ErrorCode::InvalidValue);
+                }
+                self.selector.waypoints.begin(total_points);
+                self.selector.mode = Mode::None;
+                Ok(None)
+            }
+            Request::TrajectorySegment {
+                first_index,
+                points,
+            } => {
+                let running = self.running();
+                let sel = &mut self.selector;
+                if running && !matches!(sel.mode, Mode::Trajectory) {
+                    return Err(ErrorCode::WrongMode);
+                }
+                let now = running.then(|| self.control.reference_time_s());
+                sel.waypoints
+                    .push(first_index, &points, now)
+                    .map_err(|e| match e {
+                        SegmentError::OutOfOrder => ErrorCode::OutOfOrder,
+                        SegmentError::Full => ErrorCode::BufferFull,
+                        SegmentError::Invalid => ErrorCode::InvalidValue,
+                    })?;
+                if !running && sel.waypoints.ready() {
+                    sel.mode = Mode::Trajectory;
+                }
+                Ok(Some(Reply::TrajectoryAck {
+                    seq,
+                    next_index: sel.waypoints.next_index(),
+                    free: sel.waypoints.free() as u16,
+                }))
+            }
+            Request::Velocity {
+                v_mps,
+                omega_radps,
+                timeout_ms,
+            } => {
+                let l = &self.cfg.link;
+                let ok = v_mps.is_finite()
+                    && omega_radps.is_finite()
+                    && v_mps.abs() <= l.max_speed_mps
+                    && omega_radps.abs() <= l.max_yaw_rate_radps
+                    && (1..=MAX_VELOCITY_TIMEOUT_MS).contains(&timeout_ms);
+                if !ok {
+                    return Err(ErrorCode::InvalidValue);
+                }
+                let sel = &mut self.selector;
+                match (self.control.state(), sel.mode) {
+                    (RunState::Running, Mode::Velocity) if sel.braking.is_none() => {}
+                    (RunState::Running, _) => return Err(ErrorCode::WrongMode),
+                    _ => {
+                        sel.mode = Mode::Velocity;
+                        sel.waypoints.clear();
+                    }
+                }
+                sel.velocity = VelocityCmd {
+                    target: [v_mps, omega_radps],
+                    expires_us: Some(now_us.wrapping_add(timeout_ms as u32 * 1000)),
+                };
+                Ok(None)
+            }
+            Request::GetParam(id) => Ok(Some(Reply::Param {
+                seq,
+                id,
+                value: params::read(&self.control, &self.cfg.link, id),
+            })),
+            Request::SetParam { id, value } => {
+                params::write(&mut self.control, &mut self.cfg.link, id, value)?;
+                if id == wmr_protocol::ParamId::TelemetryRateHz {
+                    self.telemetry.restart();
+                }
+                Ok(None)
+            }
+            Request::SetTelemetry { selection, rate_hz } => {
+                if rate_hz > 1000 || selection & !TELEMETRY_ALL != 0 {
+                    return Err(ErrorCode::InvalidValue);
+                }
+                self.cfg.link.telemetry_rate_hz = rate_hz;
+                self.cfg.link.telemetry_selection = selection;
+                self.telemetry.restart();
+                Ok(None)
+            }
+        }
+    }
+
+    /// Arms the loaded mode (`host`: under host control, with the link
+    /// watchdog).
+    pub fn arm(&mut self, host: bool) -> Result<(), ErrorCode> {
+        match self.control.state() {
+            RunState::Running if self.selector.braking.is_some() => return Err(ErrorCode::Busy),
+            RunState::Running => return Ok(()),
+            RunState::Stopped(_) => return Err(ErrorCode::Latched),
+            RunState::Disarmed => {}
+        }
+        if !self.selector.ready() {
+            return Err(ErrorCode::NoReference);
+        }
+        self.control.arm().map_err(|_| ErrorCode::Latched)?;
+        self.selector.vehicle = VirtualVehicle::at_rest(self.control.estimator().estimate().pose);
+        self.selector.braking = None;
+        self.session.host_armed = host;
+        self.session.last_rx_us = self.session.now_us;
+        self.session.pending_cause = None;
+        Ok(())
+    }
+
+    pub fn disarm(&mut self, motors: &mut impl MotorDriver, cause: StopCode) {
+        let was_running = self.running();
+        self.control.disarm(motors);
+        self.selector.on_disarm();
+        if was_running {
+            self.on_stop(cause);
+        }
+    }
+
+    pub fn on_stop(&mut self, cause: StopCode) {
+        self.session.last_stop = Some(cause);
+        self.session.pending_cause = Some(cause);
+        self.selector.on_stop();
+    }
+
+    /// The link watchdog: a controlled stop after the link timeout without
+    /// a valid frame while running under host control.
+    pub fn watchdogs(&mut self, framing: &mut Framing) {
+        if !self.running() || self.selector.braking.is_some() {
+            return;
+        }
+        let s = &self.session;
+        let silent_us = s.now_us.wrapping_sub(s.last_rx_us);
+        if s.host_armed && silent_us > self.cfg.link.link_timeout_ms.saturating_mul(1000) {
+            framing.send(&Reply::Event(Event::LinkLost));
+            let period_s = self.period_s();
+            self.selector
+                .start_braking(true, &self.cfg.link, period_s, StopCode::LinkSilence);
+        }
+    }
+
+    /// This tick's reference; finishes a controlled stop (disarm) when the
+    /// braking reference stands still.
+    pub fn reference_for_tick(&mut self, motors: &mut impl MotorDriver) -> RefSample {
+        let running = self.running();
+        let period_s = self.period_s();
+        let t_ref_s = self.control.reference_time_s();
+        let now_us = self.session.now_us;
+        match self
+            .selector
+            .select(running, t_ref_s, now_us, &self.cfg.link, period_s)
+        {
+            Selected::Drive(r) => r,
+            Selected::Finished(cause, rest) => {
+                self.disarm(motors, cause);
+                rest
+            }
+        }
+    }
+
+    /// After the control tick: the stop it reported, the state event and
+    /// the telemetry frame.
+    pub fn after_tick(&mut self, framing: &mut Framing, rep: &TickReport) {
+        self.selector.last_ref = rep.reference;
+        if let Some(r) = rep.stopped {
+            self.on_stop(stop_code(r));
+        }
+        self.report_state(framing);
+        let state = self.state();
+        let period_s = self.period_s();
+        self.telemetry.tick(
+            framing,
+            &self.cfg.link,
+            period_s,
+            self.session.now_us,
+            state,
+            self.control.status(),
+            rep,
+        );
+    }
+
+    pub fn report_state(&mut self, framing: &mut Framing) {
+        let state = self.state();
+        let cause = self.selector.braking_cause();
+        self.telemetry
+            .report_state(framing, state, cause, &mut self.session.pending_cause);
+    }
+}
+
+/// Sends the answer to request `seq` (nacks counted).
+fn answer_with(framing: &mut Framing, seq: u16, answer: Answer) {
+    let reply = match answer {
+        Ok(Some(r)) => r,
+        Ok(None) => Reply::Ack { seq },
+        Err(error) => {
+            bump(&mut framing.counters.nacks);
+            Reply::Nack { seq, error }
+        }
+    };
+    framing.send(&reply);
+}

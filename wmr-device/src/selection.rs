@@ -1,0 +1,213 @@
+//! Reference selection: what the robot drives ([`Mode`]) and the reference
+//! sample of each tick: the built-in shape, the uploaded waypoints, the
+//! velocity command's virtual vehicle, or the braking profile of a
+//! controlled stop.
+
+use crate::params::LinkConfig;
+use crate::reference::{PlacedReference, VirtualVehicle, WaypointBuffer};
+use controller_core::trajectory::{RefSample, Trajectory};
+use wmr_protocol::{ModeMsg, StopCode};
+
+/// What the robot drives when armed (compared with `matches!`: a derived
+/// `PartialEq` would compare the references' floats, and cost flash).
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Mode {
+    None,
+    Builtin(PlacedReference),
+    Trajectory,
+    Velocity,
+}
+
+/// The velocity command.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct VelocityCmd {
+    pub target: [f32; 2],
+    /// Robot time the command expires \[µs\]; `None` when expired.
+    pub expires_us: Option<u32>,
+}
+
+/// A controlled stop in progress.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Braking {
+    vehicle: VirtualVehicle,
+    rates: [f32; 2],
+    ticks_left: u32,
+    pub cause: StopCode,
+}
+
+/// The reference of one tick.
+pub(crate) enum Selected {
+    /// Drive this sample.
+    Drive(RefSample),
+    /// The controlled stop is over: disarm with this cause, and hold this
+    /// sample (at rest where the braking reference stopped).
+    Finished(StopCode, RefSample),
+}
+
+/// The loaded mode, its references and the controlled stop.
+pub(crate) struct Selector {
+    pub mode: Mode,
+    pub waypoints: WaypointBuffer,
+    pub velocity: VelocityCmd,
+    /// The velocity command's virtual vehicle.
+    pub vehicle: VirtualVehicle,
+    pub braking: Option<Braking>,
+    /// The reference of the last tick.
+    pub last_ref: RefSample,
+}
+
+impl Selector {
+    pub fn new() -> Self {
+        Self {
+            mode: Mode::None,
+            waypoints: WaypointBuffer::default(),
+            velocity: VelocityCmd::default(),
+            vehicle: VirtualVehicle::default(),
+            braking: None,
+            last_ref: RefSample::default(),
+        }
+    }
+
+    /// The loaded mode.
+    pub fn mode_msg(&self) -> ModeMsg {
+        match self.mode {
+            Mode::None => ModeMsg::None,
+            Mode::Builtin(_) => ModeMsg::Builtin,
+            Mode::Trajectory => ModeMsg::Trajectory,
+            Mode::Velocity => ModeMsg::Velocity,
+        }
+    }
+
+    /// The loaded mode can be armed.
+    pub fn ready(&self) -> bool {
+        match self.mode {
+            Mode::None => false,
+            Mode::Builtin(_) | Mode::Velocity => true,
+            Mode::Trajectory => self.waypoints.ready(),
+        }
+    }
+
+    /// The braking cause, while a controlled stop runs.
+    pub fn braking_cause(&self) -> Option<StopCode> {
+        self.braking.map(|b| b.cause)
+    }
+
+    /// The robot stopped (latched or controlled): no braking, no command.
+    pub fn on_stop(&mut self) {
+        self.braking = None;
+        self.velocity = VelocityCmd::default();
+    }
+
+    /// The robot was disarmed: as [`Self::on_stop`], and an upload that
+    /// can no longer start from t = 0 is unloaded.
+    pub fn on_disarm(&mut self) {
+        self.on_stop();
+        if matches!(self.mode, Mode::Trajectory) && !self.waypoints.ready() {
+            self.mode = Mode::None;
+        }
+    }
+
+    /// Starts a controlled stop from the last reference sample (when
+    /// `running` and none runs yet): v and ω fall linearly to zero
+    /// together (the path's curvature is kept) at the braking deceleration.
+    pub fn start_braking(
+        &mut self,
+        running: bool,
+        link: &LinkConfig,
+        period_s: f32,
+        cause: StopCode,
+    ) {
+        if self.braking.is_some() || !running {
+            return;
+        }
+        let r = self.last_ref;
+        let t_v = r.v_mps.abs() / link.brake_decel_mps2;
+        let t_w = r.omega_radps.abs() / link.ang_accel_radps2;
+        let ticks = ((t_v.max(t_w) / period_s) as u32).saturating_add(1);
+        let t = ticks as f32 * period_s;
+        self.braking = Some(Braking {
+            vehicle: VirtualVehicle::from_sample(RefSample {
+                v_dot_mps2: -r.v_mps / t,
+                omega_dot_radps2: -r.omega_radps / t,
+                ..r
+            }),
+            rates: [-r.v_mps / t, -r.omega_radps / t],
+            ticks_left: ticks,
+            cause,
+        });
+    }
+
+    /// This tick's reference (`running`: the runtime runs; `t_ref_s`: its
+    /// reference time; `now_us`: the robot clock).
+    pub fn select(
+        &mut self,
+        running: bool,
+        t_ref_s: f32,
+        now_us: u32,
+        link: &LinkConfig,
+        period_s: f32,
+    ) -> Selected {
+        let dt = period_s;
+        if let Some(b) = &mut self.braking {
+            if b.ticks_left == 0 {
+                let rest = RefSample {
+                    v_mps: 0.0,
+                    omega_radps: 0.0,
+                    v_dot_mps2: 0.0,
+                    omega_dot_radps2: 0.0,
+                    ..b.vehicle.sample
+                };
+                return Selected::Finished(b.cause, rest);
+            }
+            let out = b.vehicle.sample;
+            b.vehicle.advance(dt, b.rates[0], b.rates[1]);
+            b.ticks_left -= 1;
+            return Selected::Drive(out);
+        }
+        if !running {
+            return Selected::Drive(self.last_ref);
+        }
+        let sample = match self.mode {
+            Mode::None => self.last_ref,
+            Mode::Builtin(p) => p.sample(t_ref_s),
+            Mode::Trajectory => match self.waypoints.sample(t_ref_s) {
+                Some(r) => r,
+                None => {
+                    self.start_braking(running, link, period_s, StopCode::TrajectoryEnd);
+                    return self.select(running, t_ref_s, now_us, link, period_s);
+                }
+            },
+            Mode::Velocity => {
+                let expired = match self.velocity.expires_us {
+                    Some(e) => (now_us.wrapping_sub(e) as i32) >= 0,
+                    None => true,
+                };
+                // No live command (expired, or armed without one): stop.
+                if expired {
+                    self.velocity = VelocityCmd::default();
+                    self.start_braking(running, link, period_s, StopCode::VelocityTimeout);
+                    return self.select(running, t_ref_s, now_us, link, period_s);
+                }
+                let s = self.vehicle.sample;
+                let a = VirtualVehicle::ramp_rate(
+                    s.v_mps,
+                    self.velocity.target[0],
+                    link.accel_mps2,
+                    dt,
+                );
+                let al = VirtualVehicle::ramp_rate(
+                    s.omega_radps,
+                    self.velocity.target[1],
+                    link.ang_accel_radps2,
+                    dt,
+                );
+                let mut out = s;
+                out.v_dot_mps2 = a;
+                out.omega_dot_radps2 = al;
+                self.vehicle.advance(dt, a, al);
+                out
+            }
+        };
+        Selected::Drive(sample)
+    }
+}

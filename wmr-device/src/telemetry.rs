@@ -1,0 +1,148 @@
+//! Telemetry and events: what the robot sends without being asked. The
+//! telemetry schedule (rate, groups, sequence numbers), the counters it
+//! carries, and the state-change events.
+
+use crate::framing::{bump, Framing, LinkCounters};
+use crate::params::LinkConfig;
+use crate::reference::pose_to_msg;
+use controller_core::runtime::{Status, TickReport};
+use wmr_protocol::{
+    Counters, EstimatorTelemetry, Event, Reply, RunStateMsg, StopCode, Telemetry,
+    TrackingTelemetry, MAX_FRAME, TELEMETRY_COUNTERS, TELEMETRY_ESTIMATORS, TELEMETRY_TRACKING,
+};
+
+/// Every counter: the runtime's and the link's.
+pub(crate) fn counters(s: &Status, link: &LinkCounters) -> Counters {
+    Counters {
+        ticks: s.ticks,
+        run_ticks: s.run_ticks,
+        overruns: s.overruns,
+        max_loop_time_us: s.max_loop_time_us,
+        encoder_jumps: s.encoder_jumps,
+        input_faults: s.input_faults,
+        torque_saturated: s.torque_saturated,
+        duty_saturated: s.duty_saturated,
+        external_poses: s.external_poses,
+        stops: s.stops,
+        rx_frames: link.rx_frames,
+        rx_errors: link.rx_errors,
+        rx_overflow: link.rx_overflow,
+        tx_dropped: link.tx_dropped,
+        nacks: link.nacks,
+    }
+}
+
+/// The telemetry schedule and the last state reported in an event.
+pub(crate) struct TelemetryScheduler {
+    seq: u32,
+    countdown: u32,
+    reported_state: RunStateMsg,
+}
+
+impl TelemetryScheduler {
+    pub fn new() -> Self {
+        Self {
+            seq: 0,
+            countdown: 0,
+            reported_state: RunStateMsg::Hold,
+        }
+    }
+
+    /// The rate or the groups changed: the next tick sends a frame.
+    pub fn restart(&mut self) {
+        self.countdown = 0;
+    }
+
+    /// Sends a state-change event when `state` differs from the last one
+    /// reported; `cause`: the braking cause when stopping, else the stop
+    /// not yet reported (taken).
+    pub fn report_state(
+        &mut self,
+        framing: &mut Framing,
+        state: RunStateMsg,
+        braking_cause: Option<StopCode>,
+        pending_cause: &mut Option<StopCode>,
+    ) {
+        if state != self.reported_state {
+            self.reported_state = state;
+            let cause = match state {
+                RunStateMsg::Running => None,
+                RunStateMsg::Stopping => braking_cause,
+                _ => pending_cause.take(),
+            };
+            framing.send(&Reply::Event(Event::StateChanged { state, cause }));
+        }
+    }
+
+    /// The telemetry frame of this tick, when one is due and fits.
+    // Out of line: one copy (smaller firmware; the call costs nothing here).
+    #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
+    pub fn tick(
+        &mut self,
+        framing: &mut Framing,
+        link: &LinkConfig,
+        period_s: f32,
+        now_us: u32,
+        state: RunStateMsg,
+        status: &Status,
+        rep: &TickReport,
+    ) {
+        let rate = link.telemetry_rate_hz;
+        if rate == 0 {
+            return;
+        }
+        if self.countdown > 0 {
+            self.countdown -= 1;
+            return;
+        }
+        let every = ((1.0 / (rate as f32 * period_s)) + 0.5) as u32;
+        self.countdown = every.max(1) - 1;
+        // Keep room for a reply: telemetry only when two frames still fit.
+        if framing.tx_free() < 2 * MAX_FRAME {
+            bump(&mut framing.counters.tx_dropped);
+            self.seq = self.seq.wrapping_add(1);
+            return;
+        }
+        let sel = link.telemetry_selection;
+        let d = &rep.diag;
+        let duty = rep.duty.map(|c| {
+            if c.reverse {
+                -(c.duty as i32)
+            } else {
+                c.duty as i32
+            }
+        });
+        let t = Telemetry {
+            seq: self.seq,
+            t_robot_us: now_us,
+            t_ref_s: rep.t_s,
+            state,
+            tracking: (sel & TELEMETRY_TRACKING != 0).then(|| TrackingTelemetry {
+                pose: pose_to_msg(rep.pose),
+                ref_pose: pose_to_msg(rep.reference.pose),
+                error: d.error,
+                eta: rep.eta.as_array(),
+                eta_c: d.eta_c,
+                torque_nm: rep.torque_nm,
+                duty,
+                saturated: d.saturated,
+                time_scale: rep.pace.scale,
+                tau_s: rep.pace.tau_s,
+                health: rep.pace.mode as u8,
+                health_reason: rep.pace.reason as u8,
+            }),
+            estimators: (sel & TELEMETRY_ESTIMATORS != 0).then(|| EstimatorTelemetry {
+                s: d.s,
+                rho_hat: d.rho_hat,
+                d_hat: d.d_hat,
+                f_hat: d.f_hat,
+                external_pose: rep.external_pose,
+                input_fault: d.fault.is_some(),
+            }),
+            counters: (sel & TELEMETRY_COUNTERS != 0).then(|| counters(status, &framing.counters)),
+        };
+        self.seq = self.seq.wrapping_add(1);
+        framing.send(&Reply::Telemetry(t));
+    }
+}
