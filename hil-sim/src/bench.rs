@@ -128,7 +128,8 @@ pub fn measure_floor(scn: &Scenario, reps: usize) -> Floor {
     // The plant as every loop runs it: the scenario's world (ideal
     // instruments: no sensor cost) advanced with held torques.
     let proposed = controller_config(scn, ControllerKind::Proposed);
-    let world0 = crate::world::ideal_world(scn, &proposed).expect("the scenario's world is valid");
+    let world0 = crate::closed_loop::world::ideal_world(scn, &proposed)
+        .expect("the scenario's world is valid");
     let plant_ns = time_per_period(reps, n, || {
         let mut world = world0.clone();
         for _ in 0..n {

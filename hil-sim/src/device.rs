@@ -11,7 +11,6 @@
 
 use crate::hil::sensing_estimator_config;
 use crate::scenario::{Scenario, Sensing};
-use crate::sensing::SensorSetup;
 use crate::sim::controller_config;
 use controller_core::runtime::{LoopTimer, TickReport};
 use controller_core::ControllerKind;
@@ -50,7 +49,7 @@ impl SimRobot {
         };
         let controller = controller_config(scn, kind);
         let cfg = scn.runtime_config(controller, crate::hil::HilOptions::default().safety);
-        let mut estimator = sensing_estimator_config(&SensorSetup::of(scn)?);
+        let mut estimator = sensing_estimator_config(&scn.sensor_setup()?);
         estimator.com_offset_m = controller.robot.com_offset_m;
         estimator.initial_pose = cfg.initial_pose;
         let dev_cfg = DeviceConfig {
@@ -65,7 +64,7 @@ impl SimRobot {
         Ok(Self {
             device,
             timer,
-            world: crate::world::hardware_world(scn, &cfg, None)?,
+            world: crate::closed_loop::world::hardware_world(scn, &cfg, None)?,
             period_s: scn.control_period_s,
             step: 0,
         })

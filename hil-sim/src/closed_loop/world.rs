@@ -4,7 +4,6 @@
 //! loop hil-sim closes (`run`, the HIL runs, the robot behind the link).
 
 use crate::scenario::Scenario;
-use crate::sensing::SensorSetup;
 use controller_core::runtime::RuntimeConfig;
 use controller_core::{ControllerConfig, RobotParams};
 use sim_robot::world::{DeadEncoder, Faults, HardwareSensing, IdealSensing, Instruments};
@@ -54,7 +53,7 @@ pub fn hardware_world(
     runtime: &RuntimeConfig,
     dead_encoder: Option<(usize, f64)>,
 ) -> Result<World, String> {
-    let sensors = SensorSetup::of(scn)?;
+    let sensors = scn.sensor_setup()?;
     let hw = HardwareSensing {
         encoder: runtime.encoder,
         motor: runtime.motor,
