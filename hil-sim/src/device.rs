@@ -49,9 +49,8 @@ impl SimRobot {
         };
         let controller = controller_config(scn, kind);
         let cfg = scn.runtime_config(controller, crate::hil::HilOptions::default().safety);
-        let mut estimator = sensing_estimator_config(&scn.sensor_setup()?);
-        estimator.com_offset_m = controller.robot.com_offset_m;
-        estimator.initial_pose = cfg.initial_pose;
+        // The runtime gives the estimator its geometry and initial pose.
+        let estimator = sensing_estimator_config(&scn.sensor_setup()?);
         let dev_cfg = DeviceConfig {
             chip: "sim",
             capabilities: CAP_EXTERNAL_POSE | CAP_TRAJECTORY | CAP_VELOCITY | CAP_SIMULATED,

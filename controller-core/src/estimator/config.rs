@@ -46,8 +46,12 @@ pub const CHI2_999_3DOF: f32 = 16.27;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct EstimatorConfig {
     /// Distance d from the axle midpoint to G \[m\] (measurements are of G).
+    /// A [`ControlLoop`](crate::runtime::ControlLoop) sets it from its
+    /// robot's geometry.
     pub com_offset_m: f32,
-    /// Pose of G where the estimate starts.
+    /// Pose of G where the estimate starts. A
+    /// [`ControlLoop`](crate::runtime::ControlLoop) sets it to its
+    /// configuration's initial pose.
     pub initial_pose: Pose,
     /// Initial std. dev. of each position coordinate \[m\].
     pub initial_position_std_m: f32,

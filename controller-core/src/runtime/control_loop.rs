@@ -67,7 +67,13 @@ impl<const H: usize> ControlLoop<H> {
         let counts = WheelCounts::new(cfg.encoder)?;
         cfg.safety.validate()?;
         let pacer = Pacer::new(cfg.pacing, &cfg.controller)?;
-        let estimator = PoseEstimator::with_history(estimator)?;
+        // The loop owns the robot and where it starts: the estimator takes
+        // its geometry and initial pose from `cfg`, not from its own copy.
+        let estimator = PoseEstimator::with_history(EstimatorConfig {
+            com_offset_m: cfg.controller.robot.com_offset_m,
+            initial_pose: cfg.initial_pose,
+            ..estimator
+        })?;
         Ok(Self {
             pace: pacer.initial_state(),
             pacer,

@@ -576,3 +576,19 @@ fn stale_external_pose_degrades_health() {
     );
     assert!(run(false).iter().all(|(_, m, _)| *m == HealthMode::Nominal));
 }
+
+/// The estimator takes the robot's geometry and initial pose from the loop
+/// that owns it, whatever its own configuration says.
+#[test]
+fn estimator_geometry_and_start_come_from_the_loop() {
+    let cfg = RuntimeConfig {
+        initial_pose: Pose::new(1.0, -2.0, 0.5),
+        ..line_config(0.5)
+    };
+    let stale = crate::estimator::EstimatorConfig::example(0.3, Pose::new(9.0, 9.0, 9.0));
+    let cl: ControlLoop = ControlLoop::with_estimator(cfg, stale).unwrap();
+    let est = cl.estimator();
+    assert_eq!(est.estimate().pose, cfg.initial_pose);
+    assert_eq!(est.config().com_offset_m, cfg.controller.robot.com_offset_m);
+    assert_eq!(est.config().initial_pose, cfg.initial_pose);
+}

@@ -70,9 +70,7 @@ pub struct RuntimeSide {
 impl RuntimeSide {
     /// The runtime of `cfg` with the estimator `est` (its initial pose and
     /// centre-of-mass offset taken from `cfg`), armed.
-    pub fn new(cfg: RuntimeConfig, mut est: EstimatorConfig) -> Result<Self, String> {
-        est.com_offset_m = cfg.controller.robot.com_offset_m;
-        est.initial_pose = cfg.initial_pose;
+    pub fn new(cfg: RuntimeConfig, est: EstimatorConfig) -> Result<Self, String> {
         let mut control =
             ControlLoop::with_estimator(cfg, est).map_err(|e| format!("runtime config: {e}"))?;
         let timer = LoopTimer::from_config(&cfg).map_err(|e| format!("loop timer: {e}"))?;
