@@ -296,8 +296,8 @@ impl Scenario {
     }
 
     /// The sensors of this scenario: its sensing preset with its overrides.
-    pub fn sensor_setup(&self) -> Result<crate::sensing::SensorSetup, String> {
-        crate::sensing::SensorSetup::of(self.sensing, &self.gyro, &self.pose)
+    pub fn sensor_setup(&self) -> Result<crate::sensing::SensorModels, String> {
+        crate::sensing::SensorModels::of(self.sensing, &self.gyro, &self.pose)
     }
 
     /// The section-4 perturbations of this scenario.

@@ -159,16 +159,16 @@ pub fn overlay<T: Serialize + serde::de::DeserializeOwned>(base: &T, top: &T) ->
         .expect("a merge of two valid override tables is valid")
 }
 
-/// The sensors of a scenario: preset plus overrides.
+/// The sensor models of a scenario: its preset's, with the overrides applied.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SensorSetup {
+pub struct SensorModels {
     /// The z-gyro, if the preset has one.
     pub gyro: Option<GyroModel>,
     /// The external pose source, if the preset has one.
     pub pose: Option<PoseSourceModel>,
 }
 
-impl SensorSetup {
+impl SensorModels {
     /// The preset `sensing` with the overrides `gyro` and `pose`; an
     /// override of a sensor the preset does not have is an error.
     pub fn of(
@@ -274,7 +274,7 @@ mod tests {
     #[test]
     fn presets_have_the_issue_values() {
         let s = |sensing| {
-            SensorSetup::of(
+            SensorModels::of(
                 sensing,
                 &GyroOverrides::default(),
                 &PoseOverrides::default(),
@@ -283,14 +283,14 @@ mod tests {
         };
         assert_eq!(
             s(Sensing::Ideal),
-            SensorSetup {
+            SensorModels {
                 gyro: None,
                 pose: None
             }
         );
         assert_eq!(
             s(Sensing::Odometry),
-            SensorSetup {
+            SensorModels {
                 gyro: None,
                 pose: None
             }
@@ -326,7 +326,7 @@ mod tests {
             },
             ..Scenario::default()
         };
-        let s = SensorSetup::of(scn.sensing, &scn.gyro, &scn.pose).unwrap();
+        let s = SensorModels::of(scn.sensing, &scn.gyro, &scn.pose).unwrap();
         let p = s.pose.unwrap();
         assert_eq!(
             (p.rate_hz, p.heading_noise_rad, p.outage_s),

@@ -14,7 +14,7 @@
 //! and the safety supervisor are the code the firmware runs.
 
 use crate::closed_loop::{ControlOutput, ControlSide};
-use crate::sensing::SensorSetup;
+use crate::sensing::SensorModels;
 use controller_core::estimator::{EstimatorConfig, EstimatorStatus};
 use controller_core::runtime::{ControlLoop, LoopTimer, RuntimeConfig, SafetyLimits, StopReason};
 use controller_core::{ControllerKind, Pose};
@@ -48,7 +48,7 @@ impl Default for HilOptions {
 /// The estimator tuning for a set of simulated sensors, as a user would
 /// set it from the data sheets: [`EstimatorConfig::example`] with the
 /// gyro's full scale.
-pub fn sensing_estimator_config(sensors: &SensorSetup) -> EstimatorConfig {
+pub fn sensing_estimator_config(sensors: &SensorModels) -> EstimatorConfig {
     let mut est = EstimatorConfig::example(0.0, Pose::default());
     if let Some(g) = sensors.gyro {
         est.gyro_saturation_radps = g.saturation_radps as f32;
