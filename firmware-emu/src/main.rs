@@ -7,6 +7,10 @@
 //! firmware's `firmware/src/config.rs`, compiled here unchanged. Only the
 //! board differs: [`sim`] (the simulated robot), [`time`] (SysTick time
 //! driver), [`uart`] (the link), [`watchdog`], [`log`] (semihosting).
+//!
+//! Module graph (no cycles): `main` -> every module; `board` -> `sim`,
+//! `time`, `watchdog`, `log`, `config`; `log` -> `sim`, `config`; `sim` ->
+//! `config`, `time`; `config` (the STM32 firmware's, a leaf) -> none.
 #![no_std]
 #![no_main]
 
@@ -53,8 +57,8 @@ fn main() -> ! {
     let mut estimator = config::ESTIMATOR;
     estimator.gyro_saturation_radps = sim::gyro_saturation_radps();
     let dev_cfg = DeviceConfig {
-        capabilities: config::DEVICE.capabilities | wmr_protocol::CAP_SIMULATED,
-        ..config::DEVICE
+        capabilities: config::CAPABILITIES | wmr_protocol::CAP_SIMULATED,
+        ..config::device(board::CHIP_ID)
     };
     let (device, timer, button) = match (
         Robot::with_estimator(dev_cfg, cfg, estimator),
@@ -154,7 +158,7 @@ async fn link_tx(mut tx: uart::Tx) {
 
 #[embassy_executor::task]
 async fn plant(cfg: controller_core::runtime::RuntimeConfig, period_us: u32) {
-    sim::plant_task(cfg, period_us).await
+    log::fail(sim::plant_task(cfg, period_us).await)
 }
 
 /// `stall-test`: 3 s after boot, a task hogs the executor for good (a

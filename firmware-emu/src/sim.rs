@@ -41,19 +41,6 @@ pub struct SimHw {
     killed: bool,
 }
 
-/// A fatal error of the simulated robot: motors off, one line, QEMU exits
-/// with status 1 (what `crate::log::fail` does; `log` sits above this
-/// module, which it reads for the status line, so this module does not
-/// call up into it).
-fn fatal(what: &str) -> ! {
-    kill_motors();
-    cortex_m_semihosting::hprintln!("FATAL: {}", what);
-    cortex_m_semihosting::debug::exit(cortex_m_semihosting::debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
 /// The simulated hardware (None until [`init`]).
 static HW: Mutex<RefCell<Option<SimHw>>> = Mutex::new(RefCell::new(None));
 
@@ -174,13 +161,20 @@ pub fn report() -> PlantReport {
 }
 
 /// Advances the robot one control period per period, half a period after
-/// each control tick, from the loop's start on. Never returns; a diverged
-/// plant ends the run (a failed run, exit code 1).
-pub async fn plant_task(_cfg: controller_core::runtime::RuntimeConfig, period_us: u32) -> ! {
+/// each control tick, from the loop's start on. Returns only when the
+/// simulation cannot go on (no world, no hardware, a diverged plant), with
+/// the reason: the caller ends the run (a failed run, exit code 1).
+/// Returning it rather than failing here keeps this module below the log
+/// (`log` reads [`report`]; nothing here names `log`). The world was built
+/// from the same configuration by [`init`].
+pub async fn plant_task(
+    _cfg: controller_core::runtime::RuntimeConfig,
+    period_us: u32,
+) -> &'static str {
     let t0 = LOOP_START.wait().await;
     let dt_s = period_us as f64 * 1e-6;
     let Some(mut world) = critical_section::with(|cs| WORLD.borrow(cs).take()) else {
-        fatal("plant: no world (sim::init not run)");
+        return "plant: no world (sim::init not run)";
     };
     let t0_us = t0.as_micros();
     let mut k: u64 = 1;
@@ -192,11 +186,11 @@ pub async fn plant_task(_cfg: controller_core::runtime::RuntimeConfig, period_us
         .await;
         let c0 = crate::time::instructions();
         let Some(bridge) = with_hw(|hw| hw.bridge) else {
-            fatal("plant: no hardware");
+            return "plant: no hardware";
         };
         // Nothing perturbs this world: the step does not depend on its start time.
         if world.advance(Actuation::Bridge(bridge), dt_s).is_err() {
-            fatal("plant: state diverged");
+            return "plant: state diverged";
         }
         let t_next_s = (t0_us + (k + 1) * period_us as u64) as f64 * 1e-6;
         let reading = world.sense(t_next_s);

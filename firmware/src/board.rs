@@ -22,7 +22,8 @@
 //! drives them low before the clocks start, the PWM channels stay enabled
 //! with a zero compare value while disarmed (driven low by TIM1, not
 //! released), TIM1 forces them low when a debugger halts the core, and
-//! [`motors_off_raw`] cuts everything from the fault handlers. Between reset
+//! the fault and panic entries (`fault.rs`) cut everything with
+//! register-only stores before they touch the stack. Between reset
 //! and the first instruction only the external pull-downs hold them (see
 //! the README's pin-state table).
 
@@ -46,43 +47,6 @@ pub type BoardGyro = crate::imu::ImuGyro;
 #[cfg(not(feature = "imu"))]
 pub type BoardGyro = controller_core::runtime::NoGyro;
 
-/// The IMU's 7-bit I2C address: 0x68 (MPU-6050 AD0 low, as on GY-521
-/// modules; 0x69 with AD0 high).
-#[cfg(feature = "imu")]
-pub const IMU_I2C_ADDRESS: u8 = 0x68;
-/// I2C1 clock for the IMU \[Hz\]: fast mode (a gyro read is about 0.25 ms).
-#[cfg(feature = "imu")]
-pub const IMU_I2C_HZ: u32 = 400_000;
-
-/// The IMU's bus: I2C1 on PB8 (SCL) / PB9 (SDA), AF4 on both chips, with
-/// DMA1 stream 6 channel 1 (I2C1_TX) and stream 0 channel 1 (I2C1_RX)
-/// (RM0383 table 27 / RM0390 table 28). None of these is used elsewhere:
-/// PB6/PB7 (also I2C1) are TIM4's encoder inputs, hence the PB8/PB9 pair.
-#[cfg(feature = "imu")]
-pub struct ImuPeripherals {
-    /// I2C1.
-    pub i2c: embassy_stm32::Peri<'static, embassy_stm32::peripherals::I2C1>,
-    /// SCL.
-    pub scl: embassy_stm32::Peri<'static, embassy_stm32::peripherals::PB8>,
-    /// SDA.
-    pub sda: embassy_stm32::Peri<'static, embassy_stm32::peripherals::PB9>,
-    /// TX DMA (DMA1 stream 6).
-    pub tx_dma: embassy_stm32::Peri<'static, embassy_stm32::peripherals::DMA1_CH6>,
-    /// RX DMA (DMA1 stream 0).
-    pub rx_dma: embassy_stm32::Peri<'static, embassy_stm32::peripherals::DMA1_CH0>,
-}
-
-#[cfg(feature = "imu")]
-embassy_stm32::bind_interrupts!(
-    /// The IMU bus's interrupts (I2C1 events and errors, its two DMA streams).
-    pub struct ImuIrqs {
-        I2C1_EV => embassy_stm32::i2c::EventInterruptHandler<embassy_stm32::peripherals::I2C1>;
-        I2C1_ER => embassy_stm32::i2c::ErrorInterruptHandler<embassy_stm32::peripherals::I2C1>;
-        DMA1_STREAM6 => embassy_stm32::dma::InterruptHandler<embassy_stm32::peripherals::DMA1_CH6>;
-        DMA1_STREAM0 => embassy_stm32::dma::InterruptHandler<embassy_stm32::peripherals::DMA1_CH0>;
-    }
-);
-
 #[cfg(all(feature = "stm32f411ce", feature = "stm32f446re"))]
 compile_error!("select exactly one chip feature: stm32f411ce or stm32f446re");
 #[cfg(not(any(feature = "stm32f411ce", feature = "stm32f446re")))]
@@ -105,13 +69,11 @@ pub const CHIP: &str = "STM32F446RE (Nucleo-64), HSE 8 MHz bypass -> SYSCLK 168 
 /// Core clock \[Hz\] (DWT cycle counts are in these cycles); the same on
 /// the HSI fallback.
 #[cfg(feature = "stm32f411ce")]
-#[allow(dead_code)] // used by the `rtt-telemetry` lines
 pub const SYSCLK_HZ: u32 = 96_000_000;
 /// Core clock \[Hz\] (DWT cycle counts are in these cycles); the same on
 /// the HSI fallback. 168 MHz rather than the chip's 180 MHz so that the
 /// main PLL's Q output gives the 48 MHz USB clock (see [`clock_config`]).
 #[cfg(feature = "stm32f446re")]
-#[allow(dead_code)] // used by the `rtt-telemetry` lines
 pub const SYSCLK_HZ: u32 = 168_000_000;
 
 /// HSE mode: a 25 MHz crystal on the Black Pill.
@@ -127,8 +89,11 @@ const HSE: rcc::Hse = rcc::Hse {
     mode: rcc::HseMode::Bypass,
 };
 
-/// Longest wait for HSE ready at boot \[ms\] (crystals start in a few ms;
-/// ST's HAL allows 100 ms). Beyond it the board runs on the HSI.
+/// Polls of HSE ready at boot, each after a busy wait of at least 1 ms
+/// (crystals start in a few ms; ST's HAL allows 100 ms). Beyond them the
+/// board runs on the HSI. `cortex_m::asm::delay` waits *at least* its
+/// cycle count, not exactly: the whole wait is at least 100 ms and
+/// 0.3-0.4 s in practice (issue 21), while the outputs stay low.
 pub const HSE_STARTUP_TIMEOUT_MS: u32 = 100;
 
 /// Encoder input pulls. `Up` for open-collector encoders (add external
@@ -325,6 +290,8 @@ impl ArmButton {
 pub struct Board {
     /// The oscillator the clocks run from.
     pub clock: ClockSource,
+    /// Why the chip last reset (RCC_CSR at boot).
+    pub reset_cause: wmr_protocol::ResetCause,
     /// `(right, left)` encoders.
     pub encoders: Encoders,
     /// Motor driver, disabled.
@@ -341,10 +308,61 @@ pub struct Board {
     pub gyro: BoardGyro,
     /// The IMU's bus and pins, taken by `main` to start the IMU task.
     #[cfg(feature = "imu")]
-    pub imu: Option<ImuPeripherals>,
+    pub imu: Option<crate::imu::ImuPeripherals>,
     /// External poses come over the host link only.
     pub pose_source: WheelOdometryOnly,
 }
+
+// The motor outputs driven low at the very start of the reset handler,
+// before cortex-m-rt zeroes .bss and copies .data (about 1.5 ms on the
+// 16 MHz reset clock, during which the pins would otherwise float):
+// cortex-m-rt's `Reset` calls `__pre_init` first. Assembly, registers
+// only, no RAM (none is initialised yet); the same writes as
+// [`outputs_low_early`], which `main` repeats (idempotent). RCC AHB1ENR
+// (0x4002_3830) GPIOAEN | GPIOBEN, read back; GPIOB (0x4002_0400) and
+// GPIOA (0x4002_0000): BSRR resets PB12-14 / PA8-9, PUPDR pull-downs on
+// PB14, PA8, PA9, MODER outputs on PB12-14, PA8-9.
+core::arch::global_asm!(
+    ".section .text.__pre_init,\"ax\",%progbits",
+    ".global __pre_init",
+    ".type __pre_init,%function",
+    ".thumb_func",
+    "__pre_init:",
+    "movw r0, #0x3830",
+    "movt r0, #0x4002",
+    "ldr r1, [r0]",
+    "orr r1, r1, #3",
+    "str r1, [r0]",
+    "ldr r1, [r0]",
+    "movw r0, #0x0400",
+    "movt r0, #0x4002",
+    "movw r2, #0x0000",
+    "movt r2, #0x4002",
+    "movw r1, #0x0000",
+    "movt r1, #0x7000",
+    "str r1, [r0, #0x18]",
+    "movw r1, #0x0000",
+    "movt r1, #0x0300",
+    "str r1, [r2, #0x18]",
+    "ldr r1, [r0, #0x0C]",
+    "bic r1, r1, #0x30000000",
+    "orr r1, r1, #0x20000000",
+    "str r1, [r0, #0x0C]",
+    "ldr r1, [r2, #0x0C]",
+    "bic r1, r1, #0xF0000",
+    "orr r1, r1, #0xA0000",
+    "str r1, [r2, #0x0C]",
+    "ldr r1, [r0]",
+    "bic r1, r1, #0x3F000000",
+    "orr r1, r1, #0x15000000",
+    "str r1, [r0]",
+    "ldr r1, [r2]",
+    "bic r1, r1, #0xF0000",
+    "orr r1, r1, #0x50000",
+    "str r1, [r2]",
+    "bx lr",
+    ".size __pre_init, . - __pre_init",
+);
 
 /// Drives the motor outputs low with raw register writes, before anything
 /// else runs (call it first in `main`, before [`init`]): ENABLE (PB14), DIR
@@ -354,11 +372,12 @@ pub struct Board {
 /// GPIO clocks (it does not reset the ports), so this state holds until
 /// [`init`] reconfigures the pins.
 ///
-/// Not a `#[pre_init]`: cortex-m-rt 0.7 deprecates it (Rust before RAM
-/// initialisation is undefined behaviour), and it would gain only the RAM
-/// initialisation (about 2.2 KiB of .bss/.data, tens of µs at 16 MHz);
-/// the pins float from reset to here in any case, which is what the
-/// external pull-downs are for.
+/// The `__pre_init` assembly above has done the same before the RAM
+/// initialisation (Rust cannot run there: cortex-m-rt 0.7 deprecates
+/// `#[pre_init]`, Rust before RAM initialisation is undefined behaviour);
+/// this repeats it in Rust, idempotently. The pins float from reset to the
+/// first instructions in any case, which is what the external pull-downs
+/// are for.
 pub fn outputs_low_early() {
     pac::RCC.ahb1enr().modify(|w| {
         w.set_gpioaen(true);
@@ -397,6 +416,7 @@ pub fn outputs_low_early() {
 /// PWM channels enabled at duty 0 (driven low by TIM1). Call
 /// [`outputs_low_early`] first.
 pub fn init() -> Board {
+    let reset_cause = read_reset_cause();
     let clock = start_hse();
     let p = embassy_stm32::init(clock_config(clock));
     if clock == ClockSource::Hse {
@@ -481,6 +501,7 @@ pub fn init() -> Board {
 
     Board {
         clock,
+        reset_cause,
         encoders,
         motors: HBridge {
             pwm,
@@ -491,9 +512,12 @@ pub fn init() -> Board {
         button,
         watchdog,
         link,
-        gyro: BoardGyro::default(),
         #[cfg(feature = "imu")]
-        imu: Some(ImuPeripherals {
+        gyro: crate::imu::gyro(),
+        #[cfg(not(feature = "imu"))]
+        gyro: controller_core::runtime::NoGyro,
+        #[cfg(feature = "imu")]
+        imu: Some(crate::imu::ImuPeripherals {
             i2c: p.I2C1,
             scl: p.PB8,
             sda: p.PB9,
@@ -504,38 +528,22 @@ pub fn init() -> Board {
     }
 }
 
+/// The last reset's cause from the RCC_CSR flags (RM0383 §6.3.20 /
+/// RM0390 §6.3.21; decoded by `robot_app::reset`), then clears them
+/// (RMVF) so the next boot reports its own reset only. Read before
+/// embassy's init, which touches the register (LSION).
+fn read_reset_cause() -> wmr_protocol::ResetCause {
+    let csr = pac::RCC.csr().read();
+    pac::RCC.csr().modify(|w| w.set_rmvf(true));
+    robot_app::reset::from_stm32f4_csr(csr.0)
+}
+
 fn qei_config() -> qei::Config {
     qei::Config {
         ch1_pull: ENCODER_PULL,
         ch2_pull: ENCODER_PULL,
         ..qei::Config::default() // mode 3 (×4), full 16-bit range
     }
-}
-
-/// Turns the motor outputs off with raw register writes, usable from the
-/// panic, fault and NMI handlers whatever state the drivers are in: ENABLE
-/// and DIR low, TIM1 main output off (MOE = 0; with OSSI = 1 the timer
-/// drives the pins at their idle level, low), CCR = 0, PWM pins forced to
-/// GPIO output low. Idempotent; touches no RAM.
-pub fn motors_off_raw() {
-    // ENABLE (PB14), DIR (PB12, PB13) low.
-    pac::GPIOB.bsrr().write(|w| {
-        w.set_br(14, true);
-        w.set_br(12, true);
-        w.set_br(13, true);
-    });
-    pac::TIM1.bdtr().modify(|w| w.set_moe(false));
-    pac::TIM1.ccr(0).write(|w| w.set_ccr(0));
-    pac::TIM1.ccr(1).write(|w| w.set_ccr(0));
-    // PA8, PA9: output low (not floating on the driver's PWM input).
-    pac::GPIOA.bsrr().write(|w| {
-        w.set_br(8, true);
-        w.set_br(9, true);
-    });
-    pac::GPIOA.moder().modify(|w| {
-        w.set_moder(8, pac::gpio::vals::Moder::OUTPUT);
-        w.set_moder(9, pac::gpio::vals::Moder::OUTPUT);
-    });
 }
 
 /// The application's view of the board (robot-app): the control task
@@ -587,6 +595,6 @@ impl robot_app::Board for Board {
     }
 
     fn event(&mut self, event: &robot_app::AppEvent<'_>) {
-        crate::log::event(event);
+        crate::log::event(event, SYSCLK_HZ);
     }
 }

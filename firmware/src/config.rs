@@ -2,6 +2,11 @@
 //! your robot. Units are SI and named in the field names; the types document
 //! every field (`controller_core::RobotParams`,
 //! `controller_core::runtime::{MotorParams, EncoderParams, SafetyLimits}`).
+//!
+//! A leaf: it names nothing of this crate (board, IMU driver, log), only
+//! library types, so `firmware-emu` compiles it unchanged (`#[path]`) and
+//! supplies its own board. What depends on the chip (its handshake name)
+//! is a parameter ([`device`]).
 
 use controller_core::controller::{DEFAULT_K_Y, DEFAULT_TORQUE_LIMIT_NM};
 use controller_core::eso::EsoParams;
@@ -162,8 +167,8 @@ pub const ESTIMATOR: EstimatorConfig = EstimatorConfig {
 /// Check it by turning the robot by hand: `wmr status` / the `est` line
 /// must show the gyro's yaw rate with the sign of the wheels' one.
 #[cfg(feature = "imu")]
-pub const IMU_YAW: crate::imu::YawMapping = crate::imu::YawMapping {
-    axis: crate::imu::Axis::Z,
+pub const IMU_YAW: robot_app::imu::YawMapping = robot_app::imu::YawMapping {
+    axis: robot_app::imu::Axis::Z,
     inverted: false,
 };
 
@@ -174,7 +179,7 @@ pub const IMU_YAW: crate::imu::YawMapping = crate::imu::YawMapping {
 /// 4 / 0.2 = 20 rad/s), and such a reading counts as saturated, so the
 /// estimator uses the wheels meanwhile. One count is 2.7e-4 rad/s.
 #[cfg(feature = "imu")]
-pub const IMU_RANGE: crate::imu::GyroRange = crate::imu::GyroRange::Dps500;
+pub const IMU_RANGE: robot_app::imu::GyroRange = robot_app::imu::GyroRange::Dps500;
 
 /// Gyro low-pass filter (`imu` feature), the MPU-6050's DLPF_CFG:
 /// 2 = 98 Hz bandwidth, 2.8 ms delay, 1 kHz output rate (MPU-6050 register
@@ -184,6 +189,29 @@ pub const IMU_RANGE: crate::imu::GyroRange = crate::imu::GyroRange::Dps500;
 /// that vibrates more.
 #[cfg(feature = "imu")]
 pub const IMU_DLPF: u8 = 2;
+
+/// The IMU's 7-bit I2C address (`imu` feature): 0x68 (MPU-6050 AD0 low,
+/// as on GY-521 modules; 0x69 with AD0 high).
+#[cfg(feature = "imu")]
+pub const IMU_I2C_ADDRESS: u8 = 0x68;
+
+/// I2C clock for the IMU \[Hz\] (`imu` feature): fast mode (a gyro read
+/// is about 0.25 ms).
+#[cfg(feature = "imu")]
+pub const IMU_I2C_HZ: u32 = 400_000;
+
+/// The gyro's plausibility checks (`imu` feature, `robot_app::imu::GyroMonitor`):
+/// 50 bit-identical 3-axis readings in a row (50 ms at 1 kHz; a live
+/// chip's noise of about 3 counts RMS per axis never repeats that long)
+/// freeze it, so the estimator uses the wheels; a rate beyond 25 rad/s on
+/// any axis is implausible (the example robot spins at most at 20 rad/s,
+/// see [`IMU_RANGE`]; with ±500 °/s the chip clips at 8.73 rad/s, so this
+/// bound matters for the wider ranges).
+#[cfg(feature = "imu")]
+pub const IMU_MONITOR: robot_app::imu::MonitorConfig = robot_app::imu::MonitorConfig {
+    frozen_after: 50,
+    max_rate_radps: 25.0,
+};
 
 /// What the arm button drives when the host has loaded nothing: a circle of
 /// 0.5 m radius at 0.2 m/s starting where odometry starts (the origin,
@@ -207,15 +235,21 @@ pub const BUTTON_REFERENCE: BuiltinReference = BuiltinReference {
 /// until the host asks (`LinkConfig::DEFAULT`).
 pub const LINK: LinkConfig = LinkConfig::DEFAULT;
 
-/// The host link handler's configuration.
-pub const DEVICE: DeviceConfig = DeviceConfig {
-    chip: crate::board::CHIP_ID,
-    capabilities: wmr_protocol::CAP_EXTERNAL_POSE
-        | wmr_protocol::CAP_TRAJECTORY
-        | wmr_protocol::CAP_VELOCITY,
-    link: LINK,
-    button_reference: Some(BUTTON_REFERENCE),
-};
+/// What this firmware can do over the host link (handshake).
+pub const CAPABILITIES: u16 =
+    wmr_protocol::CAP_EXTERNAL_POSE | wmr_protocol::CAP_TRAJECTORY | wmr_protocol::CAP_VELOCITY;
+
+/// The host link handler's configuration for the board named `chip` in the
+/// handshake (the board's `CHIP_ID`, at most 16 bytes). A `const fn`: used
+/// in a constant, it folds into the device's construction.
+pub const fn device(chip: &'static str) -> DeviceConfig {
+    DeviceConfig {
+        chip,
+        capabilities: CAPABILITIES,
+        link: LINK,
+        button_reference: Some(BUTTON_REFERENCE),
+    }
+}
 
 /// The control task's local logs: a status line every second and the
 /// tracking lines at 20 Hz, printed only with the `rtt-telemetry` feature

@@ -1,18 +1,37 @@
 //! The host link's transport. The control task (robot-app) owns the
 //! protocol handler (`wmr_device::Device`); this module only moves bytes
 //! between the port and the two bounded pipes of [`PIPES`], and the control
-//! task never waits on them. When the host floods the link the receive pipe
-//! overflows (bytes dropped and counted, frames then fail their CRC and are
-//! counted by the device); when it stops reading or unplugs, the send pipe
-//! fills and the device drops (and counts) telemetry.
+//! task never waits on them. When the host stops reading or unplugs, the
+//! send pipe fills and the device drops (and counts) telemetry.
 //!
 //! * STM32F411CE: USB CDC-ACM (embassy-usb, OTG_FS on PA11/PA12, VBUS
-//!   detection off: PA9 is the left PWM output). A packet write that does
-//!   not complete within `usb::USB_WRITE_TIMEOUT_MS` (a host that is gone) is
-//!   dropped, so a stalled host never holds the link task either.
+//!   detection off: PA9 is the left PWM output).
+//!   - Receive: the OUT endpoint is read only when the receive pipe has
+//!     room for a whole packet (`LinkPipes::port_wait_rx_room`); until
+//!     then the endpoint NAKs and the host retries: a flooding host is held
+//!     off, nothing is dropped.
+//!   - Send: only while the host holds DTR (a program has the port open;
+//!     Linux and macOS raise it on open). While DTR is low what the device
+//!     queues is discarded (counted), and the backlog is discarded again
+//!     when DTR rises, so a host that opens the port reads fresh replies.
+//!     A packet write that does not complete within
+//!     `usb::USB_WRITE_TIMEOUT_MS` (a host that is gone) is dropped, so a
+//!     stalled host never holds the link task either.
+//!   - Unplug vs suspend: without VBUS sensing (PA9 is a PWM output) an
+//!     unplugged cable looks like a USB suspend (the bus goes idle). Either
+//!     way the device stops sending once the write times out, and the
+//!     robot side treats it as link silence (`link_timeout_ms`: a moving
+//!     robot brakes to a stop). On re-plug the host re-enumerates the
+//!     device and the link resumes; no state is lost.
 //! * STM32F446RE: USART2 on PA2 (TX) / PA3 (RX), the ST-LINK's virtual COM
 //!   port, 115 200 baud 8N1 (11.5 kB/s: about 60 telemetry frames per second
 //!   with every group; choose the rate with `wmr params set telemetry_rate_hz`).
+//!   No flow control: a flooding host overflows the receive pipe (bytes
+//!   dropped and counted, frames then fail their CRC and are counted by the
+//!   device). The receive interrupt counts the hardware's overrun, framing,
+//!   noise and parity flags and the bytes the driver's ring drops
+//!   (embassy-stm32 0.6 drops them silently) before embassy's handler runs;
+//!   both reach `wmr status` (`board: port rx dropped / errors`).
 
 use robot_app::LinkPipes;
 
@@ -92,15 +111,29 @@ mod usb {
         mut usb: UsbDevice<'static, UsbDriver>,
         class: CdcAcmClass<'static, UsbDriver>,
     ) {
-        let (mut tx, mut rx) = class.split();
+        let (mut tx, mut rx, control) = class.split_with_control();
         let receive = async {
             let mut buf = [0u8; MAX_PACKET as usize];
             loop {
                 rx.wait_connection().await;
-                while let Ok(n) = rx.read_packet(&mut buf).await {
-                    // Overflow is dropped (counted): the control task
-                    // reads at its own pace.
-                    PIPES.port_received(&buf[..n]);
+                loop {
+                    // Hold the host off (NAK) until a whole packet fits.
+                    PIPES.port_wait_rx_room(MAX_PACKET as usize).await;
+                    match rx.read_packet(&mut buf).await {
+                        Ok(n) => {
+                            PIPES.port_received(&buf[..n]);
+                        }
+                        Err(_) => break, // disconnected
+                    }
+                }
+            }
+        };
+        // The port opened (DTR rises): drop what was queued for nobody.
+        let dtr = async {
+            loop {
+                control.control_changed().await;
+                if control.dtr() {
+                    PIPES.discard_tx();
                 }
             }
         };
@@ -111,6 +144,11 @@ mod usb {
                 tx.wait_connection().await;
                 loop {
                     let n = PIPES.port_next_tx(&mut buf).await;
+                    if !control.dtr() {
+                        // Nobody has the port open: not a backlog for later.
+                        PIPES.count_tx_discarded(n);
+                        continue;
+                    }
                     match with_timeout(
                         Duration::from_millis(USB_WRITE_TIMEOUT_MS),
                         tx.write_packet(&buf[..n]),
@@ -126,7 +164,7 @@ mod usb {
                 }
             }
         };
-        embassy_futures::join::join3(usb.run(), receive, send).await;
+        embassy_futures::join::join4(usb.run(), receive, send, dtr).await;
     }
 }
 
@@ -144,8 +182,31 @@ mod uart {
     use static_cell::StaticCell;
 
     bind_interrupts!(struct Irqs {
-        USART2 => embassy_stm32::usart::BufferedInterruptHandler<USART2>;
+        USART2 => RxAccounting, embassy_stm32::usart::BufferedInterruptHandler<USART2>;
     });
+
+    /// The driver's receive ring \[bytes\].
+    const RX_RING_BYTES: usize = 256;
+
+    /// Runs before embassy's USART2 handler: counts the receiver's error
+    /// flags (USART_SR PE, FE, NF, ORE; RM0390 §25.6.1) and whether the
+    /// byte that raised RXNE still fits the driver's ring
+    /// (`LinkPipes::port_hw_byte`). Reading SR alone clears nothing (the
+    /// flags clear on SR then DR reads, which embassy's handler does next).
+    struct RxAccounting;
+
+    impl embassy_stm32::interrupt::typelevel::Handler<embassy_stm32::interrupt::typelevel::USART2>
+        for RxAccounting
+    {
+        unsafe fn on_interrupt() {
+            let sr = embassy_stm32::pac::USART2.sr().read();
+            let errors = sr.pe() as u32 + sr.fe() as u32 + sr.ne() as u32 + sr.ore() as u32;
+            PIPES.count_port_errors(errors);
+            if sr.rxne() {
+                PIPES.port_hw_byte(RX_RING_BYTES as u32);
+            }
+        }
+    }
 
     /// The peripherals of the link.
     pub struct LinkPeripherals {
@@ -160,7 +221,7 @@ mod uart {
     /// Opens USART2 at 115 200 baud and spawns its tasks.
     pub fn start(spawner: &Spawner, p: LinkPeripherals) {
         static TX_BUF: StaticCell<[u8; 256]> = StaticCell::new();
-        static RX_BUF: StaticCell<[u8; 256]> = StaticCell::new();
+        static RX_BUF: StaticCell<[u8; RX_RING_BYTES]> = StaticCell::new();
         let mut cfg = Config::default();
         cfg.baudrate = 115_200;
         let uart = unwrap!(BufferedUart::new(
@@ -168,7 +229,7 @@ mod uart {
             p.rx,
             p.tx,
             TX_BUF.init([0; 256]),
-            RX_BUF.init([0; 256]),
+            RX_BUF.init([0; RX_RING_BYTES]),
             Irqs,
             cfg
         )
@@ -178,9 +239,11 @@ mod uart {
         spawner.spawn(unwrap!(tx_task(tx).ok()));
     }
 
+    /// Takes the ring's bytes in place and reports them taken before the
+    /// ring frees them (exact ring-drop counting, `robot_app::pump_rx_ring`).
     #[embassy_executor::task]
     async fn rx_task(mut rx: BufferedUartRx<'static>) {
-        robot_app::pump_rx(&mut rx, &PIPES).await
+        robot_app::pump_rx_ring(&mut rx, &PIPES).await
     }
 
     /// A UART always drains (no host handshake), at the baud rate.

@@ -4,8 +4,11 @@ use defmt::{error, info, warn};
 use robot_app::AppEvent;
 use wmr_protocol::RunStateMsg;
 
-/// Logs one event of the control task.
-pub fn event(event: &AppEvent<'_>) {
+/// Logs one event of the control task (`sysclk_hz`: the core clock, the
+/// unit of the status line's cycle counts).
+pub fn event(event: &AppEvent<'_>, sysclk_hz: u32) {
+    #[cfg(not(feature = "rtt-telemetry"))]
+    let _ = sysclk_hz;
     match event {
         AppEvent::Started => info!("control loop running; watchdog started"),
         AppEvent::State(state) => match state {
@@ -34,7 +37,7 @@ pub fn event(event: &AppEvent<'_>) {
             s.tick_cycles_mean,
             s.tick_cycles_max,
             s.tick_cycles_max_link,
-            crate::board::SYSCLK_HZ,
+            sysclk_hz,
             s.rx_dropped_bytes
         ),
         _ => {}

@@ -122,6 +122,10 @@ impl ControlTask {
         pipes: &LinkPipes,
     ) {
         let timing = self.timer.tick(now_us);
+        // The port's own losses into the status the host reads.
+        let report = dev.board_report_mut();
+        report.port_rx_dropped = pipes.rx_dropped_bytes();
+        report.port_rx_errors = pipes.rx_port_errors();
         let c0 = board.cycles();
         let received = pipes.receive(dev);
         let io = board.io();

@@ -9,7 +9,10 @@
 //!   button, events for the board's log;
 //! * [`link`]: the host link's two bounded byte pipes and the pumps that
 //!   move bytes between them and a byte-stream port (a UART) without the
-//!   control task ever waiting on the port.
+//!   control task ever waiting on the port;
+//! * [`imu`]: the gyro's logic above the registers (conversion, probe and
+//!   read-back checks, the frozen/implausible monitor, the retry backoff,
+//!   the sample cell the control tick reads).
 //!
 //! A board provides encoders, a motor driver, a gyro, a board-side pose
 //! source, the button, the watchdog, a cycle counter and a log sink. Three
@@ -28,11 +31,13 @@
 
 pub mod board;
 pub mod control;
+pub mod imu;
 pub mod link;
+pub mod reset;
 
 pub use board::{AppEvent, Board, BoardIo, StatusSummary};
 pub use control::{control_task, AppConfig, AppConfigError, ControlTask};
-pub use link::{pump_rx, pump_tx, LinkPipes};
+pub use link::{pump_rx, pump_rx_ring, pump_tx, LinkPipes, TX_CHUNK_BYTES};
 
 // Re-exported for the boards.
 pub use controller_core::runtime::{ArmingButton, LoopTimer};

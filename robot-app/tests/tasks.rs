@@ -308,3 +308,23 @@ fn link_silence_stops_the_robot_and_a_deaf_host_costs_only_telemetry() {
         s.counters
     );
 }
+
+/// The link port's own losses (its hardware's receive errors, bytes its
+/// driver's ring dropped) reach the host's `wmr status` through the
+/// control task, which copies them into the device's board report.
+#[test]
+fn the_ports_losses_reach_the_hosts_status() {
+    let mut rig = Rig::start();
+    rig.run_ms(5);
+    let s = rig.status();
+    assert_eq!((s.board.port_rx_errors, s.board.port_rx_dropped), (0, 0));
+    rig.pipes.count_port_errors(3);
+    // A driver ring of 0 bytes: every byte is a ring drop.
+    for _ in 0..5 {
+        assert!(!rig.pipes.port_hw_byte(0));
+    }
+    rig.run_ms(2);
+    let s = rig.status();
+    assert_eq!(s.board.port_rx_errors, 3);
+    assert_eq!(s.board.port_rx_dropped, 5);
+}

@@ -27,16 +27,18 @@
 //! loaded and armed.
 //!
 //! Modules, each using only those listed before it (checked by
-//! `tests/layers.rs`): [`framing`] (bytes and frames), [`reference`] (the
-//! references), [`params`] (configuration and parameters), `telemetry`
-//! (telemetry and events), `selection` (which reference drives each tick,
-//! controlled stops), `requests` (request handling against the state);
-//! [`Device`] here wires them.
+//! `tests/layers.rs`): [`framing`] (bytes and frames), [`limits`] (the
+//! physical limits, D41), [`reference`](mod@reference) (the references),
+//! [`params`] (configuration and parameters), `telemetry` (telemetry and
+//! events), `selection` (which reference drives each tick, controlled
+//! stops), `requests` (request handling against the state); [`Device`]
+//! here wires them.
 #![no_std]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
 pub mod framing;
+pub mod limits;
 pub mod params;
 pub mod reference;
 mod requests;
@@ -50,14 +52,14 @@ use controller_core::runtime::{
 };
 use controller_core::trajectory::{RefSample, Trajectory};
 use framing::Framing;
+use limits::RobotLimits;
 use reference::PlacedReference;
 use requests::Handler;
 use selection::Mode;
-use wmr_protocol::{Counters, ModeMsg, RunStateMsg, StopCode};
+use wmr_protocol::{BoardReport, Counters, ModeMsg, RunStateMsg, StopCode};
 
 pub use framing::{RX_BYTES_PER_TICK, RX_CAPACITY, TX_CAPACITY};
 pub use params::{DeviceConfig, DeviceConfigError, LinkConfig, MAX_VELOCITY_TIMEOUT_MS};
-pub use requests::{MAX_POSE_AGE_US, MAX_POSE_LEAD_US};
 
 /// The pose source of one tick: the host's measurement if one arrived
 /// (first), then the board's.
@@ -106,13 +108,21 @@ impl<const H: usize> Device<H> {
         runtime: RuntimeConfig,
         estimator: EstimatorConfig,
     ) -> Result<Self, DeviceConfigError> {
-        let cfg = cfg.validate()?;
         let control = ControlLoop::<H>::with_estimator(runtime, estimator)
             .map_err(DeviceConfigError::Runtime)?;
+        let limits = RobotLimits::of(control.config());
+        let cfg = cfg.validate(&limits)?;
+        params::check_physical(control.config(), &cfg.link, &limits)?;
         Ok(Self {
             framing: Framing::new(),
-            handler: Handler::new(cfg, control),
+            handler: Handler::new(cfg, control, limits),
         })
+    }
+
+    /// What the board reports in the status (its reset cause, set once
+    /// at boot, and its link port's losses, kept current by the board).
+    pub fn board_report_mut(&mut self) -> &mut BoardReport {
+        &mut self.handler.session.board
     }
 
     /// The runtime.
@@ -190,6 +200,9 @@ impl<const H: usize> Device<H> {
             timing,
             &Fixed(reference),
         );
+        // A pose the runtime did not take (a re-propagation in progress)
+        // waits for the next tick instead of being lost.
+        h.session.pending_pose = pose.host;
         h.after_tick(&mut self.framing, &rep);
         rep
     }
@@ -210,7 +223,7 @@ impl<const H: usize> Device<H> {
                         .cfg
                         .button_reference
                         .as_ref()
-                        .and_then(PlacedReference::new)
+                        .and_then(|b| PlacedReference::within(b, &h.limits))
                     {
                         h.selector.mode = Mode::Builtin(p);
                     }

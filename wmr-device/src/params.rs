@@ -1,8 +1,14 @@
 //! Parameters: the device's configuration ([`DeviceConfig`], [`LinkConfig`]),
 //! its validation, and the [`ParamId`]s the host reads and writes.
 
+use crate::limits::{
+    RobotLimits, MAX_ACCEL_MPS2, MAX_ANG_ACCEL_RADPS2, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS,
+    MIN_ACCEL_MPS2, MIN_ANG_ACCEL_RADPS2, MIN_BRAKE_DECEL_MPS2, MIN_COMMAND_LIMIT,
+};
 use crate::reference::PlacedReference;
-use controller_core::runtime::{ControlLoop, ReconfigureError, RunState, RuntimeConfigError};
+use controller_core::runtime::{
+    ControlLoop, ReconfigureError, RunState, RuntimeConfig, RuntimeConfigError,
+};
 use wmr_protocol::{BuiltinReference, ErrorCode, ParamId, TelemetrySelection, TELEMETRY_ALL};
 
 /// Longest velocity-command timeout \[ms\].
@@ -16,15 +22,16 @@ pub struct LinkConfig {
     /// Controlled stop after this long without a valid frame while running
     /// under host control \[ms\] (50..=10000).
     pub link_timeout_ms: u32,
-    /// Acceleration limit of velocity commands \[m/s²\].
+    /// Acceleration limit of velocity commands \[m/s²\] ([`MIN_ACCEL_MPS2`]..=[`MAX_ACCEL_MPS2`]).
     pub accel_mps2: f32,
-    /// Angular acceleration limit of velocity commands \[rad/s²\].
+    /// Angular acceleration of velocity commands and of the braking
+    /// profile \[rad/s²\] ([`MIN_ANG_ACCEL_RADPS2`]..=[`MAX_ANG_ACCEL_RADPS2`]).
     pub ang_accel_radps2: f32,
-    /// Deceleration of a controlled stop \[m/s²\].
+    /// Deceleration of a controlled stop \[m/s²\] ([`MIN_BRAKE_DECEL_MPS2`]..=[`MAX_ACCEL_MPS2`]).
     pub brake_decel_mps2: f32,
-    /// Largest |v| of a velocity command \[m/s\].
+    /// Largest |v| of a velocity command \[m/s\] (up to the robot's top speed).
     pub max_speed_mps: f32,
-    /// Largest |ω| of a velocity command \[rad/s\].
+    /// Largest |ω| of a velocity command \[rad/s\] (up to the robot's top yaw rate).
     pub max_yaw_rate_radps: f32,
     /// Telemetry rate \[Hz\] (0 = off).
     pub telemetry_rate_hz: u16,
@@ -47,28 +54,63 @@ impl LinkConfig {
         telemetry_selection: TELEMETRY_ALL,
     };
 
-    /// Checks every field.
+    /// Checks every field against the fixed ranges of [`crate::limits`]
+    /// (the robot-derived ones are checked by the [`Device`](crate::Device));
+    /// the error names the first field out of range.
     pub fn validate(self) -> Result<Self, DeviceConfigError> {
-        // (value, upper bound): 0 < value <= bound (NaN fails), one loop.
-        let in_range = [
-            (self.accel_mps2, 20.0),
-            (self.ang_accel_radps2, 50.0),
-            (self.brake_decel_mps2, 20.0),
-            (self.max_speed_mps, 10.0),
-            (self.max_yaw_rate_radps, 30.0),
-        ]
-        .iter()
-        .all(|&(x, hi)| x > 0.0 && x <= hi);
-        let ok = (50..=10_000).contains(&self.link_timeout_ms)
-            && in_range
-            && self.telemetry_rate_hz <= 1000;
-        if ok {
-            Ok(self)
-        } else {
-            Err(DeviceConfigError::InvalidLink)
+        use ParamId as P;
+        let ranges = [
+            (
+                P::AccelMps2,
+                self.accel_mps2,
+                MIN_ACCEL_MPS2,
+                MAX_ACCEL_MPS2,
+            ),
+            (
+                P::AngAccelRadps2,
+                self.ang_accel_radps2,
+                MIN_ANG_ACCEL_RADPS2,
+                MAX_ANG_ACCEL_RADPS2,
+            ),
+            (
+                P::BrakeDecelMps2,
+                self.brake_decel_mps2,
+                MIN_BRAKE_DECEL_MPS2,
+                MAX_ACCEL_MPS2,
+            ),
+            (
+                P::MaxSpeedMps,
+                self.max_speed_mps,
+                MIN_COMMAND_LIMIT,
+                MAX_SPEED_MPS,
+            ),
+            (
+                P::MaxYawRateRadps,
+                self.max_yaw_rate_radps,
+                MIN_COMMAND_LIMIT,
+                MAX_YAW_RATE_RADPS,
+            ),
+        ];
+        for (param, x, lo, hi) in ranges {
+            // false for NaN
+            if !(x >= lo && x <= hi) {
+                return Err(DeviceConfigError::OutOfRange(param));
+            }
         }
+        if !LINK_TIMEOUT_MS.contains(&self.link_timeout_ms) {
+            return Err(DeviceConfigError::OutOfRange(P::LinkTimeoutMs));
+        }
+        if self.telemetry_rate_hz > MAX_TELEMETRY_RATE_HZ {
+            return Err(DeviceConfigError::OutOfRange(P::TelemetryRateHz));
+        }
+        Ok(self)
     }
 }
+
+/// Range of the link timeout \[ms\].
+pub const LINK_TIMEOUT_MS: core::ops::RangeInclusive<u32> = 50..=10_000;
+/// Largest telemetry rate \[Hz\].
+pub const MAX_TELEMETRY_RATE_HZ: u16 = 1000;
 
 /// Everything a [`Device`](crate::Device) is built from besides the runtime.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -86,14 +128,15 @@ pub struct DeviceConfig {
 }
 
 impl DeviceConfig {
-    /// Checks the link settings, the chip name and the button reference.
-    pub fn validate(self) -> Result<Self, DeviceConfigError> {
+    /// Checks the link settings, the chip name and the button reference
+    /// (against the robot's limits `lim`).
+    pub fn validate(self, lim: &RobotLimits) -> Result<Self, DeviceConfigError> {
         self.link.validate()?;
         if self.chip.len() > 16 {
             return Err(DeviceConfigError::ChipName);
         }
         if let Some(b) = &self.button_reference {
-            PlacedReference::new(b).ok_or(DeviceConfigError::ButtonReference)?;
+            PlacedReference::within(b, lim).ok_or(DeviceConfigError::ButtonReference)?;
         }
         Ok(self)
     }
@@ -106,8 +149,9 @@ impl DeviceConfig {
 pub enum DeviceConfigError {
     /// The runtime configuration.
     Runtime(RuntimeConfigError),
-    /// A link setting is out of range.
-    InvalidLink,
+    /// A parameter (a link setting, a gain, a torque) is outside its
+    /// physical range ([`RobotLimits::range`], docs/protocol.md).
+    OutOfRange(ParamId),
     /// The chip name is longer than 16 bytes.
     ChipName,
     /// The button reference is invalid.
@@ -118,7 +162,7 @@ impl core::fmt::Display for DeviceConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             Self::Runtime(e) => write!(f, "runtime: {e}"),
-            Self::InvalidLink => f.write_str("link setting out of range"),
+            Self::OutOfRange(p) => write!(f, "{} out of its physical range", p.name()),
             Self::ChipName => f.write_str("chip name longer than 16 bytes"),
             Self::ButtonReference => f.write_str("invalid button reference"),
         }
@@ -126,13 +170,9 @@ impl core::fmt::Display for DeviceConfigError {
 }
 
 /// The value of parameter `id`.
-pub(crate) fn read<const H: usize>(
-    control: &ControlLoop<H>,
-    link: &LinkConfig,
-    id: ParamId,
-) -> f32 {
-    let c = &control.config().controller;
-    let s = &control.config().safety;
+pub(crate) fn read(rt: &RuntimeConfig, link: &LinkConfig, id: ParamId) -> f32 {
+    let c = &rt.controller;
+    let s = &rt.safety;
     let l = link;
     match id {
         ParamId::TorqueLimitNm => c.torque_limit_nm,
@@ -153,6 +193,21 @@ pub(crate) fn read<const H: usize>(
     }
 }
 
+/// Checks every parameter with a physical range against the robot's
+/// limits (at construction; [`write`] checks the one it writes).
+pub(crate) fn check_physical(
+    rt: &RuntimeConfig,
+    link: &LinkConfig,
+    lim: &RobotLimits,
+) -> Result<(), DeviceConfigError> {
+    for id in ParamId::ALL {
+        if !lim.allows(id, read(rt, link, id)) {
+            return Err(DeviceConfigError::OutOfRange(id));
+        }
+    }
+    Ok(())
+}
+
 /// Refused while running.
 pub(crate) fn in_hold(state: RunState) -> Result<(), ErrorCode> {
     match state {
@@ -168,10 +223,11 @@ pub(crate) fn in_hold(state: RunState) -> Result<(), ErrorCode> {
 pub(crate) fn write<const H: usize>(
     control: &mut ControlLoop<H>,
     link: &mut LinkConfig,
+    lim: &RobotLimits,
     id: ParamId,
     value: f32,
 ) -> Result<(), ErrorCode> {
-    if !value.is_finite() {
+    if !value.is_finite() || !lim.allows(id, value) {
         return Err(ErrorCode::InvalidValue);
     }
     let as_int = |hi: f32| -> Result<u32, ErrorCode> {
@@ -184,7 +240,7 @@ pub(crate) fn write<const H: usize>(
     // Any state: telemetry and the link timeout.
     match id {
         ParamId::TelemetryRateHz => {
-            link.telemetry_rate_hz = as_int(1000.0)? as u16;
+            link.telemetry_rate_hz = as_int(MAX_TELEMETRY_RATE_HZ as f32)? as u16;
             return Ok(());
         }
         ParamId::LinkTimeoutMs => {

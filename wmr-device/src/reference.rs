@@ -3,17 +3,20 @@
 //! cubic Hermite curves, a velocity command integrated into a virtual
 //! vehicle, and the braking profile of a controlled stop.
 
-use controller_core::math::{atan2, sin_cos, wrap_angle};
+use crate::limits::{RobotLimits, MAX_POSITION_M, SHAPE_LENGTH_M};
+use controller_core::math::{atan2, sin_cos, sqrt, wrap_angle};
 use controller_core::trajectory::{
     tangent_sample, Circle, FigureEight, Line, PaperCurve, PaperHeading, RefSample, Reference,
     Trajectory,
 };
 use controller_core::Pose;
 use heapless::Deque;
-use wmr_protocol::{BuiltinReference, BuiltinShape, PoseMsg, Waypoint};
+use wmr_protocol::{BuiltinReference, BuiltinShape, PoseMsg, Waypoint, SEGMENT_POINTS};
 
 /// Largest accepted speed scale.
 pub const MAX_SPEED_SCALE: f32 = 10.0;
+/// Smallest accepted speed scale (a reference slowed a hundredfold).
+pub const MIN_SPEED_SCALE: f32 = 0.01;
 /// Waypoints the trajectory buffer holds.
 pub const WAYPOINT_CAPACITY: usize = 64;
 
@@ -45,9 +48,58 @@ pub struct PlacedReference {
 }
 
 impl PlacedReference {
-    /// Validates and places `r`; `None` when a parameter is not finite or
-    /// out of range.
+    /// [`Self::within`] the absolute limits
+    /// ([`MAX_SPEED_MPS`](crate::limits::MAX_SPEED_MPS),
+    /// [`MAX_YAW_RATE_RADPS`](crate::limits::MAX_YAW_RATE_RADPS)); the
+    /// device checks against its robot's.
     pub fn new(r: &BuiltinReference) -> Option<Self> {
+        Self::within(r, &RobotLimits::ABSOLUTE)
+    }
+
+    /// Validates and places `r`; `None` when a parameter is not finite or
+    /// out of its physical range (D41): lengths in
+    /// [`SHAPE_LENGTH_M`], the start within
+    /// [`MAX_POSITION_M`], and the shape's
+    /// peak speed and yaw rate (bounded analytically, times the speed
+    /// scale) within the robot's top speed and yaw rate.
+    pub fn within(r: &BuiltinReference, lim: &RobotLimits) -> Option<Self> {
+        let len_ok = |l: f32| l >= SHAPE_LENGTH_M.0 && l <= SHAPE_LENGTH_M.1;
+        // (lengths, peak |v| [m/s], peak |ω| [rad/s]) at speed scale 1.
+        let (lengths, v_peak, w_peak) = match r.shape {
+            // v = −w·(ax sin u, 3ay sin 3u): |v| ≤ w·√(ax² + 9ay²); the
+            // heading follows W = w·(ax, 3ay(1 + 2cos 2u)) (v = −sin u·W),
+            // which turns at most at ax·w·12ay·w²/(ax·w)² = 12·ay·w/ax.
+            BuiltinShape::PaperCurve {
+                ax_m,
+                ay_m,
+                w_radps,
+            } => (
+                [ax_m, ay_m],
+                w_radps * sqrt(ax_m * ax_m + 9.0 * ay_m * ay_m),
+                12.0 * ay_m * w_radps / ax_m,
+            ),
+            BuiltinShape::Circle {
+                radius_m,
+                speed_mps,
+            } => ([radius_m; 2], speed_mps, speed_mps / radius_m),
+            // |v| ≤ √2·A·w; |ω| = |ẋÿ − ẏẍ|/|v|² ≤ 3A²w³/(0.4375·A²w²) < 7w.
+            BuiltinShape::FigureEight {
+                amplitude_m,
+                w_radps,
+            } => (
+                [amplitude_m; 2],
+                core::f32::consts::SQRT_2 * amplitude_m * w_radps,
+                7.0 * w_radps,
+            ),
+            BuiltinShape::Line { speed_mps } => ([SHAPE_LENGTH_M.0; 2], speed_mps.abs(), 0.0),
+        };
+        let s = r.speed_scale;
+        let physical = lengths.iter().all(|&l| len_ok(l))
+            && s * v_peak <= lim.top_speed_mps
+            && s * w_peak <= lim.top_yaw_rate_radps;
+        if !physical {
+            return None;
+        }
         let shape = match r.shape {
             BuiltinShape::PaperCurve {
                 ax_m,
@@ -80,17 +132,23 @@ impl PlacedReference {
         };
         let shape = shape.validate().ok()?;
         let s = r.speed_scale;
-        if !(s.is_finite() && s > 0.0 && s <= MAX_SPEED_SCALE) {
+        if !(MIN_SPEED_SCALE..=MAX_SPEED_SCALE).contains(&s) {
             return None;
         }
         let r0 = shape.sample(0.0).pose;
         let (phi_rad, origin, target) = match r.start {
             None => (0.0, [0.0; 2], [0.0; 2]),
-            Some(p) if p.is_finite() => (
-                wrap_angle(p.theta_rad - r0.theta_rad),
-                [r0.x_m, r0.y_m],
-                [p.x_m, p.y_m],
-            ),
+            Some(p)
+                if p.is_finite()
+                    && p.x_m.abs() <= MAX_POSITION_M
+                    && p.y_m.abs() <= MAX_POSITION_M =>
+            {
+                (
+                    wrap_angle(p.theta_rad - r0.theta_rad),
+                    [r0.x_m, r0.y_m],
+                    [p.x_m, p.y_m],
+                )
+            }
             Some(_) => return None,
         };
         Some(Self {
@@ -131,7 +189,7 @@ pub enum SegmentError {
     OutOfOrder,
     /// Not enough room.
     Full,
-    /// A non-finite value.
+    /// A non-finite or unphysical value.
     Invalid,
 }
 
@@ -163,13 +221,22 @@ impl WaypointBuffer {
     }
 
     /// Appends a segment; waypoints already passed at reference time
-    /// `t_now_s` (all but the one before it) make room when needed.
+    /// `t_now_s` (all but the one before it) make room when needed. Each
+    /// waypoint must be finite and physical for `lim`: |x|, |y| within
+    /// [`MAX_POSITION_M`], |v| within the top speed, |ω| within the top yaw
+    /// rate. A segment already held (same index, same waypoints: a retry
+    /// after a lost acknowledgement) is accepted again without change.
     pub fn push(
         &mut self,
         first_index: u32,
         points: &[Waypoint],
         t_now_s: Option<f32>,
+        lim: &RobotLimits,
     ) -> Result<(), SegmentError> {
+        if self.begun && first_index < self.next_index && self.holds(first_index, points) {
+            // A retry after a lost acknowledgement: the same segment again.
+            return Ok(());
+        }
         if !self.begun || first_index != self.next_index {
             return Err(SegmentError::OutOfOrder);
         }
@@ -178,11 +245,14 @@ impl WaypointBuffer {
         }
         let mut last_t = self.points.back().map(|w| w.t_s);
         for w in points {
-            let finite = w.t_s.is_finite()
-                && w.pose.is_finite()
-                && w.v_mps.is_finite()
-                && w.omega_radps.is_finite();
-            if !finite || w.t_s < 0.0 {
+            // Written so that NaN fails every comparison.
+            let physical = w.t_s.is_finite()
+                && w.pose.theta_rad.is_finite()
+                && w.pose.x_m.abs() <= MAX_POSITION_M
+                && w.pose.y_m.abs() <= MAX_POSITION_M
+                && w.v_mps.abs() <= lim.top_speed_mps
+                && w.omega_radps.abs() <= lim.top_yaw_rate_radps;
+            if !physical || w.t_s < 0.0 {
                 return Err(SegmentError::Invalid);
             }
             if last_t.is_some_and(|t| w.t_s <= t) {
@@ -210,6 +280,21 @@ impl WaypointBuffer {
         Ok(())
     }
 
+    /// The buffer holds exactly `points` from trajectory index `first`.
+    fn holds(&self, first: u32, points: &[Waypoint]) -> bool {
+        let Some(skip) = first.checked_sub(self.head_index) else {
+            return false; // already passed and dropped: cannot tell
+        };
+        let end = skip as usize + points.len();
+        end <= self.points.len()
+            && self
+                .points
+                .iter()
+                .skip(skip as usize)
+                .zip(points)
+                .all(|(a, b)| a == b)
+    }
+
     /// Free slots.
     pub fn free(&self) -> usize {
         WAYPOINT_CAPACITY - self.points.len()
@@ -233,6 +318,15 @@ impl WaypointBuffer {
     /// Drivable from t = 0: at least two waypoints, the first one held.
     pub fn ready(&self) -> bool {
         self.begun && self.head_index == 0 && self.points.len() >= 2
+    }
+
+    /// Can be armed (D42): [`Self::ready`], and either every declared
+    /// waypoint has arrived or the buffer has no room for the next segment
+    /// (a trajectory longer than the buffer: the rest streams while
+    /// running). A cut upload (48 of 80 waypoints, room for more) cannot.
+    pub fn armable(&self) -> bool {
+        let rest = self.total.saturating_sub(self.next_index) as usize;
+        self.ready() && (self.complete() || self.free() < rest.min(SEGMENT_POINTS))
     }
 
     /// Every waypoint of the upload has arrived.

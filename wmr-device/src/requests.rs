@@ -4,22 +4,18 @@
 //! its reply; the arm/disarm transitions and the link watchdog.
 
 use crate::framing::{bump, Framing, RX_BYTES_PER_TICK};
-use crate::params::{self, in_hold, DeviceConfig, MAX_VELOCITY_TIMEOUT_MS};
+use crate::limits::{RobotLimits, MAX_POSITION_M};
+use crate::params::{self, in_hold, DeviceConfig, MAX_TELEMETRY_RATE_HZ, MAX_VELOCITY_TIMEOUT_MS};
 use crate::reference::{pose_from_msg, PlacedReference, SegmentError, VirtualVehicle};
 use crate::selection::{Mode, Selected, Selector, VelocityCmd};
 use crate::telemetry::{counters, TelemetryScheduler};
-use controller_core::estimator::PoseMeasurement;
+use controller_core::estimator::{PoseMeasurement, RejectReason};
 use controller_core::runtime::{ControlLoop, MotorDriver, RunState, StopReason, TickReport};
 use controller_core::trajectory::RefSample;
 use wmr_protocol::{
-    Counters, Decoded, ErrorCode, Event, Reply, Request, RobotInfo, RunStateMsg, StatusMsg,
-    StopCode, PROTOCOL_VERSION, TELEMETRY_ALL,
+    BoardReport, Counters, Decoded, ErrorCode, Event, PoseRejects, Reply, Request, RobotInfo,
+    RunStateMsg, StatusMsg, StopCode, PROTOCOL_VERSION, TELEMETRY_ALL,
 };
-
-/// External poses older than this are refused \[µs\].
-pub const MAX_POSE_AGE_US: i32 = 100_000;
-/// External poses stamped further ahead than this are refused \[µs\].
-pub const MAX_POSE_LEAD_US: i32 = 10_000;
 
 /// One request's answer.
 type Answer = Result<Option<Reply>, ErrorCode>;
@@ -39,6 +35,9 @@ pub(crate) struct Session {
     pub last_stop: Option<StopCode>,
     /// The stop not yet reported in an event.
     pub pending_cause: Option<StopCode>,
+    /// What the board reports in the status (its reset cause, set once at
+    /// boot, and its link port's losses, kept current by the board).
+    pub board: BoardReport,
 }
 
 fn stop_code(r: StopReason) -> StopCode {
@@ -52,6 +51,29 @@ fn stop_code(r: StopReason) -> StopCode {
     }
 }
 
+fn pose_error(r: RejectReason) -> ErrorCode {
+    match r {
+        RejectReason::NonFinite => ErrorCode::PoseNonFinite,
+        RejectReason::BadStdDev => ErrorCode::PoseBadStdDev,
+        RejectReason::FromFuture => ErrorCode::PoseFromFuture,
+        RejectReason::OutOfOrder => ErrorCode::PoseOutOfOrder,
+        // TooOld, and the gate (never at this check).
+        _ => ErrorCode::PoseTooOld,
+    }
+}
+
+fn ref_is_finite(r: &RefSample) -> bool {
+    finite(&[
+        r.pose.x_m,
+        r.pose.y_m,
+        r.pose.theta_rad,
+        r.v_mps,
+        r.omega_radps,
+        r.v_dot_mps2,
+        r.omega_dot_radps2,
+    ])
+}
+
 fn finite(xs: &[f32]) -> bool {
     xs.iter().all(|x| x.is_finite())
 }
@@ -59,6 +81,8 @@ fn finite(xs: &[f32]) -> bool {
 /// The state requests are checked against, and what they change.
 pub(crate) struct Handler<const H: usize> {
     pub cfg: DeviceConfig,
+    /// The robot's physical limits (from the runtime configuration).
+    pub limits: RobotLimits,
     pub control: ControlLoop<H>,
     pub selector: Selector,
     pub telemetry: TelemetryScheduler,
@@ -66,9 +90,10 @@ pub(crate) struct Handler<const H: usize> {
 }
 
 impl<const H: usize> Handler<H> {
-    pub fn new(cfg: DeviceConfig, control: ControlLoop<H>) -> Self {
+    pub fn new(cfg: DeviceConfig, control: ControlLoop<H>, limits: RobotLimits) -> Self {
         Self {
             cfg,
+            limits,
             control,
             selector: Selector::new(),
             telemetry: TelemetryScheduler::new(),
@@ -79,6 +104,7 @@ impl<const H: usize> Handler<H> {
                 pending_pose: None,
                 last_stop: None,
                 pending_cause: None,
+                board: BoardReport::default(),
             },
         }
     }
@@ -176,6 +202,19 @@ impl<const H: usize> Handler<H> {
             t_robot_us: self.session.now_us,
             buffered_points: self.selector.waypoints.len() as u16,
             counters: self.counters(framing),
+            pose_rejects: {
+                let r = &self.control.estimator().status().rejected;
+                PoseRejects {
+                    non_finite: r.non_finite,
+                    bad_std_dev: r.bad_std_dev,
+                    from_future: r.from_future,
+                    too_old: r.too_old,
+                    out_of_order: r.out_of_order,
+                    outlier: r.outlier,
+                }
+            },
+            nonfinite_telemetry: self.telemetry.nonfinite_frames(),
+            board: self.session.board,
         }
     }
 
@@ -214,7 +253,10 @@ impl<const H: usize> Handler<H> {
             },
             Request::SetPose(p) => {
                 in_hold(self.control.state())?;
-                if !p.is_finite() {
+                // Within the physical range of positions (D41): a pose at
+                // 3.4e38 m makes the tracking error, and η_c, infinite.
+                let ok = |c: f32| c.abs() <= MAX_POSITION_M;
+                if !(ok(p.x_m) && ok(p.y_m) && p.theta_rad.is_finite()) {
                     return Err(ErrorCode::InvalidValue);
                 }
                 self.control
@@ -227,21 +269,29 @@ impl<const H: usize> Handler<H> {
                 pose,
                 std_dev,
             } => {
-                if !pose.is_finite() || !finite(&std_dev) || std_dev.iter().any(|s| *s < 0.0) {
-                    return Err(ErrorCode::InvalidValue);
+                if self.session.pending_pose.is_some() {
+                    return Err(ErrorCode::PoseQueueFull);
                 }
-                let age = now_us.wrapping_sub(t_robot_us) as i32;
-                if !(-MAX_POSE_LEAD_US..=MAX_POSE_AGE_US).contains(&age) {
-                    return Err(ErrorCode::Stale);
-                }
-                // Validated again, with a reason, by the estimator; a zero
+                // One position std dev (the larger); a zero, negative or
+                // NaN one in x or y is refused (NaN marks it). A zero
                 // heading std dev means "no heading" (position only).
-                self.session.pending_pose = Some(PoseMeasurement {
+                let (sx, sy, h) = (std_dev[0], std_dev[1], std_dev[2]);
+                let m = PoseMeasurement {
                     stamp_us: t_robot_us,
                     pose: pose_from_msg(pose),
-                    position_std_m: std_dev[0].max(std_dev[1]),
-                    heading_std_rad: (std_dev[2] > 0.0).then_some(std_dev[2]),
-                });
+                    position_std_m: if sx > 0.0 && sy > 0.0 {
+                        sx.max(sy)
+                    } else {
+                        f32::NAN
+                    },
+                    heading_std_rad: if h == 0.0 { None } else { Some(h) },
+                };
+                // The estimator's own rules, for the tick that will use it.
+                self.control
+                    .estimator()
+                    .admissible_at(&m, now_us)
+                    .map_err(pose_error)?;
+                self.session.pending_pose = Some(m);
                 Ok(None)
             }
             Request::ClockSync { host_time_us } => Ok(Some(Reply::ClockSync {
@@ -251,7 +301,8 @@ impl<const H: usize> Handler<H> {
             })),
             Request::SetReference(r) => {
                 in_hold(self.control.state())?;
-                let placed = PlacedReference::new(&r).ok_or(ErrorCode::InvalidValue)?;
+                let placed =
+                    PlacedReference::within(&r, &self.limits).ok_or(ErrorCode::InvalidValue)?;
                 self.selector.mode = Mode::Builtin(placed);
                 self.selector.waypoints.clear();
                 Ok(None)
@@ -276,7 +327,7 @@ impl<const H: usize> Handler<H> {
                 }
                 let now = running.then(|| self.control.reference_time_s());
                 sel.waypoints
-                    .push(first_index, &points, now)
+                    .push(first_index, &points, now, &self.limits)
                     .map_err(|e| match e {
                         SegmentError::OutOfOrder => ErrorCode::OutOfOrder,
                         SegmentError::Full => ErrorCode::BufferFull,
@@ -323,17 +374,23 @@ impl<const H: usize> Handler<H> {
             Request::GetParam(id) => Ok(Some(Reply::Param {
                 seq,
                 id,
-                value: params::read(&self.control, &self.cfg.link, id),
+                value: params::read(self.control.config(), &self.cfg.link, id),
             })),
             Request::SetParam { id, value } => {
-                params::write(&mut self.control, &mut self.cfg.link, id, value)?;
+                params::write(
+                    &mut self.control,
+                    &mut self.cfg.link,
+                    &self.limits,
+                    id,
+                    value,
+                )?;
                 if id == wmr_protocol::ParamId::TelemetryRateHz {
                     self.telemetry.restart();
                 }
                 Ok(None)
             }
             Request::SetTelemetry { selection, rate_hz } => {
-                if rate_hz > 1000 || selection & !TELEMETRY_ALL != 0 {
+                if rate_hz > MAX_TELEMETRY_RATE_HZ || selection & !TELEMETRY_ALL != 0 {
                     return Err(ErrorCode::InvalidValue);
                 }
                 self.cfg.link.telemetry_rate_hz = rate_hz;
@@ -354,7 +411,10 @@ impl<const H: usize> Handler<H> {
             RunState::Disarmed => {}
         }
         if !self.selector.ready() {
-            return Err(ErrorCode::NoReference);
+            return Err(match self.selector.mode {
+                Mode::Trajectory => ErrorCode::UploadIncomplete,
+                _ => ErrorCode::NoReference,
+            });
         }
         self.control.arm().map_err(|_| ErrorCode::Latched)?;
         self.selector.vehicle = VirtualVehicle::at_rest(self.control.estimator().estimate().pose);
@@ -390,9 +450,10 @@ impl<const H: usize> Handler<H> {
         let silent_us = s.now_us.wrapping_sub(s.last_rx_us);
         if s.host_armed && silent_us > self.cfg.link.link_timeout_ms.saturating_mul(1000) {
             framing.send(&Reply::Event(Event::LinkLost));
+            let cap = self.stop_cap_ticks();
             let period_s = self.period_s();
             self.selector
-                .start_braking(true, &self.cfg.link, period_s, StopCode::LinkSilence);
+                .start_braking(true, &self.cfg.link, period_s, cap, StopCode::LinkSilence);
         }
     }
 
@@ -403,9 +464,10 @@ impl<const H: usize> Handler<H> {
         let period_s = self.period_s();
         let t_ref_s = self.control.reference_time_s();
         let now_us = self.session.now_us;
+        let cap = self.stop_cap_ticks();
         match self
             .selector
-            .select(running, t_ref_s, now_us, &self.cfg.link, period_s)
+            .select(running, t_ref_s, now_us, &self.cfg.link, period_s, cap)
         {
             Selected::Drive(r) => r,
             Selected::Finished(cause, rest) => {
@@ -415,10 +477,23 @@ impl<const H: usize> Handler<H> {
         }
     }
 
+    /// The longest controlled stop with the braking settings in force
+    /// \[ticks\] ([`RobotLimits::stop_bound_ticks`]): the motors are cut
+    /// then at the latest.
+    pub fn stop_cap_ticks(&self) -> u32 {
+        let l = &self.cfg.link;
+        self.limits
+            .stop_bound_ticks(l.brake_decel_mps2, l.ang_accel_radps2)
+    }
+
     /// After the control tick: the stop it reported, the state event and
     /// the telemetry frame.
     pub fn after_tick(&mut self, framing: &mut Framing, rep: &TickReport) {
-        self.selector.last_ref = rep.reference;
+        // A non-finite reference (a runtime fault) is never kept: a later
+        // controlled stop or hold starts from the last finite one.
+        if ref_is_finite(&rep.reference) {
+            self.selector.last_ref = rep.reference;
+        }
         if let Some(r) = rep.stopped {
             self.on_stop(stop_code(r));
         }

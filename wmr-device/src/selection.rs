@@ -83,7 +83,7 @@ impl Selector {
         match self.mode {
             Mode::None => false,
             Mode::Builtin(_) | Mode::Velocity => true,
-            Mode::Trajectory => self.waypoints.ready(),
+            Mode::Trajectory => self.waypoints.armable(),
         }
     }
 
@@ -109,12 +109,15 @@ impl Selector {
 
     /// Starts a controlled stop from the last reference sample (when
     /// `running` and none runs yet): v and ω fall linearly to zero
-    /// together (the path's curvature is kept) at the braking deceleration.
+    /// together (the path's curvature is kept) at the braking deceleration,
+    /// in at most `cap_ticks` − 1 ticks (faster when the braking settings
+    /// would take longer: D41's hard cap), then the robot disarms.
     pub fn start_braking(
         &mut self,
         running: bool,
         link: &LinkConfig,
         period_s: f32,
+        cap_ticks: u32,
         cause: StopCode,
     ) {
         if self.braking.is_some() || !running {
@@ -123,7 +126,9 @@ impl Selector {
         let r = self.last_ref;
         let t_v = r.v_mps.abs() / link.brake_decel_mps2;
         let t_w = r.omega_radps.abs() / link.ang_accel_radps2;
-        let ticks = ((t_v.max(t_w) / period_s) as u32).saturating_add(1);
+        let ticks = ((t_v.max(t_w) / period_s) as u32)
+            .saturating_add(1)
+            .min(cap_ticks.saturating_sub(1).max(1));
         let t = ticks as f32 * period_s;
         self.braking = Some(Braking {
             vehicle: VirtualVehicle::from_sample(RefSample {
@@ -146,6 +151,7 @@ impl Selector {
         now_us: u32,
         link: &LinkConfig,
         period_s: f32,
+        cap_ticks: u32,
     ) -> Selected {
         let dt = period_s;
         if let Some(b) = &mut self.braking {
@@ -173,8 +179,8 @@ impl Selector {
             Mode::Trajectory => match self.waypoints.sample(t_ref_s) {
                 Some(r) => r,
                 None => {
-                    self.start_braking(running, link, period_s, StopCode::TrajectoryEnd);
-                    return self.select(running, t_ref_s, now_us, link, period_s);
+                    self.start_braking(running, link, period_s, cap_ticks, StopCode::TrajectoryEnd);
+                    return self.select(running, t_ref_s, now_us, link, period_s, cap_ticks);
                 }
             },
             Mode::Velocity => {
@@ -185,8 +191,14 @@ impl Selector {
                 // No live command (expired, or armed without one): stop.
                 if expired {
                     self.velocity = VelocityCmd::default();
-                    self.start_braking(running, link, period_s, StopCode::VelocityTimeout);
-                    return self.select(running, t_ref_s, now_us, link, period_s);
+                    self.start_braking(
+                        running,
+                        link,
+                        period_s,
+                        cap_ticks,
+                        StopCode::VelocityTimeout,
+                    );
+                    return self.select(running, t_ref_s, now_us, link, period_s, cap_ticks);
                 }
                 let s = self.vehicle.sample;
                 let a = VirtualVehicle::ramp_rate(

@@ -36,6 +36,8 @@ pub(crate) fn counters(s: &Status, link: &LinkCounters) -> Counters {
 pub(crate) struct TelemetryScheduler {
     seq: u32,
     countdown: u32,
+    /// Frames not sent because of a non-finite value.
+    nonfinite: u32,
     reported_state: RunStateMsg,
 }
 
@@ -44,8 +46,14 @@ impl TelemetryScheduler {
         Self {
             seq: 0,
             countdown: 0,
+            nonfinite: 0,
             reported_state: RunStateMsg::Hold,
         }
+    }
+
+    /// Frames not sent because a value in them was not finite.
+    pub fn nonfinite_frames(&self) -> u32 {
+        self.nonfinite
     }
 
     /// The rate or the groups changed: the next tick sends a frame.
@@ -143,6 +151,86 @@ impl TelemetryScheduler {
             counters: (sel & TELEMETRY_COUNTERS != 0).then(|| counters(status, &framing.counters)),
         };
         self.seq = self.seq.wrapping_add(1);
+        // Nothing non-finite goes on the wire: the frame is skipped (its
+        // sequence number too, so the host sees the gap) and counted.
+        if !t.is_finite() {
+            bump(&mut self.nonfinite);
+            return;
+        }
         framing.send(&Reply::Telemetry(t));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use controller_core::runtime::{
+        ControlLoop, DutyCommand, MotorDriver, NoGyro, RuntimeConfig, TickTiming, WheelEncoders,
+        WheelOdometryOnly,
+    };
+    use controller_core::ControllerKind;
+    use wmr_protocol::TELEMETRY_ALL;
+
+    struct Still;
+    impl WheelEncoders for Still {
+        fn counts(&mut self) -> [u16; 2] {
+            [0; 2]
+        }
+    }
+    struct Off;
+    impl MotorDriver for Off {
+        fn set(&mut self, _: [DutyCommand; 2]) {}
+        fn disable(&mut self) {}
+    }
+
+    /// A report with a NaN or an infinity in it (a runtime fault) is not
+    /// sent: counted, its sequence number skipped; a finite one is sent.
+    #[test]
+    fn nonfinite_frames_are_withheld_and_counted() {
+        let mut control =
+            ControlLoop::new(RuntimeConfig::example(ControllerKind::Proposed)).unwrap();
+        let rep = control.tick(
+            &mut Still,
+            &mut Off,
+            &mut NoGyro,
+            &mut WheelOdometryOnly,
+            TickTiming::on_schedule_at(1000, 1000),
+        );
+        let link = LinkConfig {
+            telemetry_rate_hz: 1000,
+            telemetry_selection: TELEMETRY_ALL,
+            ..LinkConfig::DEFAULT
+        };
+        let status = *control.status();
+        let mut framing = Framing::new();
+        let mut t = TelemetryScheduler::new();
+        let mut bad = [rep; 3];
+        bad[0].reference.pose.x_m = f32::NAN;
+        bad[1].diag.eta_c[0] = f32::INFINITY;
+        bad[2].t_s = f32::NAN;
+        for r in &bad {
+            t.tick(
+                &mut framing,
+                &link,
+                1e-3,
+                0,
+                RunStateMsg::Running,
+                &status,
+                r,
+            );
+        }
+        assert_eq!(framing.tx_len(), 0, "a non-finite frame went out");
+        assert_eq!(t.nonfinite_frames(), 3);
+        t.tick(
+            &mut framing,
+            &link,
+            1e-3,
+            0,
+            RunStateMsg::Running,
+            &status,
+            &rep,
+        );
+        assert!(framing.tx_len() > 0, "a finite frame is sent");
+        assert_eq!(t.seq, 4, "sequence numbers of withheld frames are skipped");
     }
 }

@@ -21,6 +21,8 @@ struct Rig {
     now_us: u32,
     rx: FrameDecoder<MAX_FRAME>,
     replies: Vec<Reply>,
+    /// v of the last tick's reference \[m/s\].
+    last_ref_v: f32,
 }
 
 fn device_config() -> DeviceConfig {
@@ -49,6 +51,7 @@ impl Rig {
             now_us: 0,
             rx: FrameDecoder::new(),
             replies: Vec::new(),
+            last_ref_v: 0.0,
         }
     }
 
@@ -64,6 +67,7 @@ impl Rig {
             TickTiming::on_schedule_at(self.now_us, PERIOD_US),
         );
         let after = self.dev.state();
+        self.last_ref_v = rep.reference.v_mps;
         // Invariants.
         let moving = matches!(after, RunStateMsg::Running | RunStateMsg::Stopping);
         if !moving {
@@ -163,6 +167,28 @@ fn boots_in_hold_and_refuses_to_arm_without_a_mode() {
     assert_eq!(rig.request(&Request::Arm, 3), Reply::Ack { seq: 3 });
     assert_eq!(rig.dev.state(), RunStateMsg::Running);
     assert!(rig.drv.enabled);
+}
+
+/// The board's report (reset cause, the port's losses) reaches the host in
+/// the status reply as the board set it; unknown until it does.
+#[test]
+fn status_carries_the_board_report() {
+    let mut rig = Rig::new();
+    let Reply::Status { status, .. } = rig.request(&Request::GetStatus, 1) else {
+        panic!("no status");
+    };
+    assert_eq!(status.board, wmr_protocol::BoardReport::default());
+    assert_eq!(status.board.reset_cause, wmr_protocol::ResetCause::Unknown);
+    let report = wmr_protocol::BoardReport {
+        reset_cause: wmr_protocol::ResetCause::IndependentWatchdog,
+        port_rx_dropped: 7,
+        port_rx_errors: 3,
+    };
+    *rig.dev.board_report_mut() = report;
+    let Reply::Status { status, .. } = rig.request(&Request::GetStatus, 2) else {
+        panic!("no status");
+    };
+    assert_eq!(status.board, report);
 }
 
 #[test]
@@ -714,4 +740,361 @@ fn every_request_in_every_state() {
             }
         }
     }
+}
+
+// ---- Issue 21: values that are valid but absurd -------------------------
+
+/// Issue 21 item 1: a braking deceleration or angular acceleration so small
+/// that a controlled stop would never end is refused, with the field named
+/// at construction and `InvalidValue` over the link.
+#[test]
+fn braking_settings_below_the_physical_minimum_are_refused() {
+    for id in [ParamId::BrakeDecelMps2, ParamId::AngAccelRadps2] {
+        let mut rig = Rig::new();
+        for value in [1e-45, 1e-3, 0.0, -1.0] {
+            let r = rig.request(&Request::SetParam { id, value }, 1);
+            assert_eq!(nack(&r), Some(ErrorCode::InvalidValue), "{id:?} = {value}");
+        }
+    }
+    let slow = LinkConfig {
+        brake_decel_mps2: 1e-45,
+        ..LinkConfig::DEFAULT
+    };
+    assert_eq!(
+        slow.validate(),
+        Err(wmr_device::DeviceConfigError::OutOfRange(
+            ParamId::BrakeDecelMps2
+        ))
+    );
+    let err = wmr_device::DeviceConfigError::OutOfRange(ParamId::AngAccelRadps2).to_string();
+    assert!(err.contains("ang_accel_radps2"), "{err}");
+}
+
+/// Issue 21 item 1: every controlled stop ends within the bound computed
+/// from the limits, whatever the reference asked. Waypoints 4 m apart every
+/// 60 ms (each one at rest, so each is physical) make the Hermite reference
+/// run at up to 100 m/s between them; the link goes quiet at 0.5 s, in the
+/// middle of a segment. The stop must still end within `stop_bound_s`
+/// (6.7 s with the defaults: 4 m/s at 1 m/s², 20 rad/s at 3 rad/s²), not
+/// after v/decel, about 90 s.
+#[test]
+fn a_controlled_stop_ends_within_the_bound_whatever_the_reference() {
+    let mut rig = Rig::new();
+    let n = 40u32;
+    rig.request(&Request::TrajectoryBegin { total_points: n }, 1);
+    for first in (0..n).step_by(8) {
+        let points = (first..first + 8)
+            .map(|i| Waypoint {
+                t_s: i as f32 * 0.06,
+                pose: PoseMsg {
+                    x_m: if i % 2 == 0 { 0.0 } else { 4.0 },
+                    y_m: 0.0,
+                    theta_rad: 0.0,
+                },
+                v_mps: 0.0,
+                omega_radps: 0.0,
+            })
+            .collect();
+        let r = rig.request(
+            &Request::TrajectorySegment {
+                first_index: first,
+                points,
+            },
+            2,
+        );
+        assert!(matches!(r, Reply::TrajectoryAck { .. }), "{r:?}");
+    }
+    rig.request(&Request::Arm, 3);
+    let lim = wmr_device::limits::RobotLimits::of(rig.dev.control().config());
+    let bound_ticks = lim.stop_bound_ticks(1.0, 3.0) as usize;
+    assert!((lim.stop_bound_s(1.0, 3.0) - 20.0 / 3.0).abs() < 1e-3);
+    // Silence: the link watchdog starts the stop.
+    let mut v_at_stop = None;
+    let mut stopping_for = 0;
+    for _ in 0..(600 + 2 * bound_ticks) {
+        let v = rig.last_ref_v.abs();
+        rig.tick();
+        match rig.dev.state() {
+            RunStateMsg::Stopping => {
+                v_at_stop.get_or_insert(v);
+                stopping_for += 1
+            }
+            RunStateMsg::Hold => break,
+            _ => {}
+        }
+    }
+    let v = v_at_stop.expect("never stopping");
+    assert!(v > 20.0, "the reference was not fast: {v} m/s");
+    assert_eq!(rig.dev.state(), RunStateMsg::Hold, "still stopping");
+    assert!(
+        stopping_for <= bound_ticks,
+        "stopped in {stopping_for} ticks, bound {bound_ticks}"
+    );
+}
+
+/// Issue 21 item 2: gains and references that are finite but absurd.
+#[test]
+fn absurd_gains_and_references_are_refused() {
+    let mut rig = Rig::new();
+    for (id, value) in [
+        (ParamId::Kx, 3.4e38),
+        (ParamId::Ky, 3.4e38),
+        (ParamId::Ktheta, 1e9),
+        (ParamId::Ks, 1e9),
+        (ParamId::Kx, 1e-30),
+        (ParamId::TorqueLimitNm, 1e6),
+        (ParamId::MaxSpeedMps, 9.0),
+    ] {
+        let r = rig.request(&Request::SetParam { id, value }, 1);
+        assert_eq!(nack(&r), Some(ErrorCode::InvalidValue), "{id:?} = {value}");
+    }
+    // Within the ranges: accepted (paper gains, 4 m/s top speed).
+    for (id, value) in [
+        (ParamId::Ky, 250.0),
+        (ParamId::Kx, 1.2),
+        (ParamId::MaxSpeedMps, 3.0),
+    ] {
+        let r = rig.request(&Request::SetParam { id, value }, 2);
+        assert_eq!(r, Reply::Ack { seq: 2 }, "{id:?} = {value}");
+    }
+    let circle = |radius_m: f32, speed_mps: f32| {
+        Request::SetReference(BuiltinReference {
+            shape: BuiltinShape::Circle {
+                radius_m,
+                speed_mps,
+            },
+            start: None,
+            speed_scale: 1.0,
+        })
+    };
+    for (r, v) in [
+        (1.2e-38, 1e6),
+        (1.0, 1e6),
+        (1e-4, 0.3),
+        (1e9, 0.3),
+        (0.1, 3.0),
+    ] {
+        let a = rig.request(&circle(r, v), 3);
+        assert_eq!(
+            nack(&a),
+            Some(ErrorCode::InvalidValue),
+            "circle {r} m at {v} m/s"
+        );
+    }
+    // The paper's curve at twice its speed is fine (3.9 m/s < 4 m/s), at
+    // three times not.
+    for (scale, ok) in [(2.0, true), (3.0, false)] {
+        let paper = Request::SetReference(BuiltinReference {
+            shape: named_shape("paper").unwrap(),
+            start: None,
+            speed_scale: scale,
+        });
+        let a = rig.request(&paper, 4);
+        assert_eq!(nack(&a).is_none(), ok, "paper at scale {scale}: {a:?}");
+    }
+    let far = PoseMsg {
+        x_m: 3.4e38,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    };
+    assert_eq!(
+        nack(&rig.request(&Request::SetPose(far), 7)),
+        Some(ErrorCode::InvalidValue)
+    );
+    let wp = |v_mps: f32, x_m: f32| Waypoint {
+        t_s: 0.0,
+        pose: PoseMsg {
+            x_m,
+            y_m: 0.0,
+            theta_rad: 0.0,
+        },
+        v_mps,
+        omega_radps: 0.0,
+    };
+    for w in [wp(1e6, 0.0), wp(0.1, 1e30)] {
+        rig.request(&Request::TrajectoryBegin { total_points: 2 }, 5);
+        let seg = Request::TrajectorySegment {
+            first_index: 0,
+            points: [w].into_iter().collect(),
+        };
+        assert_eq!(nack(&rig.request(&seg, 6)), Some(ErrorCode::InvalidValue));
+    }
+}
+
+/// An external pose at `x_m` on the estimate's line (y, θ: the start's).
+fn pose_req(t_robot_us: u32, x_m: f32, std_dev: [f32; 3]) -> Request {
+    let start = RuntimeConfig::example(ControllerKind::Proposed).initial_pose;
+    Request::ExternalPose {
+        t_robot_us,
+        pose: PoseMsg {
+            x_m,
+            y_m: start.y_m,
+            theta_rad: start.theta_rad,
+        },
+        std_dev,
+    }
+}
+
+/// Issue 21 item 3: every pose the estimator would drop is refused on
+/// arrival with its reason; one it refuses later (the chi-square gate) is
+/// counted in the status.
+#[test]
+fn external_poses_are_refused_with_the_estimators_reason() {
+    let mut rig = Rig::new();
+    for _ in 0..50 {
+        rig.tick();
+    }
+    // The device handles the request on the next tick, stamped now + 1 ms.
+    let now = rig.now_us + PERIOD_US;
+    let start = rig.dev.control().estimator().estimate().pose;
+    let x0 = start.x_m;
+    let cases = [
+        (
+            pose_req(now + 5_000, x0, [0.01; 3]),
+            ErrorCode::PoseFromFuture,
+        ),
+        (
+            pose_req(now - 1_000, x0, [0.0, 0.0, 0.01]),
+            ErrorCode::PoseBadStdDev,
+        ),
+        (
+            pose_req(now - 1_000, x0, [5000.0, 5000.0, 0.01]),
+            ErrorCode::PoseBadStdDev,
+        ),
+        (
+            pose_req(now - 1_000, x0, [0.01, 0.01, -1.0]),
+            ErrorCode::PoseBadStdDev,
+        ),
+        (
+            pose_req(now - 1_000, 1e30, [0.01; 3]),
+            ErrorCode::PoseNonFinite,
+        ),
+        (
+            pose_req(now - 1_000, f32::NAN, [0.01; 3]),
+            ErrorCode::PoseNonFinite,
+        ),
+        (
+            pose_req(now.wrapping_sub(10_000_000), x0, [0.01; 3]),
+            ErrorCode::PoseTooOld,
+        ),
+    ];
+    for (i, (req, code)) in cases.iter().enumerate() {
+        let seq = 10 + i as u16;
+        rig.replies.clear();
+        rig.send(req, seq);
+        rig.tick();
+        let a = rig.replies.iter().find(|r| r.seq() == Some(seq)).unwrap();
+        assert_eq!(nack(a), Some(*code), "{req:?}");
+    }
+    // A consistent pose: accepted and used.
+    let now = rig.now_us + PERIOD_US;
+    let used_before = rig.dev.counters().external_poses;
+    assert_eq!(
+        rig.request(&pose_req(now - 2_000, x0, [0.01; 3]), 30),
+        Reply::Ack { seq: 30 }
+    );
+    assert_eq!(
+        rig.dev.counters().external_poses,
+        used_before + 1,
+        "{:?}",
+        rig.dev.control().estimator().status()
+    );
+    // An older one than the last accepted: out of order.
+    let now = rig.now_us + PERIOD_US;
+    let a = rig.request(&pose_req(now - 5_000, x0, [0.01; 3]), 31);
+    assert_eq!(nack(&a), Some(ErrorCode::PoseOutOfOrder));
+    // 50 m away at 1 cm: admissible, so acked, then the gate refuses it
+    // when it is used; the status says so.
+    let now = rig.now_us + PERIOD_US;
+    assert_eq!(
+        rig.request(&pose_req(now - 1_000, x0 + 50.0, [0.01; 3]), 32),
+        Reply::Ack { seq: 32 }
+    );
+    rig.tick();
+    match rig.request(&Request::GetStatus, 33) {
+        Reply::Status { status, .. } => {
+            assert_eq!(
+                status.pose_rejects.outlier,
+                1,
+                "{status:?} {:?}",
+                rig.dev.control().estimator().status()
+            );
+            assert_eq!(status.counters.external_poses, used_before + 1);
+        }
+        r => panic!("{r:?}"),
+    }
+}
+
+fn line_wp(i: u32) -> Waypoint {
+    Waypoint {
+        t_s: i as f32 * 0.1,
+        pose: PoseMsg {
+            x_m: i as f32 * 0.01,
+            y_m: 0.0,
+            theta_rad: 0.0,
+        },
+        v_mps: 0.1,
+        omega_radps: 0.0,
+    }
+}
+
+fn line_seg(first: u32, n: u32) -> Request {
+    Request::TrajectorySegment {
+        first_index: first,
+        points: (first..first + n).map(line_wp).collect(),
+    }
+}
+
+/// Issue 21 item 6: a cut upload (48 of 80 waypoints, room for more) cannot
+/// be armed; the complete one can.
+#[test]
+fn a_half_uploaded_trajectory_cannot_be_armed() {
+    let mut rig = Rig::new();
+    rig.request(&Request::TrajectoryBegin { total_points: 80 }, 1);
+    for s in 0..6 {
+        let r = rig.request(&line_seg(8 * s, 8), 2);
+        assert!(matches!(r, Reply::TrajectoryAck { .. }), "{r:?}");
+    }
+    assert_eq!(
+        nack(&rig.request(&Request::Arm, 3)),
+        Some(ErrorCode::UploadIncomplete)
+    );
+    assert_eq!(rig.dev.state(), RunStateMsg::Hold);
+    // Shorter, complete: armable.
+    rig.request(&Request::TrajectoryBegin { total_points: 20 }, 4);
+    for (first, n) in [(0, 8), (8, 8), (16, 4)] {
+        rig.request(&line_seg(first, n), 5);
+    }
+    assert_eq!(rig.request(&Request::Arm, 6), Reply::Ack { seq: 6 });
+    assert_eq!(rig.dev.state(), RunStateMsg::Running);
+}
+
+/// Issue 21 item 6: a segment sent again after its acknowledgement was
+/// lost is acknowledged again (same index, same content); a different
+/// content at an old index is still out of order.
+#[test]
+fn a_retried_segment_is_acknowledged_again() {
+    let mut rig = Rig::new();
+    rig.request(&Request::TrajectoryBegin { total_points: 24 }, 1);
+    rig.request(&line_seg(0, 8), 2);
+    rig.request(&line_seg(8, 8), 3);
+    let again = rig.request(&line_seg(8, 8), 4);
+    assert_eq!(
+        again,
+        Reply::TrajectoryAck {
+            seq: 4,
+            next_index: 16,
+            free: 64 - 16
+        }
+    );
+    let mut other = line_seg(8, 8);
+    if let Request::TrajectorySegment { points, .. } = &mut other {
+        points[3].v_mps = 0.2;
+    }
+    assert_eq!(nack(&rig.request(&other, 5)), Some(ErrorCode::OutOfOrder));
+    let r = rig.request(&line_seg(16, 8), 6);
+    assert!(
+        matches!(r, Reply::TrajectoryAck { next_index: 24, .. }),
+        "{r:?}"
+    );
 }

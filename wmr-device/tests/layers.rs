@@ -3,8 +3,9 @@
 //! the crate documentation.
 
 /// Bottom to top.
-const LAYERS: [&str; 6] = [
+const LAYERS: [&str; 7] = [
     "framing",
+    "limits",
     "reference",
     "params",
     "telemetry",

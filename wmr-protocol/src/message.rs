@@ -235,7 +235,8 @@ pub enum ErrorCode {
     NoReference,
     /// A safe stop is latched: clear it first.
     Latched,
-    /// A value is NaN, infinite or out of its range.
+    /// A value is NaN, infinite or outside its physical range
+    /// (docs/protocol.md, "Parameters" and the requests' rows).
     InvalidValue,
     /// The parameter cannot be written.
     ReadOnly,
@@ -243,10 +244,25 @@ pub enum ErrorCode {
     BufferFull,
     /// A segment does not continue the upload (index, time order, no begin).
     OutOfOrder,
-    /// The pose measurement is too old or in the future.
-    Stale,
     /// The command does not apply in the current mode.
     WrongMode,
+    /// Arming needs the whole declared upload (or a full buffer when the
+    /// trajectory is longer than it): segments are missing.
+    UploadIncomplete,
+    /// External pose refused: a coordinate is NaN, infinite or implausibly
+    /// large.
+    PoseNonFinite,
+    /// External pose refused: a position std dev is not in (0, 1000], or
+    /// a heading std dev is negative or above 1000 (0 = no heading).
+    PoseBadStdDev,
+    /// External pose refused: stamped after the robot's current tick.
+    PoseFromFuture,
+    /// External pose refused: older than the estimator's history.
+    PoseTooOld,
+    /// External pose refused: stamped before the last accepted one.
+    PoseOutOfOrder,
+    /// External pose refused: another one waits for the same tick.
+    PoseQueueFull,
 }
 
 /// The robot's run state as the host sees it.
@@ -397,6 +413,73 @@ pub struct StatusMsg {
     pub buffered_points: u16,
     /// Every counter.
     pub counters: Counters,
+    /// External poses the estimator refused after the link accepted them
+    /// (chi-square gate, a history that moved on), and those of a board
+    /// pose source, by reason.
+    pub pose_rejects: PoseRejects,
+    /// Telemetry frames not sent because a value in them was NaN or
+    /// infinite (a runtime fault; the frame's sequence number is skipped).
+    pub nonfinite_telemetry: u32,
+    /// What the board itself reports: its last reset's cause and its link
+    /// port's own losses (protocol 3).
+    pub board: BoardReport,
+}
+
+/// Why the robot's MCU last reset, read from its reset controller at boot
+/// (STM32: the RCC_CSR flags, then cleared).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ResetCause {
+    /// Not known (a board without a reset controller, e.g. simulated).
+    #[default]
+    Unknown,
+    /// Power-on (or power-down) reset: the supply came up.
+    PowerOn,
+    /// Brown-out: the supply dipped below the BOR threshold.
+    BrownOut,
+    /// The NRST pin (the reset button or a debugger), nothing else flagged.
+    Pin,
+    /// Software reset (SYSRESETREQ: a debugger's reset or the firmware's).
+    Software,
+    /// The independent watchdog: the control loop stopped feeding it.
+    IndependentWatchdog,
+    /// The window watchdog.
+    WindowWatchdog,
+    /// Low-power management (entering standby or stop when not allowed).
+    LowPower,
+}
+
+/// The board's own report in [`StatusMsg`]: the last reset's cause and the
+/// link port's losses before the protocol handler, since boot.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BoardReport {
+    /// Why the MCU last reset.
+    pub reset_cause: ResetCause,
+    /// Received bytes the port dropped before the protocol handler (its
+    /// receive pipe or the UART's ring buffer full).
+    pub port_rx_dropped: u32,
+    /// Receive errors the port's hardware flagged (UART overrun, framing,
+    /// noise, parity).
+    pub port_rx_errors: u32,
+}
+
+/// External pose measurements the estimator refused, by reason.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PoseRejects {
+    /// A coordinate NaN, infinite or implausibly large.
+    pub non_finite: u32,
+    /// A standard deviation out of range.
+    pub bad_std_dev: u32,
+    /// Stamped after the tick.
+    pub from_future: u32,
+    /// Older than the history.
+    pub too_old: u32,
+    /// Before the last accepted one.
+    pub out_of_order: u32,
+    /// Failed the chi-square gate.
+    pub outlier: u32,
 }
 
 /// Telemetry group [`TELEMETRY_TRACKING`].
@@ -466,6 +549,33 @@ pub struct Telemetry {
     pub estimators: Option<EstimatorTelemetry>,
     /// Group [`TELEMETRY_COUNTERS`].
     pub counters: Option<Counters>,
+}
+
+fn all_finite(xs: &[f32]) -> bool {
+    xs.iter().all(|x| x.is_finite())
+}
+
+impl Telemetry {
+    /// True when every float in the frame is finite (the robot sends no
+    /// other telemetry).
+    pub fn is_finite(&self) -> bool {
+        let tracking = self.tracking.as_ref().is_none_or(|t| {
+            t.pose.is_finite()
+                && t.ref_pose.is_finite()
+                && all_finite(&t.error)
+                && all_finite(&t.eta)
+                && all_finite(&t.eta_c)
+                && all_finite(&t.torque_nm)
+                && all_finite(&[t.time_scale, t.tau_s])
+        });
+        let estimators = self.estimators.as_ref().is_none_or(|e| {
+            all_finite(&e.s)
+                && all_finite(&e.rho_hat)
+                && all_finite(&e.d_hat)
+                && all_finite(&e.f_hat)
+        });
+        self.t_ref_s.is_finite() && tracking && estimators
+    }
 }
 
 impl Reply {
@@ -617,12 +727,18 @@ impl ErrorCode {
             Self::Busy => "not allowed while running (disarm first)",
             Self::NoReference => "no reference, trajectory or velocity command loaded",
             Self::Latched => "a safe stop is latched (clear it first)",
-            Self::InvalidValue => "value NaN, infinite or out of range",
+            Self::InvalidValue => "value NaN, infinite or outside its physical range",
             Self::ReadOnly => "parameter is read-only",
             Self::BufferFull => "trajectory buffer full",
             Self::OutOfOrder => "segment does not continue the upload",
-            Self::Stale => "pose measurement too old or in the future",
             Self::WrongMode => "command does not apply in the current mode",
+            Self::UploadIncomplete => "trajectory upload incomplete (segments missing)",
+            Self::PoseNonFinite => "pose coordinate NaN, infinite or implausibly large",
+            Self::PoseBadStdDev => "pose std dev zero, negative or above 1000",
+            Self::PoseFromFuture => "pose stamped in the robot's future",
+            Self::PoseTooOld => "pose older than the estimator's history",
+            Self::PoseOutOfOrder => "pose stamped before the last accepted one",
+            Self::PoseQueueFull => "another pose waits for the same tick",
         }
     }
 }

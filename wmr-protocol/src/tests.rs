@@ -278,3 +278,91 @@ proptest! {
         prop_assert_eq!(got.last(), Some(&Decoded::Frame { seq: 2, msg: Request::Disarm }));
     }
 }
+
+/// `Telemetry::is_finite` sees a NaN or an infinity in every float of
+/// every group (the device's last check before a frame goes out).
+#[test]
+fn telemetry_finiteness_checks_every_float() {
+    let ok = Telemetry {
+        seq: 1,
+        t_robot_us: 2,
+        t_ref_s: 0.5,
+        state: RunStateMsg::Running,
+        tracking: Some(TrackingTelemetry::default()),
+        estimators: Some(EstimatorTelemetry::default()),
+        counters: Some(Counters::default()),
+    };
+    assert!(ok.is_finite());
+    let mut bad: StdVec<Telemetry> = StdVec::new();
+    for x in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        let tr = TrackingTelemetry::default();
+        let tracking = [
+            TrackingTelemetry {
+                pose: PoseMsg {
+                    x_m: x,
+                    ..PoseMsg::default()
+                },
+                ..tr
+            },
+            TrackingTelemetry {
+                ref_pose: PoseMsg {
+                    theta_rad: x,
+                    ..PoseMsg::default()
+                },
+                ..tr
+            },
+            TrackingTelemetry {
+                error: [0.0, 0.0, x],
+                ..tr
+            },
+            TrackingTelemetry {
+                eta: [x, 0.0],
+                ..tr
+            },
+            TrackingTelemetry {
+                eta_c: [0.0, x],
+                ..tr
+            },
+            TrackingTelemetry {
+                torque_nm: [x, 0.0],
+                ..tr
+            },
+            TrackingTelemetry {
+                time_scale: x,
+                ..tr
+            },
+            TrackingTelemetry { tau_s: x, ..tr },
+        ];
+        for t in tracking {
+            bad.push(Telemetry {
+                tracking: Some(t),
+                ..ok
+            });
+        }
+        let es = EstimatorTelemetry::default();
+        for e in [
+            EstimatorTelemetry { s: [x, 0.0], ..es },
+            EstimatorTelemetry {
+                rho_hat: [0.0, x],
+                ..es
+            },
+            EstimatorTelemetry {
+                d_hat: [x, 0.0],
+                ..es
+            },
+            EstimatorTelemetry {
+                f_hat: [0.0, x],
+                ..es
+            },
+        ] {
+            bad.push(Telemetry {
+                estimators: Some(e),
+                ..ok
+            });
+        }
+        bad.push(Telemetry { t_ref_s: x, ..ok });
+    }
+    for t in bad {
+        assert!(!t.is_finite(), "{t:?}");
+    }
+}

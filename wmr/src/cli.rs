@@ -4,13 +4,14 @@
 use crate::link::{Link, LinkError};
 use crate::record::trace_sample;
 use crate::upload::{parse_upload, segments, Upload};
+use crate::watch::{Stop, Watch};
 use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use wmr_protocol::{
-    ErrorCode, Event, ParamId, Reply, Request, RunStateMsg, StatusMsg, TELEMETRY_ALL,
+    ErrorCode, Event, ParamId, Reply, Request, RunStateMsg, StatusMsg, StopCode, TELEMETRY_ALL,
 };
 
 /// Host tool for the trajectory-tracking robot (and `hil-sim device --pty`).
@@ -20,9 +21,10 @@ pub struct Cli {
     /// Serial port or pseudo-terminal of the robot.
     #[arg(long, global = true, env = "WMR_PORT", value_name = "PATH")]
     pub port: Option<String>,
-    /// How long to wait for each answer [ms].
-    #[arg(long, global = true, default_value_t = 500, value_name = "MS")]
-    pub timeout_ms: u64,
+    /// How long to wait for each answer before sending the request again [ms]
+    /// [default: a fifth of the robot's link_timeout_ms, 100 ms for its 500].
+    #[arg(long, global = true, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    pub timeout_ms: Option<u64>,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
@@ -161,8 +163,15 @@ fn link_of(cli: &Cli) -> Result<Link, LinkError> {
         .port
         .as_deref()
         .ok_or_else(|| LinkError::Io("no port: give --port PATH (or set WMR_PORT)".into()))?;
-    let mut link = Link::open(port, Duration::from_millis(cli.timeout_ms))?;
+    let mut link = Link::open_timed(port, cli.timeout_ms.map(Duration::from_millis))?;
     link.hello()?;
+    // Every host-side time derives from the robot's link timeout.
+    if let Ok(Reply::Param { value, .. }) = link.command(&Request::GetParam(ParamId::LinkTimeoutMs))
+    {
+        if value.is_finite() && value >= 1.0 {
+            link.set_link_timeout_ms(value as u32);
+        }
+    }
     Ok(link)
 }
 
@@ -205,6 +214,18 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
             )
             .map_err(io)?;
             writeln!(out, "counters: {:?}", s.counters).map_err(io)?;
+            writeln!(
+                out,
+                "external poses refused by the estimator after their ack: {:?}; telemetry frames withheld (non-finite): {}",
+                s.pose_rejects, s.nonfinite_telemetry
+            )
+            .map_err(io)?;
+            writeln!(
+                out,
+                "board: last reset {:?}, port rx dropped {}, port rx errors {}",
+                s.board.reset_cause, s.board.port_rx_dropped, s.board.port_rx_errors
+            )
+            .map_err(io)?;
         }
         Command::Arm => {
             link.command(&Request::Arm)?;
@@ -244,6 +265,7 @@ fn send_segments(
     patience: Duration,
 ) -> Result<usize, LinkError> {
     let mut waited = Instant::now();
+    let mut watch = Watch::new(link);
     while next < segs.len() {
         match link.request(&segs[next])? {
             Reply::TrajectoryAck { .. } => {
@@ -257,7 +279,14 @@ fn send_segments(
                 if waited.elapsed() >= patience {
                     break;
                 }
-                std::thread::sleep(Duration::from_millis(20));
+                // Waiting for the buffer to drain: a robot that stopped
+                // meanwhile never drains it.
+                let period = watch.timing().keep_alive;
+                if let Some(s) = watch.step(link, None, period)?.stopped {
+                    return Err(LinkError::UnexpectedStop(format!(
+                        "{s} while streaming waypoints"
+                    )));
+                }
             }
             Reply::Nack { error, .. } => {
                 return Err(LinkError::Nack("TrajectorySegment".into(), error))
@@ -333,52 +362,46 @@ fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
     Ok(())
 }
 
-/// Waits until the robot reports hold or a latched stop; returns the cause.
-fn wait_for_stop(link: &mut Link, within: Duration) -> Result<Option<Event>, LinkError> {
-    let end = Instant::now() + within;
-    while Instant::now() < end {
-        if let Some(Reply::Event(e @ Event::StateChanged { state, .. })) =
-            link.next_stream(Duration::from_millis(20))?
-        {
-            if matches!(state, RunStateMsg::Hold | RunStateMsg::Stopped) {
-                return Ok(Some(e));
-            }
+/// Keeps the link alive until the robot is at rest and prints why; only the
+/// trajectory's end and a deliberate disarm (`wmr disarm`, the button) are a
+/// success (a stop for any other cause, or silence beyond the link timing's
+/// limit, is an error).
+fn keep_alive_until_stop(link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
+    let mut watch = Watch::new(link);
+    let period = watch.timing().keep_alive;
+    let stop = loop {
+        if let Some(s) = watch.step(link, None, period)?.stopped {
+            break s;
         }
-    }
-    Ok(None)
+    };
+    writeln!(out, "stopped: {stop}").map_err(io)?;
+    expect_cause(
+        stop,
+        &[StopCode::TrajectoryEnd, StopCode::Disarmed],
+        "the run",
+    )
 }
 
-/// Keeps the link alive (a frame every 100 ms) until the robot reports hold
-/// or a latched stop, and prints why.
-fn keep_alive_until_stop(link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
-    let t0 = Instant::now();
-    let mut last_ping = Instant::now();
-    loop {
-        if last_ping.elapsed() >= Duration::from_millis(100) {
-            link.send(&Request::ClockSync {
-                host_time_us: host_us(t0),
-            })?;
-            last_ping = Instant::now();
-        }
-        if let Some(Reply::Event(Event::StateChanged {
-            state: state @ (RunStateMsg::Hold | RunStateMsg::Stopped),
-            cause,
-        })) = link.next_stream(Duration::from_millis(20))?
-        {
-            writeln!(
-                out,
-                "stopped: {state:?} ({})",
-                cause.map_or_else(|| "-".into(), |c| format!("{c:?}"))
-            )
-            .map_err(io)?;
-            return Ok(());
-        }
+/// `Ok` when `stop` has the expected cause, else the unexpected stop.
+fn expect_cause(stop: Stop, expected: &[StopCode], what: &str) -> Result<(), LinkError> {
+    match stop.cause {
+        Some(c) if expected.contains(&c) => Ok(()),
+        _ => Err(LinkError::UnexpectedStop(format!(
+            "{stop} during {what} (expected {expected:?})"
+        ))),
     }
 }
+
+/// Longest wait for the robot to come to rest after a stop began [s]: its
+/// controlled stop is bounded by its own limits, far below this.
+const STOP_WAIT: Duration = Duration::from_secs(10);
 
 fn drive(a: &DriveArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
-    if !(a.for_s.is_finite() && a.for_s >= 0.0) {
-        return Err(LinkError::Io("--for must be >= 0".into()));
+    if !(a.for_s.is_finite() && (0.0..=86_400.0).contains(&a.for_s)) {
+        return Err(LinkError::Io("--for must be in [0, 86400] s".into()));
+    }
+    if a.cmd_timeout_ms == 0 {
+        return Err(LinkError::Io("--cmd-timeout-ms must be > 0".into()));
     }
     let cmd = Request::Velocity {
         v_mps: a.v,
@@ -389,24 +412,37 @@ fn drive(a: &DriveArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     if status(link)?.state == RunStateMsg::Hold {
         link.command(&Request::Arm)?;
     }
+    let mut watch = Watch::new(link);
+    // The refresh is the keep-alive: inside both the command's timeout and
+    // the link timeout.
+    let refresh =
+        Duration::from_millis((a.cmd_timeout_ms as u64 / 3).max(10)).min(watch.timing().keep_alive);
     let t0 = Instant::now();
-    let refresh = Duration::from_millis((a.cmd_timeout_ms as u64 / 3).max(10));
     while t0.elapsed().as_secs_f64() < a.for_s {
-        std::thread::sleep(refresh);
-        link.command(&cmd)?;
+        let step = watch.step(link, Some(&cmd), refresh)?;
+        if let Some((_, Reply::Nack { error, .. })) = step.answers.first() {
+            return Err(LinkError::Nack("Velocity".into(), *error));
+        }
+        if let Some(s) = step.stopped {
+            return Err(LinkError::UnexpectedStop(format!(
+                "{s} after {:.2} s of {:.2} s of driving",
+                t0.elapsed().as_secs_f64(),
+                a.for_s
+            )));
+        }
+        if step.stopping {
+            let s = watch.until_stopped(link, STOP_WAIT)?;
+            return Err(LinkError::UnexpectedStop(format!(
+                "{s} after {:.2} s of {:.2} s of driving",
+                t0.elapsed().as_secs_f64(),
+                a.for_s
+            )));
+        }
     }
-    link.stream.clear();
-    let stop = wait_for_stop(link, Duration::from_secs(10))?;
-    match stop {
-        Some(Event::StateChanged { state, cause }) => writeln!(
-            out,
-            "stopped: {state:?} ({})",
-            cause.map_or_else(|| "-".into(), |c| format!("{c:?}"))
-        )
-        .map_err(io)?,
-        _ => writeln!(out, "the robot did not report a stop within 10 s").map_err(io)?,
-    }
-    Ok(())
+    // No more refreshes: the command times out on the robot.
+    let stop = watch.until_stopped(link, STOP_WAIT)?;
+    writeln!(out, "stopped: {stop}").map_err(io)?;
+    expect_cause(stop, &[StopCode::VelocityTimeout], "drive")
 }
 
 fn param_id(name: &str) -> Result<ParamId, LinkError> {
@@ -492,9 +528,11 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
     let mut dropped = 0u64;
     let mut rows = Vec::new();
     let mut seen_running = false;
+    let mut ended: Option<Stop> = None;
+    let keep_alive = link.timing().keep_alive;
     loop {
         // Keep the link alive (the robot brakes after link_timeout_ms of silence).
-        if last_ping.elapsed() >= Duration::from_millis(100) {
+        if last_ping.elapsed() >= keep_alive {
             link.send(&Request::ClockSync {
                 host_time_us: host_us(t0),
             })?;
@@ -525,14 +563,19 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
                 if elapsed_ms >= total_ms {
                     break;
                 }
+                // The run ended and its event was lost: telemetry says so.
+                if seen_running && matches!(t.state, RunStateMsg::Hold | RunStateMsg::Stopped) {
+                    ended = Some(Stop {
+                        state: t.state,
+                        cause: None,
+                    });
+                    break;
+                }
             }
             Some(Reply::Event(Event::StateChanged { state, cause }))
                 if seen_running && matches!(state, RunStateMsg::Hold | RunStateMsg::Stopped) =>
             {
-                pb.println(format!(
-                    "the run ended: {state:?} ({})",
-                    cause.map_or_else(|| "-".into(), |c| format!("{c:?}"))
-                ));
+                ended = Some(Stop { state, cause });
                 break;
             }
             _ => {}
@@ -543,6 +586,13 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
         }
     }
     pb.finish_and_clear();
+    // The cause of a stop seen only in telemetry: the status's last stop.
+    if let Some(s) = &mut ended {
+        if s.cause.is_none() {
+            s.cause = status(link).ok().and_then(|st| st.last_stop);
+        }
+        eprintln!("the run ended: {s}");
+    }
     let _ = link.command(&Request::SetTelemetry {
         selection: TELEMETRY_ALL,
         rate_hz: 0,
@@ -561,7 +611,16 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
     };
     let json = serde_json::to_string(&summary).map_err(|e| LinkError::Io(e.to_string()))?;
     writeln!(out, "{json}").map_err(io)?;
-    Ok(())
+    // With --arm the run is ours: only its end or a disarm is a success (the
+    // log up to the stop is written either way).
+    match ended {
+        Some(s) if a.arm => expect_cause(
+            s,
+            &[StopCode::TrajectoryEnd, StopCode::Disarmed],
+            "the recording",
+        ),
+        _ => Ok(()),
+    }
 }
 
 /// Clock offset robot − host \[µs\] from `n` exchanges, the one with the
@@ -612,7 +671,7 @@ fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(
     let t0 = Instant::now();
     let offset = clock_offset(link, t0, 5)?;
     let std = [a.std[0], a.std[1], a.std[2]];
-    let (mut sent, mut refused) = (0u64, 0u64);
+    let mut tally = PoseTally::default();
     let mut send = |link: &mut Link, line: &str, n: usize| -> Result<(), LinkError> {
         match parse_pose_line(line, std) {
             Ok(None) => Ok(()),
@@ -632,9 +691,9 @@ fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(
                     std_dev: s,
                 };
                 match link.command(&req) {
-                    Ok(_) => sent += 1,
+                    Ok(_) => tally.accepted(),
                     Err(LinkError::Nack(_, e)) => {
-                        refused += 1;
+                        tally.refused(e);
                         eprintln!("line {n}: refused: {}", e.reason());
                     }
                     Err(e) => return Err(e),
@@ -663,13 +722,79 @@ fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(
             }
         }
     }
-    writeln!(out, "{sent} poses sent, {refused} refused").map_err(io)?;
+    writeln!(out, "{tally}").map_err(io)?;
     Ok(())
+}
+
+/// What `pose-feed` sent and what the robot refused, by reason.
+#[derive(Debug, Default)]
+pub struct PoseTally {
+    sent: u64,
+    refused: Vec<(ErrorCode, u64)>,
+}
+
+impl PoseTally {
+    /// One pose sent and acknowledged.
+    pub fn accepted(&mut self) {
+        self.sent += 1;
+    }
+
+    /// One pose sent and refused with `e`.
+    pub fn refused(&mut self, e: ErrorCode) {
+        self.sent += 1;
+        match self.refused.iter_mut().find(|(c, _)| *c == e) {
+            Some((_, n)) => *n += 1,
+            None => self.refused.push((e, 1)),
+        }
+    }
+
+    /// Poses refused, all reasons.
+    pub fn refused_total(&self) -> u64 {
+        self.refused.iter().map(|(_, n)| n).sum()
+    }
+}
+
+impl std::fmt::Display for PoseTally {
+    /// `N poses sent, M refused` and one `  K: reason` line per reason.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} poses sent, {} refused",
+            self.sent,
+            self.refused_total()
+        )?;
+        for (e, n) in &self.refused {
+            write!(f, "\n  {n}: {}", e.reason())?;
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pose_tally_counts_refusals_by_reason() {
+        let mut t = PoseTally::default();
+        t.accepted();
+        t.refused(ErrorCode::PoseBadStdDev);
+        t.refused(ErrorCode::PoseNonFinite);
+        t.refused(ErrorCode::PoseBadStdDev);
+        assert_eq!(t.refused_total(), 3);
+        let text = t.to_string();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("4 poses sent, 3 refused"));
+        assert_eq!(
+            lines.next(),
+            Some(format!("  2: {}", ErrorCode::PoseBadStdDev.reason()).as_str())
+        );
+        assert_eq!(
+            lines.next(),
+            Some(format!("  1: {}", ErrorCode::PoseNonFinite.reason()).as_str())
+        );
+        assert_eq!(lines.next(), None);
+    }
 
     #[test]
     fn pose_lines() {

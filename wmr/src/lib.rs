@@ -8,6 +8,8 @@
 pub mod cli;
 pub mod link;
 pub mod record;
+pub mod timing;
 pub mod upload;
+pub mod watch;
 
 pub use link::{HelloInfo, Link, LinkError};

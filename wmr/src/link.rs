@@ -2,6 +2,7 @@
 //! same sequence number, keeps telemetry and events that arrive meanwhile,
 //! and turns every failure into a one-line [`LinkError`].
 
+use crate::timing::LinkTiming;
 use std::collections::VecDeque;
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
@@ -31,6 +32,8 @@ pub enum LinkError {
     Unexpected(String),
     /// Reading or writing the port failed.
     Io(String),
+    /// The robot stopped when the host did not expect it (what and when).
+    UnexpectedStop(String),
 }
 
 impl std::fmt::Display for LinkError {
@@ -46,6 +49,7 @@ impl std::fmt::Display for LinkError {
             Self::Nack(what, e) => write!(f, "the robot refused {what}: {}", e.reason()),
             Self::Unexpected(what) => write!(f, "unexpected answer: {what}"),
             Self::Io(e) => write!(f, "link error: {e}"),
+            Self::UnexpectedStop(s) => write!(f, "the robot stopped unexpectedly: {s}"),
         }
     }
 }
@@ -74,7 +78,10 @@ pub struct Link {
     port: Box<dyn Port>,
     decoder: FrameDecoder<MAX_FRAME>,
     seq: u16,
-    timeout: Duration,
+    timing: LinkTiming,
+    /// An answer timeout given by the user (kept when the timing is re-derived).
+    answer_override: Option<Duration>,
+    last_rx: Instant,
     /// Telemetry and events received while waiting for answers, oldest first.
     pub stream: VecDeque<Reply>,
     /// The last successful handshake.
@@ -90,9 +97,16 @@ pub fn request_name(r: &Request) -> String {
 }
 
 impl Link {
-    /// Opens a serial port or pseudo-terminal at `path` (the baud rate does
-    /// not matter for USB CDC and ptys; 115200 for a UART).
+    /// Opens a serial port or pseudo-terminal at `path` with a fixed answer
+    /// timeout (see [`Link::open_timed`]).
     pub fn open(path: &str, timeout: Duration) -> Result<Self, LinkError> {
+        Self::open_timed(path, Some(timeout))
+    }
+
+    /// Opens a serial port or pseudo-terminal at `path` (the baud rate does
+    /// not matter for USB CDC and ptys; 115200 for a UART); `timeout`, when
+    /// given, replaces the answer timeout derived from the link timeout.
+    pub fn open_timed(path: &str, timeout: Option<Duration>) -> Result<Self, LinkError> {
         if !std::path::Path::new(path).exists() {
             return Err(LinkError::NoSuchPort(path.into()));
         }
@@ -103,17 +117,31 @@ impl Link {
         use serialport::SerialPort;
         // Stale bytes from before we opened (telemetry to nobody) go.
         let _ = port.clear(serialport::ClearBuffer::Input);
-        Ok(Self::from_port(Box::new(port), timeout))
+        Ok(Self::from_port_timed(Box::new(port), timeout))
+    }
+
+    /// A link over any byte stream with a fixed answer timeout (see
+    /// [`Link::from_port_timed`]).
+    pub fn from_port(port: Box<dyn Port>, timeout: Duration) -> Self {
+        Self::from_port_timed(port, Some(timeout))
     }
 
     /// A link over any byte stream whose reads return within a few ms
-    /// (errors of kind `TimedOut`/`WouldBlock` mean "nothing yet").
-    pub fn from_port(port: Box<dyn Port>, timeout: Duration) -> Self {
+    /// (errors of kind `TimedOut`/`WouldBlock` mean "nothing yet"), timed for
+    /// the default link timeout ([`LinkTiming::default`]); `timeout`, when
+    /// given, replaces the derived answer timeout.
+    pub fn from_port_timed(port: Box<dyn Port>, timeout: Option<Duration>) -> Self {
+        let mut timing = LinkTiming::default();
+        if let Some(t) = timeout {
+            timing = timing.with_answer_timeout(t);
+        }
         Self {
             port,
             decoder: FrameDecoder::new(),
             seq: 0,
-            timeout,
+            timing,
+            answer_override: timeout,
+            last_rx: Instant::now(),
             stream: VecDeque::new(),
             last_hello: None,
             buf: Vec::new(),
@@ -122,7 +150,27 @@ impl Link {
 
     /// The answer timeout.
     pub fn timeout(&self) -> Duration {
-        self.timeout
+        self.timing.answer_timeout
+    }
+
+    /// The link's timing.
+    pub fn timing(&self) -> LinkTiming {
+        self.timing
+    }
+
+    /// Re-derives the timing from the robot's link timeout (read after the
+    /// handshake); an answer timeout given to [`Link::from_port`] is kept.
+    pub fn set_link_timeout_ms(&mut self, link_timeout_ms: u32) {
+        let t = LinkTiming::from_link_timeout_ms(link_timeout_ms);
+        self.timing = match self.answer_override {
+            Some(a) => t.with_answer_timeout(a),
+            None => t,
+        };
+    }
+
+    /// When the last valid frame arrived (the link's creation before any).
+    pub fn last_rx(&self) -> Instant {
+        self.last_rx
     }
 
     /// Sends `req` with a fresh sequence number; returns the number.
@@ -173,6 +221,12 @@ impl Link {
         while !rest.is_empty() {
             let (d, r) = self.decoder.feed::<Reply>(rest);
             rest = r;
+            if matches!(
+                d,
+                Some(Decoded::Frame { .. } | Decoded::OtherVersion { .. })
+            ) {
+                self.last_rx = Instant::now();
+            }
             match d {
                 Some(Decoded::Frame { msg, .. }) => match &msg {
                     Reply::Telemetry(_) | Reply::Event(_) => self.stream.push_back(msg),
@@ -221,11 +275,25 @@ impl Link {
         }
     }
 
-    /// Sends `req` and waits for its answer (retrying once on silence).
+    /// Reads for up to `wait`; returns the answers that arrived (any
+    /// sequence number; telemetry and events go to [`Link::stream`]).
+    pub fn receive(&mut self, wait: Duration) -> Result<Vec<(u16, Reply)>, LinkError> {
+        let end = Instant::now() + wait;
+        let mut answers = Vec::new();
+        loop {
+            answers.extend(self.poll()?);
+            if Instant::now() >= end || !answers.is_empty() {
+                return Ok(answers);
+            }
+        }
+    }
+
+    /// Sends `req` and waits for its answer, re-sending it on silence
+    /// ([`LinkTiming::attempts`] times, [`LinkTiming::answer_timeout`] each).
     pub fn request(&mut self, req: &Request) -> Result<Reply, LinkError> {
-        for _attempt in 0..2 {
+        for _attempt in 0..self.timing.attempts.max(1) {
             let seq = self.send(req)?;
-            let end = Instant::now() + self.timeout;
+            let end = Instant::now() + self.timing.answer_timeout;
             while Instant::now() < end {
                 for (s, r) in self.poll()? {
                     if s == seq {

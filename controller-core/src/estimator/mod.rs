@@ -413,11 +413,16 @@ impl<const H: usize> PoseEstimator<H> {
         r
     }
 
-    fn try_correct(
-        &mut self,
-        m: &PoseMeasurement,
-        max_ticks: usize,
-    ) -> Result<usize, RejectReason> {
+    /// The rules a measurement must pass before the chi-square gate, as
+    /// [`Self::correct`] applies them when it is used on the tick stamped
+    /// `now_us`: finite and plausible coordinates, standard deviations in
+    /// (0, 1000], not after `now_us`, not older than the history, not
+    /// before the last accepted one. The host link checks a pose with this
+    /// same function when it arrives, so that the host is told why it is
+    /// refused (the gate, and a history that moved on by the time the pose
+    /// is used, can still reject it later: counted in
+    /// [`EstimatorStatus::rejected`]).
+    pub fn admissible_at(&self, m: &PoseMeasurement, now_us: u32) -> Result<(), RejectReason> {
         let heading_finite = m.heading_std_rad.is_none() || m.pose.theta_rad.is_finite();
         let ok_coord = |v: f32| v.abs() <= MAX_COORD_M; // false for NaN
         if !(ok_coord(m.pose.x_m) && ok_coord(m.pose.y_m) && heading_finite) {
@@ -430,7 +435,7 @@ impl<const H: usize> PoseEstimator<H> {
         let Some(oldest) = self.oldest_usable() else {
             return Err(RejectReason::TooOld);
         };
-        if (self.now_us.wrapping_sub(m.stamp_us) as i32) < 0 {
+        if (now_us.wrapping_sub(m.stamp_us) as i32) < 0 {
             return Err(RejectReason::FromFuture);
         }
         if (m.stamp_us.wrapping_sub(self.tick_at(oldest).stamp_us) as i32) < 0 {
@@ -441,6 +446,18 @@ impl<const H: usize> PoseEstimator<H> {
                 return Err(RejectReason::OutOfOrder);
             }
         }
+        Ok(())
+    }
+
+    fn try_correct(
+        &mut self,
+        m: &PoseMeasurement,
+        max_ticks: usize,
+    ) -> Result<usize, RejectReason> {
+        self.admissible_at(m, self.now_us)?;
+        let Some(oldest) = self.oldest_usable() else {
+            return Err(RejectReason::TooOld);
+        };
         // The tick nearest in time: the newest tick at or before the stamp
         // (binary search on the ages, which grow with `back`), then the
         // closer of it and the next one.

@@ -17,10 +17,11 @@ pub struct BenchArgs {
 
 /// `bench`: time the paper run and the Monte-Carlo throughput, print them.
 pub fn bench(a: &BenchArgs, out: &mut dyn Write) -> Result<(), String> {
-    let r = run_bench(&BenchConfig {
+    let cfg = BenchConfig {
         reps: a.reps as usize,
         mc_runs: a.mc_runs as usize,
-    });
+    };
+    let r = crate::progress::Progress::during("bench: timing", false, || run_bench(&cfg));
     out.write_all(r.to_string().as_bytes())
         .map_err(|e| e.to_string())
 }

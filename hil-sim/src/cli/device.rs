@@ -37,6 +37,10 @@ pub fn device(a: &DeviceArgs, out: &mut dyn Write) -> Result<(), String> {
         return Err("--speed must be in (0, 1000]".into());
     }
     let scn = a.scenario.build()?;
+    crate::limits::check_scenario(&scn)?;
+    if let Some(t) = a.for_s {
+        crate::limits::check_device_for_s(t)?;
+    }
     let kind: ControllerKind = a.controller.into();
     let mut robot = SimRobot::new(&scn, kind)?;
     let (mut master, _slave, path) = open_pty()?;
@@ -55,11 +59,10 @@ pub fn device(a: &DeviceArgs, out: &mut dyn Write) -> Result<(), String> {
     match a.for_s {
         None => serve(&mut robot, &mut master, a.speed, &stop),
         Some(t) => {
-            let ticks = (t / scn.control_period_s).round() as u64;
             std::thread::scope(|s| {
                 let h = s.spawn(|| serve(&mut robot, &mut master, a.speed, &stop));
-                let period = std::time::Duration::from_secs_f64(scn.control_period_s / a.speed);
-                std::thread::sleep(period * ticks as u32);
+                // Robot time t at `speed` x real time (no tick count: it wrapped a u32).
+                std::thread::sleep(std::time::Duration::from_secs_f64(t / a.speed));
                 stop.store(true, std::sync::atomic::Ordering::Relaxed);
                 h.join().map_err(|_| "device thread panicked".to_string())?
             })

@@ -2,6 +2,7 @@
 //! or one shard of it for `merge`.
 
 use crate::montecarlo::{run_records, McConfig, Outcome, MAX_RUNS};
+use crate::progress::Progress;
 use crate::report::{failed_error, mc_report, shard_report};
 use crate::scenario::Sensing;
 use crate::shard::{default_shard_path, write_shard, Shard, ShardHeader};
@@ -46,28 +47,9 @@ pub struct McArgs {
     /// Print the statistics as JSON instead of the table.
     #[arg(long)]
     pub json: bool,
-    /// No progress bar.
+    /// No progress (bar on a terminal, else a line every 10 s on stderr).
     #[arg(long)]
     pub quiet: bool,
-}
-
-/// A progress bar on stderr for `total` simulations (hidden with `quiet`).
-fn progress_bar(total: u64, quiet: bool) -> indicatif::ProgressBar {
-    if quiet {
-        return indicatif::ProgressBar::hidden();
-    }
-    let pb = indicatif::ProgressBar::with_draw_target(
-        Some(total),
-        indicatif::ProgressDrawTarget::stderr(),
-    );
-    pb.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40}] {pos}/{len} simulations, eta {eta}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    pb
 }
 
 /// `montecarlo`: run the sweep or one shard of it, write the records with
@@ -83,14 +65,16 @@ pub fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
         paper_setting: a.paper_setting,
     };
     cfg.validate()?;
+    crate::limits::check_scenario(&cfg.scenario(0))?;
     let shard = a.shard.unwrap_or(Shard::WHOLE);
     let runs = shard.runs(a.runs);
-    let pb = progress_bar(
+    let pb = Progress::new(
+        "simulations",
         (runs.end - runs.start) * ControllerKind::ALL.len() as u64,
         a.quiet,
     );
-    let rec = run_records(&cfg, runs, &|| pb.inc(1));
-    pb.finish_and_clear();
+    let rec = run_records(&cfg, runs, &|| pb.inc());
+    pb.finish();
     let header = ShardHeader::new(&cfg, shard, rec.elapsed_s, rec.threads);
     let file = match (&a.out, a.shard) {
         (Some(p), _) => Some(p.clone()),

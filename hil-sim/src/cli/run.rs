@@ -2,6 +2,7 @@
 
 use super::controller_arg::ControllerArg;
 use super::scenario_args::ScenarioArgs;
+use crate::progress::Progress;
 use crate::report::{run_text, write_trace_csv};
 use crate::sim::{controller_config, run_with};
 use clap::Args;
@@ -27,12 +28,17 @@ pub struct RunArgs {
     /// Print exactly one JSON object (the metrics plus "controller", "scenario", "rejected_steps").
     #[arg(long)]
     pub json: bool,
+    /// Write a --csv estimated beyond 1 GB (the trace is held in memory: at
+    /// most 8 GB even so).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// `run`: one scenario with one controller; the summary or one JSON object,
 /// the trace to `--csv`.
 pub fn run(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
     let scn = a.scenario.build()?;
+    crate::limits::check_scenario(&scn)?;
     if a.scenario.case == Some(1) && a.scenario.eps.is_some_and(|e| e > 0.0) {
         eprintln!("note: --eps with --case 1 injects the actuator fault of Case 2");
     }
@@ -42,7 +48,17 @@ pub fn run(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
         (true, Some(n)) => n.max(1),
         (true, None) => crate::sim::trace_every(&scn),
     };
-    let res = run_with(&scn, controller_config(&scn, kind), every)?;
+    if a.csv.is_some() {
+        crate::limits::check_csv(&scn, every, a.force)?;
+    }
+    let what = format!(
+        "run: simulating {:.0} s of robot time ({:.2e} plant steps)",
+        scn.duration_s,
+        crate::limits::plant_steps(&scn)
+    );
+    let res = Progress::during(&what, false, || {
+        run_with(&scn, controller_config(&scn, kind), every)
+    })?;
     if let Some(path) = &a.csv {
         let f = std::fs::File::create(path)
             .map_err(|e| format!("cannot create {}: {e}", path.display()))?;

@@ -278,3 +278,28 @@ fn report_of_a_full_trace_csv_equals_the_run() {
         "{e}"
     );
 }
+
+/// Issue 21 item 7 through the command line: valid-looking but absurd values
+/// are refused with the field named, before anything runs.
+#[test]
+fn absurd_values_are_refused_before_running() {
+    let e = run_to_string(&["run", "--duration", "0.1", "--torque-limit", "1e30"]).unwrap_err();
+    assert!(e.contains("torque_limit_nm = 1e30"), "{e}");
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("s.toml");
+    std::fs::write(&f, "duration_s = 0.1\ninitial_pose = [1e308, 0.0, 0.0]\n").unwrap();
+    let e = run_to_string(&["run", "--scenario", f.to_str().unwrap()]).unwrap_err();
+    assert!(e.contains("initial_pose"), "{e}");
+    let e = run_to_string(&["run", "--duration", "0.001", "--substeps", "4000000000"]).unwrap_err();
+    assert!(e.contains("substeps"), "{e}");
+    let e = run_to_string(&["run", "--duration", "0.001", "--control-period", "1e-9"]).unwrap_err();
+    assert!(e.contains("control_period_s"), "{e}");
+    let e = run_to_string(&["montecarlo", "--runs", "1", "--duration", "1e9"]).unwrap_err();
+    assert!(e.contains("duration_s"), "{e}");
+    // `device --for-s` NaN, negative or 0 exited 0 at once (a u32 wrap).
+    for bad in ["NaN", "-5", "0"] {
+        let arg = format!("--for-s={bad}");
+        let e = run_to_string(&["device", "--pty", &arg]).unwrap_err();
+        assert!(e.contains("--for-s"), "{bad}: {e}");
+    }
+}

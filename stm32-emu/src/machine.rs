@@ -1,0 +1,1428 @@
+//! The emulated chip: Unicorn's Cortex-M4 core with the image in flash,
+//! SRAM, the peripheral models behind MMIO hooks, exceptions entered and
+//! returned by hand, time from the instruction count, and the run loop
+//! that jumps time over sleeps (WFE/WFI) to the next peripheral event.
+//!
+//! Time: every executed instruction is one SYSCLK cycle (a fixed CPI of 1;
+//! the real M4 takes more for loads, branches and flash wait states, so
+//! emulated code is faster than on the chip and timing margins measured
+//! here are upper bounds). Sleep lasts until the next event of a model.
+
+use crate::elf::Image;
+use crate::periph::nvic::{exc, Nvic};
+use crate::periph::rcc::{Rcc, ResetCause};
+use crate::periph::timer::{ChannelOutput, Kind, Timer};
+use crate::periph::{
+    dbgmcu::Dbgmcu, flash::Flash, gpio, gpio::Port, iwdg::Iwdg, pwr::Pwr, scb::Scb, systick::Dwt,
+    systick::SysTick, usart::Usart, PS_PER_S,
+};
+use crate::robot::{BridgeInputs, Robot};
+use unicorn_engine::unicorn_const::{uc_error, Arch, HookType, MemType, Mode, Prot};
+use unicorn_engine::{ArmCpuModel, RegisterARM, Unicorn};
+
+/// The supported chips.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ChipKind {
+    /// STM32F446RE (Nucleo-64): HSE 8 MHz bypass, USART2 host link.
+    F446re,
+    /// STM32F411CE (Black Pill): HSE 25 MHz, USB OTG_FS host link.
+    F411ce,
+}
+
+impl ChipKind {
+    /// HSE frequency \[Hz\].
+    pub fn hse_hz(self) -> u64 {
+        match self {
+            Self::F446re => 8_000_000,
+            Self::F411ce => 25_000_000,
+        }
+    }
+    fn idcode(self) -> u32 {
+        match self {
+            Self::F446re => 0x1000_6421,
+            Self::F411ce => 0x1000_6431,
+        }
+    }
+    fn n_irq(self) -> usize {
+        match self {
+            Self::F446re => 97,
+            Self::F411ce => 86,
+        }
+    }
+    /// SRAM size \[B\].
+    pub fn ram_size(self) -> u32 {
+        128 * 1024
+    }
+    /// Flash size \[B\].
+    pub fn flash_size(self) -> u32 {
+        512 * 1024
+    }
+}
+
+/// Flash base.
+pub const FLASH_BASE: u32 = 0x0800_0000;
+/// SRAM base.
+pub const RAM_BASE: u32 = 0x2000_0000;
+
+/// IRQ numbers (RM0390 table 38; the same on the F411).
+pub mod irq {
+    /// TIM1 update.
+    pub const TIM1_UP: usize = 25;
+    /// TIM1 capture/compare.
+    pub const TIM1_CC: usize = 27;
+    /// TIM1 break.
+    pub const TIM1_BRK: usize = 24;
+    /// TIM3.
+    pub const TIM3: usize = 29;
+    /// TIM4.
+    pub const TIM4: usize = 30;
+    /// USART2.
+    pub const USART2: usize = 38;
+    /// TIM5 (embassy's time driver).
+    pub const TIM5: usize = 50;
+}
+
+/// Something the harness records.
+#[derive(Clone, Debug)]
+pub struct Event {
+    /// Emulated time \[s\].
+    pub t_s: f64,
+    /// What happened.
+    pub what: String,
+}
+
+/// Counters.
+#[derive(Clone, Debug, Default)]
+pub struct Stats {
+    /// Instructions executed (all boots).
+    pub instructions: u64,
+    /// Exceptions taken, by exception number.
+    pub taken: std::collections::BTreeMap<usize, u64>,
+    /// Boots (the first included).
+    pub boots: u32,
+    /// Resets: (time s, cause).
+    pub resets: Vec<(f64, ResetCause)>,
+    /// emu_start calls.
+    pub slices: u64,
+    /// Sleeps (WFE/WFI that waited).
+    pub sleeps: u64,
+    /// Watchdog feeds over all boots.
+    pub feeds: u64,
+}
+
+/// Fault injection.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    /// HardFault pended at once (as a fault escalated from a disabled
+    /// configurable fault).
+    HardFault,
+    /// The next read of TIM3.CNT (the right encoder, read every tick) is a
+    /// bus error: an imprecise BusFault (escalated to HardFault unless
+    /// SHCSR.BUSFAULTENA), BFAR not valid.
+    BusFaultOnEncoderRead,
+}
+
+/// The whole chip and its board: the state Unicorn's hooks reach.
+pub struct Board {
+    /// Chip.
+    pub chip: ChipKind,
+    /// Cycles (= instructions) since power-on.
+    pub cycles: u64,
+    base_cycles: u64,
+    base_ps: u128,
+    /// Core clock \[Hz\].
+    pub sysclk_hz: u64,
+    /// The block hook stops the run at this cycle count.
+    deadline: u64,
+    /// The block hook stops the run at the next block.
+    stop_req: bool,
+    /// A pending exception waits for PRIMASK/BASEPRI to drop: the block
+    /// hook checks them.
+    masked_pending: bool,
+    /// First error (ends the run).
+    pub error: Option<String>,
+    /// The image's flash contents (instruction lengths).
+    code: Vec<u8>,
+    /// Candidate SEV addresses (hooked).
+    /// Event register (SEV, exception entry/return).
+    event_reg: bool,
+    fp_stack: Vec<[u64; 17]>,
+    /// Peripherals.
+    pub rcc: Rcc,
+    flash: Flash,
+    pwr: Pwr,
+    /// DBGMCU.
+    pub dbgmcu: Dbgmcu,
+    /// GPIO ports A-H.
+    pub gpio: Vec<Port>,
+    /// TIM1 (motor PWM).
+    pub tim1: Timer,
+    /// TIM3 (right encoder).
+    pub tim3: Timer,
+    /// TIM4 (left encoder).
+    pub tim4: Timer,
+    /// TIM5 (time driver).
+    pub tim5: Timer,
+    /// IWDG.
+    pub iwdg: Iwdg,
+    /// USART2 (host link on the F446).
+    pub usart2: Usart,
+    /// NVIC.
+    pub nvic: Nvic,
+    /// SCB.
+    pub scb: Scb,
+    systick: SysTick,
+    dwt: Dwt,
+    /// The simulated robot.
+    pub robot: Robot,
+    /// Events.
+    pub events: Vec<Event>,
+    /// Counters.
+    pub stats: Stats,
+    /// Fault armed for the next TIM3.CNT read.
+    fault_on_encoder_read: bool,
+    /// When a fault was injected \[ps\] and the cycle count then.
+    pub fault_at: Option<(u128, u64)>,
+    /// From the injected fault to every motor pin low: (ps, instructions).
+    pub cut_after_fault: Option<(u128, u64)>,
+    /// Print events as they happen.
+    pub verbose: bool,
+    /// Time of the last idle (WFE) in this boot, if reached.
+    pub idle_reached: bool,
+    /// Watchdog started in this boot (the control loop runs).
+    pub loop_started: bool,
+    /// CSR as the current boot started.
+    pub csr_at_boot: u32,
+    /// Last motor-output state seen (for change events).
+    pub last_bridge: BridgeInputs,
+    /// Unmodelled USB: the F411 reached OTG_FS.
+    pub usb_reached: Option<f64>,
+    /// Address of the last unmodelled access (for the F411 USB stop).
+    pub unmodelled_addr: Option<u32>,
+}
+
+fn bad(uc: &mut Unicorn<Board>, msg: String) {
+    let d = uc.get_data_mut();
+    if d.error.is_none() {
+        d.error = Some(msg);
+    }
+    d.stop_req = true;
+    let _ = uc.emu_stop();
+}
+
+impl Board {
+    fn new(chip: ChipKind, code: Vec<u8>) -> Self {
+        let rcc = Rcc::new(Some(chip.hse_hz()));
+        Self {
+            chip,
+            cycles: 0,
+            base_cycles: 0,
+            base_ps: 0,
+            sysclk_hz: crate::periph::rcc::HSI_HZ,
+            deadline: 0,
+            stop_req: false,
+            masked_pending: false,
+            error: None,
+            code,
+            event_reg: false,
+            fp_stack: Vec::new(),
+            rcc,
+            flash: Flash::default(),
+            pwr: Pwr::default(),
+            dbgmcu: Dbgmcu::new(chip.idcode()),
+            gpio: "ABCDEFGH".chars().map(Port::new).collect(),
+            tim1: Timer::new("TIM1", Kind::Advanced, 16_000_000),
+            tim3: Timer::new("TIM3", Kind::General, 16_000_000),
+            tim4: Timer::new("TIM4", Kind::General, 16_000_000),
+            tim5: Timer::new("TIM5", Kind::General, 16_000_000),
+            iwdg: Iwdg::new(),
+            usart2: Usart::new("USART2", 16_000_000),
+            nvic: Nvic::new(chip.n_irq()),
+            scb: Scb::default(),
+            systick: SysTick::default(),
+            dwt: Dwt::default(),
+            robot: Robot::new(),
+            events: Vec::new(),
+            stats: Stats::default(),
+            fault_on_encoder_read: false,
+            fault_at: None,
+            cut_after_fault: None,
+            verbose: false,
+            idle_reached: false,
+            loop_started: false,
+            csr_at_boot: 0,
+            last_bridge: BridgeInputs::default(),
+            usb_reached: None,
+            unmodelled_addr: None,
+        }
+    }
+
+    /// Emulated time \[ps\].
+    pub fn now_ps(&self) -> u128 {
+        self.base_ps + (self.cycles - self.base_cycles) as u128 * PS_PER_S / self.sysclk_hz as u128
+    }
+
+    /// Emulated time \[s\].
+    pub fn now_s(&self) -> f64 {
+        self.now_ps() as f64 * 1e-12
+    }
+
+    /// The cycle count at which `ps` is reached.
+    fn cycles_at(&self, ps: u128) -> u64 {
+        if ps <= self.base_ps {
+            return self.base_cycles;
+        }
+        let d = (ps - self.base_ps) * self.sysclk_hz as u128;
+        self.base_cycles + d.div_ceil(PS_PER_S) as u64
+    }
+
+    /// Records an event.
+    pub fn event(&mut self, what: String) {
+        let t_s = self.now_s();
+        if self.verbose {
+            eprintln!("[stm32-emu t={t_s:10.6} s] {what}");
+        }
+        self.events.push(Event { t_s, what });
+    }
+
+    fn clocks_changed(&mut self) -> Result<(), String> {
+        let c = self.rcc.clocks()?;
+        let now = self.now_ps();
+        if c.sysclk_hz != self.sysclk_hz {
+            self.base_ps = now;
+            self.base_cycles = self.cycles;
+            self.sysclk_hz = c.sysclk_hz;
+        }
+        self.tim1.set_clock(now, c.timclk_apb2_hz);
+        for t in [&mut self.tim3, &mut self.tim4, &mut self.tim5] {
+            t.set_clock(now, c.timclk_apb1_hz);
+        }
+        self.usart2.set_clock(c.pclk1_hz);
+        Ok(())
+    }
+
+    /// The H-bridge inputs from the pins: PWM on PA8/PA9 (TIM1 CH1/CH2 on
+    /// AF1, or a GPIO output level), DIR on PB12/PB13, ENABLE on PB14.
+    pub fn bridge(&self) -> Result<BridgeInputs, String> {
+        let mut pwm = [(0u32, 1u32); 2];
+        for (i, pin) in [8u32, 9].into_iter().enumerate() {
+            let port = &self.gpio[0];
+            pwm[i] = match port.mode(pin) {
+                gpio::Mode::Output => (port.odr_bit(pin) as u32, 1),
+                gpio::Mode::Alternate(1) => match self.tim1.output(i, 0)? {
+                    ChannelOutput::Pwm { high, period } => (high, period),
+                    ChannelOutput::Level(true) => (1, 1),
+                    ChannelOutput::Level(false) | ChannelOutput::Released => (0, 1),
+                },
+                // Input, analog, another AF: the board's pull-down.
+                _ => (0, 1),
+            };
+        }
+        let b = &self.gpio[1];
+        let out = |pin: u32| b.mode(pin) == gpio::Mode::Output && b.odr_bit(pin);
+        Ok(BridgeInputs {
+            pwm,
+            dir: [out(12), out(13)],
+            enable: out(14),
+        })
+    }
+
+    /// The pins and timers the harness wires to the robot (firmware/src/
+    /// board.rs) as the firmware configured them when its loop starts: a
+    /// changed pin map fails the run instead of leaving the robot unwired.
+    fn wiring_check(&self) -> Result<(), String> {
+        use gpio::Mode::{Alternate, Output};
+        let want: [(usize, u32, gpio::Mode, &str); 9] = [
+            (0, 8, Alternate(1), "PA8 right PWM (TIM1_CH1, AF1)"),
+            (0, 9, Alternate(1), "PA9 left PWM (TIM1_CH2, AF1)"),
+            (0, 6, Alternate(2), "PA6 right encoder A (TIM3_CH1, AF2)"),
+            (0, 7, Alternate(2), "PA7 right encoder B (TIM3_CH2, AF2)"),
+            (1, 6, Alternate(2), "PB6 left encoder A (TIM4_CH1, AF2)"),
+            (1, 7, Alternate(2), "PB7 left encoder B (TIM4_CH2, AF2)"),
+            (1, 12, Output, "PB12 right DIR (output)"),
+            (1, 13, Output, "PB13 left DIR (output)"),
+            (1, 14, Output, "PB14 ENABLE (output)"),
+        ];
+        for (port, pin, mode, what) in want {
+            let got = self.gpio[port].mode(pin);
+            if got != mode {
+                return Err(format!(
+                    "board wiring: {what} expected, the firmware set {got:?}: the harness's robot would be unwired (update stm32-emu's pin map)"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Advances the robot to now with the bridge as it is.
+    fn sync_robot(&mut self) -> Result<(), String> {
+        let b = self.bridge()?;
+        let now = self.now_ps();
+        self.robot.advance(now, &b)?;
+        if let (Some((t, c)), None) = (self.fault_at, self.cut_after_fault) {
+            if b.all_low() {
+                self.cut_after_fault = Some((now - t, self.cycles - c));
+            }
+        }
+        if b != self.last_bridge {
+            let was_off = self.last_bridge.motors_off();
+            self.last_bridge = b;
+            if b.motors_off() != was_off {
+                self.event(format!(
+                    "motors {}: ENABLE {} DIR {}/{} PWM {}/{} of {}",
+                    if b.motors_off() { "off" } else { "driven" },
+                    b.enable as u8,
+                    b.dir[0] as u8,
+                    b.dir[1] as u8,
+                    b.pwm[0].0,
+                    b.pwm[1].0,
+                    b.pwm[0].1
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn encoder_pos(&mut self) -> Result<[u16; 2], String> {
+        self.sync_robot()?;
+        Ok(self.robot.encoder_counts())
+    }
+
+    /// Updates the NVIC's device interrupt lines from the models.
+    fn update_lines(&mut self) {
+        let now = self.now_ps();
+        for t in [
+            &mut self.tim1,
+            &mut self.tim3,
+            &mut self.tim4,
+            &mut self.tim5,
+        ] {
+            t.sync(now);
+        }
+        self.usart2.sync(now);
+        let (u, c, b) = self.tim1.irq_lines();
+        self.nvic.set_line(irq::TIM1_UP, u);
+        self.nvic.set_line(irq::TIM1_CC, c);
+        self.nvic.set_line(irq::TIM1_BRK, b);
+        for (t, n) in [
+            (&self.tim3, irq::TIM3),
+            (&self.tim4, irq::TIM4),
+            (&self.tim5, irq::TIM5),
+        ] {
+            let (u, c, _) = t.irq_lines();
+            self.nvic.set_line(n, u || c);
+        }
+        self.nvic.set_line(irq::USART2, self.usart2.irq());
+        if let Some(c) = self.systick.next_irq_cycles() {
+            if self.cycles >= c {
+                let _ = self.systick.read(0x8, self.cycles);
+                self.nvic.set_pending(exc::SYSTICK);
+            }
+        }
+    }
+
+    /// The next time a model changes by itself \[ps\].
+    fn next_event_ps(&self) -> Option<u128> {
+        let mut t: Option<u128> = None;
+        let mut add = |x: Option<u128>| {
+            if let Some(x) = x {
+                t = Some(t.map_or(x, |y| y.min(x)));
+            }
+        };
+        for tm in [&self.tim1, &self.tim3, &self.tim4, &self.tim5] {
+            add(tm.next_irq_ps());
+        }
+        add(self.usart2.next_event_ps());
+        add(self.iwdg.expiry_ps());
+        t
+    }
+
+    /// Name of the peripheral at `addr`, for unmodelled accesses.
+    fn periph_name(addr: u32) -> &'static str {
+        const MAP: &[(u32, u32, &str)] = &[
+            (0x4000_0000, 0x400, "TIM2"),
+            (0x4000_1000, 0x400, "TIM6"),
+            (0x4000_1400, 0x400, "TIM7"),
+            (0x4000_2800, 0x400, "RTC"),
+            (0x4000_2C00, 0x400, "WWDG"),
+            (0x4000_3800, 0x400, "SPI2"),
+            (0x4000_3C00, 0x400, "SPI3"),
+            (0x4000_4800, 0x400, "USART3"),
+            (0x4000_4C00, 0x400, "UART4"),
+            (0x4000_5400, 0x400, "I2C1"),
+            (0x4000_5800, 0x400, "I2C2"),
+            (0x4001_1000, 0x400, "USART1"),
+            (0x4001_1400, 0x400, "USART6"),
+            (0x4001_2000, 0x400, "ADC1"),
+            (0x4001_3000, 0x400, "SPI1"),
+            (0x4001_3800, 0x400, "SYSCFG"),
+            (0x4001_3C00, 0x400, "EXTI"),
+            (0x4002_3000, 0x400, "CRC"),
+            (0x4002_6000, 0x400, "DMA1"),
+            (0x4002_6400, 0x400, "DMA2"),
+            (0x5000_0000, 0x4_0000, "USB_OTG_FS"),
+            (0xE000_0000, 0x1000, "ITM"),
+            (0xE000_2000, 0x1000, "FPB"),
+            (0xE004_0000, 0x1000, "TPIU"),
+        ];
+        MAP.iter()
+            .find(|m| addr >= m.0 && addr < m.0 + m.1)
+            .map_or("unknown peripheral", |m| m.2)
+    }
+
+    /// A clock-enable check: an access to a peripheral whose RCC clock is
+    /// off reads 0 and ignores writes on the chip: a firmware bug.
+    fn clock_on(&self, name: &str, enr: u32, bit: u32) -> Result<(), String> {
+        if self.rcc.enabled(enr, bit) {
+            Ok(())
+        } else {
+            Err(format!(
+                "{name} accessed with its clock off (RCC+0x{enr:02X} bit {bit})"
+            ))
+        }
+    }
+
+    /// A word read; `Err` names the register.
+    fn read_word(&mut self, addr: u32) -> Result<u32, String> {
+        let now = self.now_ps();
+        let off = addr & 0x3FF;
+        match addr & !0x3FF {
+            0x4002_3800 => self.rcc.read(off),
+            0x4002_3C00 => self.flash.read(off),
+            0x4000_7000 => {
+                self.clock_on("PWR", 0x40, 28)?;
+                self.pwr.read(off)
+            }
+            0x4002_0000..=0x4002_1C00 => {
+                let i = ((addr - 0x4002_0000) / 0x400) as usize;
+                self.clock_on("GPIO", 0x30, i as u32)?;
+                self.gpio[i].read(off)
+            }
+            0x4001_0000 => {
+                self.clock_on("TIM1", 0x44, 0)?;
+                self.tim1.read(off, now, 0)
+            }
+            0x4000_0400 | 0x4000_0800 => {
+                let right = addr & !0x3FF == 0x4000_0400;
+                self.clock_on(
+                    if right { "TIM3" } else { "TIM4" },
+                    0x40,
+                    if right { 1 } else { 2 },
+                )?;
+                let pos = self.encoder_pos()?;
+                if right && off == 0x24 && self.fault_on_encoder_read {
+                    self.fault_on_encoder_read = false;
+                    self.scb.cfsr |= 1 << 10; // IMPRECISERR
+                    if self.scb.shcsr & (1 << 17) != 0 {
+                        self.nvic.set_pending(exc::BUS_FAULT);
+                    } else {
+                        self.scb.hfsr |= 1 << 30; // FORCED
+                        self.nvic.set_pending(exc::HARD_FAULT);
+                    }
+                    self.fault_at = Some((now, self.cycles));
+                    self.event(
+                        "fault injected: bus error on TIM3.CNT read (imprecise BusFault)".into(),
+                    );
+                    self.stop_req = true;
+                }
+                if right {
+                    self.tim3.read(off, now, pos[0])
+                } else {
+                    self.tim4.read(off, now, pos[1])
+                }
+            }
+            0x4000_0C00 => {
+                self.clock_on("TIM5", 0x40, 3)?;
+                self.tim5.read(off, now, 0)
+            }
+            0x4000_3000 => self.iwdg.read(off),
+            0x4000_4400 => {
+                self.clock_on("USART2", 0x40, 17)?;
+                self.usart2.read(off, now)
+            }
+            _ => self.read_ppb(addr),
+        }
+    }
+
+    fn read_ppb(&mut self, addr: u32) -> Result<u32, String> {
+        match addr {
+            0xE000_1000..=0xE000_1FFF => {
+                let tr = self.scb.demcr & (1 << 24) != 0;
+                self.dwt.read(addr - 0xE000_1000, self.cycles, tr)
+            }
+            0xE000_E010..=0xE000_E01F => self.systick.read(addr - 0xE000_E010, self.cycles),
+            0xE000_E100..=0xE000_E4EF => self.nvic.read(addr - 0xE000_E000),
+            0xE000_E000..=0xE000_EFFF => {
+                let va = self.vectactive();
+                self.scb.read(addr - 0xE000_E000, &self.nvic, va)
+            }
+            0xE004_2000..=0xE004_2FFF => self.dbgmcu.read(addr - 0xE004_2000),
+            _ => Err(Self::unknown(addr)),
+        }
+    }
+
+    /// The name of an address no model covers.
+    fn unknown(addr: u32) -> String {
+        let p = Self::periph_name(addr);
+        let reg = match (p, addr & 0xFFF) {
+            ("USB_OTG_FS", 0x000) => " GOTGCTL",
+            ("USB_OTG_FS", 0x008) => " GAHBCFG",
+            ("USB_OTG_FS", 0x00C) => " GUSBCFG",
+            ("USB_OTG_FS", 0x010) => " GRSTCTL",
+            ("USB_OTG_FS", 0x014) => " GINTSTS",
+            ("USB_OTG_FS", 0x018) => " GINTMSK",
+            ("USB_OTG_FS", 0x038) => " GCCFG",
+            ("USB_OTG_FS", 0x03C) => " CID",
+            _ => "",
+        };
+        format!("{p} +0x{:X}{reg}", addr & 0xFFF)
+    }
+
+    fn vectactive(&self) -> u32 {
+        (1..16 + self.nvic.n_irq)
+            .filter(|&e| self.nvic.is_active(e))
+            .last()
+            .unwrap_or(0) as u32
+    }
+
+    /// A word write under the byte-lane `mask`.
+    fn write_word(&mut self, addr: u32, value: u32, mask: u32) -> Result<(), String> {
+        let now = self.now_ps();
+        let off = addr & 0x3FF;
+        match addr & !0x3FF {
+            0x4002_3800 => {
+                // Peripheral resets through the RSTR registers.
+                if matches!(off, 0x10 | 0x20 | 0x24) {
+                    self.peripheral_resets(off, value & mask);
+                }
+                if self.rcc.write(off, value, mask)? {
+                    self.clocks_changed()?;
+                }
+                Ok(())
+            }
+            0x4002_3C00 => self.flash.write(off, value, mask),
+            0x4000_7000 => {
+                self.clock_on("PWR", 0x40, 28)?;
+                self.pwr.write(off, value, mask)
+            }
+            0x4002_0000..=0x4002_1C00 => {
+                let i = ((addr - 0x4002_0000) / 0x400) as usize;
+                self.clock_on("GPIO", 0x30, i as u32)?;
+                self.sync_robot()?;
+                self.gpio[i].write(off, value, mask)?;
+                self.sync_robot()
+            }
+            0x4001_0000 => {
+                self.clock_on("TIM1", 0x44, 0)?;
+                self.sync_robot()?;
+                self.tim1.write(off, value, mask, now, 0)?;
+                self.sync_robot()
+            }
+            0x4000_0400 | 0x4000_0800 => {
+                let right = addr & !0x3FF == 0x4000_0400;
+                self.clock_on(
+                    if right { "TIM3" } else { "TIM4" },
+                    0x40,
+                    if right { 1 } else { 2 },
+                )?;
+                let pos = self.encoder_pos()?;
+                if right {
+                    self.tim3.write(off, value, mask, now, pos[0])
+                } else {
+                    self.tim4.write(off, value, mask, now, pos[1])
+                }
+            }
+            0x4000_0C00 => {
+                self.clock_on("TIM5", 0x40, 3)?;
+                self.tim5.write(off, value, mask, now, 0)
+            }
+            0x4000_3000 => {
+                let was = self.iwdg.running;
+                let feeds = self.iwdg.feeds;
+                self.iwdg.write(off, value & mask, now)?;
+                if self.iwdg.feeds != feeds {
+                    self.stats.feeds += 1;
+                }
+                if !was && self.iwdg.running {
+                    self.wiring_check()?;
+                    self.loop_started = true;
+                    let t = self.iwdg.timeout_ps() as f64 * 1e-9;
+                    self.event(format!("IWDG started (timeout after a feed {t:.1} ms)"));
+                }
+                Ok(())
+            }
+            0x4000_4400 => {
+                self.clock_on("USART2", 0x40, 17)?;
+                self.usart2.write(off, value, mask, now)
+            }
+            _ => self.write_ppb(addr, value, mask),
+        }
+    }
+
+    fn write_ppb(&mut self, addr: u32, value: u32, mask: u32) -> Result<(), String> {
+        match addr {
+            0xE000_1000..=0xE000_1FFF => {
+                self.dwt.write(addr - 0xE000_1000, value, mask, self.cycles)
+            }
+            0xE000_E010..=0xE000_E01F => {
+                self.systick
+                    .write(addr - 0xE000_E010, value, mask, self.cycles)
+            }
+            0xE000_E100..=0xE000_E4EF | 0xE000_EF00 => {
+                self.nvic.write(addr - 0xE000_E000, value, mask)
+            }
+            0xE000_E000..=0xE000_EFFF => {
+                self.scb
+                    .write(addr - 0xE000_E000, value, mask, &mut self.nvic)
+            }
+            0xE004_2000..=0xE004_2FFF => self.dbgmcu.write(addr - 0xE004_2000, value, mask),
+            _ => Err(Self::unknown(addr)),
+        }
+    }
+
+    /// RCC AHB1RSTR / APB1RSTR / APB2RSTR bits: the models go back to
+    /// their reset state.
+    fn peripheral_resets(&mut self, off: u32, bits: u32) {
+        let now = self.now_ps();
+        let c = self.rcc.clocks().ok();
+        let (apb1t, apb2t, p1) = c.map_or((16_000_000, 16_000_000, 16_000_000), |c| {
+            (c.timclk_apb1_hz, c.timclk_apb2_hz, c.pclk1_hz)
+        });
+        let _ = now;
+        match off {
+            0x10 => {
+                for i in 0..8 {
+                    if bits & (1 << i) != 0 {
+                        self.gpio[i] = Port::new("ABCDEFGH".as_bytes()[i] as char);
+                    }
+                }
+            }
+            0x20 => {
+                if bits & (1 << 1) != 0 {
+                    self.tim3 = Timer::new("TIM3", Kind::General, apb1t);
+                }
+                if bits & (1 << 2) != 0 {
+                    self.tim4 = Timer::new("TIM4", Kind::General, apb1t);
+                }
+                if bits & (1 << 3) != 0 {
+                    self.tim5 = Timer::new("TIM5", Kind::General, apb1t);
+                }
+                if bits & (1 << 17) != 0 {
+                    let q = std::mem::take(&mut self.usart2.rx_queue);
+                    self.usart2 = Usart::new("USART2", p1);
+                    self.usart2.rx_queue = q;
+                }
+                if bits & (1 << 28) != 0 {
+                    self.pwr = Pwr::default();
+                }
+            }
+            0x24 if bits & 1 != 0 => self.tim1 = Timer::new("TIM1", Kind::Advanced, apb2t),
+            _ => {}
+        }
+    }
+}
+
+/// The emulator.
+pub struct Machine<'a> {
+    /// Unicorn with the board as its data.
+    pub uc: Unicorn<'a, Board>,
+    image: Image,
+    sleeping: bool,
+    /// The CPU is held (the harness's stall) until this time \[ps\].
+    stalled_until: Option<u128>,
+}
+
+/// Thumb instructions in `[addr, addr + size)` of the flash image.
+fn count_insns(code: &[u8], addr: u64, size: u32) -> u64 {
+    let start = addr as i64 - FLASH_BASE as i64;
+    if start < 0 || (start as usize) >= code.len() {
+        return (size as u64).div_ceil(2).max(1);
+    }
+    let mut i = start as usize;
+    let end = (i + size as usize).min(code.len());
+    let mut n = 0;
+    while i < end {
+        let hw = u16::from_le_bytes([code[i], code[i + 1]]);
+        i += if hw >> 11 >= 0b11101 { 4 } else { 2 };
+        n += 1;
+    }
+    n.max(1)
+}
+
+impl<'a> Machine<'a> {
+    /// The chip with `image` in flash, out of power-on reset.
+    pub fn new(chip: ChipKind, image: Image) -> Result<Self, String> {
+        let mut code = vec![0xFFu8; chip.flash_size() as usize];
+        for (addr, data) in &image.segments {
+            let a = *addr;
+            if a >= FLASH_BASE && a + data.len() as u32 <= FLASH_BASE + chip.flash_size() {
+                let o = (a - FLASH_BASE) as usize;
+                code[o..o + data.len()].copy_from_slice(data);
+            } else if !(a >= RAM_BASE && a < RAM_BASE + chip.ram_size()) {
+                return Err(format!(
+                    "segment at 0x{a:08X} ({} B) is outside flash and SRAM",
+                    data.len()
+                ));
+            }
+        }
+        let ue = |e: uc_error| format!("unicorn: {e:?}");
+        let mut uc = Unicorn::new_with_data(
+            Arch::ARM,
+            Mode::THUMB | Mode::MCLASS,
+            Board::new(chip, code.clone()),
+        )
+        .map_err(ue)?;
+        uc.ctl_set_cpu_model(ArmCpuModel::CORTEX_M4 as i32)
+            .map_err(ue)?;
+        uc.mem_map(
+            FLASH_BASE as u64,
+            chip.flash_size() as u64,
+            Prot::READ | Prot::EXEC,
+        )
+        .map_err(ue)?;
+        uc.mem_write(FLASH_BASE as u64, &code).map_err(ue)?;
+        uc.mem_map(RAM_BASE as u64, chip.ram_size() as u64, Prot::ALL)
+            .map_err(ue)?;
+        for (base, size) in [(0x4000_0000u64, 0x2000_0000u64), (0xE000_0000, 0x10_0000)] {
+            uc.mmio_map(
+                base,
+                size,
+                Some(
+                    move |uc: &mut Unicorn<Board>, off: u64, size: usize| -> u64 {
+                        mmio_read(uc, (base + off) as u32, size)
+                    },
+                ),
+                Some(
+                    move |uc: &mut Unicorn<Board>, off: u64, size: usize, v: u64| {
+                        mmio_write(uc, (base + off) as u32, size, v as u32)
+                    },
+                ),
+            )
+            .map_err(ue)?;
+        }
+        uc.add_block_hook(1, 0, |uc, addr, size| {
+            let d = uc.get_data_mut();
+            let n = count_insns(&d.code, addr, size);
+            d.cycles += n;
+            d.stats.instructions += n;
+            let mut stop = d.stop_req || d.cycles >= d.deadline;
+            if d.masked_pending && !stop {
+                stop = deliverable(uc).is_some();
+            }
+            if stop {
+                let _ = uc.emu_stop();
+            }
+        })
+        .map_err(ue)?;
+        uc.add_intr_hook(intr_hook).map_err(ue)?;
+        // SEV: hooked at every halfword 0xBF40 of the image (only real
+        // instruction starts ever fire).
+        for (i, w) in code.chunks_exact(2).enumerate() {
+            if w == [0x40, 0xBF] {
+                let a = FLASH_BASE as u64 + 2 * i as u64;
+                uc.add_code_hook(a, a, |uc, _, _| uc.get_data_mut().event_reg = true)
+                    .map_err(ue)?;
+            }
+        }
+        uc.add_mem_hook(HookType::MEM_INVALID, 1, 0, |uc, t, addr, size, _v| {
+            let pc = uc.reg_read(RegisterARM::PC).unwrap_or(0);
+            let kind = match t {
+                MemType::READ_UNMAPPED | MemType::READ_PROT => "read",
+                MemType::WRITE_UNMAPPED | MemType::WRITE_PROT => "write",
+                _ => "fetch",
+            };
+            bad(
+                uc,
+                format!(
+                    "{kind} of {size} B at unmapped/protected 0x{addr:08X} (PC 0x{pc:08X}): not modelled"
+                ),
+            );
+            false
+        })
+        .map_err(ue)?;
+        let mut m = Self {
+            uc,
+            image,
+            sleeping: false,
+            stalled_until: None,
+        };
+        m.reset(ResetCause::PowerOn)?;
+        Ok(m)
+    }
+
+    /// The image's symbol `name`.
+    pub fn symbol(&self, name: &str) -> Option<u32> {
+        self.image.symbol(name)
+    }
+
+    /// The board.
+    pub fn board(&mut self) -> &mut Board {
+        self.uc.get_data_mut()
+    }
+
+    /// A system reset of `cause`: core and peripherals to their reset
+    /// state (SRAM, DBGMCU and the RCC reset flags kept), SP and PC from
+    /// the vector table at the boot address (flash).
+    pub fn reset(&mut self, cause: ResetCause) -> Result<(), String> {
+        let ue = |e: uc_error| format!("unicorn: {e:?}");
+        {
+            let d = self.uc.get_data_mut();
+            let chip = d.chip;
+            if cause != ResetCause::PowerOn {
+                let t = d.now_s();
+                d.stats.resets.push((t, cause));
+                d.event(format!("RESET ({cause:?})"));
+            }
+            d.rcc.reset(cause);
+            if cause == ResetCause::PowerOn {
+                d.rcc = Rcc::new(Some(chip.hse_hz()));
+            }
+            d.csr_at_boot = d.rcc.csr();
+            let now = d.now_ps();
+            d.base_ps = now;
+            d.base_cycles = d.cycles;
+            d.sysclk_hz = crate::periph::rcc::HSI_HZ;
+            d.flash = Flash::default();
+            d.pwr = Pwr::default();
+            d.gpio = "ABCDEFGH".chars().map(Port::new).collect();
+            d.tim1 = Timer::new("TIM1", Kind::Advanced, 16_000_000);
+            d.tim3 = Timer::new("TIM3", Kind::General, 16_000_000);
+            d.tim4 = Timer::new("TIM4", Kind::General, 16_000_000);
+            d.tim5 = Timer::new("TIM5", Kind::General, 16_000_000);
+            d.iwdg = Iwdg::new();
+            let q = std::mem::take(&mut d.usart2.rx_queue);
+            d.usart2 = Usart::new("USART2", 16_000_000);
+            d.usart2.rx_queue = q;
+            d.nvic = Nvic::new(chip.n_irq());
+            d.scb = Scb::default();
+            d.systick = SysTick::default();
+            d.dwt = Dwt::default();
+            d.fp_stack.clear();
+            d.event_reg = false;
+            d.stats.boots += 1;
+            d.idle_reached = false;
+            d.loop_started = false;
+            let csr = d.csr_at_boot;
+            let n = d.stats.boots;
+            d.event(format!("boot {n}: RCC.CSR = 0x{csr:08X}"));
+        }
+        let mut vt = [0u8; 8];
+        self.uc.mem_read(FLASH_BASE as u64, &mut vt).map_err(ue)?;
+        let sp = u32::from_le_bytes(vt[0..4].try_into().unwrap_or_default());
+        let pc = u32::from_le_bytes(vt[4..8].try_into().unwrap_or_default());
+        if !(RAM_BASE..=RAM_BASE + self.uc.get_data().chip.ram_size()).contains(&sp) || pc & 1 == 0
+        {
+            return Err(format!(
+                "vector table: initial SP 0x{sp:08X} / reset vector 0x{pc:08X} invalid"
+            ));
+        }
+        for r in [
+            RegisterARM::R0,
+            RegisterARM::R1,
+            RegisterARM::R2,
+            RegisterARM::R3,
+            RegisterARM::R4,
+            RegisterARM::R5,
+            RegisterARM::R6,
+            RegisterARM::R7,
+            RegisterARM::R8,
+            RegisterARM::R9,
+            RegisterARM::R10,
+            RegisterARM::R11,
+            RegisterARM::R12,
+        ] {
+            self.uc.reg_write(r, 0).map_err(ue)?;
+        }
+        self.uc.reg_write(RegisterARM::CONTROL, 0).map_err(ue)?;
+        self.uc.reg_write(RegisterARM::PRIMASK, 0).map_err(ue)?;
+        self.uc.reg_write(RegisterARM::BASEPRI, 0).map_err(ue)?;
+        self.uc.reg_write(RegisterARM::FAULTMASK, 0).map_err(ue)?;
+        self.uc.reg_write(RegisterARM::IPSR, 0).map_err(ue)?;
+        self.uc.reg_write(RegisterARM::SP, sp as u64).map_err(ue)?;
+        self.uc
+            .reg_write(RegisterARM::LR, 0xFFFF_FFFF)
+            .map_err(ue)?;
+        self.uc.reg_write(RegisterARM::PC, pc as u64).map_err(ue)?;
+        self.sleeping = false;
+        self.stalled_until = None;
+        Ok(())
+    }
+
+    /// Holds the CPU for `ps` from now (no instruction runs; time, the
+    /// peripherals and the watchdog go on): the harness's stalled loop.
+    pub fn stall(&mut self, ps: u128) {
+        let now = self.uc.get_data().now_ps();
+        self.stalled_until = Some(now + ps);
+        let ms = ps as f64 * 1e-9;
+        self.board()
+            .event(format!("stall injected: CPU held for {ms:.1} ms"));
+    }
+
+    /// Injects a fault.
+    pub fn inject(&mut self, f: Fault) {
+        let d = self.board();
+        match f {
+            Fault::HardFault => {
+                d.scb.hfsr |= 1 << 30;
+                d.nvic.set_pending(exc::HARD_FAULT);
+                d.fault_at = Some((d.now_ps(), d.cycles));
+                d.event("fault injected: HardFault pended".into());
+            }
+            Fault::BusFaultOnEncoderRead => d.fault_on_encoder_read = true,
+        }
+    }
+
+    /// Runs until emulated time `until_ps`; `on_poll` is called every
+    /// `poll_ps` of emulated time (host I/O, pacing, the script).
+    pub fn run_until(
+        &mut self,
+        until_ps: u128,
+        poll_ps: u128,
+        on_poll: &mut dyn FnMut(&mut Machine) -> Result<(), String>,
+    ) -> Result<(), String> {
+        let mut next_poll = self.uc.get_data().now_ps();
+        loop {
+            if let Some(e) = self.uc.get_data_mut().error.take() {
+                return Err(e);
+            }
+            let now = self.uc.get_data().now_ps();
+            if now >= until_ps {
+                return Ok(());
+            }
+            if now >= next_poll {
+                on_poll(self)?;
+                next_poll = now + poll_ps;
+                if let Some(e) = self.uc.get_data_mut().error.take() {
+                    return Err(e);
+                }
+            }
+            // Peripherals to now; the watchdog; SYSRESETREQ.
+            {
+                let d = self.uc.get_data_mut();
+                d.sync_robot()?;
+                d.update_lines();
+                if d.iwdg.expiry_ps().is_some_and(|t| t <= now) {
+                    d.event("IWDG expired".into());
+                    self.reset(ResetCause::Iwdg)?;
+                    continue;
+                }
+                if d.scb.reset_requested {
+                    self.reset(ResetCause::Software)?;
+                    continue;
+                }
+            }
+            let deadline_ps = {
+                let d = self.uc.get_data();
+                let mut t = d
+                    .next_event_ps()
+                    .unwrap_or(u128::MAX)
+                    .min(until_ps)
+                    .min(next_poll);
+                if let Some(s) = self.stalled_until {
+                    t = t.min(s);
+                }
+                t
+            };
+            if let Some(s) = self.stalled_until {
+                if now < s {
+                    let d = self.uc.get_data_mut();
+                    d.cycles = d.cycles.max(d.cycles_at(deadline_ps));
+                    continue;
+                }
+                self.stalled_until = None;
+                let d = self.board();
+                d.event("stall ends: CPU runs again".into());
+            }
+            // Exceptions.
+            if let Some(e) = deliverable(&mut self.uc) {
+                self.sleeping = false;
+                enter_exception(&mut self.uc, e)?;
+            } else if self.sleeping {
+                // WFE/WFI wake on an exception that would preempt with
+                // PRIMASK ignored (B1.5.19), or on any pending one with SEVONPEND.
+                let basepri = self.uc.reg_read(RegisterARM::BASEPRI).unwrap_or(0) as u8;
+                let d = self.uc.get_data();
+                let wake = d.nvic.to_take(false, basepri, false).is_some()
+                    || (d.scb.sevonpend() && d.nvic.highest_pending().is_some());
+                if wake {
+                    self.sleeping = false;
+                } else {
+                    let d = self.uc.get_data_mut();
+                    if deadline_ps == u128::MAX {
+                        return Err("the core sleeps with no event left to wake it".into());
+                    }
+                    d.cycles = d.cycles.max(d.cycles_at(deadline_ps));
+                    continue;
+                }
+            }
+            {
+                let d = self.uc.get_data_mut();
+                d.deadline = d.cycles_at(deadline_ps).max(d.cycles + 1);
+                d.stop_req = false;
+                d.masked_pending = d.nvic.highest_pending().is_some();
+                d.stats.slices += 1;
+            }
+            let pc = self
+                .uc
+                .reg_read(RegisterARM::PC)
+                .map_err(|e| format!("{e:?}"))?;
+            let r = self.uc.emu_start(pc | 1, 0, 0, 0);
+            if let Some(e) = self.uc.get_data_mut().error.take() {
+                return Err(e);
+            }
+            match r {
+                Ok(()) => {}
+                Err(uc_error::INSN_INVALID) => self.invalid_insn()?,
+                Err(e) => {
+                    let pc = self.uc.reg_read(RegisterARM::PC).unwrap_or(0);
+                    return Err(format!("emulation stopped: {e:?} at PC 0x{pc:08X}"));
+                }
+            }
+        }
+    }
+
+    /// WFE/WFI (PC past them) sleep; UDF is a UsageFault (escalated to
+    /// HardFault); anything else fails.
+    fn invalid_insn(&mut self) -> Result<(), String> {
+        let pc = self
+            .uc
+            .reg_read(RegisterARM::PC)
+            .map_err(|e| format!("{e:?}"))? as u32;
+        let hw = |a: u32| -> u16 {
+            let mut b = [0u8; 2];
+            let _ = self.uc.mem_read(a as u64, &mut b);
+            u16::from_le_bytes(b)
+        };
+        let prev = hw(pc.wrapping_sub(2));
+        let here = hw(pc);
+        if prev == 0xBF20 || prev == 0xBF30 {
+            let d = self.uc.get_data_mut();
+            if !d.idle_reached {
+                d.idle_reached = true;
+                d.event(format!(
+                    "executor idle reached ({} at 0x{:08X})",
+                    if prev == 0xBF20 { "WFE" } else { "WFI" },
+                    pc - 2
+                ));
+            }
+            if prev == 0xBF20 && std::mem::take(&mut d.event_reg) {
+                return Ok(()); // event register was set: WFE falls through
+            }
+            d.stats.sleeps += 1;
+            self.sleeping = true;
+            return Ok(());
+        }
+        if here >> 8 == 0xDE {
+            // UDF: UNDEFINSTR UsageFault, escalated unless enabled.
+            let d = self.uc.get_data_mut();
+            d.scb.cfsr |= 1 << 16;
+            if d.scb.shcsr & (1 << 18) != 0 {
+                d.nvic.set_pending(exc::USAGE_FAULT);
+            } else {
+                d.scb.hfsr |= 1 << 30;
+                d.nvic.set_pending(exc::HARD_FAULT);
+            }
+            d.event(format!("UDF at 0x{pc:08X}: UsageFault (UNDEFINSTR)"));
+            // The faulting instruction is the return address (precise).
+            return Ok(());
+        }
+        Err(format!(
+            "invalid instruction at PC 0x{pc:08X} (0x{here:04X}; previous 0x{prev:04X})"
+        ))
+    }
+}
+
+/// The exception to take now, if any (reads PRIMASK/BASEPRI/FAULTMASK).
+fn deliverable(uc: &mut Unicorn<Board>) -> Option<usize> {
+    let primask = uc.reg_read(RegisterARM::PRIMASK).unwrap_or(0) & 1 != 0;
+    let basepri = uc.reg_read(RegisterARM::BASEPRI).unwrap_or(0) as u8;
+    let faultmask = uc.reg_read(RegisterARM::FAULTMASK).unwrap_or(0) & 1 != 0;
+    uc.get_data().nvic.to_take(primask, basepri, faultmask)
+}
+
+fn rd(uc: &Unicorn<Board>, r: RegisterARM) -> u32 {
+    uc.reg_read(r).unwrap_or(0) as u32
+}
+
+const FP_REGS: [RegisterARM; 16] = [
+    RegisterARM::S0,
+    RegisterARM::S1,
+    RegisterARM::S2,
+    RegisterARM::S3,
+    RegisterARM::S4,
+    RegisterARM::S5,
+    RegisterARM::S6,
+    RegisterARM::S7,
+    RegisterARM::S8,
+    RegisterARM::S9,
+    RegisterARM::S10,
+    RegisterARM::S11,
+    RegisterARM::S12,
+    RegisterARM::S13,
+    RegisterARM::S14,
+    RegisterARM::S15,
+];
+
+/// Exception entry (ARMv7-M B1.5.6): the 8-word basic frame on MSP (8-byte
+/// aligned, xPSR bit 9 marking the padding), EXC_RETURN in LR, IPSR, PC
+/// from the vector table. The FP caller-saved registers are saved by the
+/// harness (no lazy stacking: the guest sees a basic frame).
+fn enter_exception(uc: &mut Unicorn<Board>, e: usize) -> Result<(), String> {
+    let ue = |x: uc_error| format!("exception entry: {x:?}");
+    let control = rd(uc, RegisterARM::CONTROL);
+    if control & 2 != 0 {
+        return Err("exception entry from PSP (CONTROL.SPSEL = 1): not modelled".into());
+    }
+    let sp = rd(uc, RegisterARM::SP);
+    let ipsr = rd(uc, RegisterARM::IPSR) & 0x1FF;
+    let xpsr = rd(uc, RegisterARM::XPSR);
+    let pc = rd(uc, RegisterARM::PC);
+    let frame_sp = (sp - 32) & !7;
+    let pad = frame_sp != sp - 32;
+    let stacked_xpsr = (xpsr & !(1 << 9)) | (1 << 24) | ((pad as u32) << 9) | ipsr;
+    let words = [
+        rd(uc, RegisterARM::R0),
+        rd(uc, RegisterARM::R1),
+        rd(uc, RegisterARM::R2),
+        rd(uc, RegisterARM::R3),
+        rd(uc, RegisterARM::R12),
+        rd(uc, RegisterARM::LR),
+        pc & !1,
+        stacked_xpsr,
+    ];
+    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+    let ram = RAM_BASE..RAM_BASE + uc.get_data().chip.ram_size();
+    if !ram.contains(&frame_sp) {
+        return Err(format!(
+            "exception {e} entry: stack 0x{frame_sp:08X} outside SRAM (stack overflow)"
+        ));
+    }
+    uc.mem_write(frame_sp as u64, &bytes).map_err(ue)?;
+    let mut fp = [0u64; 17];
+    for (i, r) in FP_REGS.iter().enumerate() {
+        fp[i] = uc.reg_read(*r).unwrap_or(0);
+    }
+    fp[16] = uc.reg_read(RegisterARM::FPSCR).unwrap_or(0);
+    let vtor = {
+        let d = uc.get_data_mut();
+        d.fp_stack.push(fp);
+        d.nvic.activate(e);
+        d.event_reg = true;
+        *d.stats.taken.entry(e).or_default() += 1;
+        if d.scb.vtor == 0 {
+            FLASH_BASE // boot alias: address 0 is flash
+        } else {
+            d.scb.vtor
+        }
+    };
+    let mut v = [0u8; 4];
+    uc.mem_read((vtor + 4 * e as u32) as u64, &mut v)
+        .map_err(ue)?;
+    let handler = u32::from_le_bytes(v);
+    uc.reg_write(RegisterARM::SP, frame_sp as u64).map_err(ue)?;
+    uc.reg_write(
+        RegisterARM::LR,
+        if ipsr == 0 { 0xFFFF_FFF9 } else { 0xFFFF_FFF1 },
+    )
+    .map_err(ue)?;
+    uc.reg_write(RegisterARM::IPSR, e as u64).map_err(ue)?;
+    uc.reg_write(RegisterARM::PC, (handler | 1) as u64)
+        .map_err(ue)?;
+    if matches!(
+        e,
+        exc::HARD_FAULT | exc::BUS_FAULT | exc::USAGE_FAULT | exc::MEM_MANAGE | exc::NMI
+    ) {
+        let d = uc.get_data_mut();
+        d.event(format!(
+            "exception {e} entered (handler 0x{handler:08X}, return 0x{pc:08X})"
+        ));
+    }
+    Ok(())
+}
+
+/// EXC_RETURN arrives as QEMU's EXCP_EXCEPTION_EXIT (8); UDF as EXCP_UDEF (1).
+fn intr_hook(uc: &mut Unicorn<Board>, intno: u32) {
+    match intno {
+        8 => {
+            if let Err(e) = exception_return(uc) {
+                bad(uc, e);
+            }
+        }
+        _ => {
+            let pc = rd(uc, RegisterARM::PC);
+            bad(
+                uc,
+                format!("CPU exception {intno} at PC 0x{pc:08X}: not modelled"),
+            );
+        }
+    }
+}
+
+fn exception_return(uc: &mut Unicorn<Board>) -> Result<(), String> {
+    let ue = |x: uc_error| format!("exception return: {x:?}");
+    let exc_return = rd(uc, RegisterARM::PC) | 1;
+    if exc_return & 0xF != 0x9 && exc_return & 0xF != 0x1 {
+        return Err(format!(
+            "EXC_RETURN 0x{exc_return:08X}: only MSP returns are modelled"
+        ));
+    }
+    let cur = (rd(uc, RegisterARM::IPSR) & 0x1FF) as usize;
+    uc.get_data_mut().nvic.deactivate(cur)?;
+    let sp = rd(uc, RegisterARM::SP);
+    let mut b = [0u8; 32];
+    uc.mem_read(sp as u64, &mut b).map_err(ue)?;
+    let w: Vec<u32> = b
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes(c.try_into().unwrap_or_default()))
+        .collect();
+    let xpsr = w[7];
+    let new_sp = sp + 32 + if xpsr & (1 << 9) != 0 { 4 } else { 0 };
+    let ipsr = xpsr & 0x1FF;
+    if (exc_return & 0xF == 0x9) != (ipsr == 0) {
+        return Err(format!(
+            "EXC_RETURN 0x{exc_return:08X} with stacked IPSR {ipsr}: inconsistent frame"
+        ));
+    }
+    for (r, v) in [
+        (RegisterARM::R0, w[0]),
+        (RegisterARM::R1, w[1]),
+        (RegisterARM::R2, w[2]),
+        (RegisterARM::R3, w[3]),
+        (RegisterARM::R12, w[4]),
+        (RegisterARM::LR, w[5]),
+        (RegisterARM::SP, new_sp),
+    ] {
+        uc.reg_write(r, v as u64).map_err(ue)?;
+    }
+    uc.reg_write(RegisterARM::XPSR, (xpsr & !(1 << 9)) as u64)
+        .map_err(ue)?;
+    uc.reg_write(RegisterARM::IPSR, ipsr as u64).map_err(ue)?;
+    let fp = uc.get_data_mut().fp_stack.pop();
+    if let Some(fp) = fp {
+        for (i, r) in FP_REGS.iter().enumerate() {
+            uc.reg_write(*r, fp[i]).map_err(ue)?;
+        }
+        uc.reg_write(RegisterARM::FPSCR, fp[16]).map_err(ue)?;
+    }
+    uc.reg_write(RegisterARM::PC, (w[6] | 1) as u64)
+        .map_err(ue)?;
+    {
+        let d = uc.get_data_mut();
+        d.event_reg = true;
+        d.update_lines();
+    }
+    // Tail-chain (or preempt the returned-to context at once).
+    if let Some(e) = deliverable(uc) {
+        enter_exception(uc, e)?;
+    }
+    Ok(())
+}
+
+fn lane(addr: u32, size: usize) -> (u32, u32, u32) {
+    let shift = 8 * (addr & 3);
+    let mask = match size {
+        1 => 0xFF,
+        2 => 0xFFFF,
+        _ => 0xFFFF_FFFF,
+    } << shift;
+    (addr & !3, shift, mask)
+}
+
+fn mmio_read(uc: &mut Unicorn<Board>, addr: u32, size: usize) -> u64 {
+    let (word, shift, mask) = lane(addr, size);
+    let r = uc.get_data_mut().read_word(word);
+    match r {
+        Ok(v) => ((v & mask) >> shift) as u64,
+        Err(what) => {
+            let pc = rd(uc, RegisterARM::PC);
+            uc.get_data_mut().unmodelled_addr = Some(addr);
+            bad(
+                uc,
+                format!("unmodelled read of {size} B at 0x{addr:08X}: {what} (PC 0x{pc:08X})"),
+            );
+            0
+        }
+    }
+}
+
+fn mmio_write(uc: &mut Unicorn<Board>, addr: u32, size: usize, value: u32) {
+    let (word, shift, mask) = lane(addr, size);
+    let r = uc.get_data_mut().write_word(word, value << shift, mask);
+    match r {
+        Ok(()) => {
+            let d = uc.get_data_mut();
+            d.update_lines();
+            if d.nvic.highest_pending().is_some() {
+                d.stop_req = true;
+            }
+        }
+        Err(what) => {
+            let pc = rd(uc, RegisterARM::PC);
+            uc.get_data_mut().unmodelled_addr = Some(addr);
+            bad(
+                uc,
+                format!(
+                    "unmodelled write of 0x{value:X} ({size} B) at 0x{addr:08X}: {what} (PC 0x{pc:08X})"
+                ),
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An unknown register fails with its address and name, never a zero;
+    /// so does a modelled peripheral with its RCC clock off.
+    #[test]
+    fn unknown_registers_and_gated_clocks_fail() {
+        let mut b = Board::new(ChipKind::F446re, vec![0xFF; 1024]);
+        let e = b.read_word(0x4000_0024).unwrap_err();
+        assert!(e.contains("TIM2"), "{e}");
+        let e = b.write_word(0x5000_0010, 1, !0).unwrap_err();
+        assert!(e.contains("USB_OTG_FS") && e.contains("GRSTCTL"), "{e}");
+        let e = b.read_word(0x4000_0C24).unwrap_err();
+        assert!(e.contains("TIM5") && e.contains("clock off"), "{e}");
+        b.write_word(0x4002_3840, 1 << 3, !0).unwrap(); // APB1ENR TIM5EN
+        assert!(b.read_word(0x4000_0C24).is_ok());
+        let e = b.read_word(0x4000_0C4C).unwrap_err();
+        assert!(e.contains("DMAR"), "{e}");
+    }
+
+    /// Pins at their reset state (PA8 an input) fail the wiring check by
+    /// name; configured as board.rs does, they pass.
+    #[test]
+    fn wiring_check_names_the_pin() {
+        let mut b = Board::new(ChipKind::F446re, vec![0xFF; 1024]);
+        let e = b.wiring_check().unwrap_err();
+        assert!(e.contains("PA8"), "{e}");
+        b.write_word(0x4002_3830, 0b11, !0).unwrap(); // GPIOA/B clocks
+                                                      // PA6-PA9 AF (MODER 10), AF2 on 6/7 and AF1 on 8/9.
+        b.write_word(0x4002_0000, 0b10101010 << 12, 0xFF << 12)
+            .unwrap();
+        b.write_word(0x4002_0020, 0x22 << 24, 0xFF << 24).unwrap();
+        b.write_word(0x4002_0024, 0x11, 0xFF).unwrap();
+        // PB6/PB7 AF2, PB12-14 outputs.
+        b.write_word(
+            0x4002_0400,
+            (0b1010 << 12) | (0b010101 << 24),
+            (0xF << 12) | (0x3F << 24),
+        )
+        .unwrap();
+        b.write_word(0x4002_0420, 0x22 << 24, 0xFF << 24).unwrap();
+        b.wiring_check().unwrap();
+    }
+
+    /// Thumb-2 lengths: 0b11101/0b11110/0b11111 prefixes are 32-bit.
+    #[test]
+    fn instruction_lengths() {
+        // mov r0,#1 (16) ; bl (32: F000 F800) ; nop (16)
+        let mut code = vec![0u8; 16];
+        code[0..2].copy_from_slice(&0x2001u16.to_le_bytes());
+        code[2..4].copy_from_slice(&0xF000u16.to_le_bytes());
+        code[4..6].copy_from_slice(&0xF800u16.to_le_bytes());
+        code[6..8].copy_from_slice(&0xBF00u16.to_le_bytes());
+        assert_eq!(count_insns(&code, FLASH_BASE as u64, 8), 3);
+    }
+}

@@ -1,0 +1,370 @@
+//! `stm32-emu`: runs the unmodified STM32 release image (firmware/ci.sh's
+//! ELF) on Unicorn's Cortex-M4 with the peripheral models, closed through
+//! sim-robot, with USART2 on a pseudo-terminal for `wmr`.
+//!
+//! ```text
+//! stm32-emu --elf firmware/target/ci-stm32f446re/thumbv7em-none-eabihf/release/firmware \
+//!           [--chip f446re|f411ce] [--pty] [--realtime] [--seconds S]
+//!           [--press AT_S] [--stall AT_S:MS] [--fault hardfault@AT_S|busfault@AT_S]
+//!           [--summary FILE] [--quiet]
+//! ```
+//! With `--pty` the first line on stdout is the pty's path (as `hil-sim
+//! device --pty` prints it) and the run goes on until killed or `--seconds`.
+//! The summary (JSON, one line) goes to `--summary` or stdout at the end.
+
+use std::io::{Read, Write};
+use std::time::{Duration, Instant};
+use stm32_emu::machine::{ChipKind, Fault, Machine};
+use stm32_emu::periph::rcc::csr;
+
+struct Args {
+    elf: String,
+    chip: ChipKind,
+    pty: bool,
+    realtime: bool,
+    seconds: Option<f64>,
+    press: Option<f64>,
+    stall: Option<(f64, f64)>,
+    fault: Option<(Fault, f64)>,
+    summary: Option<String>,
+    quiet: bool,
+}
+
+fn usage() -> String {
+    "usage: stm32-emu --elf FILE [--chip f446re|f411ce] [--pty] [--realtime] [--seconds S] \
+     [--press AT_S] [--stall AT_S:MS] [--fault hardfault@AT_S|busfault@AT_S] [--summary FILE] [--quiet]"
+        .into()
+}
+
+fn num(s: &str, what: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("{what}: `{s}` is not a number"))?;
+    if !v.is_finite() || v < 0.0 {
+        return Err(format!("{what}: {v} must be finite and >= 0"));
+    }
+    Ok(v)
+}
+
+fn parse_args() -> Result<Args, String> {
+    let mut a = Args {
+        elf: String::new(),
+        chip: ChipKind::F446re,
+        pty: false,
+        realtime: false,
+        seconds: None,
+        press: None,
+        stall: None,
+        fault: None,
+        summary: None,
+        quiet: false,
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(k) = it.next() {
+        let mut val = || {
+            it.next()
+                .ok_or_else(|| format!("{k} needs a value\n{}", usage()))
+        };
+        match k.as_str() {
+            "--elf" => a.elf = val()?,
+            "--chip" => {
+                a.chip = match val()?.as_str() {
+                    "f446re" => ChipKind::F446re,
+                    "f411ce" => ChipKind::F411ce,
+                    c => return Err(format!("--chip {c}: expected f446re or f411ce")),
+                }
+            }
+            "--pty" => a.pty = true,
+            "--realtime" => a.realtime = true,
+            "--quiet" => a.quiet = true,
+            "--seconds" => a.seconds = Some(num(&val()?, "--seconds")?),
+            "--press" => a.press = Some(num(&val()?, "--press")?),
+            "--stall" => {
+                let v = val()?;
+                let (t, ms) = v.split_once(':').ok_or("--stall AT_S:MS")?;
+                let ms = num(ms, "--stall duration")?;
+                if ms == 0.0 || ms > 10_000.0 {
+                    return Err(format!("--stall {ms} ms: expected 0 < ms <= 10000"));
+                }
+                a.stall = Some((num(t, "--stall time")?, ms));
+            }
+            "--fault" => {
+                let v = val()?;
+                let (k, t) = v.split_once('@').ok_or("--fault KIND@AT_S")?;
+                let f = match k {
+                    "hardfault" => Fault::HardFault,
+                    "busfault" => Fault::BusFaultOnEncoderRead,
+                    _ => return Err(format!("--fault {k}: expected hardfault or busfault")),
+                };
+                a.fault = Some((f, num(t, "--fault time")?));
+            }
+            "--summary" => a.summary = Some(val()?),
+            "-h" | "--help" => return Err(usage()),
+            _ => return Err(format!("unknown argument {k}\n{}", usage())),
+        }
+    }
+    if a.elf.is_empty() {
+        return Err(format!("--elf is required\n{}", usage()));
+    }
+    if !a.pty && a.seconds.is_none() {
+        return Err("without --pty, --seconds is required (the run must end)".into());
+    }
+    Ok(a)
+}
+
+fn main() {
+    match run() {
+        Ok(code) => std::process::exit(code),
+        Err(e) => {
+            eprintln!("stm32-emu: {e}");
+            std::process::exit(2);
+        }
+    }
+}
+
+const PS: f64 = 1e12;
+
+fn run() -> Result<i32, String> {
+    let a = parse_args()?;
+    let bytes = std::fs::read(&a.elf).map_err(|e| format!("{}: {e}", a.elf))?;
+    let image = stm32_emu::elf::Image::parse(&bytes).map_err(|e| format!("{}: {e}", a.elf))?;
+    let mut m = Machine::new(a.chip, image)?;
+    m.board().verbose = !a.quiet;
+    if !a.quiet {
+        for e in &m.board().events {
+            eprintln!("[stm32-emu t={:10.6} s] {}", e.t_s, e.what);
+        }
+    }
+
+    // The host link: a pty pair, the slave kept open (hosts come and go).
+    let mut link = if a.pty {
+        use serialport::SerialPort;
+        let (mut master, slave) = serialport::TTYPort::pair()
+            .map_err(|e| format!("cannot open a pseudo-terminal: {e}"))?;
+        master
+            .set_timeout(Duration::ZERO)
+            .map_err(|e| format!("pty: {e}"))?;
+        let path = slave.name().ok_or("pty: the slave side has no path")?;
+        println!("{path}");
+        let _ = std::io::stdout().flush();
+        Some((master, slave))
+    } else {
+        None
+    };
+
+    let wall0 = Instant::now();
+    let until = a.seconds.map_or(u128::MAX, |s| (s * PS) as u128);
+    let mut pressed = false;
+    let mut released = false;
+    let mut stalled = false;
+    let mut faulted: Option<u128> = None;
+    let mut cut_after_fault: Option<f64> = None;
+    let mut tx_pending: Vec<u8> = Vec::new();
+    let mut buf = [0u8; 512];
+    let poll_ps = 1_000_000_000; // 1 ms
+    let trace = std::env::var_os("STM32_EMU_TRACE_LINK").is_some();
+    let mut next_alive = 1.0;
+    let mut poll = |m: &mut Machine| -> Result<(), String> {
+        let now = m.board().now_ps();
+        // Host link.
+        if let Some((master, _)) = link.as_mut() {
+            loop {
+                match master.read(&mut buf) {
+                    Ok(0) => break,
+                    Ok(n) => {
+                        if trace {
+                            let t = now as f64 / PS;
+                            eprintln!("[link t={t:10.6}] host -> {n} B");
+                        }
+                        m.board().usart2.host_send(&buf[..n], now)
+                    }
+                    Err(e)
+                        if matches!(
+                            e.kind(),
+                            std::io::ErrorKind::WouldBlock
+                                | std::io::ErrorKind::TimedOut
+                                | std::io::ErrorKind::Interrupted
+                        ) =>
+                    {
+                        break
+                    }
+                    Err(_) => break, // no host: EIO while the slave is closed
+                }
+            }
+            if trace && !m.board().usart2.tx_out.is_empty() {
+                let t = now as f64 / PS;
+                eprintln!(
+                    "[link t={t:10.6}] device -> {} B",
+                    m.board().usart2.tx_out.len()
+                );
+            }
+            tx_pending.append(&mut m.board().usart2.tx_out);
+            if !tx_pending.is_empty() {
+                // A full pty (EAGAIN) or no host (EIO): keep the bytes for later.
+                if let Ok(n) = master.write(&tx_pending) {
+                    tx_pending.drain(..n);
+                }
+                // Nobody reading: a real UART's bytes are lost on the wire.
+                if tx_pending.len() > 64 * 1024 {
+                    tx_pending.clear();
+                }
+            }
+        } else {
+            m.board().usart2.tx_out.clear();
+        }
+        // Script.
+        let t_s = now as f64 / PS;
+        if !a.quiet && t_s >= next_alive {
+            // A line per emulated second: scripts read the emulated time.
+            next_alive += 1.0;
+            m.board().event("alive".into());
+        }
+        if let Some(at) = a.press {
+            if !pressed && t_s >= at {
+                pressed = true;
+                m.board().gpio[2].drive(13, Some(false));
+                m.board().event("arm button PC13 pressed".into());
+            }
+            if pressed && !released && t_s >= at + 0.1 {
+                released = true;
+                m.board().gpio[2].drive(13, None);
+                m.board().event("arm button PC13 released".into());
+            }
+        }
+        if let Some((at, ms)) = a.stall {
+            if !stalled && t_s >= at {
+                stalled = true;
+                m.stall((ms * 1e9) as u128);
+            }
+        }
+        if let Some((f, at)) = a.fault {
+            if faulted.is_none() && t_s >= at {
+                faulted = Some(now);
+                m.inject(f);
+            }
+        }
+        // Pacing: emulated time never ahead of the wall clock.
+        if a.realtime {
+            let wall = wall0.elapsed().as_secs_f64();
+            if t_s > wall + 0.002 {
+                std::thread::sleep(Duration::from_secs_f64(t_s - wall));
+            }
+        }
+        Ok(())
+    };
+    // The fault check needs finer resolution than the 1 ms poll: run in
+    // slices and look at the outputs after each.
+    let mut result: Result<(), String> = Ok(());
+    let mut t_next = 0u128;
+    let slice = 100_000_000u128; // 100 µs
+    while t_next < until {
+        t_next = (t_next + slice).min(until);
+        if let Err(e) = m.run_until(t_next, poll_ps, &mut poll) {
+            result = Err(e);
+            break;
+        }
+        let d = m.board();
+        if let (Some(f), None) = (faulted_time(&d.events), cut_after_fault) {
+            if let Ok(b) = d.bridge() {
+                if b.all_low() {
+                    cut_after_fault = Some(d.now_s() - f);
+                }
+            }
+        }
+    }
+    let _ = faulted;
+    let wall = wall0.elapsed().as_secs_f64();
+    let d = m.board();
+    let emu_s = d.now_s();
+    let bridge = d.bridge().ok();
+    let iwdg_resets = d
+        .stats
+        .resets
+        .iter()
+        .filter(|r| r.1 == stm32_emu::periph::rcc::ResetCause::Iwdg)
+        .count();
+    let taken = |e: usize| d.stats.taken.get(&e).copied().unwrap_or(0);
+    let pose = d.robot.pose();
+    let mut s = String::new();
+    s += "{";
+    s += &format!("\"ok\":{},", result.is_ok());
+    s += &format!(
+        "\"error\":\"{}\",",
+        result
+            .as_ref()
+            .err()
+            .map_or(String::new(), |e| e.replace('"', "'"))
+    );
+    s += &format!(
+        "\"emulated_s\":{emu_s:.6},\"wall_s\":{wall:.3},\"speed_x\":{:.2},",
+        emu_s / wall.max(1e-9)
+    );
+    s += &format!(
+        "\"instructions\":{},\"slices\":{},\"sleeps\":{},",
+        d.stats.instructions, d.stats.slices, d.stats.sleeps
+    );
+    s += &format!("\"boots\":{},\"iwdg_resets\":{iwdg_resets},", d.stats.boots);
+    s += &format!(
+        "\"csr_at_boot\":\"0x{:08X}\",\"iwdgrstf\":{},",
+        d.csr_at_boot,
+        d.csr_at_boot & csr::IWDGRSTF != 0
+    );
+    s += &format!(
+        "\"idle_reached\":{},\"loop_started\":{},",
+        d.idle_reached, d.loop_started
+    );
+    s += &format!(
+        "\"feeds\":{},\"tim5_irqs\":{},\"usart2_irqs\":{},\"hardfaults\":{},",
+        d.stats.feeds,
+        taken(16 + 50),
+        taken(16 + 38),
+        taken(3)
+    );
+    s += &format!(
+        "\"usart2_rx_bytes\":{},\"usart2_tx_bytes\":{},\"usart2_overruns\":{},",
+        d.usart2.rx_bytes, d.usart2.tx_bytes, d.usart2.overruns
+    );
+    if let Some(b) = bridge {
+        s += &format!(
+            "\"motors_off\":{},\"motor_pins_low\":{},\"enable\":{},\"pwm\":[{},{}],",
+            b.motors_off(),
+            b.all_low(),
+            b.enable,
+            b.pwm[0].0,
+            b.pwm[1].0
+        );
+    }
+    if let Some(c) = cut_after_fault {
+        s += &format!("\"motors_cut_after_fault_poll_us\":{:.1},", c * 1e6);
+    }
+    if let Some((ps, n)) = d.cut_after_fault {
+        s += &format!(
+            "\"motors_cut_after_fault_us\":{:.3},\"motors_cut_after_fault_insn\":{n},",
+            ps as f64 * 1e-6
+        );
+    }
+    s += &format!("\"pose\":[{:.4},{:.4},{:.4}],", pose[0], pose[1], pose[2]);
+    s += &format!(
+        "\"sysclk_hz\":{},\"plant_steps\":{}",
+        d.sysclk_hz, d.robot.steps
+    );
+    s += "}";
+    match &a.summary {
+        Some(f) => std::fs::write(f, format!("{s}\n")).map_err(|e| format!("{f}: {e}"))?,
+        None => println!("{s}"),
+    }
+    match result {
+        Ok(()) => Ok(0),
+        Err(e) => {
+            eprintln!("stm32-emu: run failed at t = {emu_s:.6} s: {e}");
+            Ok(1)
+        }
+    }
+}
+
+fn faulted_time(events: &[stm32_emu::machine::Event]) -> Option<f64> {
+    events
+        .iter()
+        .find(|e| e.what.starts_with("fault injected"))
+        .map(|e| e.t_s)
+}

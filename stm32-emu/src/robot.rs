@@ -1,0 +1,164 @@
+//! The simulated robot behind the pins: sim-robot's plant (the project's
+//! one plant, RK4), its DC-motor drive and its 16-bit encoders, advanced in
+//! emulated time on a fixed grid of [`STEP_PS`], with the H-bridge inputs
+//! (PWM duty from TIM1's outputs, DIR and ENABLE pin levels) held over each
+//! step. The robot is the firmware's (firmware/src/config.rs): the paper's
+//! body (Table 1), controller-core's example motors and 24 000-count
+//! encoders, the left motor and encoder mirrored. It does not reset when
+//! the chip does.
+
+use controller_core::runtime::{
+    DutyCommand, EncoderParams, MotorDriver, MotorModel, MotorParams, WheelEncoders,
+};
+use controller_core::RobotParams;
+use sim_robot::{MotorDrive, Perturbation, Plant, PlantParams, PlantState, SimDriver, SimEncoders};
+
+/// Plant integration step \[ps\]: 100 µs (ten RK4 steps per 1 ms control
+/// period; a bridge change takes effect at the next grid point).
+pub const STEP_PS: u128 = 100_000_000;
+
+/// What the H-bridge inputs are, per wheel `[right, left]`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BridgeInputs {
+    /// PWM high counts and period per wheel.
+    pub pwm: [(u32, u32); 2],
+    /// DIR pin levels (high = reverse).
+    pub dir: [bool; 2],
+    /// ENABLE pin level.
+    pub enable: bool,
+}
+
+impl BridgeInputs {
+    /// True when nothing drives the motors: ENABLE low or both PWM inputs low.
+    pub fn motors_off(&self) -> bool {
+        !self.enable || self.pwm.iter().all(|p| p.0 == 0)
+    }
+
+    /// True when every motor input pin is low (ENABLE, DIR, PWM).
+    pub fn all_low(&self) -> bool {
+        !self.enable && !self.dir[0] && !self.dir[1] && self.pwm.iter().all(|p| p.0 == 0)
+    }
+}
+
+/// The robot.
+pub struct Robot {
+    plant: Plant,
+    state: PlantState,
+    encoders: SimEncoders,
+    motor: MotorParams,
+    inverted: [bool; 2],
+    t_ps: u128,
+    still: Perturbation,
+    /// Plant steps taken.
+    pub steps: u64,
+}
+
+impl Robot {
+    /// The firmware's robot at rest at the origin.
+    pub fn new() -> Self {
+        let enc = EncoderParams::EXAMPLE;
+        Self {
+            plant: Plant::new(PlantParams::from_robot(&RobotParams::paper(), 1.0, 1.0)),
+            state: PlantState {
+                q: [0.0; 5],
+                nu: [0.0; 2],
+            },
+            encoders: SimEncoders::new(&enc),
+            motor: MotorParams::EXAMPLE,
+            inverted: controller_core::runtime::MIRRORED_LEFT,
+            t_ps: 0,
+            still: Perturbation::default(),
+            steps: 0,
+        }
+    }
+
+    /// Advances to `now_ps` with `bridge` held; an error when the state
+    /// diverges.
+    pub fn advance(&mut self, now_ps: u128, bridge: &BridgeInputs) -> Result<(), String> {
+        if self.t_ps + STEP_PS > now_ps {
+            return Ok(());
+        }
+        let period = bridge.pwm[0].1.max(bridge.pwm[1].1).max(1);
+        let model = MotorModel::new(MotorParams {
+            duty_full_scale: period.min(u16::MAX as u32) as u16,
+            ..self.motor
+        })
+        .map_err(|e| format!("motor model: {e:?}"))?;
+        let mut driver = SimDriver::default();
+        if bridge.enable {
+            driver.set(core::array::from_fn(|i| DutyCommand {
+                // Scaled to the common period (both channels share TIM1).
+                duty: (bridge.pwm[i].0 as u64 * period as u64 / bridge.pwm[i].1.max(1) as u64)
+                    as u16,
+                reverse: bridge.dir[i],
+            }));
+        }
+        let drive = MotorDrive {
+            model,
+            bridge: driver,
+            inverted: self.inverted,
+        };
+        let dt = STEP_PS as f64 * 1e-12;
+        while self.t_ps + STEP_PS <= now_ps {
+            let t_s = self.t_ps as f64 * 1e-12;
+            let still = self.still;
+            self.state = self
+                .plant
+                .rk4_step(&self.state, t_s, dt, &drive, &mut |_| still);
+            if !Plant::state_is_finite(&self.state) {
+                return Err(format!("plant diverged at t = {t_s:.4} s"));
+            }
+            self.t_ps += STEP_PS;
+            self.steps += 1;
+        }
+        self.encoders.set_angles([self.state.q[3], self.state.q[4]]);
+        Ok(())
+    }
+
+    /// Raw 16-bit encoder positions `[right, left]` (left mirrored).
+    pub fn encoder_counts(&mut self) -> [u16; 2] {
+        self.encoders.counts()
+    }
+
+    /// True pose of G `[x m, y m, θ rad]`.
+    pub fn pose(&self) -> [f64; 3] {
+        [self.state.q[0], self.state.q[1], self.state.q[2]]
+    }
+
+    /// Wheel speeds `[right, left]` \[rad/s\].
+    pub fn wheel_rates(&self) -> [f64; 2] {
+        self.plant.wheel_rates_radps(&self.state, &self.still)
+    }
+}
+
+impl Default for Robot {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Full forward duty on both bridges: both wheels turn forward, the
+    /// right encoder counts up and the mirrored left one down; disabled
+    /// the robot stays put (no torque).
+    #[test]
+    fn bridge_drives_wheels_and_encoders() {
+        let mut r = Robot::new();
+        let off = BridgeInputs::default();
+        r.advance(10 * STEP_PS, &off).unwrap();
+        assert_eq!(r.encoder_counts(), [0, 0]);
+        let on = BridgeInputs {
+            pwm: [(4200, 8400); 2],
+            dir: [false, true], // the runtime flips the mirrored left motor's DIR
+            enable: true,
+        };
+        r.advance(5_000 * STEP_PS, &on).unwrap();
+        let [cr, cl] = r.encoder_counts();
+        assert!((cr as i16) > 100, "right counts up: {cr}");
+        assert!((cl as i16) < -100, "left counts down: {cl}");
+        assert!(r.pose()[0] > 0.01, "moved forward: {:?}", r.pose());
+    }
+}

@@ -1,0 +1,148 @@
+//! Physical limits, in one place with their units (D41): the robot's top
+//! speed, yaw rate and wheel torque derived from its configuration, the
+//! range of every writable parameter, of the built-in references'
+//! geometry, and the bound on the length of a controlled stop.
+//!
+//! A value that passes these checks is not only finite but possible: no
+//! gain that makes the loop faster than the control rate can follow, no
+//! reference faster than the motors can drive, no controlled stop that
+//! takes longer than [`RobotLimits::stop_bound_s`].
+
+use controller_core::runtime::RuntimeConfig;
+use wmr_protocol::ParamId;
+
+/// Least deceleration of a controlled stop \[m/s²\]: the gentlest stop
+/// the device makes (a walking-pace robot at 1 m/s stops within 4 s).
+pub const MIN_BRAKE_DECEL_MPS2: f32 = 0.25;
+/// Largest deceleration of a controlled stop and acceleration of velocity
+/// commands \[m/s²\] (2 g: beyond any wheel's grip).
+pub const MAX_ACCEL_MPS2: f32 = 20.0;
+/// Least acceleration of velocity commands \[m/s²\].
+pub const MIN_ACCEL_MPS2: f32 = 0.01;
+/// Least angular acceleration of velocity commands and of the braking
+/// profile \[rad/s²\].
+pub const MIN_ANG_ACCEL_RADPS2: f32 = 1.0;
+/// Largest angular acceleration \[rad/s²\].
+pub const MAX_ANG_ACCEL_RADPS2: f32 = 50.0;
+/// Largest speed any command or reference may ask \[m/s\] (also bounded by
+/// [`RobotLimits::top_speed_mps`]).
+pub const MAX_SPEED_MPS: f32 = 10.0;
+/// Largest yaw rate any command or reference may ask \[rad/s\] (also
+/// bounded by [`RobotLimits::top_yaw_rate_radps`]).
+pub const MAX_YAW_RATE_RADPS: f32 = 30.0;
+/// Least speed and yaw-rate limit of velocity commands \[m/s, rad/s\].
+pub const MIN_COMMAND_LIMIT: f32 = 0.01;
+/// Smallest and largest length of a built-in shape (radius, amplitude)
+/// \[m\].
+pub const SHAPE_LENGTH_M: (f32, f32) = (0.01, 1000.0);
+/// Largest |coordinate| of a start pose or an external pose \[m\] (f32
+/// resolves 0.1 mm there).
+pub const MAX_POSITION_M: f32 = 1000.0;
+/// Least controller gain (k_x, k_y, k_θ, k_s in their units): a smaller one
+/// corrects nothing within a run.
+pub const MIN_GAIN: f32 = 1e-3;
+/// Least torque limit and stall torque \[N·m\].
+pub const MIN_TORQUE_NM: f32 = 0.01;
+
+/// The robot's physical limits, derived from its runtime configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RobotLimits {
+    /// No-load ground speed V/(k·N)·r \[m/s\] (at most [`MAX_SPEED_MPS`]).
+    pub top_speed_mps: f32,
+    /// Top speed / half track \[rad/s\] (turning on the spot at top wheel
+    /// speed; at most [`MAX_YAW_RATE_RADPS`]).
+    pub top_yaw_rate_radps: f32,
+    /// Wheel stall torque η·N·k·V/R \[N·m\].
+    pub stall_torque_nm: f32,
+    /// Fastest closed-loop rate a gain may ask, half the control rate
+    /// 1/(2·period) \[1/s\].
+    pub max_rate_per_s: f32,
+    /// Control period \[s\].
+    pub period_s: f32,
+}
+
+impl RobotLimits {
+    /// The limits of no particular robot: [`MAX_SPEED_MPS`],
+    /// [`MAX_YAW_RATE_RADPS`], an unbounded torque, a 1 kHz loop.
+    pub const ABSOLUTE: Self = Self {
+        top_speed_mps: MAX_SPEED_MPS,
+        top_yaw_rate_radps: MAX_YAW_RATE_RADPS,
+        stall_torque_nm: f32::MAX,
+        max_rate_per_s: 500.0,
+        period_s: 1e-3,
+    };
+
+    /// The limits of the robot `rt` describes (a validated configuration).
+    pub fn of(rt: &RuntimeConfig) -> Self {
+        let m = &rt.motor;
+        let r = &rt.controller.robot;
+        let wheel_radps = m.supply_voltage_v / (m.torque_constant_nm_per_a * m.gear_ratio);
+        let top_speed_mps = (wheel_radps * r.wheel_radius_m).min(MAX_SPEED_MPS);
+        Self {
+            top_speed_mps,
+            top_yaw_rate_radps: (top_speed_mps / r.half_track_m).min(MAX_YAW_RATE_RADPS),
+            stall_torque_nm: m.gear_efficiency
+                * m.gear_ratio
+                * m.torque_constant_nm_per_a
+                * m.supply_voltage_v
+                / m.winding_resistance_ohm,
+            max_rate_per_s: 0.5 / rt.controller.period_s,
+            period_s: rt.controller.period_s,
+        }
+    }
+
+    /// The physical range \[min, max\] of a writable parameter, in its
+    /// unit; `None` for the integer and read-only ones (checked apart).
+    ///
+    /// The gains bound the closed loop's rates by half the control rate
+    /// `R`: k_x, k_θ, k_s ≤ R \[1/s\]; the lateral mode of eq. (14)
+    /// linearised about the reference, ë_y + k_θ·ė_y + k_y·v²·e_y = 0, has
+    /// the rate v·√k_y ≤ R at top speed, so k_y ≤ (R/v_top)² \[rad/m²\].
+    pub fn range(&self, id: ParamId) -> Option<(f32, f32)> {
+        let r = self.max_rate_per_s;
+        let k_y = (r / self.top_speed_mps) * (r / self.top_speed_mps);
+        Some(match id {
+            ParamId::TorqueLimitNm | ParamId::StallTorqueNm => {
+                (MIN_TORQUE_NM, self.stall_torque_nm)
+            }
+            ParamId::Kx | ParamId::Ktheta | ParamId::Ks => (MIN_GAIN, r),
+            ParamId::Ky => (MIN_GAIN, k_y),
+            ParamId::AccelMps2 => (MIN_ACCEL_MPS2, MAX_ACCEL_MPS2),
+            ParamId::BrakeDecelMps2 => (MIN_BRAKE_DECEL_MPS2, MAX_ACCEL_MPS2),
+            ParamId::AngAccelRadps2 => (MIN_ANG_ACCEL_RADPS2, MAX_ANG_ACCEL_RADPS2),
+            ParamId::MaxSpeedMps => (MIN_COMMAND_LIMIT, self.top_speed_mps),
+            ParamId::MaxYawRateRadps => (MIN_COMMAND_LIMIT, self.top_yaw_rate_radps),
+            ParamId::StallTicks
+            | ParamId::TelemetryRateHz
+            | ParamId::LinkTimeoutMs
+            | ParamId::ControlPeriodS => return None,
+        })
+    }
+
+    /// `value` lies in the range of `id` (false for NaN).
+    pub fn allows(&self, id: ParamId, value: f32) -> bool {
+        self.range(id)
+            .is_none_or(|(lo, hi)| value >= lo && value <= hi)
+    }
+
+    /// The longest controlled stop with braking deceleration `decel_mps2`
+    /// and angular acceleration `ang_accel_radps2` \[s\]: from top speed and
+    /// top yaw rate, v and ω falling together. With the least values
+    /// allowed ([`MIN_BRAKE_DECEL_MPS2`], [`MIN_ANG_ACCEL_RADPS2`]) and the
+    /// paper robot (4 m/s, 20 rad/s) it is 20 s; with the defaults (1 m/s²,
+    /// 3 rad/s²) 6.7 s. After it the device cuts the motors whatever the
+    /// braking reference does.
+    pub fn stop_bound_s(&self, decel_mps2: f32, ang_accel_radps2: f32) -> f32 {
+        let t_v = self.top_speed_mps / decel_mps2.max(MIN_BRAKE_DECEL_MPS2);
+        let t_w = self.top_yaw_rate_radps / ang_accel_radps2.max(MIN_ANG_ACCEL_RADPS2);
+        t_v.max(t_w)
+    }
+
+    /// [`Self::stop_bound_s`] in ticks (rounded up, plus the tick that
+    /// disarms).
+    pub fn stop_bound_ticks(&self, decel_mps2: f32, ang_accel_radps2: f32) -> u32 {
+        let t = self.stop_bound_s(decel_mps2, ang_accel_radps2);
+        ((t / self.period_s) as u32).saturating_add(2)
+    }
+}
