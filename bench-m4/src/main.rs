@@ -20,18 +20,18 @@ use core::hint::black_box;
 use core::panic::PanicInfo;
 
 use controller_core::controller::{saturate, ControlLaw, ControllerState};
-use controller_core::health::EstimatorStatus;
+use controller_core::health::EstimatorHealth;
 use controller_core::math;
 use controller_core::pacer::{Pacer, PacingConfig};
 use controller_core::trajectory::{PaperCurve, PaperHeading, Trajectory};
 use controller_core::RobotParams;
 use controller_core::{
-    Controller, ControllerConfig, ControllerKind, Diagnostics, Pose, RefSample, StepInput,
-    StepOutput, Vel2,
+    Controller, ControllerConfig, ControllerKind, Diagnostics, RefSample, StepInput, StepOutput,
 };
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
-use sim_robot::{PerturbationGrid, PerturbationProfile, Plant, PlantParams, PlantState};
+use sim_robot::world::{Actuation, Faults, IdealSensing, Instruments, Reading};
+use sim_robot::{PerturbationProfile, PlantParams, World, WorldConfig};
 use timer::Counter;
 
 /// Control steps per controller: the paper's 40 s at 1 kHz.
@@ -97,48 +97,36 @@ pub(crate) fn case2_profile() -> PerturbationProfile {
     }
 }
 
-/// The simulated robot that closes the loop: the project's one plant
-/// (`sim-robot`, f64 through libm, soft-float on this core; not timed),
-/// one RK4 step per period, in the paper's Case 2 shape: slip β = 0.1 rad/s,
-/// skid, disturbance 1 N·m and an actuator fault ε = 0.2 in [10 s, 35 s).
-struct SimRobot {
-    plant: Plant,
-    state: PlantState,
-    perturb: PerturbationGrid,
+/// The simulated world that closes the loop (`sim_robot::World`, f64
+/// through libm, soft-float on this core; not timed): the paper's plant,
+/// one RK4 step per period, the paper's Case 2 perturbations, and ideal
+/// sensing as hil-sim's paper runs have it (the exact pose of G, the wheel
+/// rates from the exact wheel-angle change over the period into η by
+/// eq. (3), torques applied exactly). The simulator's default start;
+/// the reference starts at (4, 3).
+pub(crate) fn case2_world(robot: &RobotParams, dt: f64, instruments: Instruments) -> World {
+    World::new(&WorldConfig {
+        plant: PlantParams::from_robot(robot, 1.0, 1.0),
+        perturbations: case2_profile(),
+        initial_pose: [2.5, 0.0, 0.0],
+        period_s: dt,
+        substeps: 1,
+        seed: 0,
+        instruments,
+        faults: Faults::NONE,
+    })
+    .unwrap_or_else(|_| fail("world config"))
 }
 
-impl SimRobot {
-    fn new(robot: &RobotParams, dt: f64) -> Self {
-        let profile = case2_profile();
-        Self {
-            plant: Plant::new(PlantParams::from_robot(robot, 1.0, 1.0)),
-            // The simulator's default start; the reference starts at (4, 3).
-            state: PlantState {
-                q: [2.5, 0.0, 0.0, 0.0, 0.0],
-                nu: [0.0; 2],
-            },
-            perturb: PerturbationGrid::new(profile, 0.5 * dt),
-        }
-    }
-
-    /// The measured pose of G and the wheel-imposed η (ideal sensors).
-    fn input(&mut self, reference: RefSample, t: f64) -> StepInput {
-        let p = self.perturb.at(t);
-        let eta = self.plant.eta(&self.state, &p);
-        let q = self.state.q;
-        StepInput {
-            reference,
-            pose: Pose::new(q[0] as f32, q[1] as f32, q[2] as f32),
-            eta: Vel2::new(eta[0] as f32, eta[1] as f32),
-        }
-    }
-
-    fn advance(&mut self, torque_nm: [f32; 2], t: f64, dt: f64) {
-        let tau = torque_nm.map(f64::from);
-        let grid = &mut self.perturb;
-        self.state = self
-            .plant
-            .rk4_step(&self.state, t, dt, &tau, &mut |t| grid.at(t));
+/// The controller's input from an ideal world's reading.
+fn ideal_input(robot: &RobotParams, reference: RefSample, reading: &Reading) -> StepInput {
+    let Some(m) = reading.ideal else {
+        fail("not an ideal world");
+    };
+    StepInput {
+        reference,
+        pose: m.pose,
+        eta: robot.eta_from_wheel_rates(m.wheel_rate_radps),
     }
 }
 
@@ -238,7 +226,15 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
     let law = ctrl.law().clone();
     let mut staged_state = law.initial_state();
     let traj = PaperCurve::paper(PaperHeading::SignedSmooth);
-    let mut plant = SimRobot::new(&cfg.robot, cfg.period_s as f64);
+    let mut world = case2_world(
+        &cfg.robot,
+        cfg.period_s as f64,
+        Instruments::Ideal(IdealSensing {
+            position_noise_m: 0.0,
+            heading_noise_rad: 0.0,
+            rate_period_s: cfg.period_s as f64,
+        }),
+    );
     let mut res = RunResult {
         reference: Stat::default(),
         step: Stat::default(),
@@ -256,7 +252,8 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
     for k in 0..STEPS {
         let t = k as f32 * dt;
         let r = time(c, &mut res.reference, || traj.sample(black_box(t)));
-        let input = plant.input(r, k as f64 * dt as f64);
+        let reading = world.sense(k as f64 * dt as f64);
+        let input = ideal_input(&cfg.robot, r, &reading);
         let out: StepOutput = time(c, &mut res.step, || ctrl.step(black_box(&input)));
         if out.diag.fault.is_some() {
             fail("controller rejected a step");
@@ -266,7 +263,7 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
                 black_box(&mut pace),
                 black_box(&out.diag),
                 black_box(input.eta),
-                EstimatorStatus::Ok,
+                EstimatorHealth::Ok,
             )
         });
         if !(rep.scale >= 0.0 && rep.scale <= 1.0) {
@@ -290,7 +287,10 @@ fn run_controller<C: Counter>(c: &C, kind: ControllerKind) -> RunResult {
             res.max_pos_error_after_10s = res.max_pos_error_after_10s.max(pe);
         }
         res.final_error = e;
-        plant.advance(out.torque_nm, k as f64 * dt as f64, dt as f64);
+        let torque = Actuation::Torque(out.torque_nm.map(f64::from));
+        if world.advance(torque, dt as f64).is_err() {
+            fail("plant diverged");
+        }
     }
     res
 }

@@ -1,7 +1,7 @@
 //! The firmware's whole control tick, timed: `LoopTimer::tick` +
 //! `ControlLoop::tick` (encoders, pose estimator with gyro and external
 //! poses, reference, proposed controller, pacer, supervisor, duty) closed
-//! through sim-robot's plant and simulated hardware, plus the estimator's
+//! through sim-robot's `World` (plant and simulated hardware), plus the estimator's
 //! `predict` and `correct` timed on their own on a second `PoseEstimator`
 //! fed exactly what the loop's estimator was fed (checked bit for bit
 //! against the loop's estimate every tick).
@@ -24,13 +24,11 @@ use controller_core::runtime::{
 };
 use controller_core::{ControllerKind, Pose};
 use sim_robot::sensors::PRESET_GYRO;
-use sim_robot::{
-    MotorDrive, PerturbationGrid, Plant, PlantParams, PlantState, PoseSourceModel, SimDriver,
-    SimEncoders, SimGyro, SimPoseSource,
-};
+use sim_robot::world::{Actuation, HardwareSensing, Instruments};
+use sim_robot::{PoseSourceModel, SimDriver};
 
 use crate::timer::Counter;
-use crate::{case2_profile, fail, time, Stat};
+use crate::{case2_world, fail, time, Stat};
 
 /// Ticks per run: the paper's 40 s at 1 kHz.
 const TICKS: u32 = 40_000;
@@ -161,16 +159,20 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
     }
     let dt = cfg.controller.period_s as f64;
     let period_us = timer.period_us();
-    let plant = Plant::new(PlantParams::from_robot(&cfg.controller.robot, 1.0, 1.0));
-    let mut st = PlantState {
-        q: [2.5, 0.0, 0.0, 0.0, 0.0],
-        nu: [0.0; 2],
-    };
-    let mut perturb = PerturbationGrid::new(case2_profile(), 0.5 * dt);
-    let mut encoders = SimEncoders::new(&cfg.encoder);
+    // The world's hardware: the runtime's encoders and motors, the MEMS
+    // gyro and `source` (noise from seed 0).
+    let mut world = case2_world(
+        &cfg.controller.robot,
+        dt,
+        Instruments::Hardware(HardwareSensing {
+            encoder: cfg.encoder,
+            motor: cfg.motor,
+            motor_inverted: cfg.motor_inverted,
+            gyro: Some(PRESET_GYRO),
+            pose_source: Some(source),
+        }),
+    );
     let mut driver = SimDriver::default();
-    let mut gyro = SimGyro::new(PRESET_GYRO, 0x6779_726F).unwrap_or_else(|_| fail("gyro model"));
-    let mut poses = SimPoseSource::new(source, 0x706F_7365).unwrap_or_else(|_| fail("pose model"));
     let mut enc = LatchedEncoders([0; 2]);
     let mut gyro_hw = LatchedGyro(None);
     let mut pose_hw = LatchedPoses {
@@ -185,12 +187,9 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
     for k in 0..TICKS {
         let t = k as f64 * dt;
         // The simulated sensors (not timed).
-        let p_now = perturb.at(t);
-        encoders.set_angles([st.q[3], st.q[4]]);
-        gyro.update(t, plant.q_dot(&st, &p_now)[2]);
-        poses.update(t, [st.q[0], st.q[1], st.q[2]]);
-        enc.0 = encoders.counts();
-        gyro_hw.0 = gyro.sample();
+        let reading = world.sense(t);
+        enc.0 = world.encoder_counts();
+        gyro_hw.0 = world.gyro_sample();
         // Keep what the loop did not take last tick, then what arrived.
         let q = &mut pose_hw;
         let left = q.len - q.head;
@@ -198,7 +197,7 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
         q.head = 0;
         q.len = left;
         while q.len < q.queue.len() {
-            match poses.measurement() {
+            match world.pose_measurement() {
                 Some(m) => {
                     q.queue[q.len] = Some(m);
                     q.len += 1;
@@ -287,20 +286,18 @@ pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
             fail("tick: sliced re-propagation differs from the whole one");
         }
         // The plant over [t, t + dt] with the bridge's output (not timed).
+        let p = reading.true_pose;
         let e = [
-            rep.reference.pose.x_m - st.q[0] as f32,
-            rep.reference.pose.y_m - st.q[1] as f32,
+            rep.reference.pose.x_m - p[0] as f32,
+            rep.reference.pose.y_m - p[1] as f32,
         ];
         if t >= 10.0 {
             let pe = math::sqrt(e[0] * e[0] + e[1] * e[1]);
             res.max_pos_error_after_10s = res.max_pos_error_after_10s.max(pe);
         }
-        let drive = MotorDrive {
-            model: *control.motor_model(),
-            bridge: driver,
-            inverted: cfg.motor_inverted,
-        };
-        st = plant.rk4_step(&st, t, dt, &drive, &mut |t| perturb.at(t));
+        if world.advance(Actuation::Bridge(driver), dt).is_err() {
+            fail("plant diverged");
+        }
     }
     res
 }

@@ -12,7 +12,7 @@
 //! * the share of steps at the torque limit;
 //! * the squared position error (its filter is a mean square: the
 //!   thresholds below apply to its root, an RMS error);
-//! * the estimator's status (a hook: [`EstimatorStatus`]).
+//! * the estimator's health ([`EstimatorHealth`]).
 //!
 //! Nominal → Degraded when any filtered input reaches its `*_degraded`
 //! threshold; Degraded → Nominal when every input is below
@@ -72,11 +72,13 @@ pub enum HealthReason {
     ControllerFault,
 }
 
-/// Status of a pose/state estimator, for the health machine (hook: the
-/// runtime reports [`EstimatorStatus::Ok`] until an estimator exists).
+/// Health of the pose estimator, for the health machine: what the runtime's
+/// estimator reports each tick
+/// ([`crate::estimator::PoseEstimator::health`]; its detailed counters are
+/// [`crate::estimator::EstimatorStatus`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum EstimatorStatus {
+pub enum EstimatorHealth {
     /// Consistent innovations.
     #[default]
     Ok,
@@ -103,7 +105,7 @@ pub struct HealthInput {
     /// Squared position error e_x² + e_y² \[m²\].
     pub position_error_sq_m2: f32,
     /// Estimator status.
-    pub estimator: EstimatorStatus,
+    pub estimator: EstimatorHealth,
     /// The controller rejected its input or reset this step.
     pub controller_fault: bool,
 }
@@ -360,7 +362,7 @@ impl HealthMonitor {
         st.eps_hat = eps;
         let hard = if input.controller_fault {
             Some(HealthReason::ControllerFault)
-        } else if input.estimator == EstimatorStatus::Failed {
+        } else if input.estimator == EstimatorHealth::Failed {
             Some(HealthReason::Estimator)
         } else if eps >= p.fault_ratio_hard {
             Some(HealthReason::ActuatorFault)
@@ -390,7 +392,7 @@ impl HealthMonitor {
                 Some(HealthReason::Disturbance)
             } else if st.adaptation >= scale * p.adaptation_degraded {
                 Some(HealthReason::AdaptationLimit)
-            } else if input.estimator == EstimatorStatus::Degraded {
+            } else if input.estimator == EstimatorHealth::Degraded {
                 Some(HealthReason::Estimator)
             } else if st.acquired && st.error_sq_m2 >= scale * scale * self.error_degraded_sq_m2 {
                 Some(HealthReason::TrackingError)
@@ -442,7 +444,7 @@ mod tests {
         adaptation_ratio: 0.02,
         saturated: false,
         position_error_sq_m2: 1e-4,
-        estimator: EstimatorStatus::Ok,
+        estimator: EstimatorHealth::Ok,
         controller_fault: false,
     };
 

@@ -17,7 +17,7 @@ use crate::governor::{
     position_error_sq_m2, Governor, GovernorInput, GovernorParams, GovernorState,
 };
 use crate::health::{
-    EstimatorStatus, HealthInput, HealthMode, HealthMonitor, HealthParams, HealthReason,
+    EstimatorHealth, HealthInput, HealthMode, HealthMonitor, HealthParams, HealthReason,
     HealthState, HealthTransition,
 };
 use crate::model::ReducedModel;
@@ -167,7 +167,7 @@ impl Pacer {
         &self,
         diag: &Diagnostics,
         eta: Vel2,
-        estimator: EstimatorStatus,
+        estimator: EstimatorHealth,
     ) -> HealthInput {
         let tau_d = self.model.n_inv_mul(diag.d_hat);
         let abs_max = |a: [f32; 2]| {
@@ -198,7 +198,7 @@ impl Pacer {
         st: &mut PacerState,
         diag: &Diagnostics,
         eta: Vel2,
-        estimator: EstimatorStatus,
+        estimator: EstimatorHealth,
     ) -> PaceReport {
         if !self.enabled {
             let g = &mut st.governor;
@@ -307,7 +307,7 @@ mod tests {
             for (k, (diag, v)) in steps.iter().enumerate() {
                 let r = pacer.reference(&st, &traj, 0.0);
                 prop_assert!(r.is_finite());
-                let rep = pacer.update(&mut st, diag, Vel2::new(*v, 0.0), EstimatorStatus::Ok);
+                let rep = pacer.update(&mut st, diag, Vel2::new(*v, 0.0), EstimatorHealth::Ok);
                 prop_assert!(rep.scale.is_finite() && rep.scale >= 0.0 && rep.scale <= 1.0);
                 prop_assert!(st.governor.scale_rate_per_s.is_finite());
                 prop_assert!(rep.tau_s.is_finite() && rep.tau_s >= tau_prev);
@@ -335,7 +335,7 @@ mod tests {
         for k in 0..2000 {
             let t = k as f32 * 1e-3;
             assert_eq!(pacer.reference(&st, &traj, t), traj.sample(t));
-            let rep = pacer.update(&mut st, &diag, Vel2::new(1.0, 0.0), EstimatorStatus::Ok);
+            let rep = pacer.update(&mut st, &diag, Vel2::new(1.0, 0.0), EstimatorHealth::Ok);
             assert_eq!(rep.scale, 1.0);
             assert_eq!(rep.mode, HealthMode::Nominal);
         }

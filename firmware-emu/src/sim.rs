@@ -1,10 +1,12 @@
-//! The simulated robot in the guest: sim-robot's plant (the project's one
-//! plant, f64 through libm) behind the board's encoders, H-bridge and gyro.
+//! The simulated robot in the guest: sim-robot's [`World`] (the project's
+//! one simulated world, f64 through libm: the plant behind simulated
+//! encoders, H-bridge and MEMS gyro) behind the board's peripherals.
 //!
-//! The board's peripherals ([`crate::board`]) are thin handles on [`HW`]:
-//! the control tick reads the encoder counters and the gyro and writes the
-//! bridge there, exactly as it would read and write registers. The plant
-//! task advances the robot: half a period after each control tick (when
+//! The board's peripherals ([`crate::board`]) are thin handles on [`HW`],
+//! the registers the world's readings are latched into: the control tick
+//! reads the encoder counters and the gyro and writes the bridge there,
+//! exactly as it would read and write registers. The plant task owns the
+//! world and advances it: half a period after each control tick (when
 //! the tick has written its duties and the next has not read the sensors),
 //! it integrates one control period with the bridge held (one RK4 step,
 //! the DC-motor torque at each stage's wheel rates, as `hil-sim`'s runtime
@@ -17,23 +19,23 @@
 use core::cell::RefCell;
 
 use controller_core::estimator::GyroSample;
-use controller_core::runtime::{DutyCommand, Gyro, MotorDriver, MotorModel, WheelEncoders};
+use controller_core::runtime::{DutyCommand, Gyro, MotorDriver, WheelEncoders};
 use critical_section::Mutex;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
 use sim_robot::sensors::PRESET_GYRO;
-use sim_robot::{
-    MotorDrive, Perturbation, Plant, PlantParams, PlantState, SimDriver, SimEncoders, SimGyro,
-};
+use sim_robot::world::{Actuation, Faults, HardwareSensing, Instruments};
+use sim_robot::{PerturbationProfile, PlantParams, SimDriver, World, WorldConfig};
 
 use crate::config;
 
-/// The simulated peripherals the board's handles reach.
+/// The simulated peripherals the board's handles reach: the world's
+/// latest readings and the bridge as the tick wrote it.
 pub struct SimHw {
-    encoders: SimEncoders,
+    counts: [u16; 2],
     bridge: SimDriver,
-    gyro: SimGyro,
+    gyro: Option<GyroSample>,
     /// A fault handler (NMI, panic, hard fault) cut the motors: the bridge
     /// outputs nothing until the board resets.
     killed: bool,
@@ -46,19 +48,44 @@ static HW: Mutex<RefCell<Option<SimHw>>> = Mutex::new(RefCell::new(None));
 /// task's phase.
 pub static LOOP_START: Signal<CriticalSectionRawMutex, Instant> = Signal::new();
 
-/// Seed of the gyro's noise.
-const GYRO_SEED: u64 = 0x6779_726F;
+/// Seed of the world's noise (the gyro's: `sim_robot::world::GYRO_SEED_SALT` from it).
+const SEED: u64 = 0;
 
-/// Sets up the simulated peripherals for `cfg` (the robot at rest).
+/// The world, built (and checked) at boot, taken by the plant task.
+static WORLD: Mutex<RefCell<Option<World>>> = Mutex::new(RefCell::new(None));
+
+/// Sets up the simulated world for `cfg` (the robot at rest at its initial
+/// pose; the runtime's encoders and motors, sim-robot's MEMS gyro) and the
+/// peripherals (counters at 0, no gyro sample yet).
 pub fn init(cfg: &controller_core::runtime::RuntimeConfig) -> Result<(), &'static str> {
-    let gyro = SimGyro::new(PRESET_GYRO, GYRO_SEED).map_err(|_| "gyro model")?;
+    let p0 = cfg.initial_pose;
+    let world = World::new(&WorldConfig {
+        plant: PlantParams::from_robot(&config::ROBOT, 1.0, 1.0),
+        perturbations: PerturbationProfile::NONE,
+        initial_pose: [p0.x_m as f64, p0.y_m as f64, p0.theta_rad as f64],
+        period_s: cfg.controller.period_s as f64,
+        substeps: 1,
+        seed: SEED,
+        instruments: Instruments::Hardware(HardwareSensing {
+            encoder: cfg.encoder,
+            motor: cfg.motor,
+            motor_inverted: cfg.motor_inverted,
+            gyro: Some(PRESET_GYRO),
+            pose_source: None,
+        }),
+        faults: Faults::NONE,
+    })
+    .map_err(|_| "simulated world (motor or gyro parameters)")?;
     let hw = SimHw {
-        encoders: SimEncoders::new(&cfg.encoder),
+        counts: [0; 2],
         bridge: SimDriver::default(),
-        gyro,
+        gyro: None,
         killed: false,
     };
-    critical_section::with(|cs| HW.borrow(cs).replace(Some(hw)));
+    critical_section::with(|cs| {
+        HW.borrow(cs).replace(Some(hw));
+        WORLD.borrow(cs).replace(Some(world));
+    });
     Ok(())
 }
 
@@ -84,7 +111,7 @@ pub struct EmuEncoders;
 
 impl WheelEncoders for EmuEncoders {
     fn counts(&mut self) -> [u16; 2] {
-        with_hw(|hw| hw.encoders.counts()).unwrap_or([0; 2])
+        with_hw(|hw| hw.counts).unwrap_or([0; 2])
     }
 }
 
@@ -110,7 +137,7 @@ pub struct EmuGyro;
 
 impl Gyro for EmuGyro {
     fn sample(&mut self) -> Option<GyroSample> {
-        with_hw(|hw| hw.gyro.sample()).flatten()
+        with_hw(|hw| hw.gyro).flatten()
     }
 }
 
@@ -135,27 +162,20 @@ pub fn report() -> PlantReport {
 
 /// Advances the robot one control period per period, half a period after
 /// each control tick, from the loop's start on. Returns only when the
-/// simulation cannot go on (invalid motor parameters, no hardware, a
-/// diverged plant), with the reason: the caller ends the run (a failed
-/// run, exit code 1). Returning it rather than failing here keeps this
-/// module below the log (`log` reads [`report`]; nothing here names `log`).
+/// simulation cannot go on (no world, no hardware, a diverged plant), with
+/// the reason: the caller ends the run (a failed run, exit code 1).
+/// Returning it rather than failing here keeps this module below the log
+/// (`log` reads [`report`]; nothing here names `log`). The world was built
+/// from the same configuration by [`init`].
 pub async fn plant_task(
-    cfg: controller_core::runtime::RuntimeConfig,
+    _cfg: controller_core::runtime::RuntimeConfig,
     period_us: u32,
 ) -> &'static str {
     let t0 = LOOP_START.wait().await;
-    let plant = Plant::new(PlantParams::from_robot(&config::ROBOT, 1.0, 1.0));
-    let p0 = cfg.initial_pose;
-    let mut st = PlantState {
-        q: [p0.x_m as f64, p0.y_m as f64, p0.theta_rad as f64, 0.0, 0.0],
-        nu: [0.0; 2],
-    };
-    let model = match MotorModel::new(cfg.motor) {
-        Ok(m) => m,
-        Err(_) => return "plant: invalid motor parameters",
-    };
     let dt_s = period_us as f64 * 1e-6;
-    let still = Perturbation::default();
+    let Some(mut world) = critical_section::with(|cs| WORLD.borrow(cs).take()) else {
+        return "plant: no world (sim::init not run)";
+    };
     let t0_us = t0.as_micros();
     let mut k: u64 = 1;
     loop {
@@ -168,25 +188,22 @@ pub async fn plant_task(
         let Some(bridge) = with_hw(|hw| hw.bridge) else {
             return "plant: no hardware";
         };
-        let drive = MotorDrive {
-            model,
-            bridge,
-            inverted: cfg.motor_inverted,
-        };
-        let t_s = (t0_us + k * period_us as u64) as f64 * 1e-6;
-        st = plant.rk4_step(&st, t_s, dt_s, &drive, &mut |_| still);
-        if !Plant::state_is_finite(&st) {
+        // Nothing perturbs this world: the step does not depend on its start time.
+        if world.advance(Actuation::Bridge(bridge), dt_s).is_err() {
             return "plant: state diverged";
         }
-        let yaw_rate = plant.q_dot(&st, &still)[2];
+        let t_next_s = (t0_us + (k + 1) * period_us as u64) as f64 * 1e-6;
+        let reading = world.sense(t_next_s);
+        let counts = world.encoder_counts();
+        let gyro = world.gyro_sample();
         with_hw(|hw| {
-            hw.encoders.set_angles([st.q[3], st.q[4]]);
-            hw.gyro.update(t_s + dt_s, yaw_rate);
+            hw.counts = counts;
+            hw.gyro = gyro;
         });
         let insn = crate::time::instructions().wrapping_sub(c0);
         critical_section::with(|cs| {
             let mut r = REPORT.borrow(cs).borrow_mut();
-            r.pose = [st.q[0], st.q[1], st.q[2]];
+            r.pose = reading.true_pose;
             r.step_insn_max = r.step_insn_max.max(insn);
         });
         k += 1;

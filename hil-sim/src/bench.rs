@@ -73,7 +73,8 @@ pub struct Floor {
     pub reference_ns: f64,
     /// `Controller::step` per controller kind (paper order).
     pub controller_ns: [f64; 3],
-    /// The plant over one period (`substeps` RK4 steps, perturbation grid).
+    /// The plant over one period (`World::advance`: `substeps` RK4 steps,
+    /// perturbation grid).
     pub plant_ns: f64,
 }
 
@@ -92,7 +93,7 @@ fn time_per_period(reps: usize, n: usize, mut f: impl FnMut()) -> f64 {
 pub fn measure_floor(scn: &Scenario, reps: usize) -> Floor {
     use controller_core::trajectory::Trajectory;
     use controller_core::{Controller, Pose, StepInput, Vel2};
-    use sim_robot::{PerturbationGrid, Plant, PlantParams, PlantState};
+    use sim_robot::world::Actuation;
     let dt = scn.control_period_s;
     let n = (scn.duration_s / dt).round() as usize;
     let reference = scn.trajectory.reference();
@@ -124,25 +125,17 @@ pub fn measure_floor(scn: &Scenario, reps: usize) -> Floor {
             }
         })
     });
-    let plant = Plant::new(PlantParams::from_robot(
-        &controller_config(scn, ControllerKind::Proposed).robot,
-        scn.mass_scale,
-        scn.inertia_scale,
-    ));
-    let h = dt / scn.substeps as f64;
+    // The plant as every loop runs it: the scenario's world (ideal
+    // instruments: no sensor cost) advanced with held torques.
+    let proposed = controller_config(scn, ControllerKind::Proposed);
+    let world0 = crate::closed_loop::world::ideal_world(scn, &proposed)
+        .expect("the scenario's world is valid");
     let plant_ns = time_per_period(reps, n, || {
-        let mut grid = PerturbationGrid::new(scn.perturbations(), 0.5 * h);
-        let mut st = PlantState {
-            q: [2.5, 0.0, 0.0, 0.0, 0.0],
-            nu: [0.5, 0.1],
-        };
-        for k in 0..n {
-            for j in 0..scn.substeps {
-                let t = k as f64 * dt + j as f64 * h;
-                st = plant.rk4_step(&st, t, h, &[0.5, 0.4], &mut |t| grid.at(t));
-            }
+        let mut world = world0.clone();
+        for _ in 0..n {
+            let _ = world.advance(Actuation::Torque([0.5, 0.4]), dt);
         }
-        black_box(st);
+        black_box(world.state());
     });
     Floor {
         reference_ns,

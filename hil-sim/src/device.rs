@@ -1,47 +1,43 @@
 //! The simulated robot behind the host link (`hil-sim device --pty`): the
 //! link handler the firmware runs ([`wmr_device::Device`]), the firmware
-//! runtime inside it, and the simulated robot (sim-robot's plant,
-//! encoders and H-bridge), closed tick by tick as in [`crate::hil`], and
+//! runtime inside it, and the scenario's simulated world (the same
+//! [`sim_robot::World`] as `hil-sim run`'s), closed tick by tick as in
+//! [`crate::hil`], and
 //! served over a pseudo-terminal so that `wmr` talks to it exactly as to a
 //! robot.
 //!
 //! Robot time is simulated time (one control period per tick); `--speed N`
 //! paces the ticks N times faster than the wall clock.
 
-use crate::hil::SimSensors;
+use crate::hil::sensing_estimator_config;
 use crate::scenario::{Scenario, Sensing};
 use crate::sim::controller_config;
 use controller_core::runtime::{LoopTimer, TickReport};
 use controller_core::ControllerKind;
-use sim_robot::{
-    MotorDrive, PerturbationGrid, Plant, PlantParams, PlantState, SimDriver, SimEncoders,
-};
+use sim_robot::world::Actuation;
+use sim_robot::World;
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 use wmr_device::{Device, DeviceConfig, LinkConfig};
 use wmr_protocol::{CAP_EXTERNAL_POSE, CAP_SIMULATED, CAP_TRAJECTORY, CAP_VELOCITY};
 
-/// The link handler, the runtime and the simulated robot, one tick at a time.
+/// The link handler, the runtime and the simulated world, one tick at a time.
 pub struct SimRobot {
     device: Device,
     timer: LoopTimer,
-    plant: Plant,
-    state: PlantState,
-    perturb: PerturbationGrid,
-    encoders: SimEncoders,
-    bridge: SimDriver,
-    scn: Scenario,
-    sensors: SimSensors,
+    world: World,
+    period_s: f64,
     step: u64,
 }
 
 impl SimRobot {
     /// The robot of `scn` (at rest at `initial_pose`, in hold) with the
     /// runtime running `kind` at the scenario's gains and the simulated
-    /// sensors of its sensing preset (`ideal` is served as `mocap`: the
-    /// runtime always reads encoders); external poses sent by the host go to
-    /// the same estimator.
+    /// world of `hil-sim run` for the scenario (its perturbations, weak
+    /// wheel and the sensors of its sensing preset; `ideal` is served as
+    /// `mocap`: the runtime always reads encoders); external poses sent by
+    /// the host go to the same estimator.
     pub fn new(scn: &Scenario, kind: ControllerKind) -> Result<Self, String> {
         scn.validate()?;
         let scn = &Scenario {
@@ -51,10 +47,10 @@ impl SimRobot {
             },
             ..scn.clone()
         };
-        let (sensors, estimator) = SimSensors::of(scn)?;
         let controller = controller_config(scn, kind);
         let cfg = scn.runtime_config(controller, crate::hil::HilOptions::default().safety);
-        let p0 = scn.initial_pose;
+        // The runtime gives the estimator its geometry and initial pose.
+        let estimator = sensing_estimator_config(&scn.sensor_setup()?);
         let dev_cfg = DeviceConfig {
             chip: "sim",
             capabilities: CAP_EXTERNAL_POSE | CAP_TRAJECTORY | CAP_VELOCITY | CAP_SIMULATED,
@@ -64,25 +60,11 @@ impl SimRobot {
         let device =
             Device::with_estimator(dev_cfg, cfg, estimator).map_err(|e| format!("device: {e}"))?;
         let timer = LoopTimer::from_config(&cfg).map_err(|e| format!("loop timer: {e}"))?;
-        let plant = Plant::new(PlantParams::from_robot(
-            &controller.robot,
-            scn.mass_scale,
-            scn.inertia_scale,
-        ));
-        let substep_s = scn.control_period_s / scn.substeps as f64;
         Ok(Self {
             device,
             timer,
-            plant,
-            state: PlantState {
-                q: [p0[0], p0[1], p0[2], 0.0, 0.0],
-                nu: [0.0, 0.0],
-            },
-            perturb: PerturbationGrid::new(scn.perturbations(), 0.5 * substep_s),
-            encoders: SimEncoders::new(&cfg.encoder),
-            bridge: SimDriver::default(),
-            scn: scn.clone(),
-            sensors,
+            world: crate::closed_loop::world::hardware_world(scn, &cfg, None)?,
+            period_s: scn.control_period_s,
             step: 0,
         })
     }
@@ -94,7 +76,7 @@ impl SimRobot {
 
     /// The true pose of G \[x m, y m, θ rad\].
     pub fn true_pose(&self) -> [f64; 3] {
-        [self.state.q[0], self.state.q[1], self.state.q[2]]
+        self.world.true_pose()
     }
 
     /// Robot time of the next tick \[µs\] (wraps like a firmware clock).
@@ -107,45 +89,27 @@ impl SimRobot {
         self.step
     }
 
-    /// One control period: sensors, the device tick (requests, runtime),
-    /// then the plant over the period with the H-bridge held.
+    /// One control period: the world's sensors, the device tick (requests,
+    /// runtime), then the world over the period with the H-bridge held.
     pub fn step(&mut self) -> Result<TickReport, String> {
-        let scn = &self.scn;
-        let dt = scn.control_period_s;
+        let dt = self.period_s;
         let t = self.step as f64 * dt;
-        let st = self.state;
-        self.encoders.set_angles([st.q[3], st.q[4]]);
-        let yaw_rate = self.plant.q_dot(&st, &self.perturb.at(t))[2];
-        self.sensors
-            .update(t, yaw_rate, [st.q[0], st.q[1], st.q[2]]);
+        self.world.sense(t);
         let now_us = self.now_us();
         let timing = self.timer.tick(now_us);
-        let (gyro, pose_source) = self.sensors.parts();
+        let io = self.world.io();
         let rep = self.device.tick(
             now_us,
-            &mut self.encoders,
-            &mut self.bridge,
-            gyro,
-            pose_source,
+            io.encoders,
+            io.motors,
+            io.gyro,
+            io.pose_source,
             timing,
         );
-        let cfg = self.device.control().config();
-        let actuation = MotorDrive {
-            model: *self.device.control().motor_model(),
-            bridge: self.bridge,
-            inverted: cfg.motor_inverted,
-        };
-        let h = dt / scn.substeps as f64;
-        let perturb = &mut self.perturb;
-        for j in 0..scn.substeps {
-            let t_j = t + j as f64 * h;
-            self.state = self
-                .plant
-                .rk4_step(&self.state, t_j, h, &actuation, &mut |t| perturb.at(t));
-        }
-        if !Plant::state_is_finite(&self.state) {
-            return Err(format!("plant state diverged at t = {t:.3} s"));
-        }
+        let bridge = self.world.bridge();
+        self.world
+            .advance(Actuation::Bridge(bridge), dt)
+            .map_err(|e| e.to_string())?;
         self.step += 1;
         Ok(rep)
     }
@@ -163,7 +127,7 @@ pub fn serve(
     speed: f64,
     stop: &AtomicBool,
 ) -> Result<(), String> {
-    let period = Duration::from_secs_f64(robot.scn.control_period_s / speed);
+    let period = Duration::from_secs_f64(robot.period_s / speed);
     let start = Instant::now();
     let mut next = start;
     let mut rx = [0u8; 512];
@@ -225,4 +189,76 @@ pub fn open_pty() -> Result<(serialport::TTYPort, serialport::TTYPort, String), 
         .name()
         .ok_or_else(|| "pty: the slave side has no path".to_string())?;
     Ok((master, slave, path))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wmr_protocol::{Request, RunStateMsg, MAX_FRAME};
+
+    fn send(robot: &mut SimRobot, seq: u16, req: &Request) {
+        let mut buf = [0u8; MAX_FRAME];
+        let frame = wmr_protocol::encode(req, seq, &mut buf).unwrap();
+        assert_eq!(robot.device().push_rx(frame), frame.len());
+    }
+
+    /// Drives `scn`'s robot behind the link at 0.3 m/s for 1 s (velocity
+    /// commands refreshed, armed over the link); returns the distance G
+    /// travelled \[m\] and whether the bridge was ever driven while running.
+    fn drive(scn: &Scenario) -> (f64, bool) {
+        let mut robot = SimRobot::new(scn, ControllerKind::Proposed).unwrap();
+        let p0 = robot.true_pose();
+        let velocity = Request::Velocity {
+            v_mps: 0.3,
+            omega_radps: 0.0,
+            timeout_ms: 500,
+        };
+        send(&mut robot, 1, &velocity);
+        send(&mut robot, 2, &Request::Arm);
+        let mut driven = false;
+        for k in 0..1000u16 {
+            if k % 100 == 99 {
+                send(&mut robot, 3 + k, &velocity);
+            }
+            robot.step().unwrap();
+            let mut out = [0u8; 4096];
+            robot.device().pop_tx(&mut out);
+            let b = robot.world.bridge();
+            driven |= robot.device().state() == RunStateMsg::Running
+                && b.enabled
+                && b.duty.iter().any(|d| d.duty > 0);
+        }
+        let p = robot.true_pose();
+        ((p[0] - p0[0]).hypot(p[1] - p0[1]), driven)
+    }
+
+    /// The robot behind the link is the robot of `hil-sim run`: a scenario
+    /// whose wheels deliver no torque inside its window (weak wheels,
+    /// `wheel_torque_scale = [0, 0]`, nothing else acting) cannot move, however
+    /// hard the runtime drives the bridge (no force on a robot at rest:
+    /// ν̇ = 0). The same scenario with healthy wheels moves (the check is
+    /// not blind). Before the world was shared, the link's robot ignored
+    /// the weak wheels and drove off.
+    #[test]
+    fn robot_behind_the_link_has_the_scenarios_weak_wheels() {
+        let still = Scenario {
+            window_s: [0.0, 100.0],
+            beta: 0.0,
+            eps: 0.0,
+            skid_scale: 0.0,
+            disturbance_nm: 0.0,
+            sensing: Sensing::Mocap,
+            wheel_torque_scale: [0.0, 0.0],
+            ..Scenario::default()
+        };
+        let (dead, driven) = drive(&still);
+        assert!(driven, "the runtime never drove the bridge");
+        assert!(dead < 1e-12, "a robot without wheel torque moved {dead} m");
+        let healthy = Scenario {
+            wheel_torque_scale: [1.0, 1.0],
+            ..still
+        };
+        let (moved, _) = drive(&healthy);
+        assert!(moved > 0.1, "healthy robot moved only {moved} m");
+    }
 }

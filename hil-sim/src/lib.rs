@@ -11,7 +11,7 @@
 
 pub mod bench;
 pub mod cli;
-pub mod control_side;
+pub mod closed_loop;
 pub mod device;
 pub mod hil;
 pub mod limits;
@@ -26,6 +26,7 @@ pub mod scenario;
 pub mod scenario_file;
 pub mod sensing;
 pub mod shard;
+pub mod sides;
 pub mod sim;
 
 pub use metrics::Metrics;

@@ -26,19 +26,12 @@ impl Rng {
 
     /// Uniform in the open interval (lo, hi).
     pub fn uniform_open(&mut self, lo: f64, hi: f64) -> f64 {
-        loop {
-            let u = self.uniform();
-            if u > 0.0 {
-                return lo + (hi - lo) * u;
-            }
-        }
+        self.0.uniform_open(lo, hi)
     }
 
     /// Standard normal (Box-Muller).
     pub fn normal(&mut self) -> f64 {
-        let u1 = self.uniform_open(0.0, 1.0);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+        self.0.normal_open()
     }
 }
 

@@ -7,9 +7,12 @@
 //! [`Sensing`] chooses what sits between the plant and the controller: the
 //! paper's ideal measurements, or the firmware's runtime behind simulated
 //! encoders, an H-bridge and the preset's gyro and external pose source
-//! ([`crate::sensing`]).
+//! ([`crate::sensing`], which also holds the `gyro_*`/`pose_*` overrides:
+//! one struct each, flattened here so the TOML keys stay top-level).
 
 use crate::rng::Rng;
+pub use crate::sensing::Sensing;
+use crate::sensing::{GyroOverrides, PoseOverrides};
 use controller_core::runtime::{EncoderParams, MotorParams};
 use serde::{Deserialize, Serialize};
 use sim_robot::{Perturbation, PerturbationProfile};
@@ -57,59 +60,9 @@ impl TrajectoryKind {
     }
 }
 
-/// What the controller gets from the simulated robot, and how it drives it:
-/// a named sensor preset (values in [`crate::sensing`] and docs/scenario.md;
-/// each field overridable by the `gyro_*` and `pose_*` keys).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum Sensing {
-    /// The paper's setting: the bare controller gets the true pose of G
-    /// every tick (plus `pose_noise_m`/`heading_noise_rad`) and η from the
-    /// exact wheel-angle change over the last period; its torque is applied
-    /// exactly (an ideal torque source).
-    #[default]
-    Ideal,
-    /// The firmware's runtime behind simulated 16-bit encoders
-    /// (`encoder_cpr`, `speed_window_ticks`) and an H-bridge with integer duty
-    /// (`pwm_levels`) into the DC-motor model; the pose from wheel odometry
-    /// only (blind to slip and to the actuator fault).
-    Odometry,
-    /// As `odometry`, plus a z-gyro (heading sees skid and slip; position
-    /// still from the wheels).
-    Imu,
-    /// As `imu`, plus motion capture: pose of G at 100 Hz, 10 ms latency,
-    /// 2 mm and 0.005 rad noise.
-    Mocap,
-    /// As `imu`, plus UWB: position at 10 Hz, 100 ms latency, 5 cm noise,
-    /// no heading.
-    Uwb,
-}
-
-impl Sensing {
-    /// Every preset, in the order of the docs.
-    pub const ALL: [Sensing; 5] = [
-        Sensing::Ideal,
-        Sensing::Odometry,
-        Sensing::Imu,
-        Sensing::Mocap,
-        Sensing::Uwb,
-    ];
-
-    /// The preset's name as on the command line and in TOML.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Ideal => "ideal",
-            Self::Odometry => "odometry",
-            Self::Imu => "imu",
-            Self::Mocap => "mocap",
-            Self::Uwb => "uwb",
-        }
-    }
-}
-
 /// A complete description of one simulated run (except the controller kind).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
+#[serde(default)]
 pub struct Scenario {
     /// Name shown in tables and plots.
     pub name: String,
@@ -162,36 +115,12 @@ pub struct Scenario {
     pub pose_noise_m: f64,
     /// Std. dev. of the heading measurement noise \[rad\].
     pub heading_noise_rad: f64,
-    /// Gyro noise density \[rad/s/√Hz\] (None = the sensing preset's).
-    pub gyro_noise_density: Option<f64>,
-    /// Gyro initial bias \[rad/s\].
-    pub gyro_bias_radps: Option<f64>,
-    /// Gyro bias random walk \[rad/s/√s\].
-    pub gyro_bias_walk: Option<f64>,
-    /// Gyro scale-factor error (0.01 = 1 % high).
-    pub gyro_scale_error: Option<f64>,
-    /// Gyro full scale \[rad/s\].
-    pub gyro_saturation_radps: Option<f64>,
-    /// Gyro output rate \[Hz\].
-    pub gyro_rate_hz: Option<f64>,
-    /// External pose rate \[Hz\].
-    pub pose_rate_hz: Option<f64>,
-    /// External pose latency \[s\].
-    pub pose_latency_s: Option<f64>,
-    /// External pose extra latency, uniform in \[0, jitter\] \[s\].
-    pub pose_jitter_s: Option<f64>,
-    /// External pose position noise std. dev. \[m\].
-    pub pose_std_m: Option<f64>,
-    /// External pose heading noise std. dev. \[rad\]; 0 = no heading.
-    pub pose_heading_std_rad: Option<f64>,
-    /// Probability that an external pose is lost.
-    pub pose_dropout: Option<f64>,
-    /// No external poses are taken in \[start, end) \[s\].
-    pub pose_outage_s: Option<[f64; 2]>,
-    /// Fraction of external poses that are outliers.
-    pub pose_outlier_fraction: Option<f64>,
-    /// Position error of an outlier \[m\].
-    pub pose_outlier_m: Option<f64>,
+    /// Overrides of the sensing preset's gyro (keys `gyro_*`).
+    #[serde(flatten)]
+    pub gyro: GyroOverrides,
+    /// Overrides of the sensing preset's external pose source (keys `pose_*`).
+    #[serde(flatten)]
+    pub pose: PoseOverrides,
     /// Seed for the measurement noise (and for β, ε in the presets).
     pub seed: u64,
     /// Override of the kinematic gain k_y (None = controller default).
@@ -204,6 +133,12 @@ pub struct Scenario {
     /// the paper; on by default, off in [`Self::as_printed`].
     #[serde(skip_serializing_if = "is_true")]
     pub clean_start: bool,
+    /// Keys of a scenario file that are not in the schema: a scenario with
+    /// any is invalid ([`Self::validate`]), so a typo never silently falls
+    /// back to a default. (serde's `deny_unknown_fields` cannot be combined
+    /// with the flattened parts.)
+    #[serde(flatten, skip_serializing)]
+    pub unknown_keys: std::collections::BTreeMap<String, toml::Value>,
 }
 
 impl Default for Scenario {
@@ -231,25 +166,13 @@ impl Default for Scenario {
             pwm_levels: 0,
             pose_noise_m: 0.0,
             heading_noise_rad: 0.0,
-            gyro_noise_density: None,
-            gyro_bias_radps: None,
-            gyro_bias_walk: None,
-            gyro_scale_error: None,
-            gyro_saturation_radps: None,
-            gyro_rate_hz: None,
-            pose_rate_hz: None,
-            pose_latency_s: None,
-            pose_jitter_s: None,
-            pose_std_m: None,
-            pose_heading_std_rad: None,
-            pose_dropout: None,
-            pose_outage_s: None,
-            pose_outlier_fraction: None,
-            pose_outlier_m: None,
+            gyro: GyroOverrides::default(),
+            pose: PoseOverrides::default(),
             seed: 1,
             k_y: None,
             governor: true,
             clean_start: true,
+            unknown_keys: Default::default(),
         }
     }
 }
@@ -357,12 +280,24 @@ impl Scenario {
                 "pwm_levels must be <= 65535 (a 16-bit timer)",
             ),
         ];
+        if let Some(key) = self.unknown_keys.keys().next() {
+            return Err(format!(
+                "scenario '{}': unknown key `{key}` (schema: docs/scenario.md)",
+                self.name
+            ));
+        }
         match checks.iter().find(|(ok, _)| !ok) {
             Some((_, msg)) => Err(format!("scenario '{}': {msg}", self.name)),
-            None => crate::sensing::SensorSetup::of(self)
+            None => self
+                .sensor_setup()
                 .map(|_| ())
                 .map_err(|e| format!("scenario '{}': {e}", self.name)),
         }
+    }
+
+    /// The sensors of this scenario: its sensing preset with its overrides.
+    pub fn sensor_setup(&self) -> Result<crate::sensing::SensorModels, String> {
+        crate::sensing::SensorModels::of(self.sensing, &self.gyro, &self.pose)
     }
 
     /// The section-4 perturbations of this scenario.
@@ -402,6 +337,24 @@ impl Scenario {
             },
             ..ex
         }
+    }
+
+    /// Controller configuration for this scenario: Table 2 gains plus the
+    /// scenario's torque limit, period and optional k_y override.
+    pub fn controller_config(
+        &self,
+        kind: controller_core::ControllerKind,
+    ) -> controller_core::ControllerConfig {
+        let mut cfg = controller_core::ControllerConfig::paper(kind);
+        cfg.torque_limit_nm = self.torque_limit_nm as f32;
+        cfg.period_s = self.control_period_s as f32;
+        if let Some(k_y) = self.k_y {
+            cfg.kinematic.k_y = k_y as f32;
+        }
+        if self.clean_start {
+            cfg.kinematic.large_error_m = controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
+        }
+        cfg
     }
 
     /// The firmware runtime's configuration for this scenario: `controller`,

@@ -1,156 +1,19 @@
-//! Closed-loop runner: a [`ControlSide`] against the simulated robot.
-//!
-//! Per control period k (t = k·Δt): measure (pose of G with optional noise,
-//! the wheels' angles and rates), one step of the controller side (which
-//! samples the reference once and returns it for the metrics), then integrate the plant over the period with the
-//! actuation held (zero-order hold of torque or of PWM duty) in `substeps`
-//! RK4 steps. The scenario's [`Sensing`] chooses the controller side: the
-//! bare `Controller` with ideal measurements ([`IdealSide`]) or the firmware
-//! runtime ([`crate::hil::RuntimeSide`]).
+//! Runs of a scenario: the controller side its sensing names (the bare
+//! controller with ideal sensing, or the firmware runtime through
+//! [`crate::hil`]) against its simulated world, through the closed loop
+//! ([`crate::closed_loop`]). The loop's types are re-exported here.
 
-use crate::control_side::{Actuation, ControlOutput, ControlSide, Sensed};
-use crate::metrics::{Metrics, MetricsAcc};
-use crate::rng::Rng;
 use crate::scenario::{Scenario, Sensing};
-use controller_core::health::{EstimatorStatus, HealthMode};
-use controller_core::pacer::{PacerState, PacingConfig};
-use controller_core::trajectory::{Reference, Trajectory};
-use controller_core::{Controller, ControllerConfig, ControllerKind, Pose, RobotParams, StepInput};
-use sim_robot::{PerturbationGrid, Plant, PlantParams, PlantState};
+use controller_core::{ControllerConfig, ControllerKind};
 
-/// Period of the logged trace \[s\] (every control step goes into the metrics).
-pub const TRACE_PERIOD_S: f64 = 0.01;
+pub use crate::closed_loop::{
+    run_loop, trace_every, SensingReport, SimOutput, TraceSample, TRACE_PERIOD_S,
+};
+pub use crate::sides::ideal::IdealSide;
 
-/// Control steps per trace sample for `scn` (at least 1).
-pub fn trace_every(scn: &Scenario) -> usize {
-    ((TRACE_PERIOD_S / scn.control_period_s).round() as usize).max(1)
-}
-
-pub use track_log::TraceSample;
-
-/// Result of one run.
-#[derive(Clone, Debug)]
-pub struct SimOutput {
-    /// Controller kind.
-    pub kind: ControllerKind,
-    /// Decimated trace.
-    pub trace: Vec<TraceSample>,
-    /// Metrics over every control step.
-    pub metrics: Metrics,
-    /// Steps the controller rejected (bad input).
-    pub rejected_steps: u32,
-    /// Firmware sensing: the estimator's status and the pose source's
-    /// counters at the end (None with ideal sensing).
-    pub sensing: Option<crate::hil::SensingReport>,
-}
-
-/// Controller configuration for a scenario: Table 2 gains plus the scenario's
-/// torque limit, period and optional k_y override.
+/// Controller configuration for a scenario ([`Scenario::controller_config`]).
 pub fn controller_config(scn: &Scenario, kind: ControllerKind) -> ControllerConfig {
-    let mut cfg = ControllerConfig::paper(kind);
-    cfg.torque_limit_nm = scn.torque_limit_nm as f32;
-    cfg.period_s = scn.control_period_s as f32;
-    if let Some(k_y) = scn.k_y {
-        cfg.kinematic.k_y = k_y as f32;
-    }
-    if scn.clean_start {
-        cfg.kinematic.large_error_m = controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
-    }
-    cfg
-}
-
-/// The bare controller with ideal measurements ([`Sensing::Ideal`], the
-/// paper's setting): the measured pose, η from the exact wheel-angle change
-/// over the last period through eq. (3)
-/// ([`RobotParams::eta_from_wheel_rates`]), torque applied exactly.
-///
-/// With pacing on, the reference governor and the health machine
-/// ([`controller_core::pacer`]) choose the reference time τ and the
-/// controller tracks `reference` at τ (the sensed nominal sample is
-/// ignored); a safe stop outputs zero torque from then on.
-pub struct IdealSide {
-    ctrl: Controller,
-    period_s: f64,
-    wheel_angle_prev_rad: Option<[f64; 2]>,
-    pacer: controller_core::pacer::Pacer,
-    pace: PacerState,
-    reference: Reference,
-}
-
-impl IdealSide {
-    /// The controller of `cfg` at `cfg.period_s`, pacing off (the paper's setting).
-    pub fn new(cfg: ControllerConfig) -> Result<Self, String> {
-        let dummy = Reference::Line(controller_core::trajectory::Line {
-            start: Pose::new(0.0, 0.0, 0.0),
-            speed_mps: 1.0,
-        });
-        Self::with_pacing(cfg, PacingConfig::off(), dummy)
-    }
-
-    /// The controller of `cfg`, paced by `pacing` along `reference`.
-    pub fn with_pacing(
-        cfg: ControllerConfig,
-        pacing: PacingConfig,
-        reference: Reference,
-    ) -> Result<Self, String> {
-        let pacer = controller_core::pacer::Pacer::new(pacing, &cfg)
-            .map_err(|e| format!("pacing config: {e}"))?;
-        Ok(Self {
-            ctrl: Controller::new(cfg).map_err(|e| format!("controller config: {e}"))?,
-            period_s: cfg.period_s as f64,
-            wheel_angle_prev_rad: None,
-            pace: pacer.initial_state(),
-            pacer,
-            reference,
-        })
-    }
-}
-
-impl ControlSide for IdealSide {
-    fn kind(&self) -> ControllerKind {
-        self.ctrl.config().kind
-    }
-
-    fn step(&mut self, sensed: &Sensed) -> ControlOutput {
-        let phi = sensed.wheel_angle_rad;
-        let rates = match self.wheel_angle_prev_rad.replace(phi) {
-            Some(prev) => [
-                ((phi[0] - prev[0]) / self.period_s) as f32,
-                ((phi[1] - prev[1]) / self.period_s) as f32,
-            ],
-            None => [0.0; 2],
-        };
-        let eta = self.ctrl.config().robot.eta_from_wheel_rates(rates);
-        let reference = if self.pacer.enabled() {
-            self.pacer.reference(&self.pace, &self.reference, 0.0)
-        } else {
-            self.reference.sample(sensed.t_s as f32)
-        };
-        let out = self.ctrl.step(&StepInput {
-            reference,
-            pose: sensed.pose,
-            eta,
-        });
-        let pace = self
-            .pacer
-            .update(&mut self.pace, &out.diag, eta, EstimatorStatus::Ok);
-        let torque = if pace.mode == HealthMode::SafeStop {
-            [0.0; 2]
-        } else {
-            out.torque_nm.map(f64::from)
-        };
-        ControlOutput {
-            actuation: Actuation::Torque(torque),
-            eta_measured: [eta.v_mps as f64, eta.omega_radps as f64],
-            diag: out.diag,
-            reference,
-            pace,
-        }
-    }
-
-    fn rejected_steps(&self) -> u32 {
-        self.ctrl.rejected_steps()
-    }
+    scn.controller_config(kind)
 }
 
 /// Runs `scn` with the given controller configuration, on the controller
@@ -163,179 +26,15 @@ pub fn run_with(
     scn.validate()?;
     match scn.sensing {
         Sensing::Ideal => {
-            let side = IdealSide::with_pacing(cfg, scn.pacing(), scn.trajectory.reference())?;
-            run_loop(scn, &cfg.robot, side, trace_every)
+            let side = IdealSide::new(cfg, scn.pacing(), scn.trajectory.reference())?;
+            let mut world = crate::closed_loop::world::ideal_world(scn, &cfg)?;
+            run_loop(scn, &mut world, side, trace_every)
         }
         Sensing::Odometry | Sensing::Imu | Sensing::Mocap | Sensing::Uwb => {
             let opts = crate::hil::HilOptions::default();
             crate::hil::run_runtime(scn, cfg, opts, trace_every).map(|o| o.sim)
         }
     }
-}
-
-/// The closed loop: simulated sensors, `side`, the plant; metrics at every
-/// step, a trace every `trace_every` steps (0 = none).
-pub fn run_loop(
-    scn: &Scenario,
-    robot: &RobotParams,
-    mut side: impl ControlSide,
-    trace_every: usize,
-) -> Result<SimOutput, String> {
-    scn.validate()?;
-    let plant = Plant::new(PlantParams::from_robot(
-        robot,
-        scn.mass_scale,
-        scn.inertia_scale,
-    ));
-    let perturbations = scn.perturbations();
-    let dt = scn.control_period_s;
-    let n = (scn.duration_s / dt).round() as usize;
-    let substep_s = dt / scn.substeps as f64;
-    let mut rng = Rng::new(
-        scn.seed
-            .wrapping_mul(0x2545_F491_4F6C_DD1D)
-            .wrapping_add(17),
-    );
-    let mut st = PlantState {
-        q: [
-            scn.initial_pose[0],
-            scn.initial_pose[1],
-            scn.initial_pose[2],
-            0.0,
-            0.0,
-        ],
-        nu: [0.0, 0.0],
-    };
-    let kind = side.kind();
-    let mut acc = MetricsAcc::new(kind == ControllerKind::Proposed);
-    let mut trace = Vec::with_capacity(n.checked_div(trace_every).map_or(0, |q| q + 1));
-    // RK4 asks at t, t + h/2 and t + h of each sub-step h: a grid of h/2.
-    let mut perturb = PerturbationGrid::new(perturbations, 0.5 * substep_s);
-    let noisy = scn.pose_noise_m != 0.0 || scn.heading_noise_rad != 0.0;
-    let (mut last_tau_s, mut last_scale) = (0.0f64, 1.0f64);
-    let ideal = scn.sensing == Sensing::Ideal;
-
-    for k in 0..n {
-        let t = k as f64 * dt;
-        // Without noise, skip the draws (x + 0·n = x: same result, no log/cos).
-        let noise = if noisy {
-            [
-                scn.pose_noise_m * rng.normal(),
-                scn.pose_noise_m * rng.normal(),
-                scn.heading_noise_rad * rng.normal(),
-            ]
-        } else {
-            [0.0; 3]
-        };
-        let p_now = perturb.at(t);
-        // The governed clock the step used (before its own update).
-        let (rs_tau_s, scale_before) = (last_tau_s, last_scale);
-        let sensed = Sensed {
-            step: k,
-            t_s: t,
-            pose: Pose::new(
-                (st.q[0] + noise[0]) as f32,
-                (st.q[1] + noise[1]) as f32,
-                (st.q[2] + noise[2]) as f32,
-            ),
-            true_pose: [st.q[0], st.q[1], st.q[2]],
-            // Only the firmware side's gyro needs θ̇ (ideal runs skip the cost).
-            yaw_rate_radps: if ideal {
-                0.0
-            } else {
-                plant.q_dot(&st, &p_now)[2]
-            },
-            wheel_angle_rad: [st.q[3], st.q[4]],
-            wheel_rate_radps: plant.wheel_rates_radps(&st, &p_now),
-        };
-        let ControlOutput {
-            actuation,
-            eta_measured,
-            diag: d,
-            reference: rs,
-            pace,
-        } = side.step(&sensed);
-        let tau = sim_robot::Drive::torque_nm(&actuation, sensed.wheel_rate_radps);
-
-        let eta_true = plant.eta(&st, &p_now);
-        let f_true = [p_now.fault_eps * eta_true[0], p_now.fault_eps * eta_true[1]];
-        let ex = rs.pose.x_m as f64 - st.q[0];
-        let ey = rs.pose.y_m as f64 - st.q[1];
-        let norm = |a: f64, b: f64| (a * a + b * b).sqrt(); // no overflow at these sizes
-        let pos_err = norm(ex, ey);
-        let fe = norm(d.f_hat[0] as f64 - f_true[0], d.f_hat[1] as f64 - f_true[1]);
-        acc.push(
-            t,
-            pos_err,
-            perturbations.in_window(t),
-            t < scn.window_s[0] || scn.window_s[0] >= scn.window_s[1],
-            tau,
-            d.saturated,
-            fe,
-        );
-        if scn.governor {
-            acc.push_pace(
-                t - rs_tau_s,
-                pace.scale as f64,
-                pace.mode as u8,
-                pace.transitions,
-            );
-        }
-        if trace_every > 0 && k % trace_every == 0 {
-            let f2 = |a: [f32; 2]| [a[0] as f64, a[1] as f64];
-            trace.push(TraceSample {
-                t_s: t,
-                ref_pose: [
-                    rs.pose.x_m as f64,
-                    rs.pose.y_m as f64,
-                    rs.pose.theta_rad as f64,
-                ],
-                pose: [st.q[0], st.q[1], st.q[2]],
-                pos_err_m: pos_err,
-                err_xy_m: [ex, ey],
-                e: [d.error[0] as f64, d.error[1] as f64, d.error[2] as f64],
-                eta: eta_measured,
-                eta_c: f2(d.eta_c),
-                torque_nm: tau,
-                s: f2(d.s),
-                rho_hat: f2(d.rho_hat),
-                d_hat: f2(d.d_hat),
-                f_hat: f2(d.f_hat),
-                f_true,
-                saturated: d.saturated,
-                time_scale: if scn.governor { scale_before } else { 1.0 },
-                tau_s: if scn.governor { rs_tau_s } else { t },
-                health: pace.mode.level(),
-                health_reason: pace.reason as u8,
-            });
-        }
-        last_tau_s = pace.tau_s as f64;
-        last_scale = pace.scale as f64;
-        // Plant over [t, t + dt]: actuation held (zero-order hold), each
-        // wheel delivering its share of the torque (a weak wheel in the window).
-        let drive = sim_robot::TorqueScaled {
-            drive: &actuation,
-            scale: if perturbations.in_window(t) {
-                scn.wheel_torque_scale
-            } else {
-                [1.0, 1.0]
-            },
-        };
-        for j in 0..scn.substeps {
-            let t_j = t + j as f64 * substep_s;
-            st = plant.rk4_step(&st, t_j, substep_s, &drive, &mut |t| perturb.at(t));
-        }
-        if !Plant::state_is_finite(&st) {
-            return Err(format!("plant state diverged at t = {t:.3} s"));
-        }
-    }
-    Ok(SimOutput {
-        kind,
-        trace,
-        metrics: acc.finish(scn.duration_s, dt),
-        rejected_steps: side.rejected_steps(),
-        sensing: None,
-    })
 }
 
 /// Runs `scn` with `kind` at the paper's gains; trace every [`TRACE_PERIOD_S`].

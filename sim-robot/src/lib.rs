@@ -24,8 +24,20 @@ pub mod math;
 pub mod perturbation;
 pub mod plant;
 pub mod sensors;
+/// The fakes tests share (feature `test-doubles`): controller-core's
+/// scripted encoder, recording motor driver, one-shot pose source and line
+/// configuration, next to this crate's simulated hardware.
+#[cfg(feature = "test-doubles")]
+pub mod test_doubles {
+    pub use controller_core::runtime::test_doubles::*;
+}
+pub mod world;
 
 pub use hardware::{MotorDrive, SimDriver, SimEncoders};
 pub use perturbation::{PerturbationGrid, PerturbationProfile};
 pub use plant::{Drive, Perturbation, Plant, PlantParams, PlantState, TorqueScaled};
 pub use sensors::{GyroModel, PoseSourceModel, SimGyro, SimPoseSource};
+pub use world::{
+    Actuation, DeadEncoder, Faults, HardwareSensing, IdealSensing, Instruments, Reading, World,
+    WorldConfig, WorldError,
+};

@@ -26,6 +26,24 @@ pub fn cos(x: f64) -> f64 {
     return libm::cos(x);
 }
 
+/// Natural logarithm of x.
+#[inline]
+pub fn ln(x: f64) -> f64 {
+    #[cfg(any(feature = "std", test))]
+    return x.ln();
+    #[cfg(not(any(feature = "std", test)))]
+    return libm::log(x);
+}
+
+/// Square root of x (correctly rounded on both).
+#[inline]
+pub fn sqrt(x: f64) -> f64 {
+    #[cfg(any(feature = "std", test))]
+    return x.sqrt();
+    #[cfg(not(any(feature = "std", test)))]
+    return libm::sqrt(x);
+}
+
 /// x rounded to the nearest integer, halves away from zero.
 #[inline]
 pub fn round(x: f64) -> f64 {

@@ -71,6 +71,28 @@ impl SimRng {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
+    /// Uniform in the open interval (lo, hi) (a draw of exactly lo is
+    /// rejected and redrawn).
+    pub fn uniform_open(&mut self, lo: f64, hi: f64) -> f64 {
+        loop {
+            let u = self.uniform();
+            if u > 0.0 {
+                return lo + (hi - lo) * u;
+            }
+        }
+    }
+
+    /// Standard normal (Box-Muller with the first uniform from (0, 1) by
+    /// rejection): the draws of the scenarios and of ideal sensing's
+    /// measurement noise. [`Self::normal`], the sensors' draw, takes it from
+    /// (0, 1] instead; both are kept so that every seed gives the run it
+    /// always gave.
+    pub fn normal_open(&mut self) -> f64 {
+        let u1 = self.uniform_open(0.0, 1.0);
+        let u2 = self.uniform();
+        crate::math::sqrt(-2.0 * crate::math::ln(u1)) * cos(core::f64::consts::TAU * u2)
+    }
+
     /// Standard normal (Box-Muller).
     pub fn normal(&mut self) -> f64 {
         let u1 = 1.0 - self.uniform(); // (0, 1]

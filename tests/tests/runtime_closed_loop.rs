@@ -1,15 +1,14 @@
 //! The firmware runtime closed directly through the simulated robot
-//! (`sim-robot`: 16-bit encoders, an H-bridge with integer duty, the motor
+//! (`sim_robot::World`: 16-bit encoders, an H-bridge with integer duty, the motor
 //! model and the paper's plant), without the simulator's scenario machinery.
 //! Checks sign conventions end to end (mirrored encoder and motor) and that
 //! wheel odometry agrees with the truth when nothing slips.
 
-use controller_core::runtime::{
-    ControlLoop, NoGyro, RunState, RuntimeConfig, TickTiming, WheelOdometryOnly,
-};
+use controller_core::runtime::{ControlLoop, RunState, RuntimeConfig, TickTiming};
 use controller_core::trajectory::{Circle, Reference, Trajectory};
 use controller_core::ControllerKind;
-use sim_robot::{MotorDrive, Perturbation, Plant, PlantParams, PlantState, SimDriver, SimEncoders};
+use sim_robot::world::{Actuation, Faults, HardwareSensing, Instruments};
+use sim_robot::{PerturbationProfile, PlantParams, World, WorldConfig};
 
 /// Circle of radius 1.5 m at 0.5 m/s with the proposed controller, the
 /// example motor (24 V) and encoders (24 000 counts/rev, left mirrored) and
@@ -29,42 +28,38 @@ fn quantized_closed_loop_tracks_a_circle() {
         ..RuntimeConfig::example(ControllerKind::Proposed)
     };
     let mut cl = ControlLoop::new(cfg).unwrap();
-    let plant = Plant::new(PlantParams::from_robot(&cfg.controller.robot, 1.0, 1.0));
-    let mut st = PlantState {
-        q: [
-            start.x_m as f64,
-            start.y_m as f64,
-            start.theta_rad as f64,
-            0.0,
-            0.0,
-        ],
-        nu: [0.0; 2],
-    };
-    let mut enc = SimEncoders::new(&cfg.encoder);
-    let mut bridge = SimDriver::default();
     let dt = cfg.controller.period_s as f64;
-    let mut no_perturbation = |_t: f64| Perturbation::default();
+    let mut world = World::new(&WorldConfig {
+        plant: PlantParams::from_robot(&cfg.controller.robot, 1.0, 1.0),
+        perturbations: PerturbationProfile::NONE,
+        initial_pose: [start.x_m as f64, start.y_m as f64, start.theta_rad as f64],
+        period_s: dt,
+        substeps: 1,
+        seed: 0,
+        instruments: Instruments::Hardware(HardwareSensing {
+            encoder: cfg.encoder,
+            motor: cfg.motor,
+            motor_inverted: cfg.motor_inverted,
+            gyro: None,
+            pose_source: None,
+        }),
+        faults: Faults::NONE,
+    })
+    .unwrap();
     cl.arm().unwrap();
     let mut worst_late = 0.0f64;
     let mut lag_s = 0.0;
     let steps = 20_000; // 20 s, over two laps
     for k in 0..steps {
-        enc.set_angles([st.q[3], st.q[4]]);
+        world.sense(k as f64 * dt);
         let on_time = TickTiming::on_schedule(1000);
-        let rep = cl.tick(
-            &mut enc,
-            &mut bridge,
-            &mut NoGyro,
-            &mut WheelOdometryOnly,
-            on_time,
-        );
+        let io = world.io();
+        let rep = cl.tick(io.encoders, io.motors, io.gyro, io.pose_source, on_time);
         assert_eq!(rep.stopped, None, "tick {k}: {rep:?}");
-        let drive = MotorDrive {
-            model: *cl.motor_model(),
-            bridge,
-            inverted: cfg.motor_inverted,
-        };
-        st = plant.rk4_step(&st, k as f64 * dt, dt, &drive, &mut no_perturbation);
+        world
+            .advance(Actuation::Bridge(world.bridge()), dt)
+            .unwrap();
+        let st = *world.state();
         lag_s = (k + 1) as f64 * dt - rep.pace.tau_s as f64;
         if k > 5_000 {
             // The governed reference the next tick tracks (τ ≤ t).
@@ -82,7 +77,8 @@ fn quantized_closed_loop_tracks_a_circle() {
     assert!(lag_s < 1.0, "reference {lag_s} s behind schedule");
     // No gyro, no pose source: the estimate is wheel odometry.
     let odo = cl.estimator().estimate().pose;
-    let drift = (st.q[0] - odo.x_m as f64).hypot(st.q[1] - odo.y_m as f64);
+    let p = world.true_pose();
+    let drift = (p[0] - odo.x_m as f64).hypot(p[1] - odo.y_m as f64);
     assert!(drift < 5e-3, "odometry drift {drift} m");
     assert_eq!(cl.state(), RunState::Running);
 }

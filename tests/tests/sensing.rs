@@ -10,6 +10,7 @@
 use controller_core::ControllerKind;
 use hil_sim::hil::{run_hil, HilOptions, HilOutput};
 use hil_sim::scenario::Sensing;
+use hil_sim::sensing::{PoseOverrides, Window};
 use hil_sim::{run, Scenario};
 
 const SEEDS: [u64; 3] = [1, 2, 3];
@@ -147,7 +148,10 @@ fn pose_outage_no_stop_and_recovery_within_1s() {
     for base in case2_scenarios() {
         let reference = with(&base, Sensing::Mocap);
         let outage = Scenario {
-            pose_outage_s: Some([20.0, 22.0]),
+            pose: PoseOverrides {
+                pose_outage_s: Some(Window([20.0, 22.0])),
+                ..reference.pose
+            },
             ..reference.clone()
         };
         let o = hil_all(&[reference, outage], &kinds);
@@ -189,8 +193,11 @@ fn outliers_rejected_and_counted() {
     for base in case2_scenarios() {
         let clean = with(&base, Sensing::Mocap);
         let dirty = Scenario {
-            pose_outlier_fraction: Some(0.05),
-            pose_outlier_m: Some(1.0),
+            pose: PoseOverrides {
+                pose_outlier_fraction: Some(0.05),
+                pose_outlier_m: Some(1.0),
+                ..clean.pose
+            },
             ..clean.clone()
         };
         let o = hil_all(&[clean, dirty], &kinds);

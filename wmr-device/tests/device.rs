@@ -4,45 +4,20 @@
 //! without a mode; a latched stop is left only through a clear; every
 //! intact request answered exactly once.
 
-use controller_core::runtime::{
-    DutyCommand, Encoder, MotorDriver, NoGyro, RuntimeConfig, TickTiming, WheelOdometryOnly,
-};
+use controller_core::runtime::{NoGyro, RuntimeConfig, TickTiming, WheelOdometryOnly};
 use controller_core::ControllerKind;
 use proptest::prelude::*;
+use sim_robot::test_doubles::{RecordingDriver, ScriptedEncoder};
 use wmr_device::{Device, DeviceConfig, LinkConfig};
 use wmr_protocol::*;
-
-#[derive(Clone, Copy, Default)]
-struct Enc(u16);
-impl Encoder for Enc {
-    fn count(&mut self) -> u16 {
-        self.0
-    }
-}
-
-#[derive(Default)]
-struct Driver {
-    enabled: bool,
-    duty: [DutyCommand; 2],
-}
-impl MotorDriver for Driver {
-    fn set(&mut self, cmd: [DutyCommand; 2]) {
-        self.enabled = true;
-        self.duty = cmd;
-    }
-    fn disable(&mut self) {
-        self.enabled = false;
-        self.duty = [DutyCommand::ZERO; 2];
-    }
-}
 
 /// Control period of the tests \[µs\].
 const PERIOD_US: u32 = 1000;
 
 struct Rig {
     dev: Device,
-    enc: [Enc; 2],
-    drv: Driver,
+    enc: [ScriptedEncoder; 2],
+    drv: RecordingDriver,
     now_us: u32,
     rx: FrameDecoder<MAX_FRAME>,
     replies: Vec<Reply>,
@@ -71,8 +46,8 @@ impl Rig {
         rt.pacing = controller_core::pacer::PacingConfig::off();
         Self {
             dev: Device::new(device_config(), rt).unwrap(),
-            enc: [Enc(0); 2],
-            drv: Driver::default(),
+            enc: [ScriptedEncoder(0); 2],
+            drv: RecordingDriver::default(),
             now_us: 0,
             rx: FrameDecoder::new(),
             replies: Vec::new(),

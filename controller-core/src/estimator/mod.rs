@@ -69,6 +69,7 @@ pub use types::{
     Estimate, EstimatorStatus, GyroSample, GyroState, PoseMeasurement, RejectCounts, RejectReason,
 };
 
+use crate::health::EstimatorHealth;
 use crate::math::{sin_cos, wrap_angle};
 use crate::types::Pose;
 use gyro_scale::Window;
@@ -80,6 +81,12 @@ use predict::{ix, Filter, Input, NoiseSq, SPEED_SCALE_RANGE};
 /// 1 kHz, above the 250 ms latency bound) can always be used
 /// ([`PoseEstimator::GUARANTEED_DEPTH_TICKS`]).
 pub const HISTORY_LEN: usize = 272;
+
+/// Age of the latest accepted external pose beyond which the estimator
+/// reports itself degraded (once it has used one) \[µs\]: ten periods of
+/// the slowest source the presets have (UWB, 10 Hz), or four times the
+/// longest delay it accepts (250 ms).
+pub const POSE_STALE_US: u32 = 1_000_000;
 
 /// State dimension: x, y of O_B, θ, gyro bias, speed scale.
 const N: usize = 5;
@@ -284,6 +291,23 @@ impl<const H: usize> PoseEstimator<H> {
     /// Status for logs and telemetry.
     pub fn status(&self) -> &EstimatorStatus {
         &self.status
+    }
+
+    /// Health for the health machine ([`crate::health`]), from the latest
+    /// tick: `Degraded` when external poses were used but none has been
+    /// accepted for [`POSE_STALE_US`] (the pose drifts on the wheels and
+    /// gyro alone: an outage, or every measurement gated); `Ok` otherwise
+    /// (odometry without a pose source is the configuration, not a
+    /// degradation). The estimator never reports `Failed`: it refuses
+    /// non-finite inputs, and a non-finite estimate would be refused by the
+    /// controller's input check (a controller fault, a hard stop).
+    #[inline]
+    pub fn health(&self) -> EstimatorHealth {
+        if self.status.accepted > 0 && self.status.since_accepted_us > POSE_STALE_US {
+            EstimatorHealth::Degraded
+        } else {
+            EstimatorHealth::Ok
+        }
     }
 
     /// The latest tick's time \[µs\].

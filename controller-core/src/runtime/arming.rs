@@ -95,24 +95,10 @@ impl ArmingButton {
 mod tests {
     use super::*;
     use crate::controller::ControllerKind;
-    use crate::runtime::{
-        DutyCommand, NoGyro, RuntimeConfig, StopReason, TickTiming, WheelOdometryOnly,
-    };
+    use crate::runtime::test_doubles::RecordingDriver;
+    use crate::runtime::{NoGyro, RuntimeConfig, StopReason, TickTiming, WheelOdometryOnly};
 
     const N: u16 = 20;
-
-    #[derive(Default)]
-    struct Driver {
-        enabled: bool,
-    }
-    impl MotorDriver for Driver {
-        fn set(&mut self, _: [DutyCommand; 2]) {
-            self.enabled = true;
-        }
-        fn disable(&mut self) {
-            self.enabled = false;
-        }
-    }
 
     fn loop_() -> ControlLoop {
         ControlLoop::new(RuntimeConfig::example(ControllerKind::Proposed)).unwrap()
@@ -124,7 +110,7 @@ mod tests {
         b: &mut ArmingButton,
         ticks: u32,
         cl: &mut ControlLoop,
-        d: &mut Driver,
+        d: &mut RecordingDriver,
     ) -> std::vec::Vec<(u32, ArmingEvent)> {
         let mut ev = std::vec::Vec::new();
         for k in 0..ticks {
@@ -163,7 +149,7 @@ mod tests {
 
     #[test]
     fn arm_then_disarm() {
-        let (mut cl, mut d) = (loop_(), Driver::default());
+        let (mut cl, mut d) = (loop_(), RecordingDriver::default());
         let mut b = ArmingButton::new(N).unwrap();
         assert_eq!(
             hold(&mut b, N as u32, &mut cl, &mut d),
@@ -181,7 +167,7 @@ mod tests {
 
     #[test]
     fn running_loop_drives_until_disarmed() {
-        let (mut cl, mut d) = (loop_(), Driver::default());
+        let (mut cl, mut d) = (loop_(), RecordingDriver::default());
         let mut b = ArmingButton::new(N).unwrap();
         hold(&mut b, N as u32, &mut cl, &mut d);
         let t = TickTiming::on_schedule(1000);
@@ -209,7 +195,7 @@ mod tests {
     /// second arms.
     #[test]
     fn reset_from_stopped_then_arm() {
-        let (mut cl, mut d) = (loop_(), Driver::default());
+        let (mut cl, mut d) = (loop_(), RecordingDriver::default());
         let mut b = ArmingButton::new(N).unwrap();
         cl.stop(&mut d);
         assert_eq!(cl.state(), RunState::Stopped(StopReason::Commanded));

@@ -11,7 +11,7 @@ use super::state::{ArmError, ReconfigureError, RunState, Status, StopReason, Tic
 use super::timing::TickTiming;
 use crate::controller::{Controller, ControllerConfig, Diagnostics, StepInput};
 use crate::estimator::{EstimatorConfig, EstimatorStatus, PoseEstimator, HISTORY_LEN};
-use crate::health::{EstimatorStatus as SensingHealth, HealthMode};
+use crate::health::HealthMode;
 use crate::pacer::{Pacer, PacerState};
 use crate::trajectory::Trajectory;
 use crate::types::Pose;
@@ -329,9 +329,9 @@ impl<const H: usize> ControlLoop<H> {
         // Governor and health (crate::pacer) after a step: a hard fault stops.
         let pace = match &out {
             Some(step) => {
-                let pace = self
-                    .pacer
-                    .update(&mut self.pace, &step.diag, eta, SensingHealth::Ok);
+                let pace =
+                    self.pacer
+                        .update(&mut self.pace, &step.diag, eta, self.estimator.health());
                 if pace.mode == HealthMode::SafeStop {
                     stop = stop.or(Some(StopReason::Health(pace.reason)));
                 }

@@ -2,85 +2,27 @@
 //! a recording driver and a scripted pose source.
 
 use super::*;
-use crate::controller::ControllerKind;
 use crate::error::InputFault;
 use crate::estimator::{PoseMeasurement, RejectReason};
-use crate::runtime::{Encoder, NoGyro, RuntimeConfigError, TickTiming, WheelOdometryOnly};
+use crate::runtime::{NoGyro, RuntimeConfigError, TickTiming, WheelOdometryOnly};
 use crate::trajectory::{Line, Reference};
 
-#[derive(Clone, Copy, Default)]
-struct Enc(u16);
-impl Encoder for Enc {
-    fn count(&mut self) -> u16 {
-        self.0
-    }
-}
-
-#[derive(Default)]
-struct Driver {
-    enabled: bool,
-    duty: [DutyCommand; 2],
-    sets: u32,
-    disables: u32,
-}
-impl MotorDriver for Driver {
-    fn set(&mut self, cmd: [DutyCommand; 2]) {
-        self.enabled = true;
-        self.duty = cmd;
-        self.sets += 1;
-    }
-    fn disable(&mut self) {
-        self.enabled = false;
-        self.duty = [DutyCommand::ZERO; 2];
-        self.disables += 1;
-    }
-}
-
-/// A pose source delivering one measurement of `pose` stamped `stamp_us`.
-struct Ext(Option<PoseMeasurement>);
-impl Ext {
-    fn at(stamp_us: u32, pose: Pose) -> Self {
-        Self(Some(PoseMeasurement {
-            stamp_us,
-            pose,
-            position_std_m: 0.002,
-            heading_std_rad: Some(0.005),
-        }))
-    }
-}
-impl PoseSource for Ext {
-    fn measurement(&mut self) -> Option<PoseMeasurement> {
-        self.0.take()
-    }
-}
-
-/// A straight line from the origin along +x at `speed`.
-fn line_cfg(speed: f32) -> RuntimeConfig {
-    let start = Pose::new(0.0, 0.0, 0.0);
-    RuntimeConfig {
-        reference: Reference::Line(Line {
-            start,
-            speed_mps: speed,
-        }),
-        initial_pose: start,
-        ..RuntimeConfig::example(ControllerKind::Proposed)
-    }
-}
+use crate::runtime::test_doubles::{line_config, OneShotPose, RecordingDriver, ScriptedEncoder};
 
 const ON_TIME: TickTiming = TickTiming::on_schedule(1000);
 
 struct Rig {
     cl: ControlLoop,
-    enc: [Enc; 2],
-    drv: Driver,
+    enc: [ScriptedEncoder; 2],
+    drv: RecordingDriver,
 }
 
 impl Rig {
     fn new(cfg: RuntimeConfig) -> Self {
         Self {
             cl: ControlLoop::new(cfg).unwrap(),
-            enc: [Enc(0); 2],
-            drv: Driver::default(),
+            enc: [ScriptedEncoder(0); 2],
+            drv: RecordingDriver::default(),
         }
     }
     fn tick(&mut self) -> TickReport {
@@ -101,7 +43,7 @@ impl Rig {
 /// wrong d would move the reported start by |Δd|.
 #[test]
 fn estimator_takes_geometry_and_start_from_the_runtime_configuration() {
-    let mut cfg = line_cfg(0.5);
+    let mut cfg = line_config(0.5);
     cfg.controller.robot.com_offset_m = 0.12;
     cfg.initial_pose = Pose::new(1.5, -0.5, 0.7);
     let mut cl = ControlLoop::new(cfg).unwrap();
@@ -124,7 +66,7 @@ fn estimator_takes_geometry_and_start_from_the_runtime_configuration() {
 
 #[test]
 fn motors_disabled_until_armed() {
-    let mut r = Rig::new(line_cfg(0.5));
+    let mut r = Rig::new(line_config(0.5));
     assert_eq!(r.cl.state(), RunState::Disarmed);
     for _ in 0..50 {
         let rep = r.tick();
@@ -155,7 +97,7 @@ fn motors_disabled_until_armed() {
 fn reference_time_counts_from_arming() {
     let mut r = Rig::new(RuntimeConfig {
         pacing: crate::pacer::PacingConfig::off(),
-        ..line_cfg(0.5)
+        ..line_config(0.5)
     });
     for _ in 0..10 {
         r.tick();
@@ -176,7 +118,7 @@ fn reference_time_counts_from_arming() {
 /// reference is; the health machine degrades (saturation) and does not stop.
 #[test]
 fn governor_slows_the_reference_of_a_robot_that_does_not_move() {
-    let mut r = Rig::new(line_cfg(2.0));
+    let mut r = Rig::new(line_config(2.0));
     r.cl.arm().unwrap();
     let mut last = r.tick();
     let mut tau_prev = last.pace.tau_s;
@@ -216,12 +158,12 @@ fn assert_latched(r: &mut Rig, reason: StopReason) {
 /// reason); the controller never sees it and the robot keeps running.
 #[test]
 fn nan_pose_measurement_refused_robot_keeps_running() {
-    let mut r = Rig::new(line_cfg(0.5));
+    let mut r = Rig::new(line_config(0.5));
     r.cl.arm().unwrap();
     for _ in 0..5 {
         r.tick();
     }
-    let mut ext = Ext::at(0, Pose::new(f32::NAN, 0.0, 0.0));
+    let mut ext = OneShotPose::at(0, Pose::new(f32::NAN, 0.0, 0.0));
     let rep =
         r.cl.tick(&mut r.enc, &mut r.drv, &mut NoGyro, &mut ext, ON_TIME);
     assert_eq!(rep.stopped, None);
@@ -237,7 +179,7 @@ fn nan_pose_measurement_refused_robot_keeps_running() {
 /// `max_consecutive_input_faults = 3` two in a row are tolerated, three latch.
 #[test]
 fn isolated_input_faults_tolerated_when_configured() {
-    let mut cfg = line_cfg(0.5);
+    let mut cfg = line_config(0.5);
     cfg.safety.max_consecutive_input_faults = 3;
     cfg.encoder.speed_window_ticks = 1;
     let mut r = Rig::new(cfg);
@@ -271,12 +213,12 @@ fn isolated_input_faults_tolerated_when_configured() {
 
 #[test]
 fn encoder_jump_latches_but_wrap_does_not() {
-    let mut r = Rig::new(line_cfg(0.0));
-    r.enc = [Enc(65_500), Enc(30)];
+    let mut r = Rig::new(line_config(0.0));
+    r.enc = [ScriptedEncoder(65_500), ScriptedEncoder(30)];
     r.cl.arm().unwrap();
     r.tick();
     // Right: 65500 -> 100 is +136 counts (wrap), left (mirrored): 30 -> 0 is +30.
-    r.enc = [Enc(100), Enc(0)];
+    r.enc = [ScriptedEncoder(100), ScriptedEncoder(0)];
     let rep = r.tick();
     assert_eq!(rep.counts.delta, [136, 30]);
     assert!(rep.stopped.is_none());
@@ -294,7 +236,7 @@ fn encoder_jump_latches_but_wrap_does_not() {
 
 #[test]
 fn jump_while_disarmed_is_counted_not_latched_nor_integrated() {
-    let mut r = Rig::new(line_cfg(0.0));
+    let mut r = Rig::new(line_config(0.0));
     r.tick();
     r.enc[0].0 = 20_000;
     let rep = r.tick();
@@ -310,7 +252,7 @@ fn jump_while_disarmed_is_counted_not_latched_nor_integrated() {
 /// the stall torque (each later tick sees that torque produce no count).
 #[test]
 fn stalled_encoder_latches() {
-    let mut cfg = line_cfg(1.0);
+    let mut cfg = line_config(1.0);
     cfg.safety.stall_torque_nm = 0.5;
     cfg.safety.stall_ticks = 40;
     let mut r = Rig::new(cfg);
@@ -348,7 +290,7 @@ fn stalled_encoder_latches() {
 /// The same push with wheels that turn (one count per tick) never stalls.
 #[test]
 fn moving_wheels_do_not_stall() {
-    let mut cfg = line_cfg(1.0);
+    let mut cfg = line_config(1.0);
     cfg.safety.stall_torque_nm = 0.5;
     cfg.safety.stall_ticks = 40;
     let mut r = Rig::new(cfg);
@@ -366,7 +308,7 @@ fn moving_wheels_do_not_stall() {
 
 #[test]
 fn commanded_stop_latches() {
-    let mut r = Rig::new(line_cfg(0.5));
+    let mut r = Rig::new(line_config(0.5));
     r.cl.arm().unwrap();
     r.tick();
     assert!(r.drv.enabled);
@@ -379,7 +321,7 @@ fn commanded_stop_latches() {
 /// v = r·2π·n/(cpr·dt), ω = 0, and G advances by v·t along the heading.
 #[test]
 fn encoder_ticks_give_analytic_speed_and_odometry() {
-    let mut r = Rig::new(line_cfg(0.0));
+    let mut r = Rig::new(line_config(0.0));
     let n = 10u16;
     let ticks = 1000;
     let mut rep = r.tick();
@@ -403,14 +345,14 @@ fn encoder_ticks_give_analytic_speed_and_odometry() {
 /// count goes up.
 #[test]
 fn external_pose_fused() {
-    let mut r = Rig::new(line_cfg(0.0));
+    let mut r = Rig::new(line_config(0.0));
     let p = Pose::new(0.03, -0.02, 0.04);
     let t = TickTiming::on_schedule_at(1000, 1000);
     let rep = r.cl.tick(
         &mut r.enc,
         &mut r.drv,
         &mut NoGyro,
-        &mut Ext::at(1000, p),
+        &mut OneShotPose::at(1000, p),
         t,
     );
     assert!(rep.external_pose);
@@ -423,8 +365,13 @@ fn external_pose_fused() {
     let mut rep = rep;
     for k in 2..=1000u32 {
         let t = TickTiming::on_schedule_at(k * 1000, 1000);
-        rep =
-            r.cl.tick(&mut r.enc, &mut r.drv, &mut NoGyro, &mut Ext(None), t);
+        rep = r.cl.tick(
+            &mut r.enc,
+            &mut r.drv,
+            &mut NoGyro,
+            &mut OneShotPose(None),
+            t,
+        );
     }
     assert!((rep.pose.x_m - p.x_m).abs() < 2e-3 && (rep.pose.y_m - p.y_m).abs() < 2e-3);
     assert_eq!(r.cl.status().external_poses, 1);
@@ -435,14 +382,14 @@ fn external_pose_fused() {
 /// tick is refused as from the future, one older than the history as too old.
 #[test]
 fn measurements_matched_against_the_tick_clock() {
-    let mut r = Rig::new(line_cfg(0.0));
+    let mut r = Rig::new(line_config(0.0));
     let p = Pose::new(0.0, 0.0, 0.0);
     for k in 1..=400u32 {
         let t = TickTiming::on_schedule_at(k * 1000, 1000);
         let mut src = match k {
-            100 => Ext::at(100_001, p),
-            400 => Ext::at(100_000, p),
-            _ => Ext(None),
+            100 => OneShotPose::at(100_001, p),
+            400 => OneShotPose::at(100_000, p),
+            _ => OneShotPose(None),
         };
         r.cl.tick(&mut r.enc, &mut r.drv, &mut NoGyro, &mut src, t);
     }
@@ -452,25 +399,25 @@ fn measurements_matched_against_the_tick_clock() {
 
 #[test]
 fn invalid_config_rejected() {
-    let mut cfg = line_cfg(0.5);
+    let mut cfg = line_config(0.5);
     cfg.safety.stall_ticks = 0;
     assert_eq!(
         ControlLoop::new(cfg).err(),
         Some(RuntimeConfigError::InvalidSafetyLimit)
     );
-    let mut cfg = line_cfg(0.5);
+    let mut cfg = line_config(0.5);
     cfg.initial_pose.x_m = f32::NAN;
     assert_eq!(
         ControlLoop::new(cfg).err(),
         Some(RuntimeConfigError::NonFiniteInitialPose)
     );
-    let mut cfg = line_cfg(0.5);
+    let mut cfg = line_config(0.5);
     cfg.controller.period_s = 0.0;
     assert_eq!(
         ControlLoop::new(cfg).err(),
         Some(RuntimeConfigError::Core(crate::ConfigError::InvalidPeriod))
     );
-    let mut cfg = line_cfg(0.5);
+    let mut cfg = line_config(0.5);
     cfg.motor.gear_efficiency = 0.0;
     assert_eq!(
         ControlLoop::new(cfg).err(),
@@ -516,7 +463,7 @@ proptest::proptest! {
             1..200,
         )
     ) {
-        let mut r = Rig::new(line_cfg(0.3));
+        let mut r = Rig::new(line_config(0.3));
         r.cl.arm().unwrap();
         let mut now: u32 = u32::MAX - 50_000;
         for (dt_us, g, m, counts) in steps {
@@ -527,7 +474,7 @@ proptest::proptest! {
                 rate_radps: rate,
                 stamp_us: now.wrapping_add(off as u32),
             }));
-            let mut src = Ext(m.map(|(age, x, y, th, hs)| PoseMeasurement {
+            let mut src = OneShotPose(m.map(|(age, x, y, th, hs)| PoseMeasurement {
                 stamp_us: now.wrapping_sub(age as u32),
                 pose: Pose::new(x, y, th),
                 position_std_m: x.abs().min(1.0),
@@ -554,7 +501,7 @@ proptest::proptest! {
 /// the configured one it is `tick`, step for step.
 #[test]
 fn tick_with_reference_tracks_the_given_reference() {
-    let cfg = line_cfg(0.5);
+    let cfg = line_config(0.5);
     let (mut a, mut b) = (Rig::new(cfg), Rig::new(cfg));
     a.cl.arm().unwrap();
     b.cl.arm().unwrap();
@@ -563,7 +510,7 @@ fn tick_with_reference_tracks_the_given_reference() {
         speed_mps: -0.5,
     });
     for k in 0..50u16 {
-        a.enc = [Enc(k), Enc(0u16.wrapping_sub(k))];
+        a.enc = [ScriptedEncoder(k), ScriptedEncoder(0u16.wrapping_sub(k))];
         b.enc = a.enc;
         let ra = a.tick();
         let rb = b.cl.tick_with_reference(
@@ -597,7 +544,7 @@ fn tick_with_reference_tracks_the_given_reference() {
 
 #[test]
 fn reconfigure_only_while_not_running_and_validated() {
-    let cfg = line_cfg(0.5);
+    let cfg = line_config(0.5);
     let mut rig = Rig::new(cfg);
     let mut c = cfg.controller;
     c.torque_limit_nm = 3.0;
@@ -616,4 +563,44 @@ fn reconfigure_only_while_not_running_and_validated() {
     assert_eq!(rig.cl.config().controller.torque_limit_nm, 10.0);
     rig.cl.reconfigure(c, cfg.safety).unwrap();
     assert_eq!(rig.cl.controller().config().torque_limit_nm, 3.0);
+}
+
+/// The health machine hears the estimator's real health: an armed loop
+/// that fused one external pose and then none degrades (reason: the
+/// estimator) once that pose is older than `POSE_STALE_US`, not before; a
+/// loop that never had a pose source (odometry is its configuration) stays
+/// nominal. (The runtime used to report Ok unconditionally.)
+#[test]
+fn stale_external_pose_degrades_health() {
+    use crate::estimator::POSE_STALE_US;
+    use crate::health::{HealthMode, HealthReason};
+    let run = |first_pose: bool| {
+        let mut r = Rig::new(line_config(0.0));
+        r.cl.arm().unwrap();
+        let mut modes = std::vec::Vec::new();
+        for k in 1..=1500u32 {
+            let t = TickTiming::on_schedule_at(k * 1000, 1000);
+            let mut src = if k == 1 && first_pose {
+                OneShotPose::at(1000, Pose::new(0.0, 0.0, 0.0))
+            } else {
+                OneShotPose(None)
+            };
+            let rep = r.cl.tick(&mut r.enc, &mut r.drv, &mut NoGyro, &mut src, t);
+            assert_eq!(rep.stopped, None, "tick {k}");
+            modes.push((k * 1000, rep.pace.mode, rep.pace.reason));
+        }
+        modes
+    };
+    let with_pose = run(true);
+    let stale_at = 1000 + POSE_STALE_US;
+    assert!(with_pose
+        .iter()
+        .filter(|(t, ..)| *t <= stale_at)
+        .all(|(_, m, _)| *m == HealthMode::Nominal));
+    let (_, mode, reason) = *with_pose.last().unwrap();
+    assert_eq!(
+        (mode, reason),
+        (HealthMode::Degraded, HealthReason::Estimator)
+    );
+    assert!(run(false).iter().all(|(_, m, _)| *m == HealthMode::Nominal));
 }

@@ -43,6 +43,8 @@ mod motor;
 mod odometry;
 mod state;
 mod stats;
+#[cfg(any(test, feature = "test-doubles"))]
+pub mod test_doubles;
 mod timing;
 
 pub use arming::{ArmingButton, ArmingEvent};

@@ -215,12 +215,10 @@ impl LoopTimer {
 mod tests {
     use super::*;
     use crate::controller::ControllerKind;
+    use crate::runtime::test_doubles::RecordingDriver;
     use crate::runtime::{
-        ControlLoop, DutyCommand, MotorDriver, NoGyro, RunState, StopReason, WheelEncoders,
-        WheelOdometryOnly,
+        ControlLoop, NoGyro, RunState, StopReason, WheelEncoders, WheelOdometryOnly,
     };
-    use crate::trajectory::{Line, Reference};
-    use crate::types::Pose;
 
     const P: u32 = 1000;
     /// `SafetyLimits::EXAMPLE`: late beyond 500 µs, 5 in a row sustained.
@@ -369,23 +367,8 @@ mod tests {
         }
     }
 
-    #[derive(Default)]
-    struct Driver;
-    impl MotorDriver for Driver {
-        fn set(&mut self, _: [DutyCommand; 2]) {}
-        fn disable(&mut self) {}
-    }
-
     fn line_cfg() -> RuntimeConfig {
-        let start = Pose::new(0.0, 0.0, 0.0);
-        RuntimeConfig {
-            reference: Reference::Line(Line {
-                start,
-                speed_mps: 0.5,
-            }),
-            initial_pose: start,
-            ..RuntimeConfig::example(ControllerKind::Proposed)
-        }
+        crate::runtime::test_doubles::line_config(0.5)
     }
 
     /// Tick start instants \[µs\] of a ticker with period `P` that fires at
@@ -433,7 +416,7 @@ mod tests {
             let timing = timer.tick(now);
             let rep = cl.tick(
                 &mut wheels,
-                &mut Driver,
+                &mut RecordingDriver::default(),
                 &mut NoGyro,
                 &mut WheelOdometryOnly,
                 timing,
@@ -465,7 +448,13 @@ mod tests {
         let step = |cl: &mut ControlLoop, timer: &mut LoopTimer, w: &mut Wheels, now: u32| {
             w.t_s = now as f64 * 1e-6;
             let timing = timer.tick(now);
-            cl.tick(w, &mut Driver, &mut NoGyro, &mut WheelOdometryOnly, timing)
+            cl.tick(
+                w,
+                &mut RecordingDriver::default(),
+                &mut NoGyro,
+                &mut WheelOdometryOnly,
+                timing,
+            )
         };
         // 40 rad/s (the example motor's no-load speed): 153 counts per ms,
         // 3056 in the 20 ms stall, beyond the 400 counts/period jump limit.

@@ -1,8 +1,11 @@
 //! [`ScenarioArgs`]: the scenario flags shared by `run` and `device` (they
-//! mirror [`Scenario`]'s fields).
+//! mirror [`Scenario`]'s fields; the `--gyro-*` and `--pose-*` overrides
+//! are the very structs the scenario holds, [`GyroOverrides`] and
+//! [`PoseOverrides`], each knob declared once for serde and clap).
 
 use crate::scenario::{Scenario, Sensing, TrajectoryKind};
 use crate::scenario_file::load_scenario;
+use crate::sensing::{overlay, GyroOverrides, PoseOverrides};
 use clap::Args;
 use std::path::PathBuf;
 
@@ -51,56 +54,12 @@ pub struct ScenarioArgs {
     /// --gyro-* and --pose-* flags override the preset (docs/scenario.md).
     #[arg(long, value_enum)]
     pub sensing: Option<Sensing>,
-    /// Gyro noise density [rad/s/√Hz].
-    #[arg(long)]
-    pub gyro_noise_density: Option<f64>,
-    /// Gyro initial bias [rad/s].
-    #[arg(long, value_name = "rad/s", allow_negative_numbers = true)]
-    pub gyro_bias: Option<f64>,
-    /// Gyro bias random walk [rad/s/√s].
-    #[arg(long)]
-    pub gyro_bias_walk: Option<f64>,
-    /// Gyro scale-factor error (0.01 = 1 % high).
-    #[arg(long, allow_negative_numbers = true)]
-    pub gyro_scale_error: Option<f64>,
-    /// Gyro full scale [rad/s].
-    #[arg(long, value_name = "rad/s")]
-    pub gyro_saturation: Option<f64>,
-    /// Gyro output rate [Hz].
-    #[arg(long, value_name = "Hz")]
-    pub gyro_rate: Option<f64>,
-    /// External pose rate [Hz].
-    #[arg(long, value_name = "Hz")]
-    pub pose_rate: Option<f64>,
-    /// External pose latency [s].
-    #[arg(long, value_name = "s")]
-    pub pose_latency: Option<f64>,
-    /// External pose extra latency, uniform in [0, jitter] [s].
-    #[arg(long, value_name = "s")]
-    pub pose_jitter: Option<f64>,
-    /// External pose position noise std. dev. [m].
-    #[arg(long, value_name = "m")]
-    pub pose_std: Option<f64>,
-    /// External pose heading noise std. dev. [rad] (0 = no heading).
-    #[arg(long, value_name = "rad")]
-    pub pose_heading_std: Option<f64>,
-    /// Probability that an external pose is lost.
-    #[arg(long)]
-    pub pose_dropout: Option<f64>,
-    /// Outage of the external pose from START to END [s] (e.g. 20,22).
-    #[arg(
-        long,
-        value_name = "START,END",
-        value_delimiter = ',',
-        allow_negative_numbers = true
-    )]
-    pub pose_outage: Option<Vec<f64>>,
-    /// Fraction of external poses that are outliers.
-    #[arg(long)]
-    pub pose_outlier_fraction: Option<f64>,
-    /// Position error of an outlier [m].
-    #[arg(long, value_name = "m")]
-    pub pose_outlier: Option<f64>,
+    /// Overrides of the preset's gyro (`--gyro-*`).
+    #[command(flatten)]
+    pub gyro: GyroOverrides,
+    /// Overrides of the preset's external pose source (`--pose-*`).
+    #[command(flatten)]
+    pub pose: PoseOverrides,
     /// Firmware sensing: encoder counts per wheel revolution (0 = example's 24000).
     #[arg(long)]
     pub encoder_cpr: Option<u32>,
@@ -180,27 +139,9 @@ impl ScenarioArgs {
             substeps => substeps,
             governor => governor,
             clean_start => clean_start,
-            gyro_noise_density => gyro_noise_density,
-            gyro_bias => gyro_bias_radps,
-            gyro_bias_walk => gyro_bias_walk,
-            gyro_scale_error => gyro_scale_error,
-            gyro_saturation => gyro_saturation_radps,
-            gyro_rate => gyro_rate_hz,
-            pose_rate => pose_rate_hz,
-            pose_latency => pose_latency_s,
-            pose_jitter => pose_jitter_s,
-            pose_std => pose_std_m,
-            pose_heading_std => pose_heading_std_rad,
-            pose_dropout => pose_dropout,
-            pose_outlier_fraction => pose_outlier_fraction,
-            pose_outlier => pose_outlier_m,
         );
-        if let Some(w) = &self.pose_outage {
-            match w[..] {
-                [a, b] => scn.pose_outage_s = Some([a, b]),
-                _ => return Err("--pose-outage takes START,END (two numbers)".into()),
-            }
-        }
+        scn.gyro = overlay(&scn.gyro, &self.gyro);
+        scn.pose = overlay(&scn.pose, &self.pose);
         if let Some(k) = self.k_y {
             scn.k_y = Some(k);
         }

@@ -115,14 +115,14 @@ fn sensing_flags_override_the_preset() {
     };
     let s = a.scenario.build().unwrap();
     assert_eq!(s.sensing, Sensing::Uwb);
-    assert_eq!(s.pose_rate_hz, Some(20.0));
-    assert_eq!(s.pose_outage_s, Some([20.0, 22.0]));
-    assert_eq!(s.gyro_bias_radps, Some(-0.01));
-    let cli = parse(&["run", "--sensing", "mocap", "--pose-outage", "20"]).unwrap();
-    let Command::Run(a) = cli.command else {
-        panic!()
-    };
-    assert!(a.scenario.build().unwrap_err().contains("START,END"));
+    assert_eq!(s.pose.pose_rate_hz, Some(20.0));
+    assert_eq!(
+        s.pose.pose_outage_s,
+        Some(crate::sensing::Window([20.0, 22.0]))
+    );
+    assert_eq!(s.gyro.gyro_bias_radps, Some(-0.01));
+    let e = parse(&["run", "--sensing", "mocap", "--pose-outage", "20"]).unwrap_err();
+    assert!(e.to_string().contains("START,END"), "{e}");
     let e = run_to_string(&["run", "--sensing", "odometry", "--pose-rate", "5"]).unwrap_err();
     assert!(e.contains("pose_*"), "{e}");
     let text = run_to_string(&[

@@ -1,7 +1,7 @@
 //! The host-test rig: robot-app's real tasks on embassy's std executor
 //! (its own thread), embassy-time's mock clock advanced by the test thread,
-//! a mock board with the simulated robot (sim-robot's plant behind
-//! simulated encoders and H-bridge), and a minimal host speaking
+//! a mock board with the simulated robot (a `sim_robot::World`: the plant
+//! behind simulated encoders and H-bridge), and a minimal host speaking
 //! wmr-protocol through the link pipes.
 //!
 //! The mock clock is global: the tests of one binary run one at a time
@@ -12,16 +12,17 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration as StdDuration, Instant as StdInstant};
 
-use controller_core::runtime::{
-    ArmingButton, LoopTimer, MotorModel, NoGyro, RuntimeConfig, WheelOdometryOnly,
-};
+use controller_core::runtime::{ArmingButton, LoopTimer, RuntimeConfig};
 use controller_core::ControllerKind;
 use embassy_executor::{Executor, Spawner};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant, MockDriver};
 use robot_app::{AppConfig, AppEvent, Board, BoardIo, ControlTask, LinkPipes, StatusSummary};
-use sim_robot::{MotorDrive, Perturbation, Plant, PlantParams, PlantState, SimDriver, SimEncoders};
+use sim_robot::world::{
+    Actuation, Faults, HardwareSensing, Instruments, WorldGyro, WorldPoseSource,
+};
+use sim_robot::{PerturbationProfile, PlantParams, SimDriver, SimEncoders, World, WorldConfig};
 use wmr_device::{Device, DeviceConfig, LinkConfig};
 use wmr_protocol::{
     BuiltinReference, BuiltinShape, Decoded, FrameDecoder, PoseMsg, Reply, Request, RunStateMsg,
@@ -77,58 +78,51 @@ pub struct Shared {
     pub knobs: Knobs,
 }
 
-/// The mock board: the simulated robot behind raw encoders and an H-bridge.
+/// The mock board: the simulated world behind raw encoders and an H-bridge
+/// (no gyro, no external pose source, nothing perturbing).
 pub struct MockBoard {
     shared: &'static Shared,
-    encoders: SimEncoders,
-    bridge: SimDriver,
-    model: MotorModel,
-    inverted: [bool; 2],
-    plant: Plant,
-    state: PlantState,
+    world: World,
     plant_us: u64,
-    gyro: NoGyro,
-    pose: WheelOdometryOnly,
 }
 
 impl MockBoard {
     fn new(shared: &'static Shared, cfg: &RuntimeConfig) -> Self {
         let p = cfg.initial_pose;
+        let world = World::new(&WorldConfig {
+            plant: PlantParams::from_robot(&cfg.controller.robot, 1.0, 1.0),
+            perturbations: PerturbationProfile::NONE,
+            initial_pose: [p.x_m as f64, p.y_m as f64, p.theta_rad as f64],
+            period_s: PERIOD_US as f64 * 1e-6,
+            substeps: 1,
+            seed: 0,
+            instruments: Instruments::Hardware(HardwareSensing {
+                encoder: cfg.encoder,
+                motor: cfg.motor,
+                motor_inverted: cfg.motor_inverted,
+                gyro: None,
+                pose_source: None,
+            }),
+            faults: Faults::NONE,
+        })
+        .expect("world");
         Self {
             shared,
-            encoders: SimEncoders::new(&cfg.encoder),
-            bridge: SimDriver::default(),
-            model: MotorModel::new(cfg.motor).expect("motor"),
-            inverted: cfg.motor_inverted,
-            plant: Plant::new(PlantParams::from_robot(&cfg.controller.robot, 1.0, 1.0)),
-            state: PlantState {
-                q: [p.x_m as f64, p.y_m as f64, p.theta_rad as f64, 0.0, 0.0],
-                nu: [0.0; 2],
-            },
+            world,
             plant_us: 0,
-            gyro: NoGyro,
-            pose: WheelOdometryOnly,
         }
     }
 
-    /// The plant up to now, the bridge held over each 1 ms step.
+    /// The world up to now, the bridge held over each 1 ms step.
     fn advance_plant(&mut self, now_us: u64) {
         while self.plant_us + PERIOD_US <= now_us {
-            let drive = MotorDrive {
-                model: self.model,
-                bridge: self.bridge,
-                inverted: self.inverted,
-            };
-            self.state = self.plant.rk4_step(
-                &self.state,
-                self.plant_us as f64 * 1e-6,
-                PERIOD_US as f64 * 1e-6,
-                &drive,
-                &mut |_| Perturbation::default(),
-            );
+            let bridge = self.world.bridge();
+            self.world
+                .advance(Actuation::Bridge(bridge), PERIOD_US as f64 * 1e-6)
+                .expect("plant diverged");
             self.plant_us += PERIOD_US;
         }
-        self.encoders.set_angles([self.state.q[3], self.state.q[4]]);
+        self.world.sense(self.plant_us as f64 * 1e-6);
     }
 
     fn obs(&self) -> MutexGuard<'_, Obs> {
@@ -139,10 +133,10 @@ impl MockBoard {
 impl Board for MockBoard {
     type Encoders = SimEncoders;
     type Motors = SimDriver;
-    type Gyro = NoGyro;
-    type PoseSource = WheelOdometryOnly;
+    type Gyro = WorldGyro;
+    type PoseSource = WorldPoseSource;
 
-    fn io(&mut self) -> BoardIo<'_, SimEncoders, SimDriver, NoGyro, WheelOdometryOnly> {
+    fn io(&mut self) -> BoardIo<'_, SimEncoders, SimDriver, WorldGyro, WorldPoseSource> {
         let now = Instant::now().as_micros();
         self.advance_plant(now);
         self.obs().tick_times_us.push(now);
@@ -150,21 +144,22 @@ impl Board for MockBoard {
         if cost > 0 {
             MockDriver::get().advance(Duration::from_micros(cost as u64));
         }
+        let io = self.world.io();
         BoardIo {
-            encoders: &mut self.encoders,
-            motors: &mut self.bridge,
-            gyro: &mut self.gyro,
-            pose_source: &mut self.pose,
+            encoders: io.encoders,
+            motors: io.motors,
+            gyro: io.gyro,
+            pose_source: io.pose_source,
         }
     }
 
     fn motors(&mut self) -> &mut SimDriver {
-        &mut self.bridge
+        self.world.io().motors
     }
 
     fn button_pressed(&mut self) -> bool {
         // The bridge state as of the previous tick, published here.
-        let enabled = self.bridge.enabled;
+        let enabled = self.world.bridge().enabled;
         self.obs().motors_enabled = enabled;
         self.shared.knobs.button.load(Ordering::SeqCst)
     }
