@@ -144,6 +144,34 @@ pub struct WorldConfig {
     pub faults: Faults,
 }
 
+impl WorldConfig {
+    /// The robot a runtime configuration describes, exactly as described
+    /// (the plant's mass and inertia nominal), at rest at its initial pose,
+    /// stepped at its control period with one RK4 sub-step, unperturbed,
+    /// behind its encoders, motors and H-bridge, with no gyro, no pose
+    /// source and no fault: the starting point of a closed-loop test
+    /// (override fields with `..`).
+    pub fn of_runtime(rt: &controller_core::runtime::RuntimeConfig) -> Self {
+        let p = rt.initial_pose;
+        Self {
+            plant: PlantParams::from_robot(&rt.controller.robot, 1.0, 1.0),
+            perturbations: PerturbationProfile::NONE,
+            initial_pose: [p.x_m as f64, p.y_m as f64, p.theta_rad as f64],
+            period_s: rt.controller.period_s as f64,
+            substeps: 1,
+            seed: 0,
+            instruments: Instruments::Hardware(HardwareSensing {
+                encoder: rt.encoder,
+                motor: rt.motor,
+                motor_inverted: rt.motor_inverted,
+                gyro: None,
+                pose_source: None,
+            }),
+            faults: Faults::NONE,
+        }
+    }
+}
+
 /// A world configuration rejected at construction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]

@@ -7,8 +7,8 @@
 use controller_core::runtime::{ControlLoop, RunState, RuntimeConfig, TickTiming};
 use controller_core::trajectory::{Circle, Reference, Trajectory};
 use controller_core::ControllerKind;
-use sim_robot::world::{Actuation, Faults, HardwareSensing, Instruments};
-use sim_robot::{PerturbationProfile, PlantParams, World, WorldConfig};
+use sim_robot::world::Actuation;
+use sim_robot::{World, WorldConfig};
 
 /// Circle of radius 1.5 m at 0.5 m/s with the proposed controller, the
 /// example motor (24 V) and encoders (24 000 counts/rev, left mirrored) and
@@ -29,23 +29,7 @@ fn quantized_closed_loop_tracks_a_circle() {
     };
     let mut cl = ControlLoop::new(cfg).unwrap();
     let dt = cfg.controller.period_s as f64;
-    let mut world = World::new(&WorldConfig {
-        plant: PlantParams::from_robot(&cfg.controller.robot, 1.0, 1.0),
-        perturbations: PerturbationProfile::NONE,
-        initial_pose: [start.x_m as f64, start.y_m as f64, start.theta_rad as f64],
-        period_s: dt,
-        substeps: 1,
-        seed: 0,
-        instruments: Instruments::Hardware(HardwareSensing {
-            encoder: cfg.encoder,
-            motor: cfg.motor,
-            motor_inverted: cfg.motor_inverted,
-            gyro: None,
-            pose_source: None,
-        }),
-        faults: Faults::NONE,
-    })
-    .unwrap();
+    let mut world = World::new(&WorldConfig::of_runtime(&cfg)).unwrap();
     cl.arm().unwrap();
     let mut worst_late = 0.0f64;
     let mut lag_s = 0.0;

@@ -19,10 +19,8 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant, MockDriver};
 use robot_app::{AppConfig, AppEvent, Board, BoardIo, ControlTask, LinkPipes, StatusSummary};
-use sim_robot::world::{
-    Actuation, Faults, HardwareSensing, Instruments, WorldGyro, WorldPoseSource,
-};
-use sim_robot::{PerturbationProfile, PlantParams, SimDriver, SimEncoders, World, WorldConfig};
+use sim_robot::world::{Actuation, WorldGyro, WorldPoseSource};
+use sim_robot::{SimDriver, SimEncoders, World, WorldConfig};
 use wmr_device::{Device, DeviceConfig, LinkConfig};
 use wmr_protocol::{
     BuiltinReference, BuiltinShape, Decoded, FrameDecoder, PoseMsg, Reply, Request, RunStateMsg,
@@ -88,22 +86,9 @@ pub struct MockBoard {
 
 impl MockBoard {
     fn new(shared: &'static Shared, cfg: &RuntimeConfig) -> Self {
-        let p = cfg.initial_pose;
         let world = World::new(&WorldConfig {
-            plant: PlantParams::from_robot(&cfg.controller.robot, 1.0, 1.0),
-            perturbations: PerturbationProfile::NONE,
-            initial_pose: [p.x_m as f64, p.y_m as f64, p.theta_rad as f64],
             period_s: PERIOD_US as f64 * 1e-6,
-            substeps: 1,
-            seed: 0,
-            instruments: Instruments::Hardware(HardwareSensing {
-                encoder: cfg.encoder,
-                motor: cfg.motor,
-                motor_inverted: cfg.motor_inverted,
-                gyro: None,
-                pose_source: None,
-            }),
-            faults: Faults::NONE,
+            ..WorldConfig::of_runtime(cfg)
         })
         .expect("world");
         Self {
