@@ -20,7 +20,7 @@ use controller_core::runtime::{
 use controller_core::trajectory::{PaperCurve, PaperHeading, Reference};
 use controller_core::{ControllerConfig, ControllerKind, InputLimits, RobotParams};
 use wmr_device::{DeviceConfig, LinkConfig};
-use wmr_protocol::{BuiltinReference, BuiltinShape, PoseMsg};
+use wmr_protocol::BuiltinReference;
 
 /// Control loop rate \[Hz\] (the controller's `period_s` is its inverse).
 pub const CONTROL_HZ: u64 = 1000;
@@ -205,22 +205,12 @@ pub const IMU_MONITOR: robot_app::imu::MonitorConfig = robot_app::imu::MonitorCo
     max_rate_radps: 25.0,
 };
 
-/// What the arm button drives when the host has loaded nothing: a circle of
-/// 0.5 m radius at 0.2 m/s starting where odometry starts (the origin,
-/// facing +x), counter-clockwise. Not the paper's curve: that one reaches
-/// about 2 m/s (upload it with `wmr upload` when the robot has room).
-pub const BUTTON_REFERENCE: BuiltinReference = BuiltinReference {
-    shape: BuiltinShape::Circle {
-        radius_m: 0.5,
-        speed_mps: 0.2,
-    },
-    start: Some(PoseMsg {
-        x_m: 0.0,
-        y_m: 0.0,
-        theta_rad: 0.0,
-    }),
-    speed_scale: 1.0,
-};
+/// What the arm button drives when the host has loaded nothing:
+/// robot-app's default, a circle of 0.5 m radius at 0.2 m/s starting where
+/// odometry starts (the origin, facing +x), counter-clockwise. Not the
+/// paper's curve: that one reaches about 2 m/s (upload it with `wmr upload`
+/// when the robot has room).
+pub const BUTTON_REFERENCE: BuiltinReference = robot_app::DEFAULT_BUTTON_REFERENCE;
 
 /// Link settings: 500 ms link-silence timeout while moving under host
 /// control, velocity-command limits, braking deceleration, telemetry off

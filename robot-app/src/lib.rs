@@ -42,3 +42,22 @@ pub use link::{pump_rx, pump_rx_ring, pump_tx, LinkPipes, TX_CHUNK_BYTES};
 // Re-exported for the boards.
 pub use controller_core::runtime::{ArmingButton, LoopTimer};
 pub use wmr_device::Device;
+
+/// What the arm button drives when the host has loaded nothing: a circle of
+/// 0.5 m radius at 0.2 m/s starting at the origin facing +x (where the
+/// firmware's odometry starts), counter-clockwise. Not the paper's curve:
+/// that one reaches about 2 m/s (upload it with `wmr upload` when the robot
+/// has room). The firmware's default and the host tests' device use it.
+pub const DEFAULT_BUTTON_REFERENCE: wmr_protocol::BuiltinReference =
+    wmr_protocol::BuiltinReference {
+        shape: wmr_protocol::BuiltinShape::Circle {
+            radius_m: 0.5,
+            speed_mps: 0.2,
+        },
+        start: Some(wmr_protocol::PoseMsg {
+            x_m: 0.0,
+            y_m: 0.0,
+            theta_rad: 0.0,
+        }),
+        speed_scale: 1.0,
+    };

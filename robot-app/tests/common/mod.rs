@@ -22,10 +22,7 @@ use robot_app::{AppConfig, AppEvent, Board, BoardIo, ControlTask, LinkPipes, Sta
 use sim_robot::world::{Actuation, WorldGyro, WorldPoseSource};
 use sim_robot::{SimDriver, SimEncoders, World, WorldConfig};
 use wmr_device::{Device, DeviceConfig, LinkConfig};
-use wmr_protocol::{
-    BuiltinReference, BuiltinShape, Decoded, FrameDecoder, PoseMsg, Reply, Request, RunStateMsg,
-    MAX_FRAME,
-};
+use wmr_protocol::{Decoded, FrameDecoder, Reply, Request, RunStateMsg, MAX_FRAME};
 
 /// Pose history of the devices under test.
 pub const H: usize = 16;
@@ -250,18 +247,7 @@ pub fn device_config() -> DeviceConfig {
         chip: "mock",
         capabilities: wmr_protocol::CAP_TRAJECTORY | wmr_protocol::CAP_VELOCITY,
         link: LinkConfig::DEFAULT,
-        button_reference: Some(BuiltinReference {
-            shape: BuiltinShape::Circle {
-                radius_m: 0.5,
-                speed_mps: 0.2,
-            },
-            start: Some(PoseMsg {
-                x_m: 0.0,
-                y_m: 0.0,
-                theta_rad: 0.0,
-            }),
-            speed_scale: 1.0,
-        }),
+        button_reference: Some(robot_app::DEFAULT_BUTTON_REFERENCE),
     }
 }
 
