@@ -420,8 +420,20 @@ fn drive(a: &DriveArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     let t0 = Instant::now();
     while t0.elapsed().as_secs_f64() < a.for_s {
         let step = watch.step(link, Some(&cmd), refresh)?;
-        if let Some((_, Reply::Nack { error, .. })) = step.answers.first() {
-            return Err(LinkError::Nack("Velocity".into(), *error));
+        let refused = step.answers.iter().find_map(|(_, r)| match r {
+            Reply::Nack { error, .. } => Some(*error),
+            _ => None,
+        });
+        // A refresh refused because the robot left velocity mode means it
+        // stopped (its stop event may have been lost): report that stop,
+        // read from its status, not the refusal.
+        if refused == Some(ErrorCode::WrongMode) && step.stopped.is_none() {
+            let s = watch.until_stopped(link, STOP_WAIT)?;
+            return Err(LinkError::UnexpectedStop(format!(
+                "{s} after {:.2} s of {:.2} s of driving (velocity refreshes refused: no longer in velocity mode)",
+                t0.elapsed().as_secs_f64(),
+                a.for_s
+            )));
         }
         if let Some(s) = step.stopped {
             return Err(LinkError::UnexpectedStop(format!(
@@ -437,6 +449,9 @@ fn drive(a: &DriveArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
                 t0.elapsed().as_secs_f64(),
                 a.for_s
             )));
+        }
+        if let Some(error) = refused {
+            return Err(LinkError::Nack("Velocity".into(), error));
         }
     }
     // No more refreshes: the command times out on the robot.
