@@ -34,6 +34,8 @@ pub enum RuntimeConfigError {
     NonFiniteInitialPose,
     /// Button debounce must be >= 1 tick.
     InvalidDebounce,
+    /// PWM frequency outside `BridgeParams::PWM_FREQUENCY_RANGE_HZ`.
+    InvalidPwmFrequency,
     /// The pose estimator's configuration is invalid.
     Estimator(EstimatorConfigError),
 }
@@ -67,6 +69,7 @@ impl core::fmt::Display for RuntimeConfigError {
             Self::InvalidSafetyLimit => "invalid safety limit",
             Self::NonFiniteInitialPose => "initial pose must be finite",
             Self::InvalidDebounce => "button debounce must be >= 1 tick",
+            Self::InvalidPwmFrequency => "PWM frequency must be in 1..=100 kHz",
         };
         f.write_str(s)
     }

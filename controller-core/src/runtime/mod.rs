@@ -34,6 +34,7 @@
 //! `period_s`.
 
 mod arming;
+mod bridge;
 mod config;
 mod control_loop;
 mod encoder;
@@ -48,6 +49,7 @@ pub mod test_doubles;
 mod timing;
 
 pub use arming::{ArmingButton, ArmingEvent};
+pub use bridge::{BridgeMode, BridgeParams, IdleMode};
 pub use config::{RuntimeConfig, SafetyLimits};
 pub use control_loop::{ControlLoop, MAX_REPROPAGATION_PER_TICK};
 pub use encoder::{count_delta, CountSample, EncoderParams, WheelCounts, MAX_SPEED_WINDOW};
