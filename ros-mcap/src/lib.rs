@@ -181,7 +181,7 @@ impl TimeMap {
     pub fn new(robot_us: u32, host_ns: u64) -> Self {
         Self {
             offset_ns: host_ns as i128 - robot_us as i128 * 1000,
-            last_us: None,
+            last_us: Some(robot_us),
             wraps: 0,
         }
     }
@@ -198,6 +198,12 @@ impl TimeMap {
         let us = self.wraps as i128 * (1i128 << 32) + robot_us as i128;
         (self.offset_ns + us * 1000).max(0) as u64
     }
+}
+
+/// d \[m\] when the robot does not say (the link's `RobotInfo` has no
+/// d): the paper robot's (Table 1, `RobotParams::paper`, the one place).
+pub fn default_com_offset_m() -> f64 {
+    controller_core::RobotParams::paper().com_offset_m as f64
 }
 
 /// Now as Unix time \[ns\] (0 if the clock is before 1970).
