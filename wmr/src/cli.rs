@@ -935,14 +935,35 @@ pub struct PoseClock {
     pub unix_t0_ns: u64,
     /// Robot − host clock offset \[µs\].
     pub offset_us: i64,
+    /// How much earlier than its arrival a pose without a capture time is
+    /// stamped \[µs\]: the offset's uncertainty, so that the stamp is never
+    /// in the robot's future (refused as `PoseFromFuture`).
+    pub arrival_margin_us: u64,
 }
 
 impl PoseClock {
+    /// The clock of a sync exchange taken at Unix time `unix_t0_ns` (= t0)
+    /// with a robot of control period `period_s`: the robot read its clock
+    /// somewhere in the round trip and only at a tick, so the offset is
+    /// uncertain by half the round trip plus a period (the arrival margin).
+    pub fn from_sync(sync: ClockSample, unix_t0_ns: u64, period_s: f32) -> Self {
+        let period_us = if period_s.is_finite() && period_s > 0.0 && period_s < 1.0 {
+            (period_s as f64 * 1e6).round() as u64
+        } else {
+            1000
+        };
+        Self {
+            unix_t0_ns,
+            offset_us: sync.offset_us(),
+            arrival_margin_us: sync.rtt_us.div_ceil(2) + period_us,
+        }
+    }
+
     /// Robot time \[µs, u32 clock\] of a pose taken as `capture` says, its
     /// line having arrived at host time `arrival_us` (µs since t0).
     pub fn robot_stamp_us(&self, capture: Capture, arrival_us: u64) -> u32 {
         let host_us = match capture {
-            Capture::Arrival => arrival_us as i64,
+            Capture::Arrival => arrival_us as i64 - self.arrival_margin_us as i64,
             Capture::AgoS(a) => arrival_us as i64 - (a * 1e6).round() as i64,
             Capture::UnixS(t) => {
                 ((t * 1e9) as i128 - self.unix_t0_ns as i128).div_euclid(1000) as i64
@@ -999,10 +1020,11 @@ pub fn feed_lines(
 fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
     let t0 = Instant::now();
     let unix_t0_ns = ros_mcap::unix_now_ns();
-    let clock = PoseClock {
-        unix_t0_ns,
-        offset_us: clock_sync(link, t0, 5)?.offset_us(),
+    let period_s = match &link.last_hello {
+        Some(h) => h.robot.control_period_s,
+        None => link.hello()?.robot.control_period_s,
     };
+    let clock = PoseClock::from_sync(clock_sync(link, t0, 5)?, unix_t0_ns, period_s);
     let std = [a.std[0], a.std[1], a.std[2]];
     let mut tally = PoseTally::default();
     match &a.udp {
@@ -1145,13 +1167,20 @@ mod tests {
     /// Unix stamp lands where the host clock read it.
     #[test]
     fn capture_times_map_to_robot_time() {
-        let clock = PoseClock {
-            unix_t0_ns: 1_764_632_000_000_000_000,
-            offset_us: 5_000_000,
+        let sync = ClockSample {
+            robot_us: 5_500_000,
+            host_mid_us: 500_000,
+            rtt_us: 301,
         };
+        let clock = PoseClock::from_sync(sync, 1_764_632_000_000_000_000, 0.001);
+        assert_eq!(clock.offset_us, 5_000_000);
         let arrival = 2_000_000;
-        let at = clock.robot_stamp_us(Capture::Arrival, arrival);
-        assert_eq!(at, 7_000_000);
+        let at = 7_000_000;
+        // At arrival less the offset's uncertainty: ⌈301/2⌉ µs + one period.
+        assert_eq!(
+            clock.robot_stamp_us(Capture::Arrival, arrival),
+            at - 151 - 1000
+        );
         assert_eq!(
             clock.robot_stamp_us(Capture::AgoS(0.08), arrival),
             at - 80_000
