@@ -181,7 +181,7 @@ pub struct RecordArgs {
     #[arg(long)]
     pub quiet: bool,
     /// Also write a ROS 2 MCAP log of every telemetry frame (/odom, /tf,
-    /// /joint_states, /diagnostics, /wmr/tracking: docs/protocol.md "Logs").
+    /// /joint_states, /diagnostics, /wmr/tracking: ros-mcap/README.md).
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<PathBuf>,
     /// d, G ahead of the axle midpoint, for the MCAP's base_link [m]
