@@ -99,13 +99,17 @@ impl Robot {
         }
     }
 
-    /// The encoders' parameters.
+    /// The encoders' parameters; each wheel's radius reaches the runtime as
+    /// its `radius_scale` r_i/r̄ (D60).
     pub fn encoder_params(&self) -> EncoderParams {
         let e = &self.encoders;
+        let r = self.mean_wheel_radius_m();
+        let [r0, r1] = self.body.wheel_radius_m;
         EncoderParams {
             counts_per_wheel_rev: e.counts_per_wheel_rev,
             inverted: e.inverted,
             speed_window_ticks: e.speed_window_ticks,
+            radius_scale: [r0 / r, r1 / r],
         }
     }
 

@@ -540,3 +540,22 @@ fn payload_that_passes_the_crc_but_is_not_a_robot_is_malformed() {
     b.extend_from_slice(&crc.to_le_bytes());
     assert_eq!(Robot::decode(&b), Err(DecodeError::Malformed));
 }
+
+#[test]
+fn unequal_wheels_reach_the_runtime_as_arc_per_count() {
+    let mut r = Robot::paper();
+    r.body.wheel_radius_m = [0.105, 0.095];
+    r.validate().unwrap();
+    let model = r.robot_params();
+    assert!((model.wheel_radius_m - 0.1).abs() < 1e-7);
+    let e = r.encoder_params();
+    let cpr = r.encoders.counts_per_wheel_rev;
+    for i in 0..2 {
+        // The model's radius times the runtime's angle per count is the
+        // wheel's own arc per count, 2π·r_i/cpr.
+        let arc = model.wheel_radius_m * e.rad_per_count()[i];
+        let want = 2.0 * std::f32::consts::PI * r.body.wheel_radius_m[i] / cpr;
+        assert!((arc - want).abs() < 1e-9, "{i}: {arc} {want}");
+    }
+    e.validate().unwrap();
+}
