@@ -215,6 +215,59 @@ impl WorldConfig {
     }
 }
 
+#[cfg(any(test, feature = "robot-file"))]
+impl WorldConfig {
+    /// The robot of the robot file `plant` as the plant (what it *has*: its
+    /// per-wheel radii, track, masses, friction per wheel, motors, encoder
+    /// resolution and directions, motor directions), controlled by a runtime
+    /// configured as `model_runtime` (what the controller *believes*: it sets
+    /// only the initial pose, the control period and the duty full scale of
+    /// the PWM timer, a board property). One RK4 sub-step, unperturbed, no
+    /// gyro, no pose source, no fault, no actuation delay or electrical lag
+    /// (set `plant.actuator`, `substeps`, ... with `..`). With the file the
+    /// runtime was derived from, the plant is the model but for the per-wheel
+    /// radii (the model takes their mean, D60). Errors: the file's own
+    /// validation ([`WorldError::Robot`]).
+    pub fn of_robot(
+        plant: &robot_file::Robot,
+        model_runtime: &controller_core::runtime::RuntimeConfig,
+    ) -> Result<Self, WorldError> {
+        plant.validate().map_err(WorldError::Robot)?;
+        let b = &plant.body;
+        let m = &plant.motors;
+        let friction = core::array::from_fn(|i| crate::plant::WheelFriction {
+            viscous_nms_per_rad: m.viscous_friction_nms_per_rad[i] as f64,
+            coulomb_nm: m.coulomb_friction_nm[i] as f64,
+        });
+        let e = plant.encoder_params();
+        Ok(Self {
+            plant: PlantParams {
+                mass_kg: b.mass_kg as f64,
+                inertia_kgm2: b.inertia_kgm2 as f64,
+                wheel_inertia_kgm2: b.wheel_inertia_kgm2 as f64,
+                wheel_radius_m: [b.wheel_radius_m[0] as f64, b.wheel_radius_m[1] as f64],
+                half_track_m: 0.5 * b.track_m as f64,
+                com_offset_m: b.com_offset_m as f64,
+                friction,
+                actuator: crate::plant::ActuatorDynamics::NONE,
+            },
+            instruments: Instruments::Hardware(HardwareSensing {
+                // The simulated counters count the true wheel angle
+                // (radius_scale is the runtime's business).
+                encoder: EncoderParams {
+                    radius_scale: [1.0; 2],
+                    ..e
+                },
+                motor: plant.motor_params(model_runtime.motor.duty_full_scale),
+                motor_inverted: plant.bridge.motor_inverted,
+                gyro: None,
+                pose_source: None,
+            }),
+            ..Self::of_runtime(model_runtime)
+        })
+    }
+}
+
 /// A world configuration rejected at construction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
@@ -241,6 +294,9 @@ pub enum WorldError {
     StiffActuator,
     /// Wiring faults need hardware sensing.
     InvalidWiring,
+    /// The plant's robot file is invalid.
+    #[cfg(any(test, feature = "robot-file"))]
+    Robot(robot_file::RobotError),
     /// A sensor model was rejected.
     Sensor(SensorModelError),
 }
@@ -267,6 +323,8 @@ impl core::fmt::Display for WorldError {
                 "world: the RK4 sub-step exceeds twice the electrical time constant: raise substeps",
             ),
             Self::InvalidWiring => f.write_str("world: wiring faults need hardware sensing"),
+            #[cfg(any(test, feature = "robot-file"))]
+            Self::Robot(e) => write!(f, "world: plant robot file: {e}"),
             Self::Sensor(e) => write!(f, "world: {e}"),
         }
     }
@@ -1270,5 +1328,54 @@ mod tests {
         let phi = w.state().q[3];
         let want = (phi * 1320.0 / core::f64::consts::TAU).floor() as i64 as u16;
         assert_eq!(w.encoder_counts()[0], want);
+    }
+    /// A robot file as the plant: the paper's file behind the runtime
+    /// derived from it is exactly `of_runtime`'s world (two constructions
+    /// of the same robot); a plant file that differs reaches the plant, its
+    /// motors and encoders; an invalid file is refused naming the field.
+    #[cfg(any(test, feature = "robot-file"))]
+    #[test]
+    fn world_of_a_robot_file() {
+        use controller_core::runtime::RuntimeConfig;
+        use controller_core::ControllerKind;
+        use robot_file::Robot;
+        let kind = ControllerKind::Proposed;
+        let model = Robot::paper();
+        let rt = model
+            .runtime_config(
+                kind,
+                RuntimeConfig::example(kind).reference,
+                Pose::new(0.5, -0.2, 0.1),
+                96_000_000,
+            )
+            .unwrap();
+        let same = WorldConfig::of_robot(&model, &rt).unwrap();
+        assert_eq!(same, WorldConfig::of_runtime(&rt));
+        let mut plant = model.clone();
+        plant.body.wheel_radius_m = [0.102, 0.1];
+        plant.body.track_m = 0.42;
+        plant.motors.torque_constant_nm_per_a = 0.06;
+        plant.motors.coulomb_friction_nm = [0.3, 0.2];
+        plant.encoders.counts_per_wheel_rev = 1320.0;
+        plant.encoders.inverted = [true, true];
+        let c = WorldConfig::of_robot(&plant, &rt).unwrap();
+        assert_eq!(c.plant.wheel_radius_m, [0.102f32 as f64, 0.1f32 as f64]);
+        assert_eq!(c.plant.half_track_m, 0.5 * 0.42f32 as f64);
+        assert_eq!(c.plant.friction[0].coulomb_nm, 0.3f32 as f64);
+        assert_eq!(c.period_s, rt.controller.period_s as f64);
+        let Instruments::Hardware(hw) = c.instruments else {
+            panic!("hardware expected");
+        };
+        assert_eq!(hw.motor.torque_constant_nm_per_a, 0.06);
+        assert_eq!(hw.motor.duty_full_scale, rt.motor.duty_full_scale);
+        assert_eq!(hw.encoder.counts_per_wheel_rev, 1320.0);
+        assert_eq!(hw.encoder.inverted, [true, true]);
+        assert!(World::new(&c).is_ok());
+        let mut bad = plant.clone();
+        bad.body.mass_kg = f32::NAN;
+        match WorldConfig::of_robot(&bad, &rt) {
+            Err(WorldError::Robot(e)) => assert_eq!(e.field, "body.mass_kg"),
+            other => panic!("{other:?}"),
+        }
     }
 }
