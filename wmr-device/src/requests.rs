@@ -47,6 +47,7 @@ fn stop_code(r: StopReason) -> StopCode {
         StopReason::EncoderStalled { .. } => StopCode::EncoderStalled,
         StopReason::LoopOverrun { .. } => StopCode::LoopOverrun,
         StopReason::Commanded => StopCode::Commanded,
+        StopReason::DirectionMismatch { .. } => StopCode::DirectionMismatch,
         _ => StopCode::Other,
     }
 }

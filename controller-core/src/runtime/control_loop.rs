@@ -2,6 +2,7 @@
 //! control period, from raw encoder counts to motor duty.
 
 use super::config::{RuntimeConfig, SafetyLimits};
+use super::direction::DirectionCheck;
 use super::encoder::{CountSample, WheelCounts};
 use super::error::RuntimeConfigError;
 use super::hardware::Wheel;
@@ -38,6 +39,10 @@ pub struct ControlLoop<const H: usize = HISTORY_LEN> {
     stall_ticks: [u16; 2],
     consecutive_input_faults: u16,
     last_torque_nm: [f32; 2],
+    /// Whether each wheel's duty saturated at the previous tick (its
+    /// applied torque was less than `last_torque_nm`).
+    last_saturated: [bool; 2],
+    direction: DirectionCheck,
     pacer: Pacer,
     pace: PacerState,
 }
@@ -99,6 +104,8 @@ impl<const H: usize> ControlLoop<H> {
             stall_ticks: [0; 2],
             consecutive_input_faults: 0,
             last_torque_nm: [0.0; 2],
+            last_saturated: [false; 2],
+            direction: DirectionCheck::default(),
         })
     }
 
@@ -181,6 +188,8 @@ impl<const H: usize> ControlLoop<H> {
                 self.consecutive_input_faults = 0;
                 self.status.consecutive_overruns = 0;
                 self.last_torque_nm = [0.0; 2];
+                self.last_saturated = [false; 2];
+                self.direction = DirectionCheck::default();
                 self.pace = self.pacer.initial_state();
                 self.status.state = RunState::Running;
                 Ok(())
@@ -321,7 +330,16 @@ impl<const H: usize> ControlLoop<H> {
         if let Some(step) = &out {
             stop = self
                 .supervise_step(&step.diag)
-                .or(self.check_stall(&sample));
+                .or(self.check_stall(&sample))
+                .or(self.direction.update(
+                    &self.cfg.safety,
+                    self.controller.model(),
+                    [eta.v_mps, eta.omega_radps],
+                    self.last_torque_nm,
+                    self.last_saturated,
+                    sample.rate_radps,
+                    timing.elapsed_s(),
+                ));
             if stop.is_none() {
                 torque = step.torque_nm;
             }
@@ -516,6 +534,7 @@ impl<const H: usize> ControlLoop<H> {
             if req.saturated {
                 self.status.duty_saturated = self.status.duty_saturated.saturating_add(1);
             }
+            self.last_saturated[i] = req.saturated;
             let mut cmd = req.command;
             if self.cfg.motor_inverted[i] && cmd.duty > 0 {
                 cmd.reverse = !cmd.reverse;
