@@ -35,9 +35,9 @@
 //! * disabled: CCxE = 1 only, CCR = 0: both **low** (coast; a DRV8871
 //!   sleeps after 1 ms of both low).
 //!
-//! A direction change writes CCER at once and CCR at the next update
-//! (preload): for at most one PWM period (50 µs at 20 kHz) the new
-//! direction runs at the old CCR. With MOE = 0 (fault entry, debugger
+//! CCR is not preloaded (OCxPE = 0), so a direction change (CCER) and
+//! the new duty (CCR) take effect together; a write mid-period gives one
+//! period with a duty between the old and the new one. With MOE = 0 (fault entry, debugger
 //! halt) the outputs go to their idle levels OISx = OISxN = 0 (low) "after
 //! a dead-time" (0 here) "if the clock is present" (RM0090 Table 94): the
 //! fault entries do not rely on it (they switch the pins to GPIO low).
@@ -186,6 +186,18 @@ impl HBridge {
         t.bdtr().modify(|w| {
             w.set_ossi(Ossi::IDLE_LEVEL);
             w.set_ossr(Ossr::IDLE_LEVEL);
+        });
+        // CCR written at once (OCxPE = 0), not at the next update event:
+        // the direction lines (GPIO, or CCER in TwoPwm) change at once, so
+        // a preloaded duty would run the new direction at the old duty for
+        // up to one PWM period; in TwoPwm, where zero duty is CCR = full,
+        // that is a full-voltage pulse on every arming (stm32-emu's check
+        // (j) found it: a 50 µs reverse pulse at 100 % on `wmr drive`).
+        // Unbuffered, a write mid-period gives one period with a duty
+        // between the old and the new one.
+        t.ccmr_output(0).modify(|w| {
+            w.set_ocpe(0, false);
+            w.set_ocpe(1, false);
         });
         let ch = pwm.split();
         let mut pwm = [ch.ch1, ch.ch2];

@@ -44,7 +44,8 @@ pub struct SafetyLimits {
     /// example encoder over 20 ms, and above friction's deceleration).
     pub direction_accel_radps2: f32,
     /// Direction check: the block \[ticks\] over which the acceleration and
-    /// the mean torque are taken (>= 1).
+    /// the mean torque are taken (>= 3: the two wheels' verdicts come one
+    /// and two ticks after a block's end).
     pub direction_block_ticks: u16,
     /// Direction check: mismatching blocks in a row that latch (>= 1): the
     /// window is `direction_block_ticks × direction_blocks` ticks.
@@ -85,7 +86,7 @@ impl SafetyLimits {
             && self.direction_torque_nm > 0.0
             && self.direction_accel_radps2.is_finite()
             && self.direction_accel_radps2 > 0.0
-            && self.direction_block_ticks > 0
+            && self.direction_block_ticks >= 3
             && self.direction_blocks > 0;
         if ok {
             Ok(self)

@@ -2,7 +2,7 @@
 //! control period, from raw encoder counts to motor duty.
 
 use super::config::{RuntimeConfig, SafetyLimits};
-use super::direction::DirectionCheck;
+use super::direction::{DirectionCheck, Prediction};
 use super::encoder::{CountSample, WheelCounts};
 use super::error::RuntimeConfigError;
 use super::hardware::Wheel;
@@ -39,10 +39,10 @@ pub struct ControlLoop<const H: usize = HISTORY_LEN> {
     stall_ticks: [u16; 2],
     consecutive_input_faults: u16,
     last_torque_nm: [f32; 2],
-    /// Whether each wheel's duty saturated at the previous tick (its
-    /// applied torque was less than `last_torque_nm`).
-    last_saturated: [bool; 2],
     direction: DirectionCheck,
+    /// Eq. (7) to wheel accelerations for the direction check (from the
+    /// controller's model; rebuilt by [`Self::reconfigure`]).
+    prediction: Prediction,
     pacer: Pacer,
     pace: PacerState,
 }
@@ -66,6 +66,7 @@ impl<const H: usize> ControlLoop<H> {
         estimator: EstimatorConfig,
     ) -> Result<Self, RuntimeConfigError> {
         let controller = Controller::new(cfg.controller)?;
+        let prediction = Prediction::new(controller.model());
         cfg.reference.validate()?;
         if !cfg.initial_pose.is_finite() {
             return Err(RuntimeConfigError::NonFiniteInitialPose);
@@ -104,8 +105,8 @@ impl<const H: usize> ControlLoop<H> {
             stall_ticks: [0; 2],
             consecutive_input_faults: 0,
             last_torque_nm: [0.0; 2],
-            last_saturated: [false; 2],
             direction: DirectionCheck::default(),
+            prediction,
         })
     }
 
@@ -188,8 +189,10 @@ impl<const H: usize> ControlLoop<H> {
                 self.consecutive_input_faults = 0;
                 self.status.consecutive_overruns = 0;
                 self.last_torque_nm = [0.0; 2];
-                self.last_saturated = [false; 2];
-                self.direction = DirectionCheck::default();
+                self.direction = DirectionCheck::start(
+                    self.counts.last_rate_radps(),
+                    self.status.duty_saturated,
+                );
                 self.pace = self.pacer.initial_state();
                 self.status.state = RunState::Running;
                 Ok(())
@@ -243,6 +246,7 @@ impl<const H: usize> ControlLoop<H> {
         // The pacer's saturation and health thresholds follow the gains and limit.
         let pacer = Pacer::new(self.cfg.pacing, &controller).map_err(invalid)?;
         safety.validate().map_err(ReconfigureError::Invalid)?;
+        self.prediction = Prediction::new(new.model());
         self.controller = new;
         self.pace = pacer.initial_state();
         self.pacer = pacer;
@@ -333,12 +337,13 @@ impl<const H: usize> ControlLoop<H> {
                 .or(self.check_stall(&sample))
                 .or(self.direction.update(
                     &self.cfg.safety,
-                    self.controller.model(),
+                    &self.prediction,
+                    self.status.run_ticks,
                     [eta.v_mps, eta.omega_radps],
                     self.last_torque_nm,
-                    self.last_saturated,
+                    self.status.duty_saturated,
                     sample.rate_radps,
-                    timing.elapsed_s(),
+                    self.cfg.controller.period_s,
                 ));
             if stop.is_none() {
                 torque = step.torque_nm;
@@ -534,7 +539,6 @@ impl<const H: usize> ControlLoop<H> {
             if req.saturated {
                 self.status.duty_saturated = self.status.duty_saturated.saturating_add(1);
             }
-            self.last_saturated[i] = req.saturated;
             let mut cmd = req.command;
             if self.cfg.motor_inverted[i] && cmd.duty > 0 {
                 cmd.reverse = !cmd.reverse;

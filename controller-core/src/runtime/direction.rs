@@ -44,97 +44,167 @@ use super::hardware::Wheel;
 use super::state::StopReason;
 use crate::model::ReducedModel;
 
-/// The direction check's state (one block in progress per wheel).
+/// Eq. (7) mapped to wheel accelerations, derived once from the model:
+/// φ̈_i = W_i0·τ_R + W_i1·τ_L + c_ω²·ω² ∓ c_ωv·ω·v (− right, + left).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Prediction {
+    /// W = S·N with S = \[\[1/r, h/r\], \[1/r, −h/r\]\] \[rad/s² per N·m\].
+    w: [[f32; 2]; 2],
+    /// Coriolis coefficient of ω² \[rad/s² per (rad/s)²\].
+    c_w2: f32,
+    /// Coriolis coefficient of ω·v \[rad/s² per rad/s·m/s\].
+    c_wv: f32,
+}
+
+impl Prediction {
+    /// From the controller's reduced model.
+    pub(crate) fn new(model: &ReducedModel) -> Self {
+        let (h, inv_r) = (model.params.half_track_m, 1.0 / model.params.wheel_radius_m);
+        let n = model.n;
+        let w = [
+            [
+                (n[0][0] + h * n[1][0]) * inv_r,
+                (n[0][1] + h * n[1][1]) * inv_r,
+            ],
+            [
+                (n[0][0] - h * n[1][0]) * inv_r,
+                (n[0][1] - h * n[1][1]) * inv_r,
+            ],
+        ];
+        Self {
+            w,
+            c_w2: model.n1_coeff / model.m1_diag[0] * inv_r,
+            c_wv: h * model.n1_coeff / model.m1_diag[1] * inv_r,
+        }
+    }
+}
+
+/// The direction check's state: one block in progress for both wheels.
+/// Blocks are counted on the run's tick count (`Status::run_ticks`), so
+/// a tick inside a block only adds two torques.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct DirectionCheck {
-    /// Ticks in the current block.
-    ticks: u16,
-    /// Block duration so far \[s\].
-    elapsed_s: f32,
-    /// Sum of the applied torques over the block \[N·m\] `[right, left]`.
+    /// Σ of the applied torques over the block \[N·m\] `[right, left]`.
     torque_sum_nm: [f32; 2],
     /// Wheel rates at the start of the block \[rad/s\].
     rate_start_radps: [f32; 2],
-    /// A wheel's duty saturated during the block.
-    saturated: [bool; 2],
+    /// The duty-saturation counter (`Status::duty_saturated`) at the
+    /// block's start: a block in which it moved gives no verdict.
+    saturated_at_start: u32,
+    /// The ended block awaiting its verdicts (the right wheel's one tick
+    /// after its end, the left wheel's two ticks after: no tick does more
+    /// than one wheel's arithmetic): torque sums and rate changes.
+    ended_torque_sum_nm: [f32; 2],
+    ended_change_radps: [f32; 2],
+    /// The ended block gets verdicts (its duty did not saturate).
+    ended_valid: bool,
     /// Consecutive mismatching blocks per wheel.
     strikes: [u16; 2],
-    /// The first block has its start rate (the first tick after arming
-    /// only sets it).
-    started: bool,
 }
 
 impl DirectionCheck {
-    /// A check whose first block starts at `rate_radps` (the default
-    /// starts at the first [`Self::update`]'s rates).
-    pub(crate) fn start(rate_radps: [f32; 2]) -> Self {
+    /// A check whose first block starts now, at arming: wheel rates
+    /// `rate_radps`, duty-saturation counter `saturated_count`.
+    pub(crate) fn start(rate_radps: [f32; 2], saturated_count: u32) -> Self {
         Self {
             rate_start_radps: rate_radps,
-            started: true,
+            saturated_at_start: saturated_count,
             ..Self::default()
         }
     }
 
-    /// One running tick: `applied_nm` is the torque that acted during the
-    /// elapsed tick (written at the previous one), `saturated` whether its
-    /// duty was clamped, `rate_radps` the wheel rates measured now,
-    /// `elapsed_s` the tick's true duration, `eta` the measured \[v, ω\]
-    /// (for eq. 7's Coriolis term). Returns the stop when a wheel has
-    /// mismatched `direction_blocks` blocks in a row (the first wheel
-    /// found).
+    /// One running tick: `run_ticks` the steps since arming before this
+    /// one (`Status::run_ticks`), `applied_nm` the torque that acted
+    /// during the elapsed tick (written at the previous one),
+    /// `saturated_count` the duty-saturation counter so far, `rate_radps`
+    /// the wheel rates measured now, `period_s` the control period (the
+    /// block time is ticks × period: a late tick only shifts the tolerance
+    /// slightly, and sustained lateness latches `LoopOverrun` anyway),
+    /// `eta` the measured \[v, ω\] (eq. 7's Coriolis term). Returns the
+    /// stop when a wheel has mismatched `direction_blocks` blocks in a
+    /// row. `direction_block_ticks` >= 3 (validated).
     #[allow(clippy::too_many_arguments)]
+    #[inline]
     pub(crate) fn update(
         &mut self,
         limits: &SafetyLimits,
-        model: &ReducedModel,
+        prediction: &Prediction,
+        run_ticks: u32,
         eta: [f32; 2],
         applied_nm: [f32; 2],
-        saturated: [bool; 2],
+        saturated_count: u32,
         rate_radps: [f32; 2],
-        elapsed_s: f32,
+        period_s: f32,
     ) -> Option<StopReason> {
-        if !self.started {
-            *self = Self::start(rate_radps);
-            return None;
-        }
-        self.ticks += 1;
-        self.elapsed_s += elapsed_s;
-        for i in 0..2 {
-            self.torque_sum_nm[i] += applied_nm[i];
-            self.saturated[i] |= saturated[i];
-        }
-        if self.ticks < limits.direction_block_ticks {
-            return None;
-        }
-        let mut stop = None;
-        let n = self.ticks as f32;
-        let torque = [self.torque_sum_nm[0] / n, self.torque_sum_nm[1] / n];
-        // Eq. (7): η̇ = Mη + Nτ; wheels φ̈ = (v̇ ± h·ω̇)/r.
-        let (tau_eta, m_eta) = (model.n_tau(torque), model.m_eta(eta));
-        let (v_dot, w_dot) = (tau_eta[0] + m_eta[0], tau_eta[1] + m_eta[1]);
-        let (h, inv_r) = (model.params.half_track_m, 1.0 / model.params.wheel_radius_m);
-        let predicted = [(v_dot + h * w_dot) * inv_r, (v_dot - h * w_dot) * inv_r];
-        for w in Wheel::BOTH {
-            let i = w.index();
-            let change = rate_radps[i] - self.rate_start_radps[i];
-            let against = predicted[i] * change < 0.0
-                && torque[i].abs() >= limits.direction_torque_nm
-                && predicted[i].abs() >= limits.direction_accel_radps2
-                && change.abs() >= limits.direction_accel_radps2 * self.elapsed_s
-                && !self.saturated[i];
-            self.strikes[i] = if against {
-                self.strikes[i].saturating_add(1)
-            } else {
-                0
-            };
-            if self.strikes[i] >= limits.direction_blocks && stop.is_none() {
-                stop = Some(StopReason::DirectionMismatch { wheel: w });
+        self.torque_sum_nm[0] += applied_nm[0];
+        self.torque_sum_nm[1] += applied_nm[1];
+        let n = limits.direction_block_ticks as u32;
+        match run_ticks % n {
+            0 if run_ticks > 0 => self.end_block(saturated_count, rate_radps),
+            1 if self.ended_valid => {
+                return self.judge(limits, prediction, eta, Wheel::Right, n, period_s)
             }
+            2 if self.ended_valid => {
+                return self.judge(limits, prediction, eta, Wheel::Left, n, period_s)
+            }
+            _ => {}
         }
-        let strikes = self.strikes;
-        *self = Self::start(rate_radps);
-        self.strikes = strikes;
-        stop
+        None
+    }
+
+    /// The block's end: its sums and rate changes kept for the verdicts,
+    /// the next block started (a block in which the duty saturated gives
+    /// none and clears the counts).
+    #[inline(never)]
+    fn end_block(&mut self, saturated_count: u32, rate_radps: [f32; 2]) {
+        self.ended_valid = saturated_count == self.saturated_at_start;
+        if self.ended_valid {
+            self.ended_torque_sum_nm = self.torque_sum_nm;
+            self.ended_change_radps = [
+                rate_radps[0] - self.rate_start_radps[0],
+                rate_radps[1] - self.rate_start_radps[1],
+            ];
+        } else {
+            self.strikes = [0; 2];
+        }
+        self.torque_sum_nm = [0.0; 2];
+        self.rate_start_radps = rate_radps;
+        self.saturated_at_start = saturated_count;
+    }
+
+    /// One wheel's verdict on the ended block of `n` ticks: eq. (7) at its
+    /// mean torques and the measured η against its rate change.
+    #[inline(never)]
+    fn judge(
+        &mut self,
+        limits: &SafetyLimits,
+        prediction: &Prediction,
+        eta: [f32; 2],
+        wheel: Wheel,
+        n: u32,
+        period_s: f32,
+    ) -> Option<StopReason> {
+        let i = wheel.index();
+        let n = n as f32;
+        let inv_n = 1.0 / n;
+        let w = &prediction.w[i];
+        let coriolis = prediction.c_w2 * eta[1] * eta[1];
+        let cross = prediction.c_wv * eta[1] * eta[0];
+        let sum = &self.ended_torque_sum_nm;
+        let predicted = (w[0] * sum[0] + w[1] * sum[1]) * inv_n
+            + if i == 0 {
+                coriolis - cross
+            } else {
+                coriolis + cross
+            };
+        let change = self.ended_change_radps[i];
+        let against = predicted * change < 0.0
+            && (sum[i] * inv_n).abs() >= limits.direction_torque_nm
+            && predicted.abs() >= limits.direction_accel_radps2
+            && change.abs() >= limits.direction_accel_radps2 * n * period_s;
+        let k = &mut self.strikes[i];
+        *k = if against { k.saturating_add(1) } else { 0 };
+        (*k >= limits.direction_blocks).then_some(StopReason::DirectionMismatch { wheel })
     }
 }
 
@@ -142,14 +212,15 @@ impl DirectionCheck {
 mod tests {
     use super::*;
 
-    fn model() -> ReducedModel {
-        ReducedModel::new(&crate::RobotParams::paper()).unwrap()
+    fn model() -> Prediction {
+        Prediction::new(&ReducedModel::new(&crate::RobotParams::paper()).unwrap())
     }
 
     /// `ticks` ticks of constant torques and measured accelerations, the
     /// rates going on from `rate`.
     fn run(
         check: &mut DirectionCheck,
+        tick: &mut u32,
         rate: &mut [f32; 2],
         torque: [f32; 2],
         accel: [f32; 2],
@@ -162,26 +233,36 @@ mod tests {
             for i in 0..2 {
                 rate[i] += accel[i] * 1e-3;
             }
-            stop = stop.or(check.update(&l, &m, [0.0; 2], torque, [false; 2], *rate, 1e-3));
+            stop = stop.or(check.update(&l, &m, *tick, [0.0; 2], torque, 0, *rate, 1e-3));
+            *tick += 1;
         }
         stop
     }
 
     /// A wheel accelerating against its torque latches after exactly
     /// `direction_blocks` blocks, not before; the other wheel is named.
+    /// (The right wheel is judged one tick after the block's end, the
+    /// left one two ticks after.)
     #[test]
     fn opposite_acceleration_latches_after_the_window() {
         let l = SafetyLimits::EXAMPLE;
         let window = (l.direction_block_ticks * l.direction_blocks) as u32;
-        let (mut c, mut r) = (DirectionCheck::start([0.0; 2]), [0.0f32; 2]);
+        let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2], 0), 0u32, [0.0f32; 2]);
         // Both wheels +5 N·m (straight ahead: both predicted forward),
         // the left measured −50 rad/s² (an inverted encoder).
         assert_eq!(
-            run(&mut c, &mut r, [5.0, 5.0], [50.0, -50.0], window - 1),
+            run(
+                &mut c,
+                &mut t,
+                &mut r,
+                [5.0, 5.0],
+                [50.0, -50.0],
+                window + 2
+            ),
             None
         );
         assert_eq!(
-            run(&mut c, &mut r, [5.0, 5.0], [50.0, -50.0], 1),
+            run(&mut c, &mut t, &mut r, [5.0, 5.0], [50.0, -50.0], 1),
             Some(StopReason::DirectionMismatch { wheel: Wheel::Left })
         );
     }
@@ -206,19 +287,20 @@ mod tests {
             // predicts the left wheel speeding up forwards, as measured.
             ([10.0, -2.5], [60.0, 20.0]),
         ] {
-            let (mut c, mut r) = (DirectionCheck::start([0.0; 2]), [0.0f32; 2]);
+            let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2], 0), 0u32, [0.0f32; 2]);
             assert_eq!(
-                run(&mut c, &mut r, torque, accel, long),
+                run(&mut c, &mut t, &mut r, torque, accel, long),
                 None,
                 "{torque:?} {accel:?}"
             );
         }
-        let (mut c, mut r) = (DirectionCheck::start([0.0; 2]), [0.0f32; 2]);
+        let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2], 0), 0u32, [0.0f32; 2]);
         let block = l.direction_block_ticks as u32;
         for _ in 0..20 {
             assert_eq!(
                 run(
                     &mut c,
+                    &mut t,
                     &mut r,
                     [5.0, 5.0],
                     [-50.0, 0.0],
@@ -226,7 +308,10 @@ mod tests {
                 ),
                 None
             );
-            assert_eq!(run(&mut c, &mut r, [5.0, 5.0], [50.0, 50.0], block), None);
+            assert_eq!(
+                run(&mut c, &mut t, &mut r, [5.0, 5.0], [50.0, 50.0], block),
+                None
+            );
         }
     }
 
@@ -235,19 +320,12 @@ mod tests {
     #[test]
     fn saturated_blocks_do_not_count() {
         let l = SafetyLimits::EXAMPLE;
-        let mut c = DirectionCheck::start([0.0; 2]);
+        let mut c = DirectionCheck::start([0.0; 2], 0);
         let mut rate = [0.0f32; 2];
-        for _ in 0..(20 * l.direction_block_ticks * l.direction_blocks) {
+        for k in 0..(20 * l.direction_block_ticks * l.direction_blocks) as u32 {
             rate[0] -= 0.05;
-            let stop = c.update(
-                &l,
-                &model(),
-                [0.0; 2],
-                [5.0, 0.0],
-                [true, false],
-                rate,
-                1e-3,
-            );
+            // The duty-saturation counter moves in every block.
+            let stop = c.update(&l, &model(), k, [0.0; 2], [5.0, 5.0], k, rate, 1e-3);
             assert_eq!(stop, None);
         }
     }
