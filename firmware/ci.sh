@@ -11,10 +11,12 @@
 # `dsb` that closes them, firmware/src/fault.rs), must not touch the stack
 # (no push, no store or load through sp, no sub sp; the panic handler is
 # allowed the compiler's frame prologue `push {r7, lr}; mov r7, sp`, see
-# fault.rs), and must contain the six motor-off stores; the vector table's
+# fault.rs), and must contain the seven motor-off stores, with the GPIOB
+# mask of every bridge mode's lines (PB0, PB1, PB12-PB15: BSRR 0xF003 << 16,
+# MODER outputs 0x55000005; firmware/src/motors.rs); the vector table's
 # NMI and HardFault entries must be those symbols, and Reset must start by
 # calling the board's __pre_init (the motor lines low before the RAM
-# initialisation, firmware/src/board.rs). Negative control:
+# initialisation, firmware/src/board.rs; the same GPIOB mask). Negative control:
 # the same check on a build with the `ci-fault-entry-pushes` feature (a
 # push before the stores) must fail, or this script fails.
 #
@@ -71,13 +73,16 @@ check_entry() {
             if ($0 ~ /^str(\.w)?[ \t]+r[23], \[r1/) stores++
             if ($0 ~ /^movt[ \t]+r1, #0x4002$/) gpio++
             if ($0 ~ /^movt[ \t]+r1, #0x4001$/) tim1++
+            if ($0 ~ /^movt[ \t]+r2, #0xf003$/) pbmask++
+            if ($0 ~ /^movt[ \t]+r2, #0x5500$/) pbmode++
         }
         END {
             if (!n) { printf "    %s: not found\n", sym; exit 1 }
             if (!done) { printf "    %s: no motor-off sequence (no dsb)\n", sym; exit 1 }
             if (bad != "") { printf "    %s: touches the stack before the motor-off stores:%s\n", sym, bad; exit 1 }
-            if (stores < 6 || gpio < 2 || tim1 < 1) { printf "    %s: %d motor-off stores (GPIO %d, TIM1 %d), expected 6 (2, 1)\n", sym, stores, gpio, tim1; exit 1 }
-            printf "    %s: %d stores to GPIOB/TIM1/GPIOA before any stack access%s\n", sym, stores, pok ? " (after the frame prologue)" : ""
+            if (stores < 7 || gpio < 2 || tim1 < 1) { printf "    %s: %d motor-off stores (GPIO %d, TIM1 %d), expected 7 (2, 1)\n", sym, stores, gpio, tim1; exit 1 }
+            if (!pbmask || !pbmode) { printf "    %s: GPIOB reset mask 0xF003 (PB0, PB1, PB12-PB15) or its MODER outputs (0x55000005) missing: a bridge mode'"'"'s line is left driven\n", sym; exit 1 }
+            printf "    %s: %d stores to GPIOB/TIM1/GPIOA before any stack access, every bridge mode'"'"'s lines (PB0, PB1, PB12-PB15, PA8, PA9)%s\n", sym, stores, pok ? " (after the frame prologue)" : ""
         }'
 }
 
@@ -107,7 +112,7 @@ check_fault_entries() {
     # Reset's first instruction calls the board's __pre_init (motor lines
     # low before the RAM initialisation), not cortex-m-rt's empty default,
     # and __pre_init does not use the stack.
-    local first pre def
+    local first pre def pre_dis
     first=$("$OBJDUMP" -d --no-show-raw-insn --disassemble-symbols=Reset "$elf" | awk '/^ *[0-9a-f]+:/ { print; exit }')
     pre=$("$NM" "$elf" | awk '$3 == "__pre_init" { print $1; exit }')
     def=$("$NM" "$elf" | awk '$3 == "DefaultPreInit" { print $1; exit }')
@@ -117,6 +122,10 @@ check_fault_entries() {
     elif "$OBJDUMP" -d --no-show-raw-insn --disassemble-symbols=__pre_init "$elf" |
         awk '/^ *[0-9a-f]+:/' | grep -Eq '(^|[^a-z])sp([^a-z]|$)|	(push|pop|stm)'; then
         echo "    __pre_init uses the stack"
+        ok=1
+    elif pre_dis=$("$OBJDUMP" -d --no-show-raw-insn --disassemble-symbols=__pre_init "$elf") &&
+        { ! grep -q 'movt.*#0xf003' <<<"$pre_dis" || ! grep -q 'movt.*#0x5500' <<<"$pre_dis"; }; then
+        echo "    __pre_init does not reset and drive every bridge mode's GPIOB line (mask 0xF003, MODER 0x55000005)"
         ok=1
     else
         echo "    Reset -> __pre_init (0x$pre): motor lines low before the RAM initialisation"

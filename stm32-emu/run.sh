@@ -27,12 +27,24 @@
 #       time, measured at the register write that completes it), then the IWDG
 #       resets the chip (IWDGRSTF);
 #   (g) the F411CE image boots to USB enumeration: it reaches the executor
-#       and the first USB OTG_FS access, which is reported as unmodelled.
+#       and the first USB OTG_FS access, which is reported as unmodelled;
+#   (i) every bridge mode tracks the square: the F446 image built with
+#       BRIDGE_MODE=two-pwm and =pwm-in1-in2, run with the harness's bridge
+#       model of that mode (--bridge: the armature voltage from the pins,
+#       drive/brake/coast, src/bridge.rs), tracks it within REL_TOL_RMS of
+#       hil-sim's runtime path, as (b) does for pwm-dir;
+#   (j) a small reverse command gives a small reverse voltage in every mode
+#       (issue 18's lurch): `wmr drive --v -0.05` for 2 s; the largest
+#       armature voltage of either wheel stays within REVERSE_MAX_FRACTION
+#       (25 %) of the supply, the right wheel's in reverse (the left motor
+#       is mirrored: forward). Control: an image with the naive two-PWM
+#       mapping (feature ci-naive-two-pwm: IN1 = duty PWM, IN2 = direction
+#       level) must fail it.
 # Prints the numbers (RMS both ways, emulation speed, step time).
 #
 # Usage: stm32-emu/run.sh       (from anywhere; builds what it needs)
 # Env:   OUT_DIR=<dir>  RECORD_S=10  REL_TOL_RMS=0.10  MAX_DROPPED_FRAMES=10
-#        FAULT_CUT_US=20  LINK_SILENCE_S=1.5  RATE_HZ=50
+#        FAULT_CUT_US=20  LINK_SILENCE_S=1.5  RATE_HZ=50  REVERSE_MAX_FRACTION=0.25
 set -euo pipefail
 cd "$(dirname "$0")"
 ROOT="$(cd .. && pwd)"
@@ -46,6 +58,7 @@ REL_TOL_RMS="${REL_TOL_RMS:-0.10}"
 MAX_DROPPED_FRAMES="${MAX_DROPPED_FRAMES:-10}"
 FAULT_CUT_US="${FAULT_CUT_US:-20}"
 LINK_SILENCE_S="${LINK_SILENCE_S:-1.5}"
+REVERSE_MAX_FRACTION="${REVERSE_MAX_FRACTION:-0.25}"
 OUT_DIR="${OUT_DIR:-$(mktemp -d)}"
 mkdir -p "$OUT_DIR"
 TARGET=thumbv7em-none-eabihf
@@ -103,6 +116,26 @@ for chip in stm32f446re stm32f411ce; do
             --features "$chip" --target "$TARGET" --target-dir "target/ci-$chip")
     fi
 done
+# One F446 image per bridge mode (BRIDGE_MODE, firmware/src/config.rs) and
+# the naive two-PWM control, built in ci.sh's F446 directory (only the
+# firmware crate rebuilds) and copied out; the default image is rebuilt
+# last, so the directory holds ci.sh's image again.
+fw_build() {
+    (cd "$ROOT/firmware" && nice cargo build --release --locked --no-default-features \
+        --features "$1" --target "$TARGET" --target-dir target/ci-stm32f446re)
+}
+declare -A MODE_ELF
+for mode in two-pwm pwm-in1-in2 naive; do
+    if [ "$mode" = naive ]; then
+        BRIDGE_MODE=two-pwm fw_build stm32f446re,ci-naive-two-pwm
+    else
+        BRIDGE_MODE="$mode" fw_build stm32f446re
+    fi
+    MODE_ELF[$mode]="$OUT_DIR/firmware-$mode"
+    cp "$ELF446" "${MODE_ELF[$mode]}"
+done
+fw_build stm32f446re
+MODE_ELF[pwm-dir]="$ELF446"
 t_fw=$((SECONDS - t0))
 t0=$SECONDS
 nice cargo build --release --locked
@@ -203,6 +236,7 @@ grep -q "motors off" <<<"$tail_motor" || fail "the motors are still driven after
 echo "OK: the firmware stopped the robot on link silence, motors off"
 
 step "reference: hil-sim's runtime path behind the link, the same wmr commands"
+rm -f "$OUT_DIR/hilsim.out"
 "$HILSIM" device --pty --scenario reference.toml >"$OUT_DIR/hilsim.out" 2>"$OUT_DIR/hilsim.err" </dev/null &
 EPID=$!
 t_end=$((SECONDS + 10))
@@ -295,6 +329,59 @@ grep -q "executor idle reached" "$OUT_DIR/f411.log" || fail "the F411 image did 
 grep -q "USB_OTG_FS" <<<"$s" || fail "the F411 image stopped elsewhere than at USB OTG_FS: $s"
 echo "OK: F411CE reached the executor and its first USB OTG_FS access ($(json error "$s" | head -c 0)$(sed -n 's/.*"error":"\([^"]*\)".*/\1/p' <<<"$s"))"
 
+step "(i) every bridge mode tracks the square (the F446 image per BRIDGE_MODE, the harness's bridge model per mode)"
+declare -A MODE_RMS
+MODE_RMS[pwm-dir]="$rms"
+for mode in two-pwm pwm-in1-in2; do
+    start_emu --elf "${MODE_ELF[$mode]}" --bridge "$mode"
+    wait_for_log "IWDG started" 20
+    PORT="$PTY"
+    drive stm32f446re "$OUT_DIR/emu_square_$mode.csv"
+    cleanup
+    grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fail "$mode: a reset, fault or unmodelled access during the tracking run"
+    m_rms="$(json rms_pos_err_m "$rec")"
+    m_rows="$(json rows "$rec")"
+    [ -n "$m_rms" ] || fail "$mode: no metrics in wmr record's summary"
+    [ "$m_rows" -ge "$min_rows" ] || fail "$mode: $m_rows telemetry rows recorded, expected >= $min_rows"
+    within_rel "$m_rms" "$ref_rms" "$REL_TOL_RMS" ||
+        fail "$mode: RMS position error $m_rms m differs from hil-sim's $ref_rms m by more than $REL_TOL_RMS of it"
+    MODE_RMS[$mode]="$m_rms"
+    echo "OK: $mode tracks the square: RMS $m_rms m (hil-sim $ref_rms m, pwm-dir $rms m)"
+done
+
+# reverse_peaks ELF MODE: `wmr drive --v -0.05` for 2 s; sets peak_r,
+# peak_l (the largest armature voltage fraction of each wheel, signed).
+reverse_peaks() {
+    start_emu --elf "$1" --bridge "$2"
+    wait_for_log "IWDG started" 20
+    PORT="$PTY"
+    wmr drive --v -0.05 --w 0 --for 2 >"$OUT_DIR/drive_$2.out" 2>&1 || true
+    cleanup
+    peak_r="$(sed -n 's/.*armature peak right: \([-+0-9.]*\) .*/\1/p' "$LOG" | tail -1)"
+    peak_l="$(sed -n 's/.*armature peak left: \([-+0-9.]*\) .*/\1/p' "$LOG" | tail -1)"
+    peak_r="${peak_r:-0}"
+    peak_l="${peak_l:-0}"
+}
+small_reverse() {
+    awk -v r="$1" -v l="$2" -v m="$REVERSE_MAX_FRACTION" 'BEGIN {
+        ar = r < 0 ? -r : r; al = l < 0 ? -l : l
+        exit !(r < 0 && ar <= m && al <= m && (r != 0 || l != 0)) }'
+}
+step "(j) a small reverse command gives a small reverse voltage in every mode (wmr drive --v -0.05 for 2 s)"
+declare -A MODE_PEAK
+for mode in pwm-dir two-pwm pwm-in1-in2; do
+    reverse_peaks "${MODE_ELF[$mode]}" "$mode"
+    MODE_PEAK[$mode]="$peak_r/$peak_l"
+    small_reverse "$peak_r" "$peak_l" ||
+        fail "$mode: a small reverse command gave armature peaks right $peak_r, left $peak_l of the supply (want right < 0, both within $REVERSE_MAX_FRACTION): $(tail -2 "$OUT_DIR/drive_$mode.out")"
+    echo "OK: $mode: armature peaks right $peak_r, left $peak_l of the supply (right reverse, left mirrored)"
+done
+reverse_peaks "${MODE_ELF[naive]}" two-pwm
+if small_reverse "$peak_r" "$peak_l"; then
+    fail "control: the naive two-PWM mapping passed the reverse check (peaks $peak_r / $peak_l): the check cannot see the lurch"
+fi
+echo "OK: control: the naive two-PWM mapping lurches (armature peaks right $peak_r, left $peak_l of the supply): the check rejects it"
+
 step "(h) telemetry beyond the line rate (wmr's default 100 Hz) over USART2: the link stays up"
 # One frame is about 160 B: 100 Hz is 16 kB/s against the 11.5 kB/s that
 # 115 200 baud carries. The excess must be dropped and counted on the robot
@@ -326,4 +413,8 @@ echo "paced (pty) run: ${speed_pty}x of real time over the wmr session (<= 1 by 
 
 echo
 echo "RESULT rms_pos_err_m=$rms ref_rms_pos_err_m=$ref_rms rows=$rows dropped=$dropped speed_x=$speed build_emu_s=$t_emu"
+for mode in pwm-dir two-pwm pwm-in1-in2; do
+    echo "RESULT bridge=$mode rms_pos_err_m=${MODE_RMS[$mode]} reverse_armature_peak_r/l=${MODE_PEAK[$mode]}"
+done
+echo "RESULT bridge=naive-two-pwm reverse_armature_peak_r/l=$peak_r/$peak_l (control)"
 echo "stm32-emu: all checks passed in $((SECONDS - T_START)) s (logs: $OUT_DIR)"

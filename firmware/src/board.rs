@@ -27,14 +27,12 @@
 //! and the first instruction only the external pull-downs hold them (see
 //! the README's pin-state table).
 
-use controller_core::runtime::{DutyCommand, Encoder, MotorDriver, WheelOdometryOnly};
-use embassy_stm32::gpio::{Input, Level, Output, OutputType, Pull, Speed};
-use embassy_stm32::pac::timer::vals::{FilterValue, Ossi};
-use embassy_stm32::peripherals::{IWDG, TIM1, TIM3, TIM4};
-use embassy_stm32::time::{khz, Hertz};
-use embassy_stm32::timer::low_level::CountingMode;
+use controller_core::runtime::{BridgeParams, Encoder, WheelOdometryOnly};
+use embassy_stm32::gpio::{Input, Pull};
+use embassy_stm32::pac::timer::vals::FilterValue;
+use embassy_stm32::peripherals::{IWDG, TIM3, TIM4};
+use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::qei::{self, Qei};
-use embassy_stm32::timer::simple_pwm::{PwmPin, PwmPinConfig, SimplePwm, SimplePwmChannel};
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{pac, rcc, Config};
 
@@ -127,9 +125,6 @@ pub const ENCODER_INPUT_FILTER: FilterValue = FilterValue::FDTS_DIV16_N8;
 /// outputs are still forced low by TIM1 while halted, but ENABLE and DIR
 /// keep their levels).
 const FREEZE_WATCHDOG_ON_HALT: bool = cfg!(feature = "halt-freezes-watchdog");
-
-/// Motor PWM frequency (inaudible, and well above the 1 kHz loop).
-pub const PWM_FREQ: Hertz = khz(20);
 
 /// Which oscillator the PLL runs from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
@@ -235,46 +230,9 @@ impl<T: embassy_stm32::timer::GeneralInstance4Channel> Encoder for QeiEncoder<T>
 /// Both encoders, `(right, left)`.
 pub type Encoders = (QeiEncoder<TIM3>, QeiEncoder<TIM4>);
 
-/// Two sign-magnitude H-bridge channels (PWM + DIR) with a shared enable.
-pub struct HBridge {
-    pwm: [SimplePwmChannel<'static, TIM1>; 2],
-    dir: [Output<'static>; 2],
-    enable: Output<'static>,
-    enabled: bool,
-}
-
-impl HBridge {
-    /// PWM counts at 100 % duty (the timer's resolution at [`PWM_FREQ`]).
-    pub fn full_scale(&self) -> u32 {
-        self.pwm[0].max_duty_cycle()
-    }
-}
-
-/// The PWM channels stay enabled (CCxE = 1, MOE = 1) in every state: with
-/// CCR = 0, PWM mode 1 keeps OCxREF low, so the timer drives the pins low.
-/// Clearing CCxE instead (with OSSR = 0) would release the pins to the GPIO
-/// controller: floating, the defect this layout avoids.
-impl MotorDriver for HBridge {
-    fn set(&mut self, cmd: [DutyCommand; 2]) {
-        for ((ch, dir), c) in self.pwm.iter_mut().zip(self.dir.iter_mut()).zip(cmd) {
-            dir.set_level(if c.reverse { Level::High } else { Level::Low });
-            ch.set_duty_cycle(c.duty as u32);
-        }
-        if !self.enabled {
-            self.enable.set_high();
-            self.enabled = true;
-        }
-    }
-
-    fn disable(&mut self) {
-        self.enable.set_low();
-        for (ch, dir) in self.pwm.iter_mut().zip(self.dir.iter_mut()) {
-            ch.set_duty_cycle(0);
-            dir.set_low();
-        }
-        self.enabled = false;
-    }
-}
+/// The motor driver (`motors.rs`): two H-bridge channels in the boot-time
+/// bridge mode.
+pub use crate::motors::HBridge;
 
 /// The arm button (active low).
 pub struct ArmButton(Input<'static>);
@@ -317,11 +275,12 @@ pub struct Board {
 // before cortex-m-rt zeroes .bss and copies .data (about 1.5 ms on the
 // 16 MHz reset clock, during which the pins would otherwise float):
 // cortex-m-rt's `Reset` calls `__pre_init` first. Assembly, registers
-// only, no RAM (none is initialised yet); the same writes as
-// [`outputs_low_early`], which `main` repeats (idempotent). RCC AHB1ENR
-// (0x4002_3830) GPIOAEN | GPIOBEN, read back; GPIOB (0x4002_0400) and
-// GPIOA (0x4002_0000): BSRR resets PB12-14 / PA8-9, PUPDR pull-downs on
-// PB14, PA8, PA9, MODER outputs on PB12-14, PA8-9.
+// only (r0-r3, caller-saved), no RAM (none is initialised yet); the same
+// writes as [`outputs_low_early`], which `main` repeats (idempotent). RCC
+// AHB1ENR (0x4002_3830) GPIOAEN | GPIOBEN, read back; GPIOB (0x4002_0400)
+// and GPIOA (0x4002_0000): BSRR resets every motor line of every bridge
+// mode (motors.rs: PB0, PB1, PB12-PB15 = mask 0xF003; PA8, PA9), PUPDR
+// pull-downs on all of them, MODER outputs on all of them.
 core::arch::global_asm!(
     ".section .text.__pre_init,\"ax\",%progbits",
     ".global __pre_init",
@@ -338,23 +297,34 @@ core::arch::global_asm!(
     "movt r0, #0x4002",
     "movw r2, #0x0000",
     "movt r2, #0x4002",
+    // BSRR: reset PB0, PB1, PB12-PB15; PA8, PA9.
     "movw r1, #0x0000",
-    "movt r1, #0x7000",
+    "movt r1, #0xF003",
     "str r1, [r0, #0x18]",
     "movw r1, #0x0000",
     "movt r1, #0x0300",
     "str r1, [r2, #0x18]",
+    // PUPDR: pull-down (0b10) on the same pins.
     "ldr r1, [r0, #0x0C]",
-    "bic r1, r1, #0x30000000",
-    "orr r1, r1, #0x20000000",
+    "movw r3, #0x000F",
+    "movt r3, #0xFF00",
+    "bic r1, r1, r3",
+    "movw r3, #0x000A",
+    "movt r3, #0xAA00",
+    "orr r1, r1, r3",
     "str r1, [r0, #0x0C]",
     "ldr r1, [r2, #0x0C]",
     "bic r1, r1, #0xF0000",
     "orr r1, r1, #0xA0000",
     "str r1, [r2, #0x0C]",
+    // MODER: general-purpose output (0b01) on the same pins.
     "ldr r1, [r0]",
-    "bic r1, r1, #0x3F000000",
-    "orr r1, r1, #0x15000000",
+    "movw r3, #0x000F",
+    "movt r3, #0xFF00",
+    "bic r1, r1, r3",
+    "movw r3, #0x0005",
+    "movt r3, #0x5500",
+    "orr r1, r1, r3",
     "str r1, [r0]",
     "ldr r1, [r2]",
     "bic r1, r1, #0xF0000",
@@ -365,12 +335,13 @@ core::arch::global_asm!(
 );
 
 /// Drives the motor outputs low with raw register writes, before anything
-/// else runs (call it first in `main`, before [`init`]): ENABLE (PB14), DIR
-/// (PB12, PB13) and PWM (PA8, PA9) as push-pull outputs at 0, with pull-downs
-/// on the three enable/PWM lines for the instants when [`init`] hands PA8/PA9
-/// to TIM1. Runs on the reset clock (HSI); embassy's init only enables the
-/// GPIO clocks (it does not reset the ports), so this state holds until
-/// [`init`] reconfigures the pins.
+/// else runs (call it first in `main`, before [`init`]): every motor line
+/// of every bridge mode (motors.rs: ENABLE PB14, the direction / IN lines
+/// PB0, PB1, PB12, PB13, PB15, PWM PA8, PA9) as push-pull outputs at 0,
+/// with pull-downs for the instants when [`init`] hands PA8/PA9 (and, in
+/// TwoPwm, PB13/PB0) to TIM1. Runs on the reset clock (HSI); embassy's
+/// init only enables the GPIO clocks (it does not reset the ports), so
+/// this state holds until [`init`] reconfigures the pins.
 ///
 /// The `__pre_init` assembly above has done the same before the RAM
 /// initialisation (Rust cannot run there: cortex-m-rt 0.7 deprecates
@@ -379,43 +350,50 @@ core::arch::global_asm!(
 /// first instructions in any case, which is what the external pull-downs
 /// are for.
 pub fn outputs_low_early() {
+    const PB: [usize; 6] = [0, 1, 12, 13, 14, 15];
+    const PA: [usize; 2] = [8, 9];
     pac::RCC.ahb1enr().modify(|w| {
         w.set_gpioaen(true);
         w.set_gpioben(true);
     });
     let _ = pac::RCC.ahb1enr().read(); // clock on before the first port access
-    pac::GPIOB.bsrr().write(|w| {
-        w.set_br(12, true);
-        w.set_br(13, true);
-        w.set_br(14, true);
-    });
-    pac::GPIOA.bsrr().write(|w| {
-        w.set_br(8, true);
-        w.set_br(9, true);
-    });
     pac::GPIOB
-        .pupdr()
-        .modify(|w| w.set_pupdr(14, pac::gpio::vals::Pupdr::PULL_DOWN));
+        .bsrr()
+        .write_value(pac::gpio::regs::Bsrr(crate::motors::GPIOB_MOTOR_MASK << 16));
+    pac::GPIOA.bsrr().write(|w| {
+        for pin in PA {
+            w.set_br(pin, true);
+        }
+    });
+    pac::GPIOB.pupdr().modify(|w| {
+        for pin in PB {
+            w.set_pupdr(pin, pac::gpio::vals::Pupdr::PULL_DOWN);
+        }
+    });
     pac::GPIOA.pupdr().modify(|w| {
-        w.set_pupdr(8, pac::gpio::vals::Pupdr::PULL_DOWN);
-        w.set_pupdr(9, pac::gpio::vals::Pupdr::PULL_DOWN);
+        for pin in PA {
+            w.set_pupdr(pin, pac::gpio::vals::Pupdr::PULL_DOWN);
+        }
     });
     pac::GPIOB.moder().modify(|w| {
-        for pin in [12, 13, 14] {
+        for pin in PB {
             w.set_moder(pin, pac::gpio::vals::Moder::OUTPUT);
         }
     });
     pac::GPIOA.moder().modify(|w| {
-        w.set_moder(8, pac::gpio::vals::Moder::OUTPUT);
-        w.set_moder(9, pac::gpio::vals::Moder::OUTPUT);
+        for pin in PA {
+            w.set_moder(pin, pac::gpio::vals::Moder::OUTPUT);
+        }
     });
 }
 
 /// Starts the clocks (HSE with a bounded wait, else HSI) and binds the
-/// peripherals. Motor outputs stay low throughout: ENABLE and DIR low, the
-/// PWM channels enabled at duty 0 (driven low by TIM1). Call
+/// peripherals, the motor outputs in `bridge`'s mode and frequency
+/// ([`HBridge::new`]; refused parameters leave them disabled). Motor
+/// outputs stay low throughout: ENABLE and the GPIO lines low, the PWM
+/// channels enabled at duty 0 (driven low by TIM1). Call
 /// [`outputs_low_early`] first.
-pub fn init() -> Board {
+pub fn init(bridge: BridgeParams) -> Board {
     let reset_cause = read_reset_cause();
     let clock = start_hse();
     let p = embassy_stm32::init(clock_config(clock));
@@ -424,43 +402,21 @@ pub fn init() -> Board {
         // HSI and raises an NMI, whose handler cuts the outputs.
         pac::RCC.cr().modify(|w| w.set_csson(true));
     }
-    // Driver disabled before anything else touches the PWM timer.
-    let enable = Output::new(p.PB14, Level::Low, Speed::Low);
-    let dir = [
-        Output::new(p.PB12, Level::Low, Speed::Low),
-        Output::new(p.PB13, Level::Low, Speed::Low),
-    ];
-    // Pull-downs hold PA8/PA9 low between the switch to TIM1 and CCxE = 1.
-    let pin_cfg = PwmPinConfig {
-        output_type: OutputType::PushPull,
-        speed: Speed::Low, // 20 kHz needs no fast edges; slower edges ring less
-        pull: Pull::Down,
-    };
-    let pwm = SimplePwm::new(
+    // Motor outputs in the bridge's mode, every line low (motors.rs).
+    // `black_box`: the mode is a run-time value (the robot file will
+    // supply it), so every mode's code stays in the image.
+    let motors = HBridge::new(
         p.TIM1,
-        Some(PwmPin::new_with_config(p.PA8, pin_cfg)),
-        Some(PwmPin::new_with_config(p.PA9, pin_cfg)),
-        None,
-        None,
-        PWM_FREQ,
-        CountingMode::EdgeAlignedUp,
+        p.PA8,
+        p.PA9,
+        p.PB0,
+        p.PB1,
+        p.PB12,
+        p.PB13,
+        p.PB14,
+        p.PB15,
+        core::hint::black_box(bridge),
     );
-    // MOE = 0 (panic path, debugger halt: "outputs disabled as if MOE were
-    // reset") with OSSI = 1 and CCxE = 1 keeps the timer driving the pins
-    // at their idle level OISx = 0 instead of releasing them to the GPIO
-    // controller. (OSSR only matters for channels with a complementary
-    // output; CCxE therefore stays set in every state, see `HBridge`.)
-    pac::TIM1.cr2().modify(|w| {
-        w.set_ois(0, false);
-        w.set_ois(1, false);
-    });
-    pac::TIM1.bdtr().modify(|w| w.set_ossi(Ossi::IDLE_LEVEL));
-    let ch = pwm.split();
-    let mut pwm = [ch.ch1, ch.ch2];
-    for c in &mut pwm {
-        c.set_duty_cycle(0);
-        c.enable();
-    }
     // Debugger halt: stop TIM1 (its outputs then go to the OSSI idle level,
     // low) and, unless built with `halt-freezes-watchdog`, keep the IWDG
     // running. DBGMCU is reset only by power-on, so write both bits.
@@ -503,12 +459,7 @@ pub fn init() -> Board {
         clock,
         reset_cause,
         encoders,
-        motors: HBridge {
-            pwm,
-            dir,
-            enable,
-            enabled: false,
-        },
+        motors,
         button,
         watchdog,
         link,

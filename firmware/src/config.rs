@@ -15,7 +15,8 @@ use controller_core::fault_observer::FaultObserverGains;
 use controller_core::kinematic::{KinematicGains, DEFAULT_LARGE_ERROR_M};
 use controller_core::pacer::PacingConfig;
 use controller_core::runtime::{
-    EncoderParams, MotorParams, RuntimeConfig, SafetyLimits, MIRRORED_LEFT,
+    BridgeMode, BridgeParams, EncoderParams, MotorParams, RuntimeConfig, SafetyLimits,
+    MIRRORED_LEFT,
 };
 use controller_core::trajectory::{PaperCurve, PaperHeading, Reference};
 use controller_core::{ControllerConfig, ControllerKind, InputLimits, RobotParams};
@@ -73,10 +74,48 @@ pub const ENCODER: EncoderParams = EncoderParams::EXAMPLE;
 /// Per wheel `[right, left]`: flip the DIR output (left motor mirrored).
 pub const MOTOR_INVERTED: [bool; 2] = MIRRORED_LEFT;
 
+/// The H-bridge wiring: input scheme, PWM frequency, zero-duty behaviour
+/// (`BridgeParams`; pins per mode in the README's "Wiring"). Default:
+/// PWM + DIR at 20 kHz, braking at zero duty. The mode can be chosen at
+/// build time with `BRIDGE_MODE=pwm-dir|two-pwm|pwm-in1-in2` (CI builds
+/// an image of each for stm32-emu); the board takes it as a run-time value,
+/// so every mode's code is in every image.
+pub const BRIDGE: BridgeParams = BridgeParams {
+    mode: bridge_mode(option_env!("BRIDGE_MODE")),
+    ..BridgeParams::EXAMPLE
+};
+
+/// `BRIDGE_MODE` at build time: unset or `pwm-dir`, `two-pwm`,
+/// `pwm-in1-in2`; anything else fails the build.
+const fn bridge_mode(name: Option<&str>) -> BridgeMode {
+    const fn eq(a: &[u8], b: &[u8]) -> bool {
+        if a.len() != b.len() {
+            return false;
+        }
+        let mut i = 0;
+        while i < a.len() {
+            if a[i] != b[i] {
+                return false;
+            }
+            i += 1;
+        }
+        true
+    }
+    match name {
+        None => BridgeMode::PwmDir,
+        Some(n) if eq(n.as_bytes(), b"pwm-dir") => BridgeMode::PwmDir,
+        Some(n) if eq(n.as_bytes(), b"two-pwm") => BridgeMode::TwoPwm,
+        Some(n) if eq(n.as_bytes(), b"pwm-in1-in2") => BridgeMode::PwmIn1In2,
+        Some(_) => panic!("BRIDGE_MODE must be pwm-dir, two-pwm or pwm-in1-in2"),
+    }
+}
+
 /// Safety thresholds (see `SafetyLimits`): jump > 400 counts/ms
 /// (2.6× the 40 rad/s no-load speed), stall at >= 2 N·m for 250 ms, a tick
 /// more than 0.5 ms behind its schedule is late and 5 late ticks in a row
-/// latch, first bad input latching.
+/// latch, first bad input latching, a wheel accelerating against its
+/// torque (>= 1 N·m, >= 10 rad/s²) for 80 ms latching (the direction
+/// check: a motor or encoder wired backwards).
 pub const SAFETY: SafetyLimits = SafetyLimits::EXAMPLE;
 
 /// Ticks of pose-estimator history: the oldest external pose (sent over the

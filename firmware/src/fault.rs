@@ -15,14 +15,16 @@
 //! `ci-fault-entry-pushes` feature puts a push first and the check must
 //! fail on it).
 //!
-//! What the stores do (the pins of `board.rs`, the same on both chips):
+//! What the stores do (the pins of `motors.rs`, every bridge mode, the
+//! same on both chips):
 //!
 //! | store | effect |
 //! |---|---|
-//! | GPIOB_BSRR = BR12, BR13, BR14 | ENABLE (PB14) low: the driver is off; DIR (PB12, PB13) low |
+//! | GPIOB_BSRR = BR0, BR1, BR12-BR15 | ENABLE / STBY (PB14) low: the driver is off; the DIR / IN lines (PB0, PB1, PB12, PB13, PB15) low |
+//! | GPIOB_MODER0/1/12-15 = output | the same lines as GPIO outputs, low (TwoPwm's IN2 lines PB13 / PB0 were TIM1 CH1N / CH2N) |
 //! | TIM1_CCR1 = TIM1_CCR2 = 0 | zero duty |
-//! | TIM1_BDTR.MOE = 0 | main output off: with OSSI = 1 and CCxE = 1 the timer drives the idle level OISx = 0 (low) |
-//! | GPIOA_BSRR = BR8, BR9; GPIOA_MODER8/9 = output | PA8 / PA9 (PWM) as GPIO outputs, low |
+//! | TIM1_BDTR.MOE = 0 | main output off: with OSSI = 1 the timer drives the idle levels OISx = OISxN = 0 (low) |
+//! | GPIOA_BSRR = BR8, BR9; GPIOA_MODER8/9 = output | PA8 / PA9 (PWM / IN1) as GPIO outputs, low |
 //!
 //! The stores use r1-r3 only (caller-saved; r0 stays the panic handler's
 //! argument) and are idempotent.
@@ -34,12 +36,22 @@ use defmt::error;
 macro_rules! motors_off_asm {
     () => {
         concat!(
-            // GPIOB (0x4002_0400) BSRR (+0x18): reset PB12, PB13, PB14.
+            // GPIOB (0x4002_0400) BSRR (+0x18): reset PB0, PB1,
+            // PB12-PB15 (motors::GPIOB_MOTOR_MASK); MODER (+0x00) those
+            // pins = 0b01 (general-purpose output).
             "movw r1, #0x0400\n",
             "movt r1, #0x4002\n",
             "movw r2, #0x0000\n",
-            "movt r2, #0x7000\n",
+            "movt r2, #0xF003\n",
             "str r2, [r1, #0x18]\n",
+            "ldr r3, [r1, #0x00]\n",
+            "movw r2, #0x000F\n",
+            "movt r2, #0xFF00\n",
+            "bic r3, r3, r2\n",
+            "movw r2, #0x0005\n",
+            "movt r2, #0x5500\n",
+            "orr r3, r3, r2\n",
+            "str r3, [r1, #0x00]\n",
             // TIM1 (0x4001_0000): CCR1 (+0x34) = CCR2 (+0x38) = 0,
             // BDTR (+0x44) MOE (bit 15) = 0.
             "movw r1, #0x0000\n",

@@ -23,6 +23,7 @@ mod fault;
 mod imu;
 mod link;
 mod log;
+mod motors;
 
 use controller_core::runtime::{ArmingButton, LoopTimer};
 use defmt::{error, info, unwrap};
@@ -42,7 +43,7 @@ const DEVICE: wmr_device::DeviceConfig = config::device(board::CHIP_ID);
 async fn main(spawner: Spawner) {
     // Motor lines defined low before the clocks start (HSE start, PLL lock).
     board::outputs_low_early();
-    let mut board = board::init();
+    let mut board = board::init(config::BRIDGE);
 
     // DWT cycle counter for the tick's execution time (RTT status lines).
     #[cfg(feature = "rtt-telemetry")]

@@ -5,6 +5,7 @@
 //! MIT/Apache crates. See README.md for what is modelled and what is not.
 #![deny(missing_docs)]
 
+pub mod bridge;
 pub mod elf;
 pub mod machine;
 pub mod periph;

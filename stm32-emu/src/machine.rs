@@ -8,10 +8,11 @@
 //! emulated code is faster than on the chip and timing margins measured
 //! here are upper bounds). Sleep lasts until the next event of a model.
 
+use crate::bridge::BridgeMode;
 use crate::elf::Image;
 use crate::periph::nvic::{exc, Nvic};
 use crate::periph::rcc::{Rcc, ResetCause};
-use crate::periph::timer::{ChannelOutput, Kind, Timer};
+use crate::periph::timer::{Kind, Timer, Wave};
 use crate::periph::{
     dbgmcu::Dbgmcu, flash::Flash, gpio, gpio::Port, iwdg::Iwdg, pwr::Pwr, scb::Scb, systick::Dwt,
     systick::SysTick, usart::Usart, PS_PER_S,
@@ -195,6 +196,14 @@ pub struct Board {
     pub csr_at_boot: u32,
     /// Last motor-output state seen (for change events).
     pub last_bridge: BridgeInputs,
+    /// How the harness's H-bridges are wired to the pins (the image's
+    /// `BRIDGE_MODE`; firmware/src/motors.rs).
+    pub bridge_mode: BridgeMode,
+    /// Largest |armature voltage fraction| per wheel while driven since
+    /// [`Self::peak_from_s`], and when (logged on every new peak).
+    pub armature_peak: [(f64, f64); 2],
+    /// Peaks count from this emulated time on \[s\] (`--peak-from`).
+    pub peak_from_s: f64,
     /// Unmodelled USB: the F411 reached OTG_FS.
     pub usb_reached: Option<f64>,
     /// Address of the last unmodelled access (for the F411 USB stop).
@@ -252,6 +261,9 @@ impl Board {
             loop_started: false,
             csr_at_boot: 0,
             last_bridge: BridgeInputs::default(),
+            bridge_mode: BridgeMode::PwmDir,
+            armature_peak: [(0.0, 0.0); 2],
+            peak_from_s: 0.0,
             usb_reached: None,
             unmodelled_addr: None,
         }
@@ -301,29 +313,66 @@ impl Board {
         Ok(())
     }
 
-    /// The H-bridge inputs from the pins: PWM on PA8/PA9 (TIM1 CH1/CH2 on
-    /// AF1, or a GPIO output level), DIR on PB12/PB13, ENABLE on PB14.
+    /// A motor pin's waveform: a GPIO output's level, TIM1 channel `ch`'s
+    /// output (`complementary`: OCxN) when the pin is on AF1, low
+    /// otherwise (input, analog, another AF: the board's pull-down).
+    fn pin_wave(&self, port: usize, pin: u32, tim: Option<(usize, bool)>) -> Result<Wave, String> {
+        let g = &self.gpio[port];
+        Ok(match (g.mode(pin), tim) {
+            (gpio::Mode::Output, _) => Wave::Level(g.odr_bit(pin)),
+            (gpio::Mode::Alternate(1), Some((ch, n))) => self.tim1.waveform(ch, n, 0)?,
+            _ => Wave::Level(false),
+        })
+    }
+
+    /// The H-bridge inputs from the pins (firmware/src/motors.rs): PA8/PA9
+    /// (TIM1 CH1/CH2: PWM, or TwoPwm's IN1), PB12/PB13 (DIR, or
+    /// PwmIn1In2's IN1; PB13 is TwoPwm's right IN2 = TIM1 CH1N), PB0
+    /// (TwoPwm's left IN2 = TIM1 CH2N), PB15/PB1 (PwmIn1In2's IN2), PB14
+    /// ENABLE; the armature voltage through the model of
+    /// [`Self::bridge_mode`] ([`crate::bridge::armature`]).
     pub fn bridge(&self) -> Result<BridgeInputs, String> {
-        let mut pwm = [(0u32, 1u32); 2];
-        for (i, pin) in [8u32, 9].into_iter().enumerate() {
-            let port = &self.gpio[0];
-            pwm[i] = match port.mode(pin) {
-                gpio::Mode::Output => (port.odr_bit(pin) as u32, 1),
-                gpio::Mode::Alternate(1) => match self.tim1.output(i, 0)? {
-                    ChannelOutput::Pwm { high, period } => (high, period),
-                    ChannelOutput::Level(true) => (1, 1),
-                    ChannelOutput::Level(false) | ChannelOutput::Released => (0, 1),
-                },
-                // Input, analog, another AF: the board's pull-down.
-                _ => (0, 1),
-            };
+        let pa = [
+            self.pin_wave(0, 8, Some((0, false)))?,
+            self.pin_wave(0, 9, Some((1, false)))?,
+        ];
+        let pb = |pin: u32, tim| self.pin_wave(1, pin, tim);
+        let (pb0, pb1) = (pb(0, Some((1, true)))?, pb(1, None)?);
+        let (pb12, pb13) = (pb(12, None)?, pb(13, Some((0, true)))?);
+        let (pb14, pb15) = (pb(14, None)?, pb(15, None)?);
+        let enable = pb14 == Wave::Level(true);
+        let (second, third) = match self.bridge_mode {
+            BridgeMode::PwmDir | BridgeMode::PwmIn1In2 => ([pb12, pb13], [pb15, pb1]),
+            BridgeMode::TwoPwm => ([pb13, pb0], [Wave::Level(false); 2]),
+        };
+        let armature = [0, 1]
+            .map(|i| crate::bridge::armature(self.bridge_mode, pa[i], second[i], third[i], enable));
+        let high = |w: Wave| !matches!(w, Wave::Released | Wave::Level(false));
+        let mut high_lines = 0u16;
+        for (bit, w) in [
+            (0, pb0),
+            (1, pb1),
+            (12, pb12),
+            (13, pb13),
+            (14, pb14),
+            (15, pb15),
+            (8, pa[0]),
+            (9, pa[1]),
+        ] {
+            if high(w) {
+                high_lines |= 1 << bit;
+            }
         }
-        let b = &self.gpio[1];
-        let out = |pin: u32| b.mode(pin) == gpio::Mode::Output && b.odr_bit(pin);
+        let pwm = pa.map(|w| match w {
+            Wave::Pwm { from, to, period } => (to - from, period),
+            Wave::Level(true) => (1, 1),
+            _ => (0, 1),
+        });
         Ok(BridgeInputs {
+            armature,
             pwm,
-            dir: [out(12), out(13)],
-            enable: out(14),
+            high_lines,
+            enable,
         })
     }
 
@@ -332,22 +381,35 @@ impl Board {
     /// changed pin map fails the run instead of leaving the robot unwired.
     fn wiring_check(&self) -> Result<(), String> {
         use gpio::Mode::{Alternate, Output};
-        let want: [(usize, u32, gpio::Mode, &str); 9] = [
-            (0, 8, Alternate(1), "PA8 right PWM (TIM1_CH1, AF1)"),
-            (0, 9, Alternate(1), "PA9 left PWM (TIM1_CH2, AF1)"),
+        let two = self.bridge_mode == BridgeMode::TwoPwm;
+        let want: [(usize, u32, gpio::Mode, &str); 12] = [
+            (0, 8, Alternate(1), "PA8 right PWM / IN1 (TIM1_CH1, AF1)"),
+            (0, 9, Alternate(1), "PA9 left PWM / IN1 (TIM1_CH2, AF1)"),
             (0, 6, Alternate(2), "PA6 right encoder A (TIM3_CH1, AF2)"),
             (0, 7, Alternate(2), "PA7 right encoder B (TIM3_CH2, AF2)"),
             (1, 6, Alternate(2), "PB6 left encoder A (TIM4_CH1, AF2)"),
             (1, 7, Alternate(2), "PB7 left encoder B (TIM4_CH2, AF2)"),
-            (1, 12, Output, "PB12 right DIR (output)"),
-            (1, 13, Output, "PB13 left DIR (output)"),
+            (1, 12, Output, "PB12 right DIR / IN1 (output)"),
+            if two {
+                (1, 13, Alternate(1), "PB13 right IN2 (TIM1_CH1N, AF1)")
+            } else {
+                (1, 13, Output, "PB13 left DIR / IN1 (output)")
+            },
+            if two {
+                (1, 0, Alternate(1), "PB0 left IN2 (TIM1_CH2N, AF1)")
+            } else {
+                (1, 0, Output, "PB0 (unused, output low)")
+            },
+            (1, 1, Output, "PB1 left IN2 / unused (output)"),
+            (1, 15, Output, "PB15 right IN2 / unused (output)"),
             (1, 14, Output, "PB14 ENABLE (output)"),
         ];
         for (port, pin, mode, what) in want {
             let got = self.gpio[port].mode(pin);
             if got != mode {
                 return Err(format!(
-                    "board wiring: {what} expected, the firmware set {got:?}: the harness's robot would be unwired (update stm32-emu's pin map)"
+                    "board wiring ({:?}): {what} expected, the firmware set {got:?}: the harness's robot would be unwired (update stm32-emu's pin map, or run with the image's --bridge)",
+                    self.bridge_mode
                 ));
             }
         }
@@ -368,16 +430,30 @@ impl Board {
             let was_off = self.last_bridge.motors_off();
             self.last_bridge = b;
             if b.motors_off() != was_off {
+                let u = |a: Option<f64>| a.map_or("coast".to_string(), |u| format!("{u:+.3}"));
                 self.event(format!(
-                    "motors {}: ENABLE {} DIR {}/{} PWM {}/{} of {}",
+                    "motors {}: ENABLE {} lines 0x{:04X} PWM {}/{} of {} armature {}/{} of the supply",
                     if b.motors_off() { "off" } else { "driven" },
                     b.enable as u8,
-                    b.dir[0] as u8,
-                    b.dir[1] as u8,
+                    b.high_lines,
                     b.pwm[0].0,
                     b.pwm[1].0,
-                    b.pwm[0].1
+                    b.pwm[0].1,
+                    u(b.armature[0]),
+                    u(b.armature[1])
                 ));
+            }
+            if self.now_s() >= self.peak_from_s {
+                for i in 0..2 {
+                    let u = b.armature[i].unwrap_or(0.0);
+                    if u.abs() > self.armature_peak[i].0.abs() {
+                        self.armature_peak[i] = (u, self.now_s());
+                        self.event(format!(
+                            "armature peak {}: {u:+.4} of the supply",
+                            ["right", "left"][i]
+                        ));
+                    }
+                }
             }
         }
         Ok(())
@@ -1403,15 +1479,27 @@ mod tests {
             .unwrap();
         b.write_word(0x4002_0020, 0x22 << 24, 0xFF << 24).unwrap();
         b.write_word(0x4002_0024, 0x11, 0xFF).unwrap();
-        // PB6/PB7 AF2, PB12-14 outputs.
+        // PB6/PB7 AF2; PB0, PB1, PB12-PB15 outputs (every bridge line).
         b.write_word(
             0x4002_0400,
-            (0b1010 << 12) | (0b010101 << 24),
-            (0xF << 12) | (0x3F << 24),
+            0b0101 | (0b1010 << 12) | (0x55 << 24),
+            0xF | (0xF << 12) | (0xFF << 24),
         )
         .unwrap();
         b.write_word(0x4002_0420, 0x22 << 24, 0xFF << 24).unwrap();
         b.wiring_check().unwrap();
+        // The TwoPwm harness wants PB13/PB0 on TIM1 CH1N/CH2N: the same
+        // pins fail by name, then pass once on AF1.
+        b.bridge_mode = BridgeMode::TwoPwm;
+        let e = b.wiring_check().unwrap_err();
+        assert!(e.contains("PB13"), "{e}");
+        b.write_word(0x4002_0400, (0b10 << 26) | 0b10, (0b11 << 26) | 0b11)
+            .unwrap();
+        b.write_word(0x4002_0424, 1 << 20, 0xF << 20).unwrap(); // AFRH PB13 = 1
+        b.write_word(0x4002_0420, 1, 0xF).unwrap(); // AFRL PB0 = 1
+        b.wiring_check().unwrap();
+        b.bridge_mode = BridgeMode::PwmDir;
+        assert!(b.wiring_check().unwrap_err().contains("PB13"));
     }
 
     /// Thumb-2 lengths: 0b11101/0b11110/0b11111 prefixes are 32-bit.

@@ -6,8 +6,12 @@
 //! stm32-emu --elf firmware/target/ci-stm32f446re/thumbv7em-none-eabihf/release/firmware \
 //!           [--chip f446re|f411ce] [--pty] [--realtime] [--seconds S]
 //!           [--press AT_S] [--stall AT_S:MS] [--fault hardfault@AT_S|busfault@AT_S]
+//!           [--bridge pwm-dir|two-pwm|pwm-in1-in2] [--peak-from S]
 //!           [--summary FILE] [--quiet]
 //! ```
+//! `--bridge` says how the harness's H-bridges are wired (the image's
+//! `BRIDGE_MODE`, default pwm-dir); the largest armature voltage per wheel
+//! from `--peak-from` on is logged (`armature peak`) and in the summary.
 //! With `--pty` the first line on stdout is the pty's path (as `hil-sim
 //! device --pty` prints it) and the run goes on until killed or `--seconds`.
 //! The summary (JSON, one line) goes to `--summary` or stdout at the end.
@@ -28,11 +32,14 @@ struct Args {
     fault: Option<(Fault, f64)>,
     summary: Option<String>,
     quiet: bool,
+    bridge: stm32_emu::bridge::BridgeMode,
+    peak_from: f64,
 }
 
 fn usage() -> String {
     "usage: stm32-emu --elf FILE [--chip f446re|f411ce] [--pty] [--realtime] [--seconds S] \
-     [--press AT_S] [--stall AT_S:MS] [--fault hardfault@AT_S|busfault@AT_S] [--summary FILE] [--quiet]"
+     [--press AT_S] [--stall AT_S:MS] [--fault hardfault@AT_S|busfault@AT_S] \
+     [--bridge pwm-dir|two-pwm|pwm-in1-in2] [--peak-from S] [--summary FILE] [--quiet]"
         .into()
 }
 
@@ -58,6 +65,8 @@ fn parse_args() -> Result<Args, String> {
         fault: None,
         summary: None,
         quiet: false,
+        bridge: stm32_emu::bridge::BridgeMode::PwmDir,
+        peak_from: 0.0,
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
@@ -99,6 +108,20 @@ fn parse_args() -> Result<Args, String> {
                 a.fault = Some((f, num(t, "--fault time")?));
             }
             "--summary" => a.summary = Some(val()?),
+            "--bridge" => {
+                use stm32_emu::bridge::BridgeMode as B;
+                a.bridge = match val()?.as_str() {
+                    "pwm-dir" => B::PwmDir,
+                    "two-pwm" => B::TwoPwm,
+                    "pwm-in1-in2" => B::PwmIn1In2,
+                    b => {
+                        return Err(format!(
+                            "--bridge {b}: expected pwm-dir, two-pwm or pwm-in1-in2"
+                        ))
+                    }
+                }
+            }
+            "--peak-from" => a.peak_from = num(&val()?, "--peak-from")?,
             "-h" | "--help" => return Err(usage()),
             _ => return Err(format!("unknown argument {k}\n{}", usage())),
         }
@@ -130,6 +153,8 @@ fn run() -> Result<i32, String> {
     let image = stm32_emu::elf::Image::parse(&bytes).map_err(|e| format!("{}: {e}", a.elf))?;
     let mut m = Machine::new(a.chip, image)?;
     m.board().verbose = !a.quiet;
+    m.board().bridge_mode = a.bridge;
+    m.board().peak_from_s = a.peak_from;
     if !a.quiet {
         for e in &m.board().events {
             eprintln!("[stm32-emu t={:10.6} s] {}", e.t_s, e.what);
@@ -344,6 +369,10 @@ fn run() -> Result<i32, String> {
         );
     }
     s += &format!("\"pose\":[{:.4},{:.4},{:.4}],", pose[0], pose[1], pose[2]);
+    s += &format!(
+        "\"armature_peak\":[{:.4},{:.4}],",
+        d.armature_peak[0].0, d.armature_peak[1].0
+    );
     s += &format!(
         "\"sysclk_hz\":{},\"plant_steps\":{}",
         d.sysclk_hz, d.robot.steps

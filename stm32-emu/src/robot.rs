@@ -7,36 +7,66 @@
 //! encoders, the left motor and encoder mirrored. It does not reset when
 //! the chip does.
 
+pub use controller_core::runtime::BridgeMode;
 use controller_core::runtime::{
     DutyCommand, EncoderParams, MotorDriver, MotorModel, MotorParams, WheelEncoders,
 };
 use controller_core::RobotParams;
-use sim_robot::{MotorDrive, Perturbation, Plant, PlantParams, PlantState, SimDriver, SimEncoders};
+use sim_robot::{
+    Drive, MotorDrive, Perturbation, Plant, PlantParams, PlantState, SimDriver, SimEncoders,
+};
+
+/// sim-robot's motor drive with a per-wheel coast: an open bridge gives no
+/// torque (the motor model's duty 0 is a brake: zero volts on the winding).
+struct CoastingDrive {
+    drive: MotorDrive,
+    coast: [bool; 2],
+}
+
+impl Drive for CoastingDrive {
+    fn torque_nm(&self, wheel_rates_radps: [f64; 2]) -> [f64; 2] {
+        let t = self.drive.torque_nm(wheel_rates_radps);
+        [0, 1].map(|i| if self.coast[i] { 0.0 } else { t[i] })
+    }
+}
 
 /// Plant integration step \[ps\]: 100 µs (ten RK4 steps per 1 ms control
 /// period; a bridge change takes effect at the next grid point).
 pub const STEP_PS: u128 = 100_000_000;
 
-/// What the H-bridge inputs are, per wheel `[right, left]`.
+/// Duty resolution the armature voltage is handed to sim-robot's motor
+/// model with (a fraction of the supply in 1/10 000).
+pub const ARMATURE_FULL_SCALE: u16 = 10_000;
+
+/// What the H-bridges apply, per wheel `[right, left]`, computed from the
+/// pins by the bridge model of the board's [`BridgeMode`]
+/// (`Board::bridge`), and the pin levels the safety checks read.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BridgeInputs {
-    /// PWM high counts and period per wheel.
+    /// Mean armature voltage over the PWM period as a fraction of the
+    /// supply (+ forward, drive/brake: the time driving forward minus the
+    /// time driving in reverse, braking counts 0), or `None` when the
+    /// bridge is off (coasting: every switch open) for the whole period.
+    pub armature: [Option<f64>; 2],
+    /// PWM high counts and period on PA8/PA9 (for the event log).
     pub pwm: [(u32, u32); 2],
-    /// DIR pin levels (high = reverse).
-    pub dir: [bool; 2],
-    /// ENABLE pin level.
+    /// Every motor line that is high (or PWM) at some time: bit n = PBn
+    /// for PB0, PB1, PB12-PB15, bits 8/9 = PA8/PA9.
+    pub high_lines: u16,
+    /// ENABLE (PB14) level.
     pub enable: bool,
 }
 
 impl BridgeInputs {
-    /// True when nothing drives the motors: ENABLE low or both PWM inputs low.
+    /// True when no wheel is driven: every bridge coasting or at zero volts.
     pub fn motors_off(&self) -> bool {
-        !self.enable || self.pwm.iter().all(|p| p.0 == 0)
+        self.armature.iter().all(|a| a.is_none_or(|u| u == 0.0))
     }
 
-    /// True when every motor input pin is low (ENABLE, DIR, PWM).
+    /// True when every motor line of every bridge mode is low (ENABLE,
+    /// DIR / IN lines, PWM).
     pub fn all_low(&self) -> bool {
-        !self.enable && !self.dir[0] && !self.dir[1] && self.pwm.iter().all(|p| p.0 == 0)
+        self.high_lines == 0
     }
 }
 
@@ -78,25 +108,26 @@ impl Robot {
         if self.t_ps + STEP_PS > now_ps {
             return Ok(());
         }
-        let period = bridge.pwm[0].1.max(bridge.pwm[1].1).max(1);
         let model = MotorModel::new(MotorParams {
-            duty_full_scale: period.min(u16::MAX as u32) as u16,
+            duty_full_scale: ARMATURE_FULL_SCALE,
             ..self.motor
         })
         .map_err(|e| format!("motor model: {e:?}"))?;
         let mut driver = SimDriver::default();
-        if bridge.enable {
-            driver.set(core::array::from_fn(|i| DutyCommand {
-                // Scaled to the common period (both channels share TIM1).
-                duty: (bridge.pwm[i].0 as u64 * period as u64 / bridge.pwm[i].1.max(1) as u64)
-                    as u16,
-                reverse: bridge.dir[i],
-            }));
-        }
-        let drive = MotorDrive {
-            model,
-            bridge: driver,
-            inverted: self.inverted,
+        driver.set(bridge.armature.map(|a| {
+            let u = a.unwrap_or(0.0).clamp(-1.0, 1.0);
+            DutyCommand {
+                duty: (u.abs() * ARMATURE_FULL_SCALE as f64).round() as u16,
+                reverse: u < 0.0,
+            }
+        }));
+        let drive = CoastingDrive {
+            drive: MotorDrive {
+                model,
+                bridge: driver,
+                inverted: self.inverted,
+            },
+            coast: bridge.armature.map(|a| a.is_none()),
         };
         let dt = STEP_PS as f64 * 1e-12;
         while self.t_ps + STEP_PS <= now_ps {
@@ -151,8 +182,11 @@ mod tests {
         r.advance(10 * STEP_PS, &off).unwrap();
         assert_eq!(r.encoder_counts(), [0, 0]);
         let on = BridgeInputs {
+            // Half the supply, the mirrored left motor reversed (the
+            // runtime flips its direction).
+            armature: [Some(0.5), Some(-0.5)],
             pwm: [(4200, 8400); 2],
-            dir: [false, true], // the runtime flips the mirrored left motor's DIR
+            high_lines: 0x7300,
             enable: true,
         };
         r.advance(5_000 * STEP_PS, &on).unwrap();

@@ -47,6 +47,7 @@ fn stop_code(r: StopReason) -> StopCode {
         StopReason::EncoderStalled { .. } => StopCode::EncoderStalled,
         StopReason::LoopOverrun { .. } => StopCode::LoopOverrun,
         StopReason::Commanded => StopCode::Commanded,
+        StopReason::DirectionMismatch { .. } => StopCode::DirectionMismatch,
         _ => StopCode::Other,
     }
 }
@@ -530,4 +531,27 @@ fn answer_with(framing: &mut Framing, seq: u16, answer: Answer) {
         }
     };
     framing.send(&reply);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use controller_core::runtime::Wheel;
+
+    /// Each latched runtime stop has its own code on the link; the
+    /// direction check's is not folded into `Other` (issue 18).
+    #[test]
+    fn runtime_stops_map_to_their_codes() {
+        for wheel in Wheel::BOTH {
+            assert_eq!(
+                stop_code(StopReason::DirectionMismatch { wheel }),
+                StopCode::DirectionMismatch
+            );
+            assert_eq!(
+                stop_code(StopReason::EncoderStalled { wheel }),
+                StopCode::EncoderStalled
+            );
+        }
+        assert_eq!(stop_code(StopReason::Commanded), StopCode::Commanded);
+    }
 }

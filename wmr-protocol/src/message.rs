@@ -317,6 +317,9 @@ pub enum StopCode {
     Disarmed,
     /// Any other runtime stop.
     Other,
+    /// A wheel accelerated against its commanded torque for the direction
+    /// check's window: a motor or encoder wired backwards (version 4).
+    DirectionMismatch,
 }
 
 /// Something that happened on the robot, pushed without a request.

@@ -33,6 +33,23 @@ pub struct SafetyLimits {
     /// Consecutive controller input faults that latch
     /// [`StopReason::ControllerInput`](super::StopReason::ControllerInput) (>= 1; 1 latches on the first).
     pub max_consecutive_input_faults: u16,
+    /// Direction check ([`StopReason::DirectionMismatch`](super::StopReason::DirectionMismatch)):
+    /// |mean wheel torque| over a block \[N·m\] at or above which the
+    /// wheel must not accelerate against it (above the wheel's friction and
+    /// the torques the body's cross-coupling can overcome).
+    pub direction_torque_nm: f32,
+    /// Direction check: the acceleration against the torque \[rad/s²\]
+    /// that counts (above the rate estimate's quantisation over a block:
+    /// 2π / counts per rev / speed window / block time, 3.3 rad/s² with the
+    /// example encoder over 20 ms, and above friction's deceleration).
+    pub direction_accel_radps2: f32,
+    /// Direction check: the block \[ticks\] over which the acceleration and
+    /// the mean torque are taken (>= 3: the two wheels' verdicts come one
+    /// and two ticks after a block's end).
+    pub direction_block_ticks: u16,
+    /// Direction check: mismatching blocks in a row that latch (>= 1): the
+    /// window is `direction_block_ticks × direction_blocks` ticks.
+    pub direction_blocks: u16,
 }
 
 impl SafetyLimits {
@@ -40,7 +57,8 @@ impl SafetyLimits {
     /// [`MotorParams::EXAMPLE`] (no-load wheel speed 40 rad/s = 153 counts/ms):
     /// jump > 400 counts/tick, stall at >= 2 N·m for 250 ms, a tick more
     /// than 0.5 ms behind schedule late with 5 in a row latching, the first
-    /// NaN/implausible input latching.
+    /// NaN/implausible input latching; the direction check at >= 1 N·m
+    /// against >= 10 rad/s² for 4 blocks of 20 ms (80 ms; DECISIONS D74).
     pub const EXAMPLE: Self = Self {
         max_counts_per_tick: 400,
         stall_torque_nm: 2.0,
@@ -48,6 +66,10 @@ impl SafetyLimits {
         overrun_limit_us: 500,
         max_consecutive_overruns: 5,
         max_consecutive_input_faults: 1,
+        direction_torque_nm: 1.0,
+        direction_accel_radps2: 10.0,
+        direction_block_ticks: 20,
+        direction_blocks: 4,
     };
 
     /// Checks every field.
@@ -59,7 +81,13 @@ impl SafetyLimits {
             && self.stall_ticks > 0
             && self.overrun_limit_us > 0
             && self.max_consecutive_overruns > 0
-            && self.max_consecutive_input_faults > 0;
+            && self.max_consecutive_input_faults > 0
+            && self.direction_torque_nm.is_finite()
+            && self.direction_torque_nm > 0.0
+            && self.direction_accel_radps2.is_finite()
+            && self.direction_accel_radps2 > 0.0
+            && self.direction_block_ticks >= 3
+            && self.direction_blocks > 0;
         if ok {
             Ok(self)
         } else {

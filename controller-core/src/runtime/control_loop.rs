@@ -2,6 +2,7 @@
 //! control period, from raw encoder counts to motor duty.
 
 use super::config::{RuntimeConfig, SafetyLimits};
+use super::direction::{DirectionCheck, Prediction};
 use super::encoder::{CountSample, WheelCounts};
 use super::error::RuntimeConfigError;
 use super::hardware::Wheel;
@@ -38,6 +39,10 @@ pub struct ControlLoop<const H: usize = HISTORY_LEN> {
     stall_ticks: [u16; 2],
     consecutive_input_faults: u16,
     last_torque_nm: [f32; 2],
+    direction: DirectionCheck,
+    /// Eq. (7) to wheel accelerations for the direction check (from the
+    /// controller's model; rebuilt by [`Self::reconfigure`]).
+    prediction: Prediction,
     pacer: Pacer,
     pace: PacerState,
 }
@@ -61,6 +66,7 @@ impl<const H: usize> ControlLoop<H> {
         estimator: EstimatorConfig,
     ) -> Result<Self, RuntimeConfigError> {
         let controller = Controller::new(cfg.controller)?;
+        let prediction = Prediction::new(controller.model());
         cfg.reference.validate()?;
         if !cfg.initial_pose.is_finite() {
             return Err(RuntimeConfigError::NonFiniteInitialPose);
@@ -99,6 +105,8 @@ impl<const H: usize> ControlLoop<H> {
             stall_ticks: [0; 2],
             consecutive_input_faults: 0,
             last_torque_nm: [0.0; 2],
+            direction: DirectionCheck::default(),
+            prediction,
         })
     }
 
@@ -181,6 +189,10 @@ impl<const H: usize> ControlLoop<H> {
                 self.consecutive_input_faults = 0;
                 self.status.consecutive_overruns = 0;
                 self.last_torque_nm = [0.0; 2];
+                self.direction = DirectionCheck::start(
+                    self.counts.last_rate_radps(),
+                    self.status.duty_saturated,
+                );
                 self.pace = self.pacer.initial_state();
                 self.status.state = RunState::Running;
                 Ok(())
@@ -234,6 +246,7 @@ impl<const H: usize> ControlLoop<H> {
         // The pacer's saturation and health thresholds follow the gains and limit.
         let pacer = Pacer::new(self.cfg.pacing, &controller).map_err(invalid)?;
         safety.validate().map_err(ReconfigureError::Invalid)?;
+        self.prediction = Prediction::new(new.model());
         self.controller = new;
         self.pace = pacer.initial_state();
         self.pacer = pacer;
@@ -321,7 +334,17 @@ impl<const H: usize> ControlLoop<H> {
         if let Some(step) = &out {
             stop = self
                 .supervise_step(&step.diag)
-                .or(self.check_stall(&sample));
+                .or(self.check_stall(&sample))
+                .or(self.direction.update(
+                    &self.cfg.safety,
+                    &self.prediction,
+                    self.status.run_ticks,
+                    [eta.v_mps, eta.omega_radps],
+                    self.last_torque_nm,
+                    self.status.duty_saturated,
+                    sample.rate_radps,
+                    self.cfg.controller.period_s,
+                ));
             if stop.is_none() {
                 torque = step.torque_nm;
             }

@@ -137,6 +137,12 @@ impl WheelCounts {
         &self.params
     }
 
+    /// The last windowed wheel-rate estimate \[rad/s\] `[right, left]`
+    /// (0 before the first update).
+    pub fn last_rate_radps(&self) -> [f32; 2] {
+        self.last_rate
+    }
+
     /// Signed per-tick deltas `[right, left]` of new raw counts, forward
     /// positive, without changing any state (for plausibility checks before
     /// [`Self::update`]).

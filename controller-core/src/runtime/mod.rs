@@ -21,8 +21,9 @@
 //! 5. maps the wheel torques to PWM duty and direction through the motor
 //!    model ([`MotorModel`]) and writes the [`MotorDriver`];
 //! 6. latches a safe stop ([`StopReason`]: zero duty, driver disabled) on a
-//!    controller input fault, an encoder jump, a stalled encoder or
-//!    repeated loop overruns.
+//!    controller input fault, an encoder jump, a stalled encoder, a wheel
+//!    accelerating against its torque (a motor or encoder wired backwards,
+//!    `direction` module) or repeated loop overruns.
 //!
 //! The motors stay disabled from construction until [`ControlLoop::arm`];
 //! a latched stop is only cleared by [`ControlLoop::reset`] (back to
@@ -37,6 +38,7 @@ mod arming;
 mod bridge;
 mod config;
 mod control_loop;
+mod direction;
 mod encoder;
 mod error;
 mod hardware;

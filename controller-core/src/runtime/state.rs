@@ -41,6 +41,13 @@ pub enum StopReason {
     },
     /// Stopped on request ([`ControlLoop::stop`](super::ControlLoop::stop)).
     Commanded,
+    /// A wheel accelerated against its commanded torque beyond the
+    /// tolerances for the whole window (`SafetyLimits::direction_*`): its
+    /// motor or its encoder is wired backwards (positive feedback).
+    DirectionMismatch {
+        /// Which wheel.
+        wheel: Wheel,
+    },
     /// The health machine found a hard fault ([`crate::health`]).
     Health(HealthReason),
 }

@@ -405,27 +405,64 @@ impl Timer {
         self.kind != Kind::Advanced || self.bdtr & (1 << 15) != 0
     }
 
-    /// What channel `ch` (0-3) drives its pin to.
+    /// What channel `ch` (0-3) drives its pin to (the main output OCx).
     pub fn output(&self, ch: usize, enc_pos: u16) -> Access<ChannelOutput> {
-        if !self.output_channel(ch) || self.ccer & (1 << (4 * ch)) == 0 {
-            return Ok(ChannelOutput::Released);
+        Ok(match self.waveform(ch, false, enc_pos)? {
+            Wave::Released => ChannelOutput::Released,
+            Wave::Level(l) => ChannelOutput::Level(l),
+            Wave::Pwm { from, to, period } => ChannelOutput::Pwm {
+                high: to - from,
+                period,
+            },
+        })
+    }
+
+    /// What channel `ch`'s main output OCx (`complementary` false) or its
+    /// complementary output OCxN (true, advanced timers only) drives its
+    /// pin to, with the phase of the high interval within the period
+    /// (RM0090 Table 94, "Output control bits for complementary OCx and
+    /// OCxN channels with break feature"): with MOE = 1 an enabled output
+    /// is OCxREF xor its polarity (OCxN the complement of OCxREF when both
+    /// are enabled; the dead time is not modelled), a disabled one is its
+    /// off-state level CCxP / CCxNP when OSSR = 1 and the other output of
+    /// the pair is enabled, else released; with MOE = 0 both take their
+    /// idle levels OISx / OISxN when OSSI = 1 and either is enabled, else
+    /// they are released.
+    pub fn waveform(&self, ch: usize, complementary: bool, enc_pos: u16) -> Access<Wave> {
+        if !self.output_channel(ch) || (complementary && self.kind != Kind::Advanced) {
+            return Ok(Wave::Released);
         }
-        let invert = self.ccer & (1 << (4 * ch + 1)) != 0;
+        let bits = self.ccer >> (4 * ch);
+        let (e, p, ne, np) = (bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0);
+        let (mine, pol, other) = if complementary {
+            (ne, np, e)
+        } else {
+            (e, p, ne)
+        };
         if !self.moe() {
-            // OSSI = 1: the idle level OISx; else released.
-            if self.bdtr & (1 << 10) != 0 {
-                return Ok(ChannelOutput::Level(self.cr2 & (1 << (8 + 2 * ch)) != 0));
+            if (e || ne) && self.bdtr & (1 << 10) != 0 {
+                let bit = 8 + 2 * ch + complementary as usize;
+                return Ok(Wave::Level(self.cr2 & (1 << bit) != 0));
             }
-            return Ok(ChannelOutput::Released);
+            return Ok(Wave::Released);
         }
-        let p = self.period() as u32;
-        let ccr = self.ccr_act[ch].min(p);
+        if !mine {
+            let ossr = self.bdtr & (1 << 11) != 0;
+            return Ok(if ossr && other && self.kind == Kind::Advanced {
+                Wave::Level(pol)
+            } else {
+                Wave::Released
+            });
+        }
+        // OCxREF's high interval [from, to) of the period.
+        let period = self.period() as u32;
+        let ccr = self.ccr_act[ch].min(period);
         let ocm = (self.ccmr[ch / 2] >> (4 + 8 * (ch % 2))) & 7;
-        let high = match ocm {
-            0b110 => ccr,
-            0b111 => p - ccr,
-            0b100 => 0,
-            0b101 => p,
+        let (from, to) = match ocm {
+            0b110 => (0, ccr),
+            0b111 => (ccr, period),
+            0b100 => (0, 0),
+            0b101 => (0, period),
             _ => {
                 return Err(format!(
                     "{} channel {} output mode {ocm:03b}: not modelled",
@@ -434,19 +471,50 @@ impl Timer {
                 ))
             }
         };
-        let high = if invert { p - high } else { high };
+        // Complemented when OCxN runs beside OCx, inverted by the polarity.
+        let invert = pol ^ (complementary && e);
         if !self.cen() {
             // Stopped counter: OCxREF frozen at its value for CNT.
             let cnt = self.counter(enc_pos);
-            let on = if ocm == 0b110 { cnt < ccr } else { high == p };
-            return Ok(ChannelOutput::Level(on != invert));
+            return Ok(Wave::Level(((from..to).contains(&cnt)) != invert));
         }
-        Ok(match high {
-            0 => ChannelOutput::Level(false),
-            h if h == p => ChannelOutput::Level(true),
-            h => ChannelOutput::Pwm { high: h, period: p },
+        let (from, to) = if invert {
+            if from == 0 {
+                (to, period)
+            } else {
+                (0, from)
+            }
+        } else {
+            (from, to)
+        };
+        Ok(if from >= to {
+            Wave::Level(false)
+        } else if to - from == period {
+            Wave::Level(true)
+        } else {
+            Wave::Pwm { from, to, period }
         })
     }
+}
+
+/// A timer output's waveform with its phase: high during \[`from`, `to`)
+/// of every `period` counts (edge-aligned up-counting: the counter's
+/// position in the period).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wave {
+    /// Not driven by the timer (the board's pull decides).
+    Released,
+    /// A constant level.
+    Level(bool),
+    /// PWM.
+    Pwm {
+        /// First count of the high interval.
+        from: u32,
+        /// One past its last count.
+        to: u32,
+        /// Counts per period (ARR + 1).
+        period: u32,
+    },
 }
 
 #[cfg(test)]
