@@ -19,7 +19,9 @@
 #
 # Usage: hil-sim/bench-ratio.sh [BASE]
 #   env: BASE (eb68ee7), REPS (5), MC_RUNS (200), BENCH_REPS (9, `bench --reps`),
-#        WORK (/tmp/wmr-bench-ratio: worktree, target dir, binaries)
+#        WORK (/tmp/wmr-bench-ratio: worktree, target dir, binaries),
+#        PROFILE (release: the cargo profile the current tree is built with),
+#        CUR_BIN / BASE_BIN (prebuilt binaries to compare instead of building)
 set -euo pipefail
 
 BASE=${1:-${BASE:-eb68ee7}}
@@ -27,6 +29,7 @@ REPS=${REPS:-5}
 MC_RUNS=${MC_RUNS:-200}
 BENCH_REPS=${BENCH_REPS:-9}
 WORK=${WORK:-/tmp/wmr-bench-ratio}
+PROFILE=${PROFILE:-release}
 REPO=$(git -C "$(dirname "$0")" rev-parse --show-toplevel)
 BASE_SHA=$(git -C "$REPO" rev-parse --verify "$BASE^{commit}") || {
     echo "bench-ratio: baseline '$BASE' is not a commit of $REPO" >&2
@@ -47,15 +50,28 @@ if [ ! -d "$BASE_TARGET" ] && [ -d "$REPO/target/release/deps" ]; then
     mkdir -p "$BASE_TARGET"
     cp -r "$REPO/target/release" "$BASE_TARGET/release"
 fi
-echo "bench-ratio: building current tree $REPO" >&2
-(cd "$REPO" && cargo build --release --quiet -p hil-sim)
 B=$WORK/hil-sim-current
-cp "$REPO/target/release/hil-sim" "$B"
-echo "bench-ratio: building baseline $BASE_SHA in $BASE_TREE" >&2
-(cd "$BASE_TREE" && cargo build --release --quiet -p hil-sim --target-dir "$BASE_TARGET")
+if [ -n "${CUR_BIN:-}" ]; then
+    # A prebuilt current binary (e.g. another profile's): no build.
+    [ -x "$CUR_BIN" ] || { echo "bench-ratio: CUR_BIN '$CUR_BIN' is not executable" >&2; exit 2; }
+    cp "$CUR_BIN" "$B"
+else
+    echo "bench-ratio: building current tree $REPO (profile $PROFILE)" >&2
+    (cd "$REPO" && cargo build --profile "$PROFILE" --quiet -p hil-sim)
+    cp "$REPO/target/$PROFILE/hil-sim" "$B"
+fi
 A=$WORK/hil-sim-base
-cp "$BASE_TARGET/release/hil-sim" "$A"
+if [ -n "${BASE_BIN:-}" ]; then
+    [ -x "$BASE_BIN" ] || { echo "bench-ratio: BASE_BIN '$BASE_BIN' is not executable" >&2; exit 2; }
+    [ "$BASE_BIN" -ef "$A" ] || cp "$BASE_BIN" "$A"
+else
+    echo "bench-ratio: building baseline $BASE_SHA in $BASE_TREE" >&2
+    (cd "$BASE_TREE" && cargo build --release --quiet -p hil-sim --target-dir "$BASE_TARGET")
+    cp "$BASE_TARGET/release/hil-sim" "$A"
+fi
 CUR_DESC="$(git -C "$REPO" rev-parse --short HEAD)$(git -C "$REPO" diff --quiet HEAD -- . ':!target' || echo '+dirty')"
+[ -n "${CUR_BIN:-}" ] && CUR_DESC="$CUR_DESC (binary $CUR_BIN)"
+[ "$PROFILE" != release ] && CUR_DESC="$CUR_DESC (profile $PROFILE)"
 
 # --- one measurement each ----------------------------------------------------
 # bench: prints "proposed  <median ms> <min ms> <traced ms> <ns> ns" and

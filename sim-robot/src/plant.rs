@@ -425,7 +425,7 @@ impl Plant {
         self.rates(self.eta(st, p))
     }
 
-    #[inline]
+    #[inline(always)]
     fn rates(&self, eta: [f64; 2]) -> [f64; 2] {
         let k = &self.k;
         if k.equal_r {
@@ -437,7 +437,7 @@ impl Plant {
     }
 
     /// B1-like map of wheel torques to \[Σ τ_i/r_i, h(τ_R/r_R − τ_L/r_L)\].
-    #[inline]
+    #[inline(always)]
     fn wheel_forces(&self, t: [f64; 2]) -> [f64; 2] {
         let k = &self.k;
         if k.equal_r {
@@ -490,7 +490,7 @@ impl Plant {
 
     /// q̇ of eq. (3) with the fault (10): the wheels turn per η = ν + σ, the
     /// body moves at (1 − ε)η − σ plus the skid.
-    #[inline]
+    #[inline(always)]
     fn q_dot_f(&self, st: &PlantState, f: &Forcing, (s, c): (f64, f64)) -> [f64; 5] {
         let k = &self.k;
         let eta = [st.nu[0] + f.sigma[0], st.nu[1] + f.sigma[1]];
@@ -538,11 +538,14 @@ impl Plant {
     /// the step is 1 (RK4 stays stable and monotone; D69).
     #[inline]
     pub fn friction_smoothing_radps(&self, h_s: f64) -> [f64; 2] {
+        if !self.k.has_friction {
+            return [0.0; 2];
+        }
         core::array::from_fn(|i| self.k.friction[i].coulomb_nm * h_s * self.k.inv_j[i])
     }
 
     /// ν̇ of eq. (6): M1·ν̇ = B1·τ − N1(θ̇)·ν − P1 − Sᵀτ_d.
-    #[inline]
+    #[inline(always)]
     fn nu_dot_f(
         &self,
         st: &PlantState,
@@ -575,7 +578,7 @@ impl Plant {
 
     /// (q̇, ν̇) at (sin θ, cos θ) = `sc`, the drive's torque taken at the
     /// state's wheel rates (q̇ rows 4-5), less the wheels' friction.
-    #[inline]
+    #[inline(always)]
     fn deriv(
         &self,
         st: &PlantState,
@@ -589,7 +592,7 @@ impl Plant {
         self.deriv_with(st, f, q, tau, sc, smooth)
     }
 
-    #[inline]
+    #[inline(always)]
     fn deriv_with(
         &self,
         st: &PlantState,
