@@ -436,7 +436,8 @@ impl Iterator for ExcitationSamples {
 
     fn next(&mut self) -> Option<Self::Item> {
         let t = self.k as f32 * self.dt_s;
-        if !(self.dt_s > 0.0) || t > self.ex.duration_s + 0.5 * self.dt_s {
+        let step_ok = self.dt_s.is_finite() && self.dt_s > 0.0;
+        if !step_ok || t > self.ex.duration_s + 0.5 * self.dt_s {
             return None;
         }
         let vel = self.ex.velocity(t);
