@@ -29,4 +29,4 @@ pub mod lsq;
 pub mod report;
 
 pub use fit::{identify, Dynamics, Estimate, FitError, FitOptions, Form, Identification, Prior};
-pub use log::{read_id_csv, write_id_csv, IdRow};
+pub use log::{read_id_csv, write_id_csv, IdRow, RowBuilder};

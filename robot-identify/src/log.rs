@@ -43,6 +43,40 @@ tau_r_nm,tau_l_nm,x_m,y_m,theta_rad,external_pose,saturated";
 
 const COLUMNS: usize = 12;
 
+/// Builds rows from successive telemetry frames of one run: at a
+/// telemetry rate below the loop rate the per-tick `external_pose` flag of
+/// a frame misses the poses fused on the ticks between frames, so a row's
+/// flag is also set when the counters group's `external_poses` count grew
+/// since the previous frame.
+#[derive(Clone, Copy, Debug)]
+pub struct RowBuilder {
+    info: RobotInfo,
+    last_external: Option<u32>,
+}
+
+impl RowBuilder {
+    /// A builder for the robot that announced `info` in its handshake.
+    pub fn new(info: RobotInfo) -> Self {
+        Self {
+            info,
+            last_external: None,
+        }
+    }
+
+    /// The row of the next frame ([`IdRow::from_telemetry`]).
+    pub fn row(&mut self, t: &Telemetry) -> Option<IdRow> {
+        let count = t.counters.map(|c| c.external_poses);
+        let grew = matches!((self.last_external, count), (Some(a), Some(b)) if b != a);
+        if count.is_some() {
+            self.last_external = count;
+        }
+        IdRow::from_telemetry(t, &self.info).map(|mut r| {
+            r.external_pose |= grew;
+            r
+        })
+    }
+}
+
 impl IdRow {
     /// The row of one telemetry frame of a run (running or braking, with
     /// the tracking group), wheel rates from η with the robot's announced

@@ -20,7 +20,7 @@ use controller_core::{ControllerKind, Pose};
 use hil_sim::device::SimRobot;
 use hil_sim::scenario::{Scenario, Sensing};
 use robot_identify::excitation::waypoints;
-use robot_identify::{identify, FitOptions, IdRow, Identification, Prior};
+use robot_identify::{identify, FitOptions, IdRow, Identification, Prior, RowBuilder};
 use std::collections::VecDeque;
 use wmr_protocol::{
     encode, Decoded, ErrorCode, Event, FrameDecoder, Reply, Request, RobotInfo, RunStateMsg,
@@ -103,6 +103,7 @@ fn run(scn: &Scenario, ex: &Excitation) -> Run {
         total_points: pts.len() as u32,
     });
     let mut info = None;
+    let mut builder: Option<RowBuilder> = None;
     let (mut next, mut in_flight, mut retry_at) = (0usize, false, 0u64);
     let mut armed = false;
     let mut rows = Vec::new();
@@ -122,7 +123,10 @@ fn run(scn: &Scenario, ex: &Excitation) -> Run {
         let mut ended = false;
         for r in host.tick(&mut robot) {
             match r {
-                Reply::Hello { robot, .. } => info = Some(robot),
+                Reply::Hello { robot, .. } => {
+                    info = Some(robot);
+                    builder = Some(RowBuilder::new(robot));
+                }
                 Reply::TrajectoryAck { .. } => {
                     next += 1;
                     in_flight = false;
@@ -142,7 +146,7 @@ fn run(scn: &Scenario, ex: &Excitation) -> Run {
                 Reply::Telemetry(t) => {
                     frames += 1;
                     seen_running |= t.state == RunStateMsg::Running;
-                    if let Some(row) = IdRow::from_telemetry(&t, info.as_ref().unwrap()) {
+                    if let Some(row) = builder.as_mut().unwrap().row(&t) {
                         rows.push(row);
                     }
                 }

@@ -54,6 +54,8 @@ pub enum Command {
     Record(RecordArgs),
     /// Forward external poses from stdin lines or a UDP port.
     PoseFeed(PoseFeedArgs),
+    /// Identify the robot: drive the excitation and record (`run`), fit a log (`fit`).
+    Identify(crate::identify::IdentifyArgs),
 }
 
 /// `upload` options.
@@ -177,6 +179,12 @@ fn link_of(cli: &Cli) -> Result<Link, LinkError> {
 
 /// Runs a parsed command line on a fresh link to `--port`.
 pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
+    if let Command::Identify(crate::identify::IdentifyArgs {
+        op: crate::identify::IdentifyOp::Fit(a),
+    }) = &cli.command
+    {
+        return crate::identify::fit(a, out); // a log, no robot
+    }
     let mut link = link_of(cli).map_err(|e| e.to_string())?;
     run(&cli.command, &mut link, out).map_err(|e| e.to_string())
 }
@@ -252,6 +260,12 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
         Command::Params(a) => params(&a.op, link, out)?,
         Command::Record(a) => record(a, link, out)?,
         Command::PoseFeed(a) => pose_feed(a, link, out)?,
+        Command::Identify(a) => match &a.op {
+            crate::identify::IdentifyOp::Run(r) => crate::identify::run(r, link, out)?,
+            crate::identify::IdentifyOp::Fit(f) => {
+                crate::identify::fit(f, out).map_err(LinkError::Io)?
+            }
+        },
     }
     Ok(())
 }

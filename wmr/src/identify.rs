@@ -1,0 +1,354 @@
+//! `wmr identify run` and `wmr identify fit`: drive the identification
+//! excitation and record it, then fit the robot's parameters from the log
+//! (robot-identify; docs/identification.md).
+//!
+//! `run` uploads the excitation as streamed waypoints (the `upload --arm`
+//! path: no protocol change), records every telemetry frame at the asked
+//! rate into the identification CSV while streaming, and stops like any
+//! run: the trajectory's end is the success; any other stop, or silence
+//! beyond the link timing, is an error after the log up to it is written.
+//! Every wait is bounded.
+
+use crate::link::{Link, LinkError};
+use clap::{Args, Subcommand};
+use robot_identify::excitation::{check, waypoints};
+use robot_identify::{identify, read_id_csv, write_id_csv, FitOptions, IdRow, Prior, RowBuilder};
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use wmr_protocol::{ErrorCode, Event, Reply, Request, RunStateMsg, StopCode, TELEMETRY_ALL};
+
+/// `identify` options.
+#[derive(Debug, Args)]
+pub struct IdentifyArgs {
+    /// run or fit.
+    #[command(subcommand)]
+    pub op: IdentifyOp,
+}
+
+/// `identify` operations.
+#[derive(Debug, Subcommand)]
+pub enum IdentifyOp {
+    /// Drive the excitation and record the identification log.
+    Run(RunArgs),
+    /// Fit the robot's parameters from an identification log.
+    Fit(FitArgs),
+}
+
+/// `identify run` options.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Identification log to write (CSV).
+    #[arg(short = 'o', long = "out", value_name = "LOG.csv")]
+    pub out: PathBuf,
+    /// Peak linear velocity [m/s].
+    #[arg(long, default_value_t = 0.5)]
+    pub v_amp: f32,
+    /// Peak yaw rate [rad/s].
+    #[arg(long, default_value_t = 1.0)]
+    pub w_amp: f32,
+    /// Base angular frequency of the sinusoids [rad/s].
+    #[arg(long, default_value_t = 1.5)]
+    pub w_base: f32,
+    /// Length of the run [s].
+    #[arg(long, default_value_t = 60.0)]
+    pub duration: f32,
+    /// The run must stay within this distance of its start [m].
+    #[arg(long, default_value_t = 2.5)]
+    pub area: f32,
+    /// Telemetry rate [Hz] (the fit needs a few hundred; frames the link
+    /// cannot carry are counted as dropped).
+    #[arg(long, default_value_t = 1000)]
+    pub rate: u16,
+}
+
+/// `identify fit` options.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Identification log (from `wmr identify run`).
+    #[arg(value_name = "LOG.csv")]
+    pub log: PathBuf,
+    /// The robot as configured when the log was recorded (TOML: the keys of
+    /// `-o`'s output, and the motor's `torque_constant_nm_per_a`,
+    /// `winding_resistance_ohm`, `gear_ratio`, `gear_efficiency`,
+    /// `supply_voltage_v`, `duty_full_scale`; `control_period_s`,
+    /// `speed_window_ticks`) [default: the paper robot, the example motor].
+    #[arg(long, value_name = "PRIOR.toml")]
+    pub robot: Option<PathBuf>,
+    /// Write the identified robot (TOML, intervals in comments).
+    #[arg(short = 'o', long = "out", value_name = "OUT.toml")]
+    pub out: Option<PathBuf>,
+    /// Savitzky-Golay window [s].
+    #[arg(long, default_value_t = 0.15)]
+    pub filter_window: f64,
+}
+
+fn io(e: std::io::Error) -> LinkError {
+    LinkError::Io(e.to_string())
+}
+
+/// The prior of `--robot` (or the paper robot with the example motor).
+pub fn prior_from_toml(text: &str, origin: &str) -> Result<Prior, String> {
+    let table: toml::Table =
+        toml::from_str(text).map_err(|e| format!("{origin}: {}", e.to_string().trim_end()))?;
+    let mut p = Prior::paper();
+    for (k, v) in &table {
+        let x = match v {
+            toml::Value::Float(f) => *f,
+            toml::Value::Integer(i) => *i as f64,
+            _ => return Err(format!("{origin}: `{k}` must be a number")),
+        };
+        let f = x as f32;
+        match k.as_str() {
+            "mass_kg" => p.robot.mass_kg = f,
+            "inertia_kgm2" => p.robot.inertia_kgm2 = f,
+            "wheel_inertia_kgm2" => p.robot.wheel_inertia_kgm2 = f,
+            "wheel_radius_m" => p.robot.wheel_radius_m = f,
+            "half_track_m" => p.robot.half_track_m = f,
+            "com_offset_m" => p.robot.com_offset_m = f,
+            "torque_constant_nm_per_a" => p.motor.torque_constant_nm_per_a = f,
+            "winding_resistance_ohm" => p.motor.winding_resistance_ohm = f,
+            "gear_ratio" => p.motor.gear_ratio = f,
+            "gear_efficiency" => p.motor.gear_efficiency = f,
+            "supply_voltage_v" => p.motor.supply_voltage_v = f,
+            "max_duty_fraction" => p.motor.max_duty_fraction = f,
+            "duty_full_scale" if (1.0..=65535.0).contains(&x) => p.motor.duty_full_scale = x as u16,
+            "control_period_s" if x > 0.0 && x < 1.0 => p.control_period_s = x,
+            "speed_window_ticks" if (1.0..=255.0).contains(&x) => p.speed_window_ticks = x as u32,
+            "duty_full_scale" | "control_period_s" | "speed_window_ticks" => {
+                return Err(format!("{origin}: `{k}` = {x} is out of range"))
+            }
+            _ => return Err(format!("{origin}: unknown key `{k}`")),
+        }
+    }
+    p.robot
+        .validate()
+        .map_err(|e| format!("{origin}: robot: {e:?}"))?;
+    p.motor
+        .validate()
+        .map_err(|e| format!("{origin}: motor: {e:?}"))?;
+    Ok(p)
+}
+
+/// `identify fit`: the report on `out`, the robot file with `-o`.
+pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), String> {
+    let prior = match &a.robot {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+            prior_from_toml(&text, &path.display().to_string())?
+        }
+        None => Prior::paper(),
+    };
+    let file =
+        std::fs::File::open(&a.log).map_err(|e| format!("cannot read {}: {e}", a.log.display()))?;
+    let rows = read_id_csv(std::io::BufReader::new(file), &a.log.display().to_string())?;
+    let opts = FitOptions {
+        filter_window_s: a.filter_window,
+        ..FitOptions::default()
+    };
+    if !(opts.filter_window_s.is_finite() && opts.filter_window_s > 0.0) {
+        return Err("--filter-window must be > 0 s".into());
+    }
+    let id = identify(&rows, &prior, &opts).map_err(|e| format!("{}: {e}", a.log.display()))?;
+    write!(out, "{}", robot_identify::report::text(&id, &prior)).map_err(|e| e.to_string())?;
+    if let Some(path) = &a.out {
+        std::fs::write(path, robot_identify::report::robot_toml(&id, &prior))
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        writeln!(out, "robot written to {}", path.display()).map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+/// The pose the robot reports in hold (from one telemetry frame).
+fn current_pose(link: &mut Link) -> Result<controller_core::Pose, LinkError> {
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(2) {
+        if let Some(Reply::Telemetry(t)) = link.next_stream(Duration::from_millis(20))? {
+            if let Some(tr) = t.tracking {
+                let p = tr.pose;
+                return Ok(controller_core::Pose::new(p.x_m, p.y_m, p.theta_rad));
+            }
+        }
+    }
+    Err(LinkError::NoAnswer("telemetry (no frame for 2 s)".into()))
+}
+
+/// `identify run`.
+pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
+    if a.rate == 0 || a.rate > 1000 {
+        return Err(LinkError::Io("--rate must be in 1..=1000 Hz".into()));
+    }
+    let info = match link.last_hello.clone() {
+        Some(h) => h,
+        None => link.hello()?,
+    }
+    .robot;
+    let ex = controller_core::trajectory::Excitation {
+        v_amp_mps: a.v_amp,
+        omega_amp_radps: a.w_amp,
+        w_radps: a.w_base,
+        duration_s: a.duration,
+        ramp_s: 3.0f32.min(0.25 * a.duration),
+    };
+    let robot = controller_core::RobotParams {
+        wheel_radius_m: info.wheel_radius_m,
+        half_track_m: info.half_track_m,
+        mass_kg: info.mass_kg,
+        ..controller_core::RobotParams::paper()
+    };
+    // The robot refuses waypoints beyond its limits; the torque and the
+    // area are checked here, against half the torque limit.
+    let peaks = check(
+        &ex,
+        &robot,
+        f32::INFINITY,
+        f32::INFINITY,
+        info.torque_limit_nm,
+        0.5,
+        a.area,
+    )
+    .map_err(|e| LinkError::Io(format!("excitation: {e}")))?;
+    let file = std::fs::File::create(&a.out)
+        .map_err(|e| LinkError::Io(format!("cannot create {}: {e}", a.out.display())))?;
+    link.command(&Request::SetTelemetry {
+        selection: TELEMETRY_ALL,
+        rate_hz: a.rate,
+    })?;
+    let start = current_pose(link)?;
+    let pts = waypoints(&ex, start);
+    let segs: Vec<Request> = crate::upload::segments(&pts);
+    link.command(&Request::TrajectoryBegin {
+        total_points: pts.len() as u32,
+    })?;
+    writeln!(
+        out,
+        "excitation: {} waypoints over {:.0} s, peaks {:.2} m/s, {:.2} rad/s, {:.2} N·m (model), within {:.2} m",
+        pts.len(),
+        ex.duration_s,
+        peaks.speed_mps,
+        peaks.yaw_rate_radps,
+        peaks.torque_nm,
+        peaks.excursion_m
+    )
+    .map_err(io)?;
+    // Fill the buffer, arm, stream the rest while recording.
+    let mut next = 0usize;
+    let mut armed = false;
+    let mut rows: Vec<IdRow> = Vec::new();
+    let mut builder = RowBuilder::new(info);
+    let (mut frames, mut dropped, mut last_seq) = (0u64, 0u64, None::<u32>);
+    let mut seen_running = false;
+    let mut ended: Option<(RunStateMsg, Option<StopCode>)> = None;
+    let keep_alive = link.timing().keep_alive;
+    let mut last_tx = Instant::now();
+    let mut last_try = Instant::now() - Duration::from_secs(1);
+    let mut last_frame = Instant::now();
+    let deadline = Instant::now() + Duration::from_secs_f64(ex.duration_s as f64 + 30.0);
+    loop {
+        if next < segs.len() && last_try.elapsed() >= Duration::from_millis(50) {
+            last_try = Instant::now();
+            match link.request(&segs[next])? {
+                Reply::TrajectoryAck { .. } => {
+                    next += 1;
+                    last_try -= Duration::from_millis(50);
+                }
+                Reply::Nack {
+                    error: ErrorCode::BufferFull,
+                    ..
+                } => {
+                    // The robot's buffer is full: arm, the rest streams.
+                    if !armed {
+                        link.command(&Request::Arm)?;
+                        armed = true;
+                    }
+                }
+                Reply::Nack { error, .. } => {
+                    return Err(LinkError::Nack("TrajectorySegment".into(), error))
+                }
+                r => return Err(LinkError::Unexpected(format!("{r:?}"))),
+            }
+            last_tx = Instant::now();
+            if !armed && next == segs.len() {
+                link.command(&Request::Arm)?;
+                armed = true;
+            }
+            continue;
+        }
+        if last_tx.elapsed() >= keep_alive {
+            link.send(&Request::ClockSync { host_time_us: 0 })?;
+            last_tx = Instant::now();
+        }
+        match link.next_stream(Duration::from_millis(5))? {
+            Some(Reply::Telemetry(t)) => {
+                last_frame = Instant::now();
+                frames += 1;
+                if let Some(s) = last_seq {
+                    dropped += t.seq.wrapping_sub(s).saturating_sub(1) as u64;
+                }
+                last_seq = Some(t.seq);
+                seen_running |= t.state == RunStateMsg::Running;
+                if let Some(row) = builder.row(&t) {
+                    rows.push(row);
+                }
+                if seen_running && matches!(t.state, RunStateMsg::Hold | RunStateMsg::Stopped) {
+                    ended = Some((t.state, None));
+                }
+            }
+            Some(Reply::Event(Event::StateChanged { state, cause }))
+                if seen_running && matches!(state, RunStateMsg::Hold | RunStateMsg::Stopped) =>
+            {
+                ended = Some((state, cause));
+            }
+            _ => {}
+        }
+        if ended.is_some() {
+            break;
+        }
+        if last_frame.elapsed() > Duration::from_secs(2) || Instant::now() > deadline {
+            let _ = link.request(&Request::Disarm);
+            return Err(LinkError::NoAnswer(
+                "telemetry (no frame for 2 s, or the run overran its length): disarmed".into(),
+            ));
+        }
+    }
+    let _ = link.command(&Request::SetTelemetry {
+        selection: TELEMETRY_ALL,
+        rate_hz: 0,
+    });
+    let comments = vec![
+        format!(
+            "wmr identify run: robot r = {} m, h = {} m, m = {} kg, period {} s, torque limit {} N·m",
+            info.wheel_radius_m,
+            info.half_track_m,
+            info.mass_kg,
+            info.control_period_s,
+            info.torque_limit_nm
+        ),
+        format!(
+            "excitation: v_amp {} m/s, w_amp {} rad/s, w {} rad/s, {} s; telemetry {} Hz, {frames} frames, {dropped} dropped",
+            ex.v_amp_mps, ex.omega_amp_radps, ex.w_radps, ex.duration_s, a.rate
+        ),
+    ];
+    write_id_csv(std::io::BufWriter::new(file), &comments, &rows)
+        .map_err(|e| LinkError::Io(format!("cannot write {}: {e}", a.out.display())))?;
+    writeln!(
+        out,
+        "{} rows written to {} ({frames} frames, {dropped} dropped)",
+        rows.len(),
+        a.out.display()
+    )
+    .map_err(io)?;
+    let (state, mut cause) = ended.unwrap_or((RunStateMsg::Hold, None));
+    if cause.is_none() {
+        if let Ok(Reply::Status { status, .. }) = link.request(&Request::GetStatus) {
+            cause = status.last_stop;
+        }
+    }
+    match cause {
+        Some(StopCode::TrajectoryEnd) => Ok(()),
+        c => Err(LinkError::UnexpectedStop(format!(
+            "{state:?} ({c:?}) before the excitation ended; the log up to it is written"
+        ))),
+    }
+}
