@@ -6,12 +6,16 @@
 //!    delay: the runtime's wheel rate is the mean over its last W ticks
 //!    (centred W·T/2 before the row), the duty written at a tick acts over
 //!    the next period (centred T/2 after it), the pose is of the tick.
-//! 2. **Kinematics.** θ̇ of the fused heading = α_R·φ̇_R − α_L·φ̇_L + b
-//!    (α = r/2h; b absorbs a gyro bias the estimator left). With external
-//!    poses, the speed along the heading ẋcosθ + ẏsinθ = (r_R·φ̇_R + r_L·φ̇_L)/2
-//!    gives both radii, and the heading fit then gives the track. Without
-//!    them the position is the robot's own odometry: only r/h is observable
-//!    and the track is kept from the prior (said in the report).
+//! 2. **Kinematics**, integrated over horizons H (default 0.5 s): the
+//!    fused heading's increment Δθ = α_R·∫φ̇_R − α_L·∫φ̇_L + b·H (α = r/2h;
+//!    b absorbs a gyro bias the estimator left) gives α_R and α_L. With
+//!    external poses, the position increments Δx = h·Σ_i α_i·∫φ̇_i cosθ +
+//!    d·Δcosθ (and Δy with sinθ; G is d ahead of the axle) give the
+//!    length scale h, and r_i = 2h·α_i. Without them the position is the
+//!    robot's own odometry: only r/h is observable and the track is kept from the prior
+//!    (said in the report). Integrating instead of differentiating the
+//!    pose keeps the estimator's transients (bounded position errors) from
+//!    being amplified.
 //! 3. **Dynamics**, per wheel i (σ_R = +1, σ_L = −1), from (6) with
 //!    B1⁻¹ and the wheels' torques τ_i = a·V_i − (b + c_v,i)·φ̇_i − c_c,i·sign φ̇_i
 //!    (a = η_g·N·k/R \[N·m/V\], b = η_g·N²k²/R: the motor's V = R·τ/(η_g N k) + kNφ̇):
@@ -87,6 +91,8 @@ pub struct FitOptions {
     pub filter_window_s: f64,
     /// Savitzky-Golay polynomial degree.
     pub filter_degree: usize,
+    /// Horizon H of the integrated kinematic fit \[s\].
+    pub kinematic_horizon_s: f64,
     /// Half-width of the smooth sign used for Coulomb friction \[rad/s\]
     /// (sign φ̇ beyond it, linear inside: wheel-rate noise near rest).
     pub sign_band_radps: f64,
@@ -100,6 +106,7 @@ impl Default for FitOptions {
         Self {
             filter_window_s: 0.15,
             filter_degree: 3,
+            kinematic_horizon_s: 0.5,
             sign_band_radps: 0.05,
             max_relative_ci: 0.2,
         }
@@ -202,10 +209,10 @@ pub struct Identification {
     pub track_from_prior: bool,
     /// Constant yaw-rate offset between the heading and the wheels \[rad/s\].
     pub yaw_offset_radps: Estimate,
-    /// Residual RMS of the heading-rate fit \[rad/s\].
-    pub yaw_residual_radps: f64,
-    /// Residual RMS of the speed fit \[m/s\] (with external poses).
-    pub speed_residual_mps: Option<f64>,
+    /// Residual RMS of the heading fit over each horizon \[rad\].
+    pub yaw_residual_rad: f64,
+    /// Residual RMS of the displacement fit over each horizon \[m\] (with external poses).
+    pub displacement_residual_m: Option<f64>,
     /// Dynamic parameters (voltage form when the log has duties, else torque form).
     pub dynamics: Option<Dynamics>,
     /// The torque form as a cross-check, when the primary is the voltage form.
@@ -400,58 +407,88 @@ pub fn identify(
     // Poses at least once a second on average: the position is measured.
     let with_poses = external_pose_rows as f64 >= duration_s;
 
-    // --- Kinematics.
-    let mut yaw_rows: Vec<[f64; 4]> = Vec::new(); // θ̇, φ̇_R, φ̇_L, v_pose
+    // --- Kinematics, in integrated form over horizons of H: the pose's
+    // increments against the wheel-rate integrals (no differentiation of
+    // the pose, whose estimator transients are bounded position errors
+    // that do not grow with H).
+    let hz = ((opts.kinematic_horizon_s / dt).round() as usize).max(2);
+    // Per horizon: Δθ, ∫φ̇_R, ∫φ̇_L, Δx, Δy, ∫φ̇_R cosθ, ∫φ̇_L cosθ,
+    // ∫φ̇_R sinθ, ∫φ̇_L sinθ, Δcosθ, Δsinθ, H.
+    let mut kin: Vec<[f64; 12]> = Vec::new();
     for s in &segs {
-        if s.rates[0].len() < 2 * m + 1 {
-            continue;
-        }
-        let th_d = sg.derivative(&s.pose[2], dt);
-        let th = sg.smooth(&s.pose[2]);
-        let xd = sg.derivative(&s.pose[0], dt);
-        let yd = sg.derivative(&s.pose[1], dt);
-        let r0 = sg.smooth(&s.rates[0]);
-        let r1 = sg.smooth(&s.rates[1]);
-        for k in 0..th.len() {
-            let v_pose = xd[k] * th[k].cos() + yd[k] * th[k].sin();
-            yaw_rows.push([th_d[k], r0[k], r1[k], v_pose]);
+        let len = s.rates[0].len();
+        let mut k0 = 0;
+        while k0 + hz < len {
+            let k1 = k0 + hz;
+            let mut row = [0.0; 12];
+            let th = &s.pose[2];
+            row[0] = th[k1] - th[k0];
+            for k in k0..k1 {
+                // Trapezoid over [t_k, t_k+1].
+                let (a, b) = (k, k + 1);
+                let avg = |x: &Vec<f64>| 0.5 * (x[a] + x[b]) * dt;
+                let (c, sn) = (0.5 * (th[a] + th[b])).sin_cos();
+                let (r0, r1) = (avg(&s.rates[0]), avg(&s.rates[1]));
+                row[1] += r0;
+                row[2] += r1;
+                row[5] += 0.5 * r0 * sn;
+                row[6] += 0.5 * r1 * sn;
+                row[7] += 0.5 * r0 * c;
+                row[8] += 0.5 * r1 * c;
+            }
+            row[3] = s.pose[0][k1] - s.pose[0][k0];
+            row[4] = s.pose[1][k1] - s.pose[1][k0];
+            row[9] = th[k1].cos() - th[k0].cos();
+            row[10] = th[k1].sin() - th[k0].sin();
+            row[11] = hz as f64 * dt;
+            kin.push(row);
+            k0 = k1;
         }
     }
-    let n = yaw_rows.len();
-    if n < 50 {
+    let n = kin.len();
+    if n < 10 {
         return Err(FitError::TooShort(format!(
-            "{n} rows left after the {:.2} s filter window and the gaps: record a longer run",
-            2.0 * m as f64 * dt
+            "{n} kinematic horizons of {:.2} s after the gaps: record a longer run",
+            hz as f64 * dt
         )));
     }
-    let lags = 2 * m;
     let h_prior = prior.robot.half_track_m as f64;
-    let (wheel_radius_m, half_track_m, yaw_offset, yaw_res, speed_res) = if with_poses {
-        let phi = DMatrix::from_fn(n, 2, |i, j| yaw_rows[i][1 + j]);
-        let y = DVector::from_fn(n, |i, _| yaw_rows[i][3]);
-        let fv = solve(&phi, &y, lags).map_err(|e| FitError::Lsq("speed fit", e))?;
-        let r = [2.0 * fv.theta[0], 2.0 * fv.theta[1]];
-        let r_se = [2.0 * fv.std_err[0], 2.0 * fv.std_err[1]];
-        // θ̇ = β·(r_R φ̇_R − r_L φ̇_L) + b, β = 1/(2h).
-        let phi = DMatrix::from_fn(n, 2, |i, j| {
-            if j == 0 {
-                r[0] * yaw_rows[i][1] - r[1] * yaw_rows[i][2]
-            } else {
-                1.0
+    // The heading gives α_R, α_L (each wheel's rate is excited on its own:
+    // v and ω independently): Δθ = α_R ∫φ̇_R − α_L ∫φ̇_L + b·H, α = r/(2h).
+    let phi = DMatrix::from_fn(n, 3, |i, j| match j {
+        0 => kin[i][1],
+        1 => -kin[i][2],
+        _ => kin[i][11],
+    });
+    let y = DVector::from_fn(n, |i, _| kin[i][0]);
+    let fw = solve(&phi, &y, 1).map_err(|e| FitError::Lsq("heading fit", e))?;
+    let alpha = [fw.theta[0], fw.theta[1]];
+    let rel_alpha = [fw.std_err[0] / alpha[0], fw.std_err[1] / alpha[1]];
+    let yaw_offset = Estimate::new(fw.theta[2], fw.std_err[2]);
+    let (wheel_radius_m, half_track_m, speed_res) = if with_poses {
+        // The length scale from the positions: Δx = h·(α_R ∫φ̇_R cosθ +
+        // α_L ∫φ̇_L cosθ) + d·Δcosθ (G is d ahead of the axle), Δy
+        // likewise with sinθ; two rows per horizon, unknowns h and d.
+        let phi = DMatrix::from_fn(2 * n, 2, |i, j| {
+            let r = &kin[i / 2];
+            match (j, i % 2 == 0) {
+                (0, true) => 2.0 * (alpha[0] * r[5] + alpha[1] * r[6]),
+                (0, false) => 2.0 * (alpha[0] * r[7] + alpha[1] * r[8]),
+                (_, true) => r[9],
+                (_, false) => r[10],
             }
         });
-        let y = DVector::from_fn(n, |i, _| yaw_rows[i][0]);
-        let fw = solve(&phi, &y, lags).map_err(|e| FitError::Lsq("heading-rate fit", e))?;
-        let beta = fw.theta[0];
-        let h = 0.5 / beta;
-        let rel = ((fw.std_err[0] / beta).powi(2)
-            + (0.5 * (r_se[0] / r[0] + r_se[1] / r[1])).powi(2))
-        .sqrt();
+        let y = DVector::from_fn(2 * n, |i, _| kin[i / 2][if i % 2 == 0 { 3 } else { 4 }]);
+        let fv = solve(&phi, &y, 2).map_err(|e| FitError::Lsq("displacement fit", e))?;
+        let h = fv.theta[0];
+        let rel_h = fv.std_err[0] / h;
+        let r = |i: usize| {
+            let v = 2.0 * h * alpha[i];
+            Estimate::new(v, v * (rel_h * rel_h + rel_alpha[i] * rel_alpha[i]).sqrt())
+        };
         (
-            [Estimate::new(r[0], r_se[0]), Estimate::new(r[1], r_se[1])],
-            Estimate::new(h, rel * h),
-            Estimate::new(fw.theta[1], fw.std_err[1]),
-            fw.residual_rms,
+            [r(0), r(1)],
+            Estimate::new(h, rel_h * h),
             Some(fv.residual_rms),
         )
     } else {
@@ -461,23 +498,11 @@ pub fn identify(
              the track is kept from the prior ({:.4} m) and the radii follow from it",
             2.0 * h_prior
         ));
-        let phi = DMatrix::from_fn(n, 3, |i, j| match j {
-            0 => yaw_rows[i][1],
-            1 => -yaw_rows[i][2],
-            _ => 1.0,
-        });
-        let y = DVector::from_fn(n, |i, _| yaw_rows[i][0]);
-        let fw = solve(&phi, &y, lags).map_err(|e| FitError::Lsq("heading-rate fit", e))?;
-        let r =
-            |j: usize| Estimate::new(2.0 * h_prior * fw.theta[j], 2.0 * h_prior * fw.std_err[j]);
-        (
-            [r(0), r(1)],
-            Estimate::new(h_prior, f64::INFINITY),
-            Estimate::new(fw.theta[2], fw.std_err[2]),
-            fw.residual_rms,
-            None,
-        )
+        let r = |j: usize| Estimate::new(2.0 * h_prior * alpha[j], 2.0 * h_prior * fw.std_err[j]);
+        ([r(0), r(1)], Estimate::new(h_prior, f64::INFINITY), None)
     };
+    let yaw_res = fw.residual_rms;
+    let lags = 2 * m;
 
     // --- Dynamics.
     let r = [wheel_radius_m[0].value, wheel_radius_m[1].value];
@@ -612,7 +637,7 @@ pub fn identify(
         );
         (Some(torque?), None)
     };
-    let fitted_rows = dynamics.as_ref().map_or(n, |d| d.lsq.rows / 2);
+    let fitted_rows = dynamics.as_ref().map_or(0, |d| d.lsq.rows / 2);
     if let Some(d) = &dynamics {
         richness_notes(d, opts, &mut notes);
     }
@@ -639,8 +664,8 @@ pub fn identify(
         half_track_m,
         track_from_prior: !with_poses,
         yaw_offset_radps: yaw_offset,
-        yaw_residual_radps: yaw_res,
-        speed_residual_mps: speed_res,
+        yaw_residual_rad: yaw_res,
+        displacement_residual_m: speed_res,
         dynamics,
         torque_check,
         notes,

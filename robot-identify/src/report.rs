@@ -120,10 +120,12 @@ pub fn text(id: &Identification, prior: &Prior) -> String {
     );
     let _ = writeln!(
         out,
-        "  residual RMS {:.5} rad/s (heading rate){}",
-        id.yaw_residual_radps,
-        id.speed_residual_mps
-            .map_or(String::new(), |s| format!(", {s:.5} m/s (speed)"))
+        "  residual RMS {:.5} rad (heading per horizon){}",
+        id.yaw_residual_rad,
+        id.displacement_residual_m
+            .map_or(String::new(), |s| format!(
+                ", {s:.5} m (displacement per horizon)"
+            ))
     );
     if let Some(d) = &id.dynamics {
         let _ = writeln!(out, "dynamics ({:?} form):", d.form);
