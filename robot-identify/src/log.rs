@@ -241,4 +241,37 @@ mod tests {
         };
         assert!(IdRow::from_telemetry(&hold, &info).is_none());
     }
+
+    /// At a telemetry rate below the loop rate the per-tick flag misses the
+    /// poses fused between frames: the builder flags a row when the
+    /// counters' `external_poses` grew (every frame here has the flag off;
+    /// the count grows on the second and fourth). Without the counter the
+    /// log of a 500 Hz run had no external pose at all (D81).
+    #[test]
+    fn external_poses_between_frames_are_flagged() {
+        let info = RobotInfo {
+            wheel_radius_m: 0.1,
+            half_track_m: 0.2,
+            mass_kg: 15.0,
+            control_period_s: 1e-3,
+            torque_limit_nm: 10.0,
+        };
+        let frame = |n: u32| Telemetry {
+            seq: n,
+            t_robot_us: 2000 * n,
+            t_ref_s: 0.002 * n as f32,
+            state: RunStateMsg::Running,
+            tracking: Some(TrackingTelemetry::default()),
+            estimators: Some(wmr_protocol::EstimatorTelemetry::default()),
+            counters: Some(wmr_protocol::Counters {
+                external_poses: [5, 6, 6, 7, 7][n as usize],
+                ..Default::default()
+            }),
+        };
+        let mut b = RowBuilder::new(info);
+        let flags: Vec<bool> = (0..5)
+            .map(|n| b.row(&frame(n)).unwrap().external_pose)
+            .collect();
+        assert_eq!(flags, [false, true, false, true, false]);
+    }
 }

@@ -285,6 +285,16 @@ fn check(id: &Identification, scn: &Scenario, with_poses: bool, radius_scale: f6
             d.viscous_nms_per_rad
         );
     }
+    // Two methods agree: the voltage form's inertia and the torque form's
+    // (commanded torques, a different right-hand side) within 2 % (with
+    // the torque-limited rows in the voltage form they differed by 4 %).
+    let tq = id.torque_check.as_ref().expect("torque form");
+    assert!(
+        rel(d.inertia_kgm2.value, tq.inertia_kgm2.value) < 0.02,
+        "voltage {} torque {}\n{report}",
+        d.inertia_kgm2,
+        tq.inertia_kgm2
+    );
     // The intervals are honest: the truth lies inside the mass and
     // inertia intervals widened by 2 (filter and alignment biases).
     assert!(
