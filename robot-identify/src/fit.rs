@@ -706,3 +706,39 @@ fn richness_notes(d: &Dynamics, opts: &FitOptions, notes: &mut Vec<String>) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rows(n: usize) -> Vec<IdRow> {
+        (0..n)
+            .map(|k| IdRow {
+                t_s: k as f64 * 1e-3,
+                ..IdRow::default()
+            })
+            .collect()
+    }
+
+    /// Bad logs are refused with the row and the reason, never a panic.
+    #[test]
+    fn bad_logs_are_refused_clearly() {
+        let (p, o) = (Prior::paper(), FitOptions::default());
+        let e = identify(&rows(50), &p, &o).unwrap_err().to_string();
+        assert!(e.contains("50 rows"), "{e}");
+        let mut r = rows(500);
+        r[7].pose[2] = f64::NAN;
+        let e = identify(&r, &p, &o).unwrap_err().to_string();
+        assert!(e.contains("row 8") && e.contains("not finite"), "{e}");
+        let mut r = rows(500);
+        r[9].t_s = r[8].t_s;
+        let e = identify(&r, &p, &o).unwrap_err().to_string();
+        assert!(
+            e.contains("row 10") && e.contains("does not increase"),
+            "{e}"
+        );
+        // At rest the whole run: nothing is excited.
+        let e = identify(&rows(20_000), &p, &o).unwrap_err().to_string();
+        assert!(e.contains("not excited") || e.contains("zero"), "{e}");
+    }
+}

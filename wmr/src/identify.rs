@@ -352,3 +352,62 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
         ))),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prior_toml_keys_ranges_and_errors() {
+        let p = prior_from_toml(
+            "mass_kg = 12.5\nwheel_radius_m = 0.08\ngear_ratio = 30\nduty_full_scale = 1000\nspeed_window_ticks = 8\n",
+            "p.toml",
+        )
+        .unwrap();
+        assert_eq!(p.robot.mass_kg, 12.5);
+        assert_eq!(p.robot.wheel_radius_m, 0.08);
+        assert_eq!(p.motor.gear_ratio, 30.0);
+        assert_eq!(p.motor.duty_full_scale, 1000);
+        assert_eq!(p.speed_window_ticks, 8);
+        let e = prior_from_toml("mass = 3\n", "p.toml").unwrap_err();
+        assert!(e.contains("unknown key `mass`"), "{e}");
+        let e = prior_from_toml("mass_kg = -3\n", "p.toml").unwrap_err();
+        assert!(e.contains("robot"), "{e}");
+        let e = prior_from_toml("gear_efficiency = 1.5\n", "p.toml").unwrap_err();
+        assert!(e.contains("motor"), "{e}");
+        let e = prior_from_toml("speed_window_ticks = 0\n", "p.toml").unwrap_err();
+        assert!(e.contains("out of range"), "{e}");
+        let e = prior_from_toml("mass_kg = \"heavy\"\n", "p.toml").unwrap_err();
+        assert!(e.contains("must be a number"), "{e}");
+    }
+
+    #[test]
+    fn fit_of_a_missing_or_foreign_file_is_a_clear_error() {
+        let args = |log: PathBuf| FitArgs {
+            log,
+            robot: None,
+            out: None,
+            filter_window: 0.15,
+        };
+        let mut out = Vec::new();
+        let e = fit(&args("/no/such/log.csv".into()), &mut out).unwrap_err();
+        assert!(e.contains("cannot read /no/such/log.csv"), "{e}");
+        let dir = std::env::temp_dir().join(format!("wmr-identify-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("trace.csv");
+        std::fs::write(&f, format!("{}\n", track_log::csv::CSV_HEADER)).unwrap();
+        let e = fit(&args(f.clone()), &mut out).unwrap_err();
+        assert!(e.contains("not an identification log"), "{e}");
+        std::fs::write(
+            &f,
+            format!(
+                "{}\n0,0,0,0,0,0,0,0,0,0,0,0\n",
+                robot_identify::log::ID_CSV_HEADER
+            ),
+        )
+        .unwrap();
+        let e = fit(&args(f.clone()), &mut out).unwrap_err();
+        assert!(e.contains("at least 100"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
