@@ -54,6 +54,7 @@ fn identify_run_then_fit_over_the_pty() {
         robot: None,
         out: Some(out_toml.clone()),
         filter_window: 0.15,
+        pose_measured: false,
     };
     let mut report = Vec::new();
     wmr::identify::fit(&fit, &mut report).unwrap();

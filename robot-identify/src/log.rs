@@ -185,6 +185,33 @@ pub fn read_id_csv(r: impl BufRead, origin: &str) -> Result<Vec<IdRow>, String> 
     Ok(out)
 }
 
+/// Rows from a trace CSV (`hil-sim run --csv`, `wmr record`: track-log's
+/// format), which has no duties (the fit then uses the torque form) and η
+/// instead of the wheel rates: they are recovered with the r and h of
+/// `robot`, which must be the robot the log's η was formed with.
+/// `pose_measured`: the trace's pose is a measurement of the true pose
+/// (hil-sim's traces log the true pose of G), not the robot's own estimate
+/// (`wmr record`), so it carries the length scale.
+pub fn rows_from_trace(
+    trace: &[track_log::TraceSample],
+    robot: &controller_core::RobotParams,
+    pose_measured: bool,
+) -> Vec<IdRow> {
+    let (r, h) = (robot.wheel_radius_m as f64, robot.half_track_m as f64);
+    trace
+        .iter()
+        .map(|s| IdRow {
+            t_s: s.t_s,
+            wheel_rate_radps: [(s.eta[0] + h * s.eta[1]) / r, (s.eta[0] - h * s.eta[1]) / r],
+            duty: [f64::NAN; 2],
+            torque_nm: s.torque_nm,
+            pose: s.pose,
+            external_pose: pose_measured,
+            saturated: s.saturated,
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

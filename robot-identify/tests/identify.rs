@@ -415,3 +415,40 @@ fn a_poor_excitation_is_reported() {
         dr.inertia_kgm2, dr.lsq.condition, dp.inertia_kgm2, dp.lsq.condition
     );
 }
+
+/// A trace log (track-log's CSV: η and torques, no duties) of the same
+/// kind of run: the torque form only, said in the notes, with the mass and
+/// inertia within the margins; the motor is not identified.
+#[test]
+fn a_trace_log_gives_the_torque_form() {
+    let scn = scenario(1.1, 0.9, Sensing::Mocap, 5);
+    let r = run(&scn, &excitation());
+    let p = controller_core::RobotParams::paper();
+    let (rr, h) = (p.wheel_radius_m as f64, p.half_track_m as f64);
+    // The trace rows as `wmr record` writes them (η from the wheel rates).
+    let trace: Vec<track_log::TraceSample> = r
+        .rows
+        .iter()
+        .map(|row| {
+            let w = row.wheel_rate_radps;
+            track_log::TraceSample {
+                t_s: row.t_s,
+                pose: row.pose,
+                eta: [rr * (w[0] + w[1]) / 2.0, rr * (w[0] - w[1]) / (2.0 * h)],
+                torque_nm: row.torque_nm,
+                saturated: row.saturated,
+                ..Default::default()
+            }
+        })
+        .collect();
+    let rows = robot_identify::log::rows_from_trace(&trace, &p, true);
+    let id = identify(&rows, &prior_of(&scn), &FitOptions::default()).unwrap();
+    let d = id.dynamics.as_ref().unwrap();
+    let t = truth(&scn);
+    let text = robot_identify::report::text(&id, &prior_of(&scn));
+    assert_eq!(d.form, robot_identify::Form::Torque, "{text}");
+    assert!(d.emf_vs_per_rad.is_none() && id.torque_check.is_none());
+    assert!(id.notes.iter().any(|n| n.contains("no duties")), "{text}");
+    assert!(rel(d.mass_kg.value, t.mass_kg) < 0.05, "{text}");
+    assert!(rel(d.inertia_kgm2.value, t.inertia_kgm2) < 0.10, "{text}");
+}

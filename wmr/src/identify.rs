@@ -81,6 +81,11 @@ pub struct FitArgs {
     /// Savitzky-Golay window [s].
     #[arg(long, default_value_t = 0.15)]
     pub filter_window: f64,
+    /// For a trace CSV (`hil-sim run --csv`, `wmr record`): its pose column
+    /// is a measurement of the true pose (hil-sim's traces), not the
+    /// robot's own estimate, so the radii and the track are identified.
+    #[arg(long)]
+    pub pose_measured: bool,
 }
 
 fn io(e: std::io::Error) -> LinkError {
@@ -142,7 +147,23 @@ pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), String> {
     };
     let file =
         std::fs::File::open(&a.log).map_err(|e| format!("cannot read {}: {e}", a.log.display()))?;
-    let rows = read_id_csv(std::io::BufReader::new(file), &a.log.display().to_string())?;
+    let origin = a.log.display().to_string();
+    let text = std::io::read_to_string(file).map_err(|e| format!("{origin}: {e}"))?;
+    let is_trace = text
+        .lines()
+        .find(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .is_some_and(|l| l.trim_end() == track_log::csv::CSV_HEADER);
+    let rows = if is_trace {
+        writeln!(
+            out,
+            "{origin}: a trace CSV (no duties): the torque form, wheel rates from η with the prior's r and h"
+        )
+        .map_err(|e| e.to_string())?;
+        let trace = track_log::csv::read_trace_csv(text.as_bytes(), &origin)?;
+        robot_identify::log::rows_from_trace(&trace, &prior.robot, a.pose_measured)
+    } else {
+        read_id_csv(text.as_bytes(), &origin)?
+    };
     let opts = FitOptions {
         filter_window_s: a.filter_window,
         ..FitOptions::default()
@@ -388,6 +409,7 @@ mod tests {
             robot: None,
             out: None,
             filter_window: 0.15,
+            pose_measured: false,
         };
         let mut out = Vec::new();
         let e = fit(&args("/no/such/log.csv".into()), &mut out).unwrap_err();
@@ -395,7 +417,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("wmr-identify-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let f = dir.join("trace.csv");
-        std::fs::write(&f, format!("{}\n", track_log::csv::CSV_HEADER)).unwrap();
+        std::fs::write(&f, "t,x\n1,2\n").unwrap();
         let e = fit(&args(f.clone()), &mut out).unwrap_err();
         assert!(e.contains("not an identification log"), "{e}");
         std::fs::write(
