@@ -40,7 +40,7 @@ fn identify_run_then_fit_over_the_pty() {
         w_base: 1.5,
         duration: 24.0,
         area: 2.5,
-        rate: 500,
+        rate: None,
     };
     let mut text = Vec::new();
     let r = wmr::identify::run(&run, &mut link, &mut text);
