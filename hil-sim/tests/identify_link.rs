@@ -52,6 +52,7 @@ fn identify_run_then_fit_over_the_pty() {
     let fit = wmr::identify::FitArgs {
         log,
         robot: None,
+        timer_clock_hz: 96_000_000,
         out: Some(out_toml.clone()),
         filter_window: 0.15,
         pose_measured: false,
@@ -60,9 +61,12 @@ fn identify_run_then_fit_over_the_pty() {
     wmr::identify::fit(&fit, &mut report).unwrap();
     let report = String::from_utf8_lossy(&report).to_string();
     let toml_text = std::fs::read_to_string(&out_toml).unwrap();
+    // A robot file (the paper robot's, identified values in place; `fit`
+    // validated it before writing).
     let table: toml::Table = toml::from_str(&toml_text).unwrap();
-    let mass = table["mass_kg"].as_float().unwrap();
-    let inertia = table["inertia_kgm2"].as_float().unwrap();
+    let body = table["body"].as_table().unwrap();
+    let mass = body["mass_kg"].as_float().unwrap();
+    let inertia = body["inertia_kgm2"].as_float().unwrap();
     println!("{text}\n{report}\n{toml_text}");
     assert!((mass / 18.0 - 1.0).abs() < 0.05, "mass {mass}\n{report}");
     assert!(

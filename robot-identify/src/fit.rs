@@ -57,6 +57,9 @@ pub struct Prior {
     pub control_period_s: f64,
     /// Ticks W of the runtime's wheel-rate window.
     pub speed_window_ticks: u32,
+    /// The runtime's per-wheel radius scale r_i/r̄ (D60): its wheel rates
+    /// are the true ones times this; the fit divides it out.
+    pub radius_scale: [f64; 2],
 }
 
 impl Prior {
@@ -68,7 +71,32 @@ impl Prior {
             control_period_s: 1e-3,
             speed_window_ticks: controller_core::runtime::EncoderParams::EXAMPLE.speed_window_ticks
                 as u32,
+            radius_scale: [1.0; 2],
         }
+    }
+
+    /// The prior of a robot file, its PWM timer clocked at
+    /// `timer_clock_hz` (the duty's full scale: clock / PWM frequency).
+    pub fn from_robot(robot: &robot_file::Robot, timer_clock_hz: u32) -> Result<Self, String> {
+        robot.validate().map_err(|e| format!("robot file: {e}"))?;
+        let full = robot
+            .bridge
+            .params()
+            .duty_full_scale(timer_clock_hz)
+            .ok_or_else(|| {
+                format!(
+                    "robot file: bridge.pwm_frequency_hz {} gives no duty resolution at a {timer_clock_hz} Hz timer",
+                    robot.bridge.pwm_frequency_hz
+                )
+            })?;
+        let enc = robot.encoder_params();
+        Ok(Self {
+            robot: robot.robot_params(),
+            motor: robot.motor_params(full),
+            control_period_s: robot_file::CONTROL_PERIOD_S as f64,
+            speed_window_ticks: enc.speed_window_ticks as u32,
+            radius_scale: [enc.radius_scale[0] as f64, enc.radius_scale[1] as f64],
+        })
     }
 
     /// a = η_g·N·k/R: wheel torque per volt at stall \[N·m/V\].
@@ -300,9 +328,11 @@ fn segments(rows: &[IdRow], prior: &Prior, dt: f64, duty_sign: [f64; 2]) -> Vec<
         start = k;
         let ts: Vec<f64> = seg.iter().map(|r| r.t_s).collect();
         let col = |f: &dyn Fn(&IdRow) -> f64| seg.iter().map(f).collect::<Vec<f64>>();
+        // The runtime's rates carry its radius scale (D60): true wheel rates.
+        let sc = prior.radius_scale;
         let rates = [
-            col(&|r| r.wheel_rate_radps[0]),
-            col(&|r| r.wheel_rate_radps[1]),
+            col(&|r| r.wheel_rate_radps[0] / sc[0]),
+            col(&|r| r.wheel_rate_radps[1] / sc[1]),
         ];
         let volts = [
             col(&|r| duty_sign[0] * r.duty[0] * volts_per_count),
@@ -691,8 +721,24 @@ fn richness_notes(d: &Dynamics, opts: &FitOptions, notes: &mut Vec<String>) {
             combo.join(" ")
         ));
     }
-    for (j, name) in d.names.iter().enumerate() {
-        let e = Estimate::new(f.theta[j], f.std_err[j]);
+    // The fitted quantities, then the physical ones derived from them (a
+    // small difference of two well-determined numbers, such as the viscous
+    // friction a·(κ − N·k), can be undetermined while both are not).
+    let derived = [
+        ("mass", d.mass_kg),
+        ("inertia", d.inertia_kgm2),
+        ("CoM offset d", d.com_offset_m),
+        ("Coulomb friction right", d.coulomb_nm[0]),
+        ("Coulomb friction left", d.coulomb_nm[1]),
+        ("viscous friction right", d.viscous_nms_per_rad[0]),
+        ("viscous friction left", d.viscous_nms_per_rad[1]),
+    ];
+    let fitted = d
+        .names
+        .iter()
+        .enumerate()
+        .map(|(j, n)| (*n, Estimate::new(f.theta[j], f.std_err[j])));
+    for (name, e) in fitted.chain(derived) {
         if e.consistent_with_zero() {
             notes.push(format!(
                 "{name} = {e:.4}: not distinguishable from zero in this run (a term this small \

@@ -223,3 +223,61 @@ pub fn robot_toml(id: &Identification, prior: &Prior) -> String {
     }
     out
 }
+
+/// The identified robot as a robot file: `base` (the prior's file) with
+/// the body's mass, inertia, centre-of-mass offset, both wheel radii and
+/// the track, and each wheel's friction, replaced where the run identified
+/// them (a friction whose interval contains zero, or below zero, is written
+/// as 0); everything else (motor constants, encoders, bridge, limits,
+/// gains) kept. The header comment is the report (every value with its
+/// interval). Fails when the result is not a valid robot file (the error
+/// names the field).
+pub fn robot_file(
+    id: &Identification,
+    prior: &Prior,
+    base: &robot_file::Robot,
+) -> Result<String, String> {
+    let mut r = base.clone();
+    let ok = |e: &Estimate| e.ci95.is_finite() && !e.consistent_with_zero();
+    if let Some(d) = &id.dynamics {
+        if ok(&d.mass_kg) {
+            r.body.mass_kg = d.mass_kg.value as f32;
+        }
+        if ok(&d.inertia_kgm2) {
+            r.body.inertia_kgm2 = d.inertia_kgm2.value as f32;
+        }
+        if ok(&d.com_offset_m) && d.com_offset_m.value >= 0.0 {
+            r.body.com_offset_m = d.com_offset_m.value as f32;
+        }
+        let f = |e: &Estimate| if ok(e) { e.value.max(0.0) as f32 } else { 0.0 };
+        for i in 0..2 {
+            r.motors.coulomb_friction_nm[i] = f(&d.coulomb_nm[i]);
+            r.motors.viscous_friction_nms_per_rad[i] = f(&d.viscous_nms_per_rad[i]);
+        }
+    }
+    for i in 0..2 {
+        if ok(&id.wheel_radius_m[i]) {
+            r.body.wheel_radius_m[i] = id.wheel_radius_m[i].value as f32;
+        }
+    }
+    if !id.track_from_prior && ok(&id.half_track_m) {
+        r.body.track_m = 2.0 * id.half_track_m.value as f32;
+    }
+    r.validate()
+        .map_err(|e| format!("the identified robot is not a valid robot file: {e}"))?;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "# Identified by `wmr identify fit` from {} rows over {:.1} s (docs/identification.md);",
+        id.rows, id.duration_s
+    );
+    let _ = writeln!(
+        out,
+        "# the fit's report (values ± the half-width of their 95 % confidence interval):"
+    );
+    for l in text(id, prior).lines() {
+        let _ = writeln!(out, "#   {l}");
+    }
+    out.push_str(&r.to_toml_string());
+    Ok(out)
+}

@@ -204,6 +204,7 @@ fn prior_of(scn: &Scenario) -> Prior {
         motor: scn.motor(),
         control_period_s: scn.control_period_s,
         speed_window_ticks: scn.encoder().speed_window_ticks as u32,
+        radius_scale: scn.encoder().radius_scale.map(|s| s as f64),
     }
 }
 

@@ -30,7 +30,7 @@ fn noise(s: &mut u64) -> f64 {
 
 /// 60 s at 1 kHz: voltages a sum of sinusoids per wheel plus a weak
 /// speed feedback (keeps the robot near its start), held over each period.
-fn simulate(t: &Truth, prior: &Prior, seed: u64) -> Vec<IdRow> {
+fn simulate(t: &Truth, prior: &Prior, seed: u64, counts_per_rev: f64) -> Vec<IdRow> {
     let a = prior.torque_per_volt();
     let b = a * prior.emf_per_wheel_rate();
     let (vs, full) = (
@@ -41,7 +41,13 @@ fn simulate(t: &Truth, prior: &Prior, seed: u64) -> Vec<IdRow> {
     let mv = t.m + t.iw * inv_r2;
     let mw = t.i + 3.0 * t.m * t.d * t.d + t.iw * t.h * t.h * inv_r2;
     let md = t.m * t.d;
-    let cpr = 24_000.0 / std::f64::consts::TAU;
+    let cpr = counts_per_rev / std::f64::consts::TAU;
+    let window = prior.speed_window_ticks as usize;
+    // Voltage amplitude per component: a twelfth of the supply, or enough
+    // for three times the Coulomb friction's torque when that is more.
+    let amp = (vs / 12.0)
+        .max(3.0 * t.coulomb[0].max(t.coulomb[1]) / a)
+        .min(vs / 4.0);
     let dt = 1e-3;
     // State: x, y, θ of G, v, ω, φ_R, φ_L.
     let mut st = [0.0f64; 7];
@@ -77,15 +83,15 @@ fn simulate(t: &Truth, prior: &Prior, seed: u64) -> Vec<IdRow> {
                 .sum::<f64>()
         };
         // Sum of sinusoids, minus a weak pull back toward the start.
-        let pull = 2.0 * (st[0] * st[2].cos() + st[1] * st[2].sin());
+        let pull = amp * (st[0] * st[2].cos() + st[1] * st[2].sin()) / t.r[0] * 0.1;
         let volts = [
-            env * (2.0 * wave([1.3, 3.7, 6.1], 0.0) - pull),
-            env * (2.0 * wave([1.1, 2.9, 5.3], 1.7) - pull),
+            env * (amp * wave([1.3, 3.7, 6.1], 0.0) - pull),
+            env * (amp * wave([1.1, 2.9, 5.3], 1.7) - pull),
         ];
         // Encoders (quantised, floor), the 4-tick rate window.
         let counts = [(st[5] * cpr).floor(), (st[6] * cpr).floor()];
         hist.push(counts);
-        let w = 4.min(hist.len() - 1).max(1);
+        let w = window.min(hist.len() - 1).max(1);
         let rate: [f64; 2] = if hist.len() > 1 {
             std::array::from_fn(|i| {
                 (counts[i] - hist[hist.len() - 1 - w][i]) / cpr / (w as f64 * dt)
@@ -164,7 +170,7 @@ fn recovers_friction_unequal_radii_and_track_from_the_model() {
             },
         ),
     ] {
-        let rows = simulate(&t, &prior, seed);
+        let rows = simulate(&t, &prior, seed, 24_000.0);
         let id = identify(&rows, &prior, &FitOptions::default()).unwrap();
         let text = robot_identify::report::text(&id, &prior);
         let d = id.dynamics.as_ref().unwrap();
@@ -186,5 +192,83 @@ fn recovers_friction_unequal_radii_and_track_from_the_model() {
         }
         assert!(rel(id.half_track_m.value, t.h) < 0.01, "{text}");
         assert!(!id.track_from_prior);
+    }
+}
+
+/// The example robots of robots/ as priors, each simulated with its body
+/// 10 % heavier, 15 % less inertia, the wheels 0.3 % apart and its own
+/// friction (its encoders' resolution and rate window, its motor and
+/// supply): the fit meets every margin, and its robot file output is a
+/// valid robot file carrying the identified values.
+#[test]
+fn example_robots_are_identified_and_written_back() {
+    for (name, seed) in [("tb6612-2kg", 11u64), ("bts7960-10kg", 12), ("paper", 13)] {
+        let path = format!("{}/../robots/{name}.toml", env!("CARGO_MANIFEST_DIR"));
+        let file =
+            robot_file::Robot::from_toml_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let prior = Prior::from_robot(&file, 96_000_000).unwrap();
+        let b = &file.body;
+        let m = &file.motors;
+        let r0 = b.wheel_radius_m[0] as f64;
+        let t = Truth {
+            m: 1.1 * b.mass_kg as f64,
+            i: 0.85 * b.inertia_kgm2 as f64,
+            d: b.com_offset_m as f64,
+            r: [r0 * 1.0015, r0 * 0.9985],
+            h: 0.5 * b.track_m as f64,
+            iw: b.wheel_inertia_kgm2 as f64,
+            // The paper file has none: give it some.
+            coulomb: m
+                .coulomb_friction_nm
+                .map(|c| if c > 0.0 { c as f64 } else { 0.2 }),
+            viscous: m
+                .viscous_friction_nms_per_rad
+                .map(|c| if c > 0.0 { c as f64 } else { 0.02 }),
+        };
+        let rows = simulate(&t, &prior, seed, file.encoders.counts_per_wheel_rev as f64);
+        let id = identify(&rows, &prior, &FitOptions::default()).unwrap();
+        let text = robot_identify::report::text(&id, &prior);
+        println!("{name}:\n{text}");
+        let d = id.dynamics.as_ref().unwrap();
+        assert!(rel(d.mass_kg.value, t.m) < 0.05, "{name}\n{text}");
+        assert!(rel(d.inertia_kgm2.value, t.i) < 0.10, "{name}\n{text}");
+        assert!(rel(id.half_track_m.value, t.h) < 0.01, "{name}\n{text}");
+        for w in 0..2 {
+            assert!(
+                rel(id.wheel_radius_m[w].value, t.r[w]) < 0.005,
+                "{name}\n{text}"
+            );
+            assert!(
+                rel(d.coulomb_nm[w].value, t.coulomb[w]) < 0.2,
+                "{name}\n{text}"
+            );
+            // Within 20 %, or reported as not identified. Where it is
+            // reported so, the viscous friction is a small fraction of the
+            // motor's own back-EMF damping a·N·k, with which it shares the
+            // regressor φ̇: the 2 kg robot's 0.0005 N·m·s/rad is 4 % of it,
+            // the 10 kg robot's 0.02 about 1 % (docs/identification.md has
+            // the numbers; the latter's interval misses the truth).
+            let e = d.viscous_nms_per_rad[w];
+            let flagged = id
+                .notes
+                .iter()
+                .any(|n| n.contains(["viscous friction right", "viscous friction left"][w]));
+            assert!(
+                rel(e.value, t.viscous[w]) < 0.2 || flagged,
+                "{name}: viscous {e:?} vs {}\n{text}",
+                t.viscous[w]
+            );
+            if flagged {
+                println!(
+                    "{name}: viscous friction {w}: {e:.5} for {:.5}: reported as not identified",
+                    t.viscous[w]
+                );
+            }
+        }
+        let out = robot_identify::report::robot_file(&id, &prior, &file).unwrap();
+        let back = robot_file::Robot::from_toml_str(&out).unwrap();
+        assert!((back.body.mass_kg as f64 - d.mass_kg.value).abs() < 1e-4 * t.m);
+        assert_eq!(back.bridge, file.bridge);
+        assert!(rel(back.motors.coulomb_friction_nm[0] as f64, t.coulomb[0]) < 0.2);
     }
 }

@@ -68,14 +68,19 @@ pub struct FitArgs {
     /// Identification log (from `wmr identify run`).
     #[arg(value_name = "LOG.csv")]
     pub log: PathBuf,
-    /// The robot as configured when the log was recorded (TOML: the keys of
-    /// `-o`'s output, and the motor's `torque_constant_nm_per_a`,
-    /// `winding_resistance_ohm`, `gear_ratio`, `gear_efficiency`,
-    /// `supply_voltage_v`, `duty_full_scale`; `control_period_s`,
-    /// `speed_window_ticks`) [default: the paper robot, the example motor].
+    /// The robot as configured when the log was recorded: a robot file
+    /// (docs/robot.md), or a flat TOML of `RobotParams` and `MotorParams`
+    /// keys (`mass_kg`, ..., `duty_full_scale`, `control_period_s`,
+    /// `speed_window_ticks`) [default: robots/paper.toml's robot].
     #[arg(long, value_name = "PRIOR.toml")]
     pub robot: Option<PathBuf>,
-    /// Write the identified robot (TOML, intervals in comments).
+    /// PWM timer clock of the robot's board [Hz] (with a robot file: the
+    /// duty's full scale is clock / bridge.pwm_frequency_hz).
+    #[arg(long, default_value_t = 96_000_000)]
+    pub timer_clock_hz: u32,
+    /// Write the identified robot: the prior's robot file with the
+    /// identified values (the report in its header comment); a flat TOML
+    /// with a flat prior.
     #[arg(short = 'o', long = "out", value_name = "OUT.toml")]
     pub out: Option<PathBuf>,
     /// Savitzky-Golay window [s].
@@ -137,13 +142,29 @@ pub fn prior_from_toml(text: &str, origin: &str) -> Result<Prior, String> {
 
 /// `identify fit`: the report on `out`, the robot file with `-o`.
 pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), String> {
-    let prior = match &a.robot {
+    // The prior: a robot file (the usual case), or the flat keys.
+    let (prior, base) = match &a.robot {
         Some(path) => {
             let text = std::fs::read_to_string(path)
                 .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-            prior_from_toml(&text, &path.display().to_string())?
+            let origin = path.display().to_string();
+            let is_file = text
+                .parse::<toml::Table>()
+                .is_ok_and(|t| t.contains_key("format") || t.contains_key("body"));
+            if is_file {
+                let robot = robot_file::Robot::from_toml_str(&text)
+                    .map_err(|e| format!("{origin}: {e}"))?;
+                let p = Prior::from_robot(&robot, a.timer_clock_hz)
+                    .map_err(|e| format!("{origin}: {e}"))?;
+                (p, Some(robot))
+            } else {
+                (prior_from_toml(&text, &origin)?, None)
+            }
         }
-        None => Prior::paper(),
+        None => {
+            let robot = robot_file::Robot::paper();
+            (Prior::from_robot(&robot, a.timer_clock_hz)?, Some(robot))
+        }
     };
     let file =
         std::fs::File::open(&a.log).map_err(|e| format!("cannot read {}: {e}", a.log.display()))?;
@@ -174,8 +195,11 @@ pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), String> {
     let id = identify(&rows, &prior, &opts).map_err(|e| format!("{}: {e}", a.log.display()))?;
     write!(out, "{}", robot_identify::report::text(&id, &prior)).map_err(|e| e.to_string())?;
     if let Some(path) = &a.out {
-        std::fs::write(path, robot_identify::report::robot_toml(&id, &prior))
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        let text = match &base {
+            Some(robot) => robot_identify::report::robot_file(&id, &prior, robot)?,
+            None => robot_identify::report::robot_toml(&id, &prior),
+        };
+        std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         writeln!(out, "robot written to {}", path.display()).map_err(|e| e.to_string())?;
     }
     Ok(())
@@ -448,6 +472,7 @@ mod tests {
         let args = |log: PathBuf| FitArgs {
             log,
             robot: None,
+            timer_clock_hz: 96_000_000,
             out: None,
             filter_window: 0.15,
             pose_measured: false,
