@@ -300,6 +300,8 @@ fn recorded_paper_curve_matches_the_simulation() {
         rate: 100,
         arm: true,
         quiet: true,
+        mcap: None,
+        com_offset_m: None,
     };
     let mut out = Vec::new();
     wmr::cli::record(&args, &mut link, &mut out).unwrap();

@@ -94,3 +94,17 @@ pub fn metrics_from_trace(
     }
     Some(acc.finish(n as f64 * dt, dt))
 }
+
+/// Names of the health reasons by index ([`TraceSample::health_reason`],
+/// `HealthReason` in controller-core).
+pub const HEALTH_REASONS: [&str; 9] = [
+    "none",
+    "saturation",
+    "tracking error",
+    "actuator fault",
+    "disturbance",
+    "adaptation limit",
+    "estimator",
+    "lost path",
+    "controller fault",
+];

@@ -52,10 +52,60 @@ pub enum Command {
     /// Record telemetry to a CSV (the columns of `hil-sim run --csv`) and print
     /// the metrics as JSON.
     Record(RecordArgs),
-    /// Forward external poses from stdin lines or a UDP port.
+    /// Forward external poses from stdin lines or a UDP port
+    /// (`x y theta [sx sy stheta] [@capture_time]`).
     PoseFeed(PoseFeedArgs),
     /// Identify the robot: drive the excitation and record (`run`), fit a log (`fit`).
     Identify(crate::identify::IdentifyArgs),
+    /// A compact live status line (state, pose, speed, errors, health,
+    /// counters) from telemetry.
+    Watch(WatchArgs),
+    /// The run metrics of a log, a trace CSV or an MCAP file (no robot
+    /// needed): the numbers `record` prints.
+    Metrics(MetricsArgs),
+}
+
+/// `watch` options.
+#[derive(Debug, Args)]
+pub struct WatchArgs {
+    /// Lines per second.
+    #[arg(long, default_value_t = 5)]
+    pub rate: u16,
+    /// Stop after this much robot time [s] (default: until Ctrl-C).
+    #[arg(long, value_name = "S")]
+    pub seconds: Option<f64>,
+}
+
+/// `metrics` options.
+#[derive(Debug, Args)]
+pub struct MetricsArgs {
+    /// `wmr record`'s CSV or MCAP, `hil-sim run --csv` or `--mcap`.
+    #[arg(value_name = "FILE")]
+    pub file: PathBuf,
+}
+
+/// What `wmr metrics` prints (one JSON object).
+#[derive(Debug, Serialize)]
+pub struct MetricsSummary {
+    /// Rows of the log (running or stopping).
+    pub rows: usize,
+    /// Reference time covered [s].
+    pub duration_s: f64,
+    /// The metrics (no perturbation window), as `record` prints them.
+    pub metrics: Option<track_log::Metrics>,
+}
+
+/// The metrics of a log file, CSV or MCAP.
+pub fn metrics_of_file(path: &std::path::Path) -> Result<MetricsSummary, String> {
+    let rows = ros_mcap::read_log(path).map_err(|e| e.to_string())?;
+    Ok(MetricsSummary {
+        rows: rows.len(),
+        duration_s: match (rows.first(), rows.last()) {
+            (Some(a), Some(b)) => b.t_s - a.t_s,
+            _ => 0.0,
+        },
+        metrics: track_log::metrics_from_trace(&rows, [0.0, 0.0], false),
+    })
 }
 
 /// `upload` options.
@@ -132,6 +182,14 @@ pub struct RecordArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Also write a ROS 2 MCAP log of every telemetry frame (/odom, /tf,
+    /// /joint_states, /diagnostics, /wmr/tracking: ros-mcap/README.md).
+    #[arg(long, value_name = "FILE.mcap")]
+    pub mcap: Option<PathBuf>,
+    /// d, G ahead of the axle midpoint, for the MCAP's base_link [m]
+    /// [default: the paper robot's 0.05] (the link does not report it).
+    #[arg(long, value_name = "M")]
+    pub com_offset_m: Option<f64>,
 }
 
 /// `pose-feed` options.
@@ -156,6 +214,9 @@ pub struct RecordSummary {
     pub duration_s: f64,
     /// The CSV file.
     pub csv: String,
+    /// The MCAP file, with `--mcap`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mcap: Option<String>,
     /// The simulator's metrics of the log (no perturbation window).
     pub metrics: Option<track_log::Metrics>,
 }
@@ -184,6 +245,11 @@ pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
     }) = &cli.command
     {
         return crate::identify::fit(a, out); // a log, no robot
+    }
+    if let Command::Metrics(a) = &cli.command {
+        let m = metrics_of_file(&a.file)?;
+        let json = serde_json::to_string(&m).map_err(|e| e.to_string())?;
+        return writeln!(out, "{json}").map_err(|e| e.to_string());
     }
     let mut link = link_of(cli).map_err(|e| e.to_string())?;
     run(&cli.command, &mut link, out).map_err(|e| e.to_string())
@@ -266,6 +332,12 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
                 crate::identify::fit(f, out).map_err(LinkError::Io)?
             }
         },
+        Command::Watch(a) => watch_live(a, link, out)?,
+        Command::Metrics(a) => {
+            let m = metrics_of_file(&a.file).map_err(LinkError::Io)?;
+            let json = serde_json::to_string(&m).map_err(|e| LinkError::Io(e.to_string()))?;
+            writeln!(out, "{json}").map_err(io)?;
+        }
     }
     Ok(())
 }
@@ -527,6 +599,33 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
     }
     let file = std::fs::File::create(&a.out)
         .map_err(|e| LinkError::Io(format!("cannot create {}: {e}", a.out.display())))?;
+    // The MCAP log: its geometry from the handshake, stamps from robot
+    // time through the clock offset measured now (ros_mcap::TimeMap).
+    let t0 = Instant::now();
+    let unix_t0_ns = ros_mcap::unix_now_ns();
+    let mut mcap = match &a.mcap {
+        None => None,
+        Some(path) => {
+            let robot = match &link.last_hello {
+                Some(h) => h.robot,
+                None => link.hello()?.robot,
+            };
+            let geometry = ros_mcap::Geometry::new(
+                robot.wheel_radius_m as f64,
+                robot.half_track_m as f64,
+                a.com_offset_m
+                    .unwrap_or_else(ros_mcap::default_com_offset_m),
+            )
+            .map_err(|e| LinkError::Io(e.to_string()))?;
+            let log = ros_mcap::McapLog::create(path, geometry, "wmr record")
+                .map_err(|e| LinkError::Io(e.to_string()))?;
+            let sync = clock_sync(link, t0, 5)?;
+            let map =
+                ros_mcap::TimeMap::new(sync.robot_us as u32, unix_t0_ns + sync.host_mid_us * 1000);
+            Some((log, map, path))
+        }
+    };
+    let mut last_stop: Option<StopCode> = None;
     link.command(&Request::SetTelemetry {
         selection: TELEMETRY_ALL,
         rate_hz: a.rate,
@@ -549,7 +648,6 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
         }
         pb
     };
-    let t0 = Instant::now();
     let mut last_ping = Instant::now();
     let mut last_frame = Instant::now();
     let mut first_us: Option<u32> = None;
@@ -576,6 +674,14 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
                 last_seq = Some(t.seq);
                 let t_us = *first_us.get_or_insert(t.t_robot_us);
                 seen_running |= t.state == RunStateMsg::Running;
+                if let Some((log, map, path)) = &mut mcap {
+                    let stamp = map.host_ns(t.t_robot_us);
+                    if let Some(f) = ros_mcap::LogFrame::of_telemetry(&t, stamp, last_stop) {
+                        log.write(&f).map_err(|e| {
+                            LinkError::Io(format!("cannot write {}: {e}", path.display()))
+                        })?;
+                    }
+                }
                 if let Some(row) = trace_sample(&t) {
                     rows.push(row);
                 }
@@ -607,6 +713,7 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
                 ended = Some(Stop { state, cause });
                 break;
             }
+            Some(Reply::Event(Event::StateChanged { cause: Some(c), .. })) => last_stop = Some(c),
             _ => {}
         }
         if last_frame.elapsed() > Duration::from_secs(2) {
@@ -628,6 +735,10 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
     });
     track_log::csv::write_trace_csv(std::io::BufWriter::new(file), &rows)
         .map_err(|e| LinkError::Io(format!("cannot write {}: {e}", a.out.display())))?;
+    if let Some((log, _, path)) = mcap {
+        log.finish()
+            .map_err(|e| LinkError::Io(format!("cannot write {}: {e}", path.display())))?;
+    }
     let summary = RecordSummary {
         rows: rows.len(),
         dropped_frames: dropped,
@@ -636,6 +747,7 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
             _ => 0.0,
         },
         csv: a.out.display().to_string(),
+        mcap: a.mcap.as_ref().map(|p| p.display().to_string()),
         metrics: track_log::metrics_from_trace(&rows, [0.0, 0.0], false),
     };
     let json = serde_json::to_string(&summary).map_err(|e| LinkError::Io(e.to_string()))?;
@@ -652,102 +764,298 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
     }
 }
 
-/// Clock offset robot − host \[µs\] from `n` exchanges, the one with the
-/// shortest round trip (its midpoint is the best estimate).
-fn clock_offset(link: &mut Link, t0: Instant, n: usize) -> Result<i64, LinkError> {
-    let mut best: Option<(u64, i64)> = None;
-    for _ in 0..n {
+/// `watch`: one status line per telemetry frame at `--rate`, the link
+/// kept alive meanwhile; ends after `--seconds` of robot time.
+fn watch_live(a: &WatchArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
+    if a.rate == 0 || a.rate > 100 {
+        return Err(LinkError::Io("--rate must be in 1..=100 lines/s".into()));
+    }
+    if let Some(s) = a.seconds {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(LinkError::Io("--seconds must be > 0".into()));
+        }
+    }
+    link.command(&Request::SetTelemetry {
+        selection: TELEMETRY_ALL,
+        rate_hz: a.rate,
+    })?;
+    let t0 = Instant::now();
+    let keep_alive = link.timing().keep_alive;
+    let mut last_ping = Instant::now();
+    let mut last_frame = Instant::now();
+    let mut first_us: Option<u32> = None;
+    let mut status = crate::watch::LiveStatus::default();
+    loop {
+        if last_ping.elapsed() >= keep_alive {
+            link.send(&Request::ClockSync {
+                host_time_us: host_us(t0),
+            })?;
+            last_ping = Instant::now();
+        }
+        match link.next_stream(Duration::from_millis(20))? {
+            Some(Reply::Telemetry(t)) => {
+                last_frame = Instant::now();
+                let first = *first_us.get_or_insert(t.t_robot_us);
+                writeln!(out, "{}", status.line(&t)).map_err(io)?;
+                if a.seconds
+                    .is_some_and(|s| t.t_robot_us.wrapping_sub(first) as f64 * 1e-6 >= s)
+                {
+                    break;
+                }
+            }
+            Some(Reply::Event(e)) => status.event(&e),
+            _ => {}
+        }
+        if last_frame.elapsed() > Duration::from_secs(2) {
+            return Err(LinkError::NoAnswer("telemetry (no frame for 2 s)".into()));
+        }
+    }
+    let _ = link.command(&Request::SetTelemetry {
+        selection: TELEMETRY_ALL,
+        rate_hz: 0,
+    });
+    Ok(())
+}
+
+/// One clock-sync exchange: the robot's time and the host time (µs since
+/// the caller's `t0`) at the midpoint of its round trip.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ClockSample {
+    /// The robot's clock \[µs\] (u32 on the wire, widened).
+    pub robot_us: u64,
+    /// Host time at the round trip's midpoint \[µs since t0\].
+    pub host_mid_us: u64,
+    /// The round trip \[µs\].
+    pub rtt_us: u64,
+}
+
+impl ClockSample {
+    /// Clock offset robot − host \[µs\].
+    pub fn offset_us(&self) -> i64 {
+        self.robot_us as i64 - self.host_mid_us as i64
+    }
+}
+
+/// The best of `n` clock-sync exchanges: the one with the shortest round
+/// trip (its midpoint is the best estimate of when the robot read its clock).
+pub fn clock_sync(link: &mut Link, t0: Instant, n: usize) -> Result<ClockSample, LinkError> {
+    let mut best: Option<ClockSample> = None;
+    for _ in 0..n.max(1) {
         let sent = host_us(t0);
         match link.command(&Request::ClockSync { host_time_us: sent })? {
             Reply::ClockSync { robot_time_us, .. } => {
                 let recv = host_us(t0);
-                let rtt = recv - sent;
-                let mid = (sent + recv) / 2;
-                let off = robot_time_us as i64 - mid as i64;
-                if best.is_none_or(|(r, _)| rtt < r) {
-                    best = Some((rtt, off));
+                let s = ClockSample {
+                    robot_us: robot_time_us as u64,
+                    host_mid_us: (sent + recv) / 2,
+                    rtt_us: recv - sent,
+                };
+                if best.is_none_or(|b| s.rtt_us < b.rtt_us) {
+                    best = Some(s);
                 }
             }
             r => return Err(LinkError::Unexpected(format!("{r:?}"))),
         }
     }
-    Ok(best.map_or(0, |(_, o)| o))
+    best.ok_or_else(|| LinkError::NoAnswer("ClockSync".into()))
 }
 
-/// A pose \[m, m, rad\] and its standard deviations \[m, m, rad\].
-pub type PoseLine = ([f32; 3], [f32; 3]);
+/// When a pose was taken, as a `pose-feed` line gives it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Capture {
+    /// No time given: the pose is stamped when its line arrives.
+    Arrival,
+    /// Host Unix time \[s\] (a localiser's header stamp).
+    UnixS(f64),
+    /// This long before the line arrived \[s\] (`@-0.08`).
+    AgoS(f64),
+}
 
-/// Parses `x y theta [sx sy stheta]` (spaces or commas; `#` comments).
+/// A pose line: pose of G \[m, m, rad\], standard deviations \[m, m, rad\]
+/// and when it was taken.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PoseLine {
+    /// x, y, θ of G.
+    pub pose: [f32; 3],
+    /// σx, σy, σθ (σθ = 0: position only).
+    pub std: [f32; 3],
+    /// Capture time.
+    pub capture: Capture,
+}
+
+/// Unix times before this \[s\] (2001-09-09) are not a clock's reading.
+const MIN_UNIX_S: f64 = 1e9;
+/// Oldest capture accepted on the host side \[s\]: far beyond any
+/// estimator history (the robot refuses what is older than its own).
+const MAX_AGE_S: f64 = 60.0;
+
+/// Parses `x y theta [sx sy stheta] [@T]` (spaces or commas; `#`
+/// comments). `@T` is the capture time: Unix seconds (`@1764632000.125`,
+/// the localiser's stamp), or a negative age relative to the line's
+/// arrival (`@-0.08`: taken 80 ms before).
 pub fn parse_pose_line(line: &str, std: [f32; 3]) -> Result<Option<PoseLine>, String> {
     let line = line.split('#').next().unwrap_or("").trim();
     if line.is_empty() {
         return Ok(None);
     }
-    let v: Result<Vec<f32>, _> = line
+    let mut capture = Capture::Arrival;
+    let mut nums = Vec::new();
+    for word in line
         .split(|c: char| c == ',' || c.is_whitespace())
         .filter(|s| !s.is_empty())
-        .map(str::parse)
-        .collect();
-    let v = v.map_err(|_| format!("not numbers: {line:?}"))?;
-    match v.len() {
-        3 => Ok(Some(([v[0], v[1], v[2]], std))),
-        6 => Ok(Some(([v[0], v[1], v[2]], [v[3], v[4], v[5]]))),
-        n => Err(format!("{n} numbers, expected `x y theta [sx sy stheta]`")),
+    {
+        if let Some(t) = word.strip_prefix('@') {
+            if capture != Capture::Arrival {
+                return Err(format!("two capture times in {line:?}"));
+            }
+            let t: f64 = t
+                .parse()
+                .map_err(|_| format!("capture time {word:?} is not a number"))?;
+            capture = if t.is_finite() && t < 0.0 && -t <= MAX_AGE_S {
+                Capture::AgoS(-t)
+            } else if t.is_finite() && t >= MIN_UNIX_S {
+                Capture::UnixS(t)
+            } else {
+                return Err(format!(
+                    "capture time {word:?}: give Unix seconds (@1764632000.125) or an age up to {MAX_AGE_S} s before arrival (@-0.08)"
+                ));
+            };
+        } else {
+            nums.push(
+                word.parse::<f32>()
+                    .map_err(|_| format!("not numbers: {line:?}"))?,
+            );
+        }
     }
+    let v = nums;
+    let (pose, std) = match v.len() {
+        3 => ([v[0], v[1], v[2]], std),
+        6 => ([v[0], v[1], v[2]], [v[3], v[4], v[5]]),
+        n => {
+            return Err(format!(
+                "{n} numbers, expected `x y theta [sx sy stheta] [@capture_time]`"
+            ))
+        }
+    };
+    Ok(Some(PoseLine { pose, std, capture }))
+}
+
+/// Host time and robot time, for stamping poses: `host_us` counts from
+/// `t0`, `unix_t0_ns` is the Unix time at `t0`, and the clock offset
+/// robot − host is from [`clock_sync`].
+#[derive(Clone, Copy, Debug)]
+pub struct PoseClock {
+    /// Unix time at t0 \[ns\].
+    pub unix_t0_ns: u64,
+    /// Robot − host clock offset \[µs\].
+    pub offset_us: i64,
+    /// How much earlier than its arrival a pose without a capture time is
+    /// stamped \[µs\]: the offset's uncertainty, so that the stamp is never
+    /// in the robot's future (refused as `PoseFromFuture`).
+    pub arrival_margin_us: u64,
+}
+
+impl PoseClock {
+    /// The clock of a sync exchange taken at Unix time `unix_t0_ns` (= t0)
+    /// with a robot of control period `period_s`: the robot read its clock
+    /// somewhere in the round trip and only at a tick, so the offset is
+    /// uncertain by half the round trip plus a period (the arrival margin).
+    pub fn from_sync(sync: ClockSample, unix_t0_ns: u64, period_s: f32) -> Self {
+        let period_us = if period_s.is_finite() && period_s > 0.0 && period_s < 1.0 {
+            (period_s as f64 * 1e6).round() as u64
+        } else {
+            1000
+        };
+        Self {
+            unix_t0_ns,
+            offset_us: sync.offset_us(),
+            arrival_margin_us: sync.rtt_us.div_ceil(2) + period_us,
+        }
+    }
+
+    /// Robot time \[µs, u32 clock\] of a pose taken as `capture` says, its
+    /// line having arrived at host time `arrival_us` (µs since t0).
+    pub fn robot_stamp_us(&self, capture: Capture, arrival_us: u64) -> u32 {
+        let host_us = match capture {
+            Capture::Arrival => arrival_us as i64 - self.arrival_margin_us as i64,
+            Capture::AgoS(a) => arrival_us as i64 - (a * 1e6).round() as i64,
+            Capture::UnixS(t) => {
+                ((t * 1e9) as i128 - self.unix_t0_ns as i128).div_euclid(1000) as i64
+            }
+        };
+        (host_us + self.offset_us) as u32
+    }
+
+    /// The `ExternalPose` request of a line that arrived at `arrival_us`.
+    pub fn request(&self, p: &PoseLine, arrival_us: u64) -> Request {
+        Request::ExternalPose {
+            t_robot_us: self.robot_stamp_us(p.capture, arrival_us),
+            pose: wmr_protocol::PoseMsg {
+                x_m: p.pose[0],
+                y_m: p.pose[1],
+                theta_rad: p.pose[2],
+            },
+            std_dev: p.std,
+        }
+    }
+}
+
+/// Feeds pose lines from `lines` (numbered from 1) to the robot; returns
+/// the tally. Each line is stamped in robot time: at its capture time when
+/// it gives one, else when it arrives.
+pub fn feed_lines(
+    link: &mut Link,
+    clock: &PoseClock,
+    t0: Instant,
+    std: [f32; 3],
+    lines: impl Iterator<Item = Result<String, LinkError>>,
+    tally: &mut PoseTally,
+) -> Result<(), LinkError> {
+    for (i, line) in lines.enumerate() {
+        let line = line?;
+        let n = i + 1;
+        let arrival = host_us(t0);
+        match parse_pose_line(&line, std) {
+            Ok(None) => {}
+            Err(e) => eprintln!("line {n}: {e}"),
+            Ok(Some(p)) => match link.command(&clock.request(&p, arrival)) {
+                Ok(_) => tally.accepted(),
+                Err(LinkError::Nack(_, e)) => {
+                    tally.refused(e);
+                    eprintln!("line {n}: refused: {}", e.reason());
+                }
+                Err(e) => return Err(e),
+            },
+        }
+    }
+    Ok(())
 }
 
 fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
     let t0 = Instant::now();
-    let offset = clock_offset(link, t0, 5)?;
+    let unix_t0_ns = ros_mcap::unix_now_ns();
+    let period_s = match &link.last_hello {
+        Some(h) => h.robot.control_period_s,
+        None => link.hello()?.robot.control_period_s,
+    };
+    let clock = PoseClock::from_sync(clock_sync(link, t0, 5)?, unix_t0_ns, period_s);
     let std = [a.std[0], a.std[1], a.std[2]];
     let mut tally = PoseTally::default();
-    let mut send = |link: &mut Link, line: &str, n: usize| -> Result<(), LinkError> {
-        match parse_pose_line(line, std) {
-            Ok(None) => Ok(()),
-            Err(e) => {
-                eprintln!("line {n}: {e}");
-                Ok(())
-            }
-            Ok(Some((p, s))) => {
-                let t_robot_us = (host_us(t0) as i64 + offset) as u32;
-                let req = Request::ExternalPose {
-                    t_robot_us,
-                    pose: wmr_protocol::PoseMsg {
-                        x_m: p[0],
-                        y_m: p[1],
-                        theta_rad: p[2],
-                    },
-                    std_dev: s,
-                };
-                match link.command(&req) {
-                    Ok(_) => tally.accepted(),
-                    Err(LinkError::Nack(_, e)) => {
-                        tally.refused(e);
-                        eprintln!("line {n}: refused: {}", e.reason());
-                    }
-                    Err(e) => return Err(e),
-                }
-                Ok(())
-            }
-        }
-    };
     match &a.udp {
         None => {
-            for (i, line) in std::io::stdin().lock().lines().enumerate() {
-                send(link, &line.map_err(io)?, i + 1)?;
-            }
+            let lines = std::io::stdin().lock().lines().map(|l| l.map_err(io));
+            feed_lines(link, &clock, t0, std, lines, &mut tally)?;
         }
         Some(addr) => {
             let sock = std::net::UdpSocket::bind(addr)
                 .map_err(|e| LinkError::Io(format!("cannot listen on {addr}: {e}")))?;
             let mut buf = [0u8; 1500];
-            let mut n = 0;
             loop {
                 let (len, _) = sock.recv_from(&mut buf).map_err(io)?;
-                for line in String::from_utf8_lossy(&buf[..len]).lines() {
-                    n += 1;
-                    send(link, line, n)?;
-                }
+                let text = String::from_utf8_lossy(&buf[..len]).into_owned();
+                let lines: Vec<Result<String, LinkError>> =
+                    text.lines().map(|l| Ok(l.to_string())).collect();
+                feed_lines(link, &clock, t0, std, lines.into_iter(), &mut tally)?;
             }
         }
     }
@@ -828,14 +1136,37 @@ mod tests {
     #[test]
     fn pose_lines() {
         let std = [0.01, 0.02, 0.03];
+        let line = |pose, std, capture| Some(PoseLine { pose, std, capture });
         assert_eq!(
             parse_pose_line("1.5 -2 0.25", std).unwrap(),
-            Some(([1.5, -2.0, 0.25], std))
+            line([1.5, -2.0, 0.25], std, Capture::Arrival)
         );
         assert_eq!(
             parse_pose_line("1,2,3, 0.1,0.1,0.2 # mocap", std).unwrap(),
-            Some(([1.0, 2.0, 3.0], [0.1, 0.1, 0.2]))
+            line([1.0, 2.0, 3.0], [0.1, 0.1, 0.2], Capture::Arrival)
         );
+        assert_eq!(
+            parse_pose_line("1 2 3 @-0.08", std).unwrap(),
+            line([1.0, 2.0, 3.0], std, Capture::AgoS(0.08))
+        );
+        assert_eq!(
+            parse_pose_line("@1764632000.5 1 2 3 0.1 0.1 0", std).unwrap(),
+            line(
+                [1.0, 2.0, 3.0],
+                [0.1, 0.1, 0.0],
+                Capture::UnixS(1764632000.5)
+            )
+        );
+        for bad in [
+            "1 2 3 @0.08",
+            "1 2 3 @nan",
+            "1 2 3 @-100",
+            "1 2 3 @x",
+            "1 2 3 @-1 @-2",
+        ] {
+            let e = parse_pose_line(bad, std).unwrap_err();
+            assert!(e.contains("capture time"), "{bad}: {e}");
+        }
         assert_eq!(parse_pose_line("  # comment", std).unwrap(), None);
         assert!(parse_pose_line("1 2", std)
             .unwrap_err()
@@ -843,6 +1174,36 @@ mod tests {
         assert!(parse_pose_line("x y z", std)
             .unwrap_err()
             .contains("not numbers"));
+    }
+
+    /// A capture time maps to robot time through the clock offset: 80 ms
+    /// before arrival is 80 000 µs before the arrival's robot time, and a
+    /// Unix stamp lands where the host clock read it.
+    #[test]
+    fn capture_times_map_to_robot_time() {
+        let sync = ClockSample {
+            robot_us: 5_500_000,
+            host_mid_us: 500_000,
+            rtt_us: 301,
+        };
+        let clock = PoseClock::from_sync(sync, 1_764_632_000_000_000_000, 0.001);
+        assert_eq!(clock.offset_us, 5_000_000);
+        let arrival = 2_000_000;
+        let at = 7_000_000;
+        // At arrival less the offset's uncertainty: ⌈301/2⌉ µs + one period.
+        assert_eq!(
+            clock.robot_stamp_us(Capture::Arrival, arrival),
+            at - 151 - 1000
+        );
+        assert_eq!(
+            clock.robot_stamp_us(Capture::AgoS(0.08), arrival),
+            at - 80_000
+        );
+        // t0 + 1.92 s in Unix time = 80 ms before the arrival at t0 + 2 s.
+        assert_eq!(
+            clock.robot_stamp_us(Capture::UnixS(1_764_632_001.92), arrival),
+            at - 80_000
+        );
     }
 
     #[test]

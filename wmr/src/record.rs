@@ -1,8 +1,11 @@
-//! Telemetry into the one log format: each frame with the tracking group
-//! becomes a [`TraceSample`] row with the columns of `hil-sim run --csv`.
-//! Time is the reference time since arming. What the robot cannot know is
-//! `NaN`: the true fault `f_true_*`, and the estimator columns when that
-//! telemetry group is off. The pose is the robot's estimate.
+//! Telemetry into the logs: each frame with the tracking group becomes a
+//! [`TraceSample`] row with the columns of `hil-sim run --csv` (the
+//! conversion is ros-mcap's, shared with the MCAP log), and, with
+//! `record --mcap`, a [`ros_mcap::LogFrame`] on the ROS 2 topics.
+//! Time in the rows is the reference time since arming. What the robot
+//! cannot know is `NaN`: the true fault `f_true_*`, and the estimator
+//! columns when that telemetry group is off. The pose is the robot's
+//! estimate of G.
 
 use track_log::TraceSample;
 use wmr_protocol::{RunStateMsg, Telemetry};
@@ -13,34 +16,7 @@ pub fn trace_sample(t: &Telemetry) -> Option<TraceSample> {
     if !matches!(t.state, RunStateMsg::Running | RunStateMsg::Stopping) {
         return None;
     }
-    let tr = t.tracking?;
-    let f = |a: [f32; 2]| [a[0] as f64, a[1] as f64];
-    let nan = [f64::NAN; 2];
-    let p = |p: wmr_protocol::PoseMsg| [p.x_m as f64, p.y_m as f64, p.theta_rad as f64];
-    let (pose, rp) = (p(tr.pose), p(tr.ref_pose));
-    let err = [rp[0] - pose[0], rp[1] - pose[1]];
-    let est = t.estimators;
-    Some(TraceSample {
-        t_s: t.t_ref_s as f64,
-        ref_pose: rp,
-        pose,
-        pos_err_m: (err[0] * err[0] + err[1] * err[1]).sqrt(),
-        err_xy_m: err,
-        e: [tr.error[0] as f64, tr.error[1] as f64, tr.error[2] as f64],
-        eta: f(tr.eta),
-        eta_c: f(tr.eta_c),
-        torque_nm: f(tr.torque_nm),
-        s: est.map_or(nan, |e| f(e.s)),
-        rho_hat: est.map_or(nan, |e| f(e.rho_hat)),
-        d_hat: est.map_or(nan, |e| f(e.d_hat)),
-        f_hat: est.map_or(nan, |e| f(e.f_hat)),
-        f_true: nan,
-        saturated: tr.saturated,
-        time_scale: tr.time_scale as f64,
-        tau_s: tr.tau_s as f64,
-        health: tr.health,
-        health_reason: tr.health_reason,
-    })
+    ros_mcap::sample_of_telemetry(t)
 }
 
 #[cfg(test)]

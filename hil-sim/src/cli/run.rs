@@ -25,6 +25,10 @@ pub struct RunArgs {
     /// Trace decimation for --csv: one row every N control steps [default: 10 ms worth].
     #[arg(long, value_name = "N")]
     pub csv_every: Option<usize>,
+    /// Also write the trace as a ROS 2 MCAP log (ros-mcap: /odom, /tf,
+    /// /joint_states, /diagnostics, /wmr/tracking), the topics of `wmr record --mcap`.
+    #[arg(long, value_name = "FILE.mcap")]
+    pub mcap: Option<PathBuf>,
     /// Print exactly one JSON object (the metrics plus "controller", "scenario", "rejected_steps").
     #[arg(long)]
     pub json: bool,
@@ -43,12 +47,12 @@ pub fn run(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
         eprintln!("note: --eps with --case 1 injects the actuator fault of Case 2");
     }
     let kind: ControllerKind = a.controller.into();
-    let every = match (a.csv.is_some(), a.csv_every) {
+    let every = match (a.csv.is_some() || a.mcap.is_some(), a.csv_every) {
         (false, _) => 0,
         (true, Some(n)) => n.max(1),
         (true, None) => crate::sim::trace_every(&scn),
     };
-    if a.csv.is_some() {
+    if a.csv.is_some() || a.mcap.is_some() {
         crate::limits::check_csv(&scn, every, a.force)?;
     }
     let what = format!(
@@ -64,6 +68,16 @@ pub fn run(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
             .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
         write_trace_csv(std::io::BufWriter::new(f), &res.trace)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    }
+    if let Some(path) = &a.mcap {
+        let r = controller_config(&scn, kind).robot;
+        let g = ros_mcap::Geometry::new(
+            r.wheel_radius_m as f64,
+            r.half_track_m as f64,
+            r.com_offset_m as f64,
+        )
+        .and_then(|g| ros_mcap::write_sim_trace(path, g, &res.trace, ros_mcap::unix_now_ns()));
+        g.map_err(|e| format!("{}: {e}", path.display()))?;
     }
     let text = run_text(kind, &scn, &res, a.csv.as_deref(), a.json);
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())

@@ -1,0 +1,257 @@
+//! End-to-end over a pseudo-terminal against the simulated robot
+//! (`hil_sim::device`, the firmware's link handler, runtime and estimator
+//! on the simulated plant): `record --mcap` and `metrics`, and `pose-feed`
+//! capture times reaching the estimator's history.
+
+use controller_core::ControllerKind;
+use hil_sim::device::{open_pty, serve, SimRobot};
+use hil_sim::scenario::{Scenario, Sensing};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+use wmr::cli::{Capture, PoseClock, PoseTally};
+use wmr::Link;
+use wmr_protocol::*;
+
+/// One simulated robot at a time (each runs in real time next to its host).
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+struct Robot {
+    path: String,
+    stop: Arc<AtomicBool>,
+    handle: Option<JoinHandle<SimRobot>>,
+    _slave: serialport::TTYPort,
+}
+
+impl Robot {
+    fn start(scn: &Scenario) -> Self {
+        let (mut master, slave, path) = open_pty().unwrap();
+        let mut robot = SimRobot::new(scn, ControllerKind::Proposed).unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        let handle = std::thread::spawn(move || {
+            serve(&mut robot, &mut master, 1.0, &s).unwrap();
+            robot
+        });
+        Self {
+            path,
+            stop,
+            handle: Some(handle),
+            _slave: slave,
+        }
+    }
+
+    fn link(&self) -> Link {
+        let mut l = Link::open(&self.path, Duration::from_millis(1000)).unwrap();
+        l.hello().unwrap();
+        ok(
+            &mut l,
+            Request::SetParam {
+                id: ParamId::LinkTimeoutMs,
+                value: 5000.0,
+            },
+        );
+        l
+    }
+
+    fn finish(mut self) -> SimRobot {
+        self.stop.store(true, Ordering::Relaxed);
+        self.handle.take().unwrap().join().unwrap()
+    }
+}
+
+impl Drop for Robot {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}
+
+fn ok(link: &mut Link, req: Request) {
+    link.command(&req)
+        .unwrap_or_else(|e| panic!("{req:?}: {e}"));
+}
+
+fn quiet(sensing: Sensing) -> Scenario {
+    Scenario {
+        name: "quiet".into(),
+        duration_s: 10.0,
+        window_s: [0.0, 0.0],
+        beta: 0.0,
+        eps: 0.0,
+        skid_scale: 0.0,
+        disturbance_nm: 0.0,
+        sensing,
+        ..Scenario::default()
+    }
+}
+
+/// `record --mcap` of a run writes the CSV and the MCAP; `wmr metrics`
+/// of either file gives the same numbers (the same JSON), equal to the
+/// summary `record` printed, and the MCAP's rows are the CSV's bit for bit.
+#[test]
+fn record_mcap_and_csv_give_the_same_metrics() {
+    let _s = serial();
+    let robot = Robot::start(&quiet(Sensing::Mocap));
+    let mut link = robot.link();
+    ok(
+        &mut link,
+        Request::SetReference(BuiltinReference {
+            shape: named_shape("paper").unwrap(),
+            start: None,
+            speed_scale: 1.0,
+        }),
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let (csv, mcap) = (dir.path().join("r.csv"), dir.path().join("r.mcap"));
+    let args = wmr::cli::RecordArgs {
+        seconds: 3.0,
+        out: csv.clone(),
+        rate: 100,
+        arm: true,
+        quiet: true,
+        mcap: Some(mcap.clone()),
+        com_offset_m: None,
+    };
+    let mut out = Vec::new();
+    wmr::cli::record(&args, &mut link, &mut out).unwrap();
+    drop(link);
+    robot.finish();
+    let summary: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    let rows = summary["rows"].as_u64().unwrap();
+    assert!(rows >= 290, "{rows} rows");
+    let from_csv = wmr::cli::metrics_of_file(&csv).unwrap();
+    let from_mcap = wmr::cli::metrics_of_file(&mcap).unwrap();
+    let j = |m: &wmr::cli::MetricsSummary| serde_json::to_value(m).unwrap();
+    assert_eq!(j(&from_csv), j(&from_mcap));
+    assert_eq!(from_csv.rows as u64, rows);
+    assert_eq!(j(&from_csv)["metrics"], summary["metrics"]);
+    assert!(from_csv.metrics.unwrap().rms_pos_err_m > 0.0);
+    let a = ros_mcap::read_log(&csv).unwrap();
+    let b = ros_mcap::read_log(&mcap).unwrap();
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(track_log::csv::trace_row(x), track_log::csv::trace_row(y));
+    }
+}
+
+/// Drives straight at 0.5 m/s (IMU sensing: no pose source of its own, so
+/// the estimate is odometry until the host's pose), then feeds one pose
+/// line: the estimate at robot time t_c, the robot time 80 ms before the
+/// line's arrival. Returns the estimator's innovation for it and the speed.
+/// Also the clock's arrival margin \[µs\].
+fn innovation_of_an_80ms_old_pose(with_capture_time: bool) -> ([f32; 3], f64, u64) {
+    let robot = Robot::start(&quiet(Sensing::Imu));
+    let mut link = robot.link();
+    ok(
+        &mut link,
+        Request::Velocity {
+            v_mps: 0.5,
+            omega_radps: 0.0,
+            timeout_ms: 3000,
+        },
+    );
+    ok(&mut link, Request::Arm);
+    ok(
+        &mut link,
+        Request::SetTelemetry {
+            selection: TELEMETRY_TRACKING,
+            rate_hz: 500,
+        },
+    );
+    // Steady speed first.
+    let mut history: Vec<(u32, PoseMsg, f32)> = Vec::new();
+    let end = Instant::now() + Duration::from_secs(20);
+    while history.last().is_none_or(|h| h.0 < 2_000_000) {
+        assert!(Instant::now() < end, "no telemetry up to 2 s");
+        if let Some(Reply::Telemetry(t)) = link.next_stream(Duration::from_millis(10)).unwrap() {
+            if let Some(tr) = t.tracking {
+                history.push((t.t_robot_us, tr.pose, tr.eta[0]));
+            }
+        }
+    }
+    let t0 = Instant::now();
+    let unix_t0_ns = ros_mcap::unix_now_ns();
+    let sync = wmr::cli::clock_sync(&mut link, t0, 5).unwrap();
+    let clock = PoseClock::from_sync(sync, unix_t0_ns, 0.001);
+    // Telemetry up to now, then the pose 80 ms back from the arrival.
+    let _ = link.next_stream(Duration::from_millis(30));
+    while let Some(Reply::Telemetry(t)) = link.stream.pop_front() {
+        if let Some(tr) = t.tracking {
+            history.push((t.t_robot_us, tr.pose, tr.eta[0]));
+        }
+    }
+    let arrival = t0.elapsed().as_micros() as u64;
+    let t_c = clock.robot_stamp_us(Capture::AgoS(0.08), arrival);
+    let i = history
+        .iter()
+        .rposition(|h| h.0 <= t_c)
+        .expect("telemetry at the capture time");
+    let (a, b) = (history[i], history[(i + 1).min(history.len() - 1)]);
+    let w = if b.0 > a.0 {
+        (t_c - a.0) as f32 / (b.0 - a.0) as f32
+    } else {
+        0.0
+    };
+    let lerp = |p: f32, q: f32| p + w * (q - p);
+    let (x, y) = (lerp(a.1.x_m, b.1.x_m), lerp(a.1.y_m, b.1.y_m));
+    let line = if with_capture_time {
+        format!("{x} {y} 0 0.05 0.05 0 @-0.08")
+    } else {
+        format!("{x} {y} 0 0.05 0.05 0")
+    };
+    let mut tally = PoseTally::default();
+    wmr::cli::feed_lines(
+        &mut link,
+        &clock,
+        t0,
+        [0.05, 0.05, 0.0],
+        std::iter::once(Ok(line)),
+        &mut tally,
+    )
+    .unwrap();
+    assert_eq!(tally.refused_total(), 0, "{tally}");
+    // The robot uses it on its next ticks.
+    std::thread::sleep(Duration::from_millis(100));
+    drop(link);
+    let mut sim = robot.finish();
+    let st = *sim.device().control().estimator_status();
+    assert_eq!(st.accepted, 1, "{st:?}");
+    (st.last_innovation, a.2 as f64, clock.arrival_margin_us)
+}
+
+/// A pose line with an 80 ms-old capture time (`@-0.08`) is applied at
+/// its capture time through the estimator's history: the estimate there
+/// is what the line says, so the innovation is ~0 (clock sync over the pty:
+/// well under 5 mm at 0.5 m/s). The same line without a capture time is
+/// applied at arrival, 80 ms later, where the robot is v·80 ms = 40 mm
+/// further along x: the innovation is −v·0.08 (less the arrival margin).
+/// Repeated: before the arrival margin, about one in three arrival stamps
+/// fell in the robot's future and was refused.
+#[test]
+fn pose_with_capture_time_is_applied_at_its_capture_time() {
+    let _s = serial();
+    let (stamped, v, _) = innovation_of_an_80ms_old_pose(true);
+    let (arrival, v2, margin_us) = innovation_of_an_80ms_old_pose(false);
+    eprintln!(
+        "v {v:.3} / {v2:.3} m/s; innovation with capture time {stamped:?}, without {arrival:?}"
+    );
+    assert!(
+        (v - 0.5).abs() < 0.05 && (v2 - 0.5).abs() < 0.05,
+        "not at speed: {v}, {v2}"
+    );
+    assert!(
+        stamped[0].abs() < 0.005 && stamped[1].abs() < 0.005,
+        "{stamped:?}"
+    );
+    // Stamped at arrival less the margin (a ms or two): that much less.
+    let expect = -(v2 * (0.08 - margin_us as f64 * 1e-6)) as f32;
+    assert!(
+        (arrival[0] - expect).abs() < 0.008,
+        "{arrival:?} vs {expect}"
+    );
+    assert!(arrival[1].abs() < 0.005, "{arrival:?}");
+}
