@@ -274,6 +274,198 @@ impl Trajectory for Line {
     }
 }
 
+/// Frequency ratios of the excitation's three v components (to its base
+/// frequency): 1, √7, √19, pairwise incommensurate and incommensurate with
+/// those of ω, so that no product of a v and an ω component has a constant
+/// part (no drift of the travelled position) and the regressors of the
+/// identification (v̇, ω̇, v, ω, sign v) stay linearly independent.
+pub const EXCITATION_V_RATIOS: [f32; 3] = [1.0, 2.645_751_3, 4.358_899];
+/// Frequency ratios of the excitation's three ω components: √3/2, √5, √13.
+pub const EXCITATION_OMEGA_RATIOS: [f32; 3] = [0.866_025_4, 2.236_068, 3.605_551_3];
+/// Phases of the three v and the three ω components \[rad\] (spread so the
+/// peaks of the components do not line up at the end of the ramp-in).
+const EXCITATION_PHASES: [[f32; 3]; 2] = [[0.0, 2.1, 4.2], [1.0, 3.1, 5.2]];
+
+/// Identification excitation (beyond the paper; `docs/identification.md`,
+/// D80): v and ω each a sum of three sinusoids at incommensurate
+/// frequencies ([`EXCITATION_V_RATIOS`], [`EXCITATION_OMEGA_RATIOS`] times
+/// `w_radps`), each third of its amplitude, under a raised-cosine envelope
+/// that starts and ends the run at rest. Bounded by construction:
+/// |v| ≤ `v_amp_mps`, |ω| ≤ `omega_amp_radps`, and
+/// |v̇| ≤ `v_amp_mps`·(w·Σratios/3 + π/(2·ramp)) (same for ω̇); the travelled
+/// area is measured by [`Excitation::samples`] (bounded in practice: no
+/// product of components has a constant part). v changes sign many times
+/// (Coulomb friction's sign(v) is excited), ω both ways.
+///
+/// The pose has no closed form (x, y integrate v along the heading):
+/// [`Excitation::samples`] integrates it step by step, so this is a
+/// reference the host samples into timed waypoints (`wmr identify run`
+/// uploads them; no protocol change) rather than a [`Reference`] variant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Excitation {
+    /// Peak linear velocity \[m/s\] (> 0).
+    pub v_amp_mps: f32,
+    /// Peak yaw rate \[rad/s\] (> 0).
+    pub omega_amp_radps: f32,
+    /// Base angular frequency w \[rad/s\] (> 0).
+    pub w_radps: f32,
+    /// Length of the run \[s\] (> 2·ramp).
+    pub duration_s: f32,
+    /// Raised-cosine ramp at the start and the end \[s\] (> 0).
+    pub ramp_s: f32,
+}
+
+/// v, ω and their derivatives of an [`Excitation`] at one time.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ExcitationVelocity {
+    /// v \[m/s\].
+    pub v_mps: f32,
+    /// ω \[rad/s\].
+    pub omega_radps: f32,
+    /// v̇ \[m/s²\].
+    pub v_dot_mps2: f32,
+    /// ω̇ \[rad/s²\].
+    pub omega_dot_radps2: f32,
+}
+
+impl Excitation {
+    /// A default excitation for a robot whose top speed and yaw rate are
+    /// given: half of each as the peak, w = 1.5 rad/s (components at
+    /// 0.24-1.04 Hz for v, 0.21-0.86 Hz for ω), 60 s with 3 s ramps.
+    pub fn for_limits(top_speed_mps: f32, top_yaw_rate_radps: f32) -> Self {
+        Self {
+            v_amp_mps: 0.5 * top_speed_mps,
+            omega_amp_radps: 0.5 * top_yaw_rate_radps,
+            w_radps: 1.5,
+            duration_s: 60.0,
+            ramp_s: 3.0,
+        }
+    }
+
+    /// Validates the parameters.
+    pub fn validate(self) -> Result<Self, ConfigError> {
+        let ok = all_positive(&[
+            self.v_amp_mps,
+            self.omega_amp_radps,
+            self.w_radps,
+            self.duration_s,
+            self.ramp_s,
+        ]) && self.duration_s > 2.0 * self.ramp_s;
+        if ok {
+            Ok(self)
+        } else {
+            Err(ConfigError::InvalidTrajectory)
+        }
+    }
+
+    /// Raised-cosine envelope and its derivative at `t_s` (0 outside the run).
+    fn envelope(&self, t_s: f32) -> (f32, f32) {
+        let (t, r, d) = (t_s, self.ramp_s, self.duration_s);
+        if t <= 0.0 || t >= d {
+            return (0.0, 0.0);
+        }
+        let k = core::f32::consts::PI / r;
+        let ramp = |u: f32, sign: f32| {
+            let (s, c) = sin_cos(k * u);
+            (0.5 * (1.0 - c), sign * 0.5 * k * s)
+        };
+        if t < r {
+            ramp(t, 1.0)
+        } else if t > d - r {
+            ramp(d - t, -1.0)
+        } else {
+            (1.0, 0.0)
+        }
+    }
+
+    /// v, ω, v̇, ω̇ at `t_s` (all 0 before 0 and after the end).
+    pub fn velocity(&self, t_s: f32) -> ExcitationVelocity {
+        let (e, e_dot) = self.envelope(t_s);
+        let sum = |amp: f32, ratios: &[f32; 3], phases: &[f32; 3]| {
+            let (mut x, mut x_dot) = (0.0f32, 0.0f32);
+            for (q, ph) in ratios.iter().zip(phases) {
+                let w = self.w_radps * q;
+                let (s, c) = sin_cos(w * t_s + ph);
+                x += s;
+                x_dot += w * c;
+            }
+            let a = amp / 3.0;
+            (a * x, a * x_dot)
+        };
+        let (v, v_d) = sum(self.v_amp_mps, &EXCITATION_V_RATIOS, &EXCITATION_PHASES[0]);
+        let (w, w_d) = sum(
+            self.omega_amp_radps,
+            &EXCITATION_OMEGA_RATIOS,
+            &EXCITATION_PHASES[1],
+        );
+        ExcitationVelocity {
+            v_mps: e * v,
+            omega_radps: e * w,
+            v_dot_mps2: e_dot * v + e * v_d,
+            omega_dot_radps2: e_dot * w + e * w_d,
+        }
+    }
+
+    /// The reference every `dt_s` from `start` at t = 0 to the end, the
+    /// pose integrated by Simpson's rule over each step (v, ω at its start,
+    /// middle and end): a unicycle of the axle-free reference point, which
+    /// is what the tracked point G follows (eq. 3 with d folded into the
+    /// reference, as for every built-in shape).
+    pub fn samples(&self, start: Pose, dt_s: f32) -> ExcitationSamples {
+        ExcitationSamples {
+            ex: *self,
+            dt_s,
+            k: 0,
+            x: [start.x_m, start.y_m, start.theta_rad],
+        }
+    }
+}
+
+/// The iterator of [`Excitation::samples`]: (t \[s\], reference sample).
+#[derive(Clone, Debug)]
+pub struct ExcitationSamples {
+    ex: Excitation,
+    dt_s: f32,
+    k: u32,
+    x: [f32; 3],
+}
+
+impl Iterator for ExcitationSamples {
+    type Item = (f32, RefSample);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let t = self.k as f32 * self.dt_s;
+        let step_ok = self.dt_s.is_finite() && self.dt_s > 0.0;
+        if !step_ok || t > self.ex.duration_s + 0.5 * self.dt_s {
+            return None;
+        }
+        let vel = self.ex.velocity(t);
+        let out = RefSample {
+            pose: Pose::new(self.x[0], self.x[1], self.x[2]),
+            v_mps: vel.v_mps,
+            omega_radps: vel.omega_radps,
+            v_dot_mps2: vel.v_dot_mps2,
+            omega_dot_radps2: vel.omega_dot_radps2,
+        };
+        // Simpson over [t, t + dt]: θ first (from ω), then x, y from v
+        // along the heading at the three nodes.
+        let h = self.dt_s;
+        let (a, m, b) = (vel, self.ex.velocity(t + 0.5 * h), self.ex.velocity(t + h));
+        let th0 = self.x[2];
+        let th_m = th0 + h * (5.0 * a.omega_radps + 8.0 * m.omega_radps - b.omega_radps) / 24.0;
+        let th1 = th0 + h * (a.omega_radps + 4.0 * m.omega_radps + b.omega_radps) / 6.0;
+        let (s0, c0) = sin_cos(th0);
+        let (sm, cm) = sin_cos(th_m);
+        let (s1, c1) = sin_cos(th1);
+        self.x[0] += h * (a.v_mps * c0 + 4.0 * m.v_mps * cm + b.v_mps * c1) / 6.0;
+        self.x[1] += h * (a.v_mps * s0 + 4.0 * m.v_mps * sm + b.v_mps * s1) / 6.0;
+        self.x[2] = th1;
+        self.k += 1;
+        Some((t, out))
+    }
+}
+
 /// Any of the built-in trajectories, for static dispatch in the firmware.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -551,6 +743,58 @@ mod tests {
         .sample(7.3)
         .pose;
         assert!(((c.x_m * c.x_m + c.y_m * c.y_m).sqrt() - 2.0).abs() < 1e-5);
+    }
+
+    /// The excitation's v̇, ω̇ are the derivatives of its v, ω (central
+    /// differences), its bounds hold, it starts and ends at rest, v changes
+    /// sign often, and the integrated pose moves along its heading at v
+    /// (finite differences of the samples) within a bounded area.
+    #[test]
+    fn excitation_is_consistent_bounded_and_rich() {
+        let ex = Excitation::for_limits(1.0, 2.0).validate().unwrap();
+        let h = 1e-3f32;
+        let mut sign_changes = 0;
+        let mut prev_v = 0.0f32;
+        for i in 1..5900 {
+            let t = i as f32 * 0.01;
+            let (a, m, b) = (ex.velocity(t - h), ex.velocity(t), ex.velocity(t + h));
+            assert!(m.v_mps.abs() <= ex.v_amp_mps + 1e-6);
+            assert!(m.omega_radps.abs() <= ex.omega_amp_radps + 1e-6);
+            let vd = (b.v_mps - a.v_mps) / (2.0 * h);
+            let wd = (b.omega_radps - a.omega_radps) / (2.0 * h);
+            assert!(
+                (vd - m.v_dot_mps2).abs() < 2e-2,
+                "t={t}: v̇ {vd} vs {}",
+                m.v_dot_mps2
+            );
+            assert!((wd - m.omega_dot_radps2).abs() < 4e-2, "t={t}: ω̇");
+            if m.v_mps * prev_v < 0.0 {
+                sign_changes += 1;
+            }
+            prev_v = m.v_mps;
+        }
+        assert!(sign_changes > 40, "{sign_changes} sign changes of v");
+        assert_eq!(ex.velocity(0.0), ExcitationVelocity::default());
+        assert_eq!(ex.velocity(ex.duration_s), ExcitationVelocity::default());
+        let pts: std::vec::Vec<_> = ex.samples(Pose::new(1.0, 2.0, 0.5), 0.01).collect();
+        assert_eq!(pts.len(), 6001);
+        let mut max_r = 0.0f32;
+        for w in pts.windows(3) {
+            let (p0, p1, p2) = (w[0].1.pose, w[1].1.pose, w[2].1.pose);
+            let (s, c) = sin_cos(p1.theta_rad);
+            let vx = (p2.x_m - p0.x_m) / 0.02;
+            let vy = (p2.y_m - p0.y_m) / 0.02;
+            assert!((vx - w[1].1.v_mps * c).abs() < 5e-3);
+            assert!((vy - w[1].1.v_mps * s).abs() < 5e-3);
+            let th = (p2.theta_rad - p0.theta_rad) / 0.02;
+            assert!((th - w[1].1.omega_radps).abs() < 5e-3);
+            max_r = max_r.max(libm::hypotf(p1.x_m - 1.0, p1.y_m - 2.0));
+        }
+        // Half a metre per second peak, 60 s: the robot stays within a
+        // couple of metres of its start.
+        assert!(max_r < 2.5, "travelled {max_r} m from the start");
+        let bad = Excitation { ramp_s: 40.0, ..ex };
+        assert_eq!(bad.validate(), Err(ConfigError::InvalidTrajectory));
     }
 
     #[test]

@@ -55,6 +55,8 @@ pub enum Command {
     /// Forward external poses from stdin lines or a UDP port
     /// (`x y theta [sx sy stheta] [@capture_time]`).
     PoseFeed(PoseFeedArgs),
+    /// Identify the robot: drive the excitation and record (`run`), fit a log (`fit`).
+    Identify(crate::identify::IdentifyArgs),
     /// A compact live status line (state, pose, speed, errors, health,
     /// counters) from telemetry.
     Watch(WatchArgs),
@@ -238,6 +240,12 @@ fn link_of(cli: &Cli) -> Result<Link, LinkError> {
 
 /// Runs a parsed command line on a fresh link to `--port`.
 pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
+    if let Command::Identify(crate::identify::IdentifyArgs {
+        op: crate::identify::IdentifyOp::Fit(a),
+    }) = &cli.command
+    {
+        return crate::identify::fit(a, out); // a log, no robot
+    }
     if let Command::Metrics(a) = &cli.command {
         let m = metrics_of_file(&a.file)?;
         let json = serde_json::to_string(&m).map_err(|e| e.to_string())?;
@@ -318,6 +326,12 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
         Command::Params(a) => params(&a.op, link, out)?,
         Command::Record(a) => record(a, link, out)?,
         Command::PoseFeed(a) => pose_feed(a, link, out)?,
+        Command::Identify(a) => match &a.op {
+            crate::identify::IdentifyOp::Run(r) => crate::identify::run(r, link, out)?,
+            crate::identify::IdentifyOp::Fit(f) => {
+                crate::identify::fit(f, out).map_err(LinkError::Io)?
+            }
+        },
         Command::Watch(a) => watch_live(a, link, out)?,
         Command::Metrics(a) => {
             let m = metrics_of_file(&a.file).map_err(LinkError::Io)?;

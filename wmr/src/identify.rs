@@ -1,0 +1,501 @@
+//! `wmr identify run` and `wmr identify fit`: drive the identification
+//! excitation and record it, then fit the robot's parameters from the log
+//! (robot-identify; docs/identification.md).
+//!
+//! `run` uploads the excitation as streamed waypoints (the `upload --arm`
+//! path: no protocol change), records every telemetry frame at the asked
+//! rate into the identification CSV while streaming, and stops like any
+//! run: the trajectory's end is the success; any other stop, or silence
+//! beyond the link timing, is an error after the log up to it is written.
+//! Every wait is bounded.
+
+use crate::link::{Link, LinkError};
+use clap::{Args, Subcommand};
+use robot_identify::excitation::{check, waypoints};
+use robot_identify::{identify, read_id_csv, write_id_csv, FitOptions, IdRow, Prior, RowBuilder};
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use wmr_protocol::{ErrorCode, Event, Reply, Request, RunStateMsg, StopCode, TELEMETRY_ALL};
+
+/// `identify` options.
+#[derive(Debug, Args)]
+pub struct IdentifyArgs {
+    /// run or fit.
+    #[command(subcommand)]
+    pub op: IdentifyOp,
+}
+
+/// `identify` operations.
+#[derive(Debug, Subcommand)]
+pub enum IdentifyOp {
+    /// Drive the excitation and record the identification log.
+    Run(RunArgs),
+    /// Fit the robot's parameters from an identification log.
+    Fit(FitArgs),
+}
+
+/// `identify run` options.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Identification log to write (CSV).
+    #[arg(short = 'o', long = "out", value_name = "LOG.csv")]
+    pub out: PathBuf,
+    /// Peak linear velocity [m/s].
+    #[arg(long, default_value_t = 0.5)]
+    pub v_amp: f32,
+    /// Peak yaw rate [rad/s].
+    #[arg(long, default_value_t = 1.0)]
+    pub w_amp: f32,
+    /// Base angular frequency of the sinusoids [rad/s].
+    #[arg(long, default_value_t = 1.5)]
+    pub w_base: f32,
+    /// Length of the run [s].
+    #[arg(long, default_value_t = 60.0)]
+    pub duration: f32,
+    /// The run must stay within this distance of its start [m].
+    #[arg(long, default_value_t = 2.5)]
+    pub area: f32,
+    /// Telemetry rate [Hz] [default: the highest of 1000, 500, 250, 200,
+    /// 100 Hz the link carried without loss in a 0.5 s probe in hold].
+    #[arg(long)]
+    pub rate: Option<u16>,
+}
+
+/// `identify fit` options.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Identification log (from `wmr identify run`).
+    #[arg(value_name = "LOG.csv")]
+    pub log: PathBuf,
+    /// The robot as configured when the log was recorded: a robot file
+    /// (docs/robot.md), or a flat TOML of `RobotParams` and `MotorParams`
+    /// keys (`mass_kg`, ..., `duty_full_scale`, `control_period_s`,
+    /// `speed_window_ticks`) [default: robots/paper.toml's robot].
+    #[arg(long, value_name = "PRIOR.toml")]
+    pub robot: Option<PathBuf>,
+    /// PWM timer clock of the robot's board [Hz] (with a robot file: the
+    /// duty's full scale is clock / bridge.pwm_frequency_hz).
+    #[arg(long, default_value_t = 96_000_000)]
+    pub timer_clock_hz: u32,
+    /// Write the identified robot: the prior's robot file with the
+    /// identified values (the report in its header comment); a flat TOML
+    /// with a flat prior.
+    #[arg(short = 'o', long = "out", value_name = "OUT.toml")]
+    pub out: Option<PathBuf>,
+    /// Savitzky-Golay window [s].
+    #[arg(long, default_value_t = 0.15)]
+    pub filter_window: f64,
+    /// For a trace CSV (`hil-sim run --csv`, `wmr record`): its pose column
+    /// is a measurement of the true pose (hil-sim's traces), not the
+    /// robot's own estimate, so the radii and the track are identified.
+    #[arg(long)]
+    pub pose_measured: bool,
+}
+
+fn io(e: std::io::Error) -> LinkError {
+    LinkError::Io(e.to_string())
+}
+
+/// The prior of `--robot` (or the paper robot with the example motor).
+pub fn prior_from_toml(text: &str, origin: &str) -> Result<Prior, String> {
+    let table: toml::Table =
+        toml::from_str(text).map_err(|e| format!("{origin}: {}", e.to_string().trim_end()))?;
+    let mut p = Prior::paper();
+    for (k, v) in &table {
+        let x = match v {
+            toml::Value::Float(f) => *f,
+            toml::Value::Integer(i) => *i as f64,
+            _ => return Err(format!("{origin}: `{k}` must be a number")),
+        };
+        let f = x as f32;
+        match k.as_str() {
+            "mass_kg" => p.robot.mass_kg = f,
+            "inertia_kgm2" => p.robot.inertia_kgm2 = f,
+            "wheel_inertia_kgm2" => p.robot.wheel_inertia_kgm2 = f,
+            "wheel_radius_m" => p.robot.wheel_radius_m = f,
+            "half_track_m" => p.robot.half_track_m = f,
+            "com_offset_m" => p.robot.com_offset_m = f,
+            "torque_constant_nm_per_a" => p.motor.torque_constant_nm_per_a = f,
+            "winding_resistance_ohm" => p.motor.winding_resistance_ohm = f,
+            "gear_ratio" => p.motor.gear_ratio = f,
+            "gear_efficiency" => p.motor.gear_efficiency = f,
+            "supply_voltage_v" => p.motor.supply_voltage_v = f,
+            "max_duty_fraction" => p.motor.max_duty_fraction = f,
+            "duty_full_scale" if (1.0..=65535.0).contains(&x) => p.motor.duty_full_scale = x as u16,
+            "control_period_s" if x > 0.0 && x < 1.0 => p.control_period_s = x,
+            "speed_window_ticks" if (1.0..=255.0).contains(&x) => p.speed_window_ticks = x as u32,
+            "duty_full_scale" | "control_period_s" | "speed_window_ticks" => {
+                return Err(format!("{origin}: `{k}` = {x} is out of range"))
+            }
+            _ => return Err(format!("{origin}: unknown key `{k}`")),
+        }
+    }
+    p.robot
+        .validate()
+        .map_err(|e| format!("{origin}: robot: {e:?}"))?;
+    p.motor
+        .validate()
+        .map_err(|e| format!("{origin}: motor: {e:?}"))?;
+    Ok(p)
+}
+
+/// `identify fit`: the report on `out`, the robot file with `-o`.
+pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), String> {
+    // The prior: a robot file (the usual case), or the flat keys.
+    let (prior, base) = match &a.robot {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+            let origin = path.display().to_string();
+            let is_file = text
+                .parse::<toml::Table>()
+                .is_ok_and(|t| t.contains_key("format") || t.contains_key("body"));
+            if is_file {
+                let robot = robot_file::Robot::from_toml_str(&text)
+                    .map_err(|e| format!("{origin}: {e}"))?;
+                let p = Prior::from_robot(&robot, a.timer_clock_hz)
+                    .map_err(|e| format!("{origin}: {e}"))?;
+                (p, Some(robot))
+            } else {
+                (prior_from_toml(&text, &origin)?, None)
+            }
+        }
+        None => {
+            let robot = robot_file::Robot::paper();
+            (Prior::from_robot(&robot, a.timer_clock_hz)?, Some(robot))
+        }
+    };
+    let file =
+        std::fs::File::open(&a.log).map_err(|e| format!("cannot read {}: {e}", a.log.display()))?;
+    let origin = a.log.display().to_string();
+    let text = std::io::read_to_string(file).map_err(|e| format!("{origin}: {e}"))?;
+    let is_trace = text
+        .lines()
+        .find(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .is_some_and(|l| l.trim_end() == track_log::csv::CSV_HEADER);
+    let rows = if is_trace {
+        writeln!(
+            out,
+            "{origin}: a trace CSV (no duties): the torque form, wheel rates from η with the prior's r and h"
+        )
+        .map_err(|e| e.to_string())?;
+        let trace = track_log::csv::read_trace_csv(text.as_bytes(), &origin)?;
+        robot_identify::log::rows_from_trace(&trace, &prior.robot, a.pose_measured)
+    } else {
+        read_id_csv(text.as_bytes(), &origin)?
+    };
+    let opts = FitOptions {
+        filter_window_s: a.filter_window,
+        ..FitOptions::default()
+    };
+    if !(opts.filter_window_s.is_finite() && opts.filter_window_s > 0.0) {
+        return Err("--filter-window must be > 0 s".into());
+    }
+    let id = identify(&rows, &prior, &opts).map_err(|e| format!("{}: {e}", a.log.display()))?;
+    write!(out, "{}", robot_identify::report::text(&id, &prior)).map_err(|e| e.to_string())?;
+    if let Some(path) = &a.out {
+        let text = match &base {
+            Some(robot) => robot_identify::report::robot_file(&id, &prior, robot)?,
+            None => robot_identify::report::robot_toml(&id, &prior),
+        };
+        std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        writeln!(out, "robot written to {}", path.display()).map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+/// The pose the robot reports in hold (from one telemetry frame).
+fn current_pose(link: &mut Link) -> Result<controller_core::Pose, LinkError> {
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(2) {
+        if let Some(Reply::Telemetry(t)) = link.next_stream(Duration::from_millis(20))? {
+            if let Some(tr) = t.tracking {
+                let p = tr.pose;
+                return Ok(controller_core::Pose::new(p.x_m, p.y_m, p.theta_rad));
+            }
+        }
+    }
+    Err(LinkError::NoAnswer("telemetry (no frame for 2 s)".into()))
+}
+
+/// Rates the probe tries, fastest first \[Hz\].
+const PROBE_RATES_HZ: [u16; 5] = [1000, 500, 250, 200, 100];
+
+/// The highest of [`PROBE_RATES_HZ`] whose frames all arrived over 0.5 s
+/// of robot time in hold (sequence numbers without a gap); 100 Hz when
+/// none did (the fit then has a coarse log, and says how many frames were
+/// dropped).
+fn probe_rate(link: &mut Link) -> Result<u16, LinkError> {
+    for rate in PROBE_RATES_HZ {
+        link.command(&Request::SetTelemetry {
+            selection: TELEMETRY_ALL,
+            rate_hz: rate,
+        })?;
+        let (mut first_us, mut frames, mut gaps) = (None::<u32>, 0u32, 0u32);
+        let mut last_seq = None::<u32>;
+        let wall = Instant::now();
+        while wall.elapsed() < Duration::from_secs(3) {
+            if let Some(Reply::Telemetry(t)) = link.next_stream(Duration::from_millis(10))? {
+                if let Some(s) = last_seq {
+                    gaps += t.seq.wrapping_sub(s).saturating_sub(1);
+                }
+                last_seq = Some(t.seq);
+                frames += 1;
+                let t0 = *first_us.get_or_insert(t.t_robot_us);
+                if t.t_robot_us.wrapping_sub(t0) >= 500_000 {
+                    break;
+                }
+            }
+        }
+        if frames > 10 && gaps == 0 {
+            return Ok(rate);
+        }
+    }
+    Ok(100)
+}
+
+/// `identify run`.
+pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
+    if a.rate.is_some_and(|r| r == 0 || r > 1000) {
+        return Err(LinkError::Io("--rate must be in 1..=1000 Hz".into()));
+    }
+    let info = match link.last_hello.clone() {
+        Some(h) => h,
+        None => link.hello()?,
+    }
+    .robot;
+    let ex = controller_core::trajectory::Excitation {
+        v_amp_mps: a.v_amp,
+        omega_amp_radps: a.w_amp,
+        w_radps: a.w_base,
+        duration_s: a.duration,
+        ramp_s: 3.0f32.min(0.25 * a.duration),
+    };
+    let robot = controller_core::RobotParams {
+        wheel_radius_m: info.wheel_radius_m,
+        half_track_m: info.half_track_m,
+        mass_kg: info.mass_kg,
+        ..controller_core::RobotParams::paper()
+    };
+    // The robot refuses waypoints beyond its limits; the torque and the
+    // area are checked here, against half the torque limit.
+    let peaks = check(
+        &ex,
+        &robot,
+        f32::INFINITY,
+        f32::INFINITY,
+        info.torque_limit_nm,
+        0.5,
+        a.area,
+    )
+    .map_err(|e| LinkError::Io(format!("excitation: {e}")))?;
+    let file = std::fs::File::create(&a.out)
+        .map_err(|e| LinkError::Io(format!("cannot create {}: {e}", a.out.display())))?;
+    let rate = match a.rate {
+        Some(r) => r,
+        None => probe_rate(link)?,
+    };
+    writeln!(out, "telemetry at {rate} Hz").map_err(io)?;
+    link.command(&Request::SetTelemetry {
+        selection: TELEMETRY_ALL,
+        rate_hz: rate,
+    })?;
+    let start = current_pose(link)?;
+    let pts = waypoints(&ex, start);
+    let segs: Vec<Request> = crate::upload::segments(&pts);
+    link.command(&Request::TrajectoryBegin {
+        total_points: pts.len() as u32,
+    })?;
+    writeln!(
+        out,
+        "excitation: {} waypoints over {:.0} s, peaks {:.2} m/s, {:.2} rad/s, {:.2} N·m (model), within {:.2} m",
+        pts.len(),
+        ex.duration_s,
+        peaks.speed_mps,
+        peaks.yaw_rate_radps,
+        peaks.torque_nm,
+        peaks.excursion_m
+    )
+    .map_err(io)?;
+    // Fill the buffer, arm, stream the rest while recording.
+    let mut next = 0usize;
+    let mut armed = false;
+    let mut rows: Vec<IdRow> = Vec::new();
+    let mut builder = RowBuilder::new(info);
+    let (mut frames, mut dropped, mut last_seq) = (0u64, 0u64, None::<u32>);
+    let mut seen_running = false;
+    let mut ended: Option<(RunStateMsg, Option<StopCode>)> = None;
+    let keep_alive = link.timing().keep_alive;
+    let mut last_tx = Instant::now();
+    let mut last_try = Instant::now() - Duration::from_secs(1);
+    let mut last_frame = Instant::now();
+    let deadline = Instant::now() + Duration::from_secs_f64(ex.duration_s as f64 + 30.0);
+    loop {
+        if next < segs.len() && last_try.elapsed() >= Duration::from_millis(50) {
+            last_try = Instant::now();
+            match link.request(&segs[next])? {
+                Reply::TrajectoryAck { .. } => {
+                    next += 1;
+                    last_try -= Duration::from_millis(50);
+                }
+                Reply::Nack {
+                    error: ErrorCode::BufferFull,
+                    ..
+                } => {
+                    // The robot's buffer is full: arm, the rest streams.
+                    if !armed {
+                        link.command(&Request::Arm)?;
+                        armed = true;
+                    }
+                }
+                Reply::Nack { error, .. } => {
+                    return Err(LinkError::Nack("TrajectorySegment".into(), error))
+                }
+                r => return Err(LinkError::Unexpected(format!("{r:?}"))),
+            }
+            last_tx = Instant::now();
+            if !armed && next == segs.len() {
+                link.command(&Request::Arm)?;
+                armed = true;
+            }
+            continue;
+        }
+        if last_tx.elapsed() >= keep_alive {
+            link.send(&Request::ClockSync { host_time_us: 0 })?;
+            last_tx = Instant::now();
+        }
+        match link.next_stream(Duration::from_millis(5))? {
+            Some(Reply::Telemetry(t)) => {
+                last_frame = Instant::now();
+                frames += 1;
+                if let Some(s) = last_seq {
+                    dropped += t.seq.wrapping_sub(s).saturating_sub(1) as u64;
+                }
+                last_seq = Some(t.seq);
+                seen_running |= t.state == RunStateMsg::Running;
+                if let Some(row) = builder.row(&t) {
+                    rows.push(row);
+                }
+                if seen_running && matches!(t.state, RunStateMsg::Hold | RunStateMsg::Stopped) {
+                    ended = Some((t.state, None));
+                }
+            }
+            Some(Reply::Event(Event::StateChanged { state, cause }))
+                if seen_running && matches!(state, RunStateMsg::Hold | RunStateMsg::Stopped) =>
+            {
+                ended = Some((state, cause));
+            }
+            _ => {}
+        }
+        if ended.is_some() {
+            break;
+        }
+        if last_frame.elapsed() > Duration::from_secs(2) || Instant::now() > deadline {
+            let _ = link.request(&Request::Disarm);
+            return Err(LinkError::NoAnswer(
+                "telemetry (no frame for 2 s, or the run overran its length): disarmed".into(),
+            ));
+        }
+    }
+    let _ = link.command(&Request::SetTelemetry {
+        selection: TELEMETRY_ALL,
+        rate_hz: 0,
+    });
+    let comments = vec![
+        format!(
+            "wmr identify run: robot r = {} m, h = {} m, m = {} kg, period {} s, torque limit {} N·m",
+            info.wheel_radius_m,
+            info.half_track_m,
+            info.mass_kg,
+            info.control_period_s,
+            info.torque_limit_nm
+        ),
+        format!(
+            "excitation: v_amp {} m/s, w_amp {} rad/s, w {} rad/s, {} s; telemetry {} Hz, {frames} frames, {dropped} dropped",
+            ex.v_amp_mps, ex.omega_amp_radps, ex.w_radps, ex.duration_s, rate
+        ),
+    ];
+    write_id_csv(std::io::BufWriter::new(file), &comments, &rows)
+        .map_err(|e| LinkError::Io(format!("cannot write {}: {e}", a.out.display())))?;
+    writeln!(
+        out,
+        "{} rows written to {} ({frames} frames, {dropped} dropped)",
+        rows.len(),
+        a.out.display()
+    )
+    .map_err(io)?;
+    let (state, mut cause) = ended.unwrap_or((RunStateMsg::Hold, None));
+    if cause.is_none() {
+        if let Ok(Reply::Status { status, .. }) = link.request(&Request::GetStatus) {
+            cause = status.last_stop;
+        }
+    }
+    match cause {
+        Some(StopCode::TrajectoryEnd) => Ok(()),
+        c => Err(LinkError::UnexpectedStop(format!(
+            "{state:?} ({c:?}) before the excitation ended; the log up to it is written"
+        ))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prior_toml_keys_ranges_and_errors() {
+        let p = prior_from_toml(
+            "mass_kg = 12.5\nwheel_radius_m = 0.08\ngear_ratio = 30\nduty_full_scale = 1000\nspeed_window_ticks = 8\n",
+            "p.toml",
+        )
+        .unwrap();
+        assert_eq!(p.robot.mass_kg, 12.5);
+        assert_eq!(p.robot.wheel_radius_m, 0.08);
+        assert_eq!(p.motor.gear_ratio, 30.0);
+        assert_eq!(p.motor.duty_full_scale, 1000);
+        assert_eq!(p.speed_window_ticks, 8);
+        let e = prior_from_toml("mass = 3\n", "p.toml").unwrap_err();
+        assert!(e.contains("unknown key `mass`"), "{e}");
+        let e = prior_from_toml("mass_kg = -3\n", "p.toml").unwrap_err();
+        assert!(e.contains("robot"), "{e}");
+        let e = prior_from_toml("gear_efficiency = 1.5\n", "p.toml").unwrap_err();
+        assert!(e.contains("motor"), "{e}");
+        let e = prior_from_toml("speed_window_ticks = 0\n", "p.toml").unwrap_err();
+        assert!(e.contains("out of range"), "{e}");
+        let e = prior_from_toml("mass_kg = \"heavy\"\n", "p.toml").unwrap_err();
+        assert!(e.contains("must be a number"), "{e}");
+    }
+
+    #[test]
+    fn fit_of_a_missing_or_foreign_file_is_a_clear_error() {
+        let args = |log: PathBuf| FitArgs {
+            log,
+            robot: None,
+            timer_clock_hz: 96_000_000,
+            out: None,
+            filter_window: 0.15,
+            pose_measured: false,
+        };
+        let mut out = Vec::new();
+        let e = fit(&args("/no/such/log.csv".into()), &mut out).unwrap_err();
+        assert!(e.contains("cannot read /no/such/log.csv"), "{e}");
+        let dir = std::env::temp_dir().join(format!("wmr-identify-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("trace.csv");
+        std::fs::write(&f, "t,x\n1,2\n").unwrap();
+        let e = fit(&args(f.clone()), &mut out).unwrap_err();
+        assert!(e.contains("not an identification log"), "{e}");
+        std::fs::write(
+            &f,
+            format!(
+                "{}\n0,0,0,0,0,0,0,0,0,0,0,0\n",
+                robot_identify::log::ID_CSV_HEADER
+            ),
+        )
+        .unwrap();
+        let e = fit(&args(f.clone()), &mut out).unwrap_err();
+        assert!(e.contains("at least 100"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
