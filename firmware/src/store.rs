@@ -41,7 +41,9 @@ pub const STORE_RANGE: core::ops::Range<u32> = 0x2_0000..0x6_0000;
 /// The robot store over sectors 6 and 7; `None` if the range is refused
 /// (never with these constants: robot-store checks the page size).
 pub fn store(flash: Peri<'static, FLASH>) -> Option<FlashRecord<StoreFlash>> {
-    let region = Flash::new_blocking(flash).into_blocking_regions().bank1_region3;
+    let region = Flash::new_blocking(flash)
+        .into_blocking_regions()
+        .bank1_region3;
     let store = RobotStore::new(BlockingAsync::new(region), STORE_RANGE).ok()?;
     Some(FlashRecord {
         store,
