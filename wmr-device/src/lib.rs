@@ -29,7 +29,8 @@
 //! Modules, each using only those listed before it (checked by
 //! `tests/layers.rs`): [`framing`] (bytes and frames), [`limits`] (the
 //! physical limits, D41), [`reference`](mod@reference) (the references),
-//! [`params`] (configuration and parameters), `telemetry` (telemetry and
+//! [`params`] (configuration and parameters), [`robot`] (the robot record:
+//! upload, validation, the pending flash write), `telemetry` (telemetry and
 //! events), `selection` (which reference drives each tick, controlled
 //! stops), `requests` (request handling against the state); [`Device`]
 //! here wires them.
@@ -42,6 +43,7 @@ pub mod limits;
 pub mod params;
 pub mod reference;
 mod requests;
+pub mod robot;
 mod selection;
 mod telemetry;
 
@@ -56,7 +58,7 @@ use limits::RobotLimits;
 use reference::PlacedReference;
 use requests::Handler;
 use selection::Mode;
-use wmr_protocol::{BoardReport, Counters, ModeMsg, RunStateMsg, StopCode};
+use wmr_protocol::{BoardReport, Counters, ModeMsg, RobotSource, RunStateMsg, StopCode};
 
 pub use framing::{RX_BYTES_PER_TICK, RX_CAPACITY, TX_CAPACITY};
 pub use params::{DeviceConfig, DeviceConfigError, LinkConfig, MAX_VELOCITY_TIMEOUT_MS};
@@ -121,6 +123,46 @@ impl<const H: usize> Device<H> {
     /// at boot, and its link port's losses, kept current by the board).
     pub fn board_report_mut(&mut self) -> &mut BoardReport {
         &mut self.handler.session.board
+    }
+
+    /// Attaches the board's robot store (protocol 4): `record` is the
+    /// robot record in force and `source` where it came from; uploads are
+    /// checked as a whole with `validate` before anything is stored.
+    /// Without it the robot requests are refused with `NoStore`.
+    pub fn attach_robot_store(
+        &mut self,
+        validate: robot::RobotValidator,
+        record: &[u8],
+        source: RobotSource,
+    ) {
+        self.handler.robot.attach(validate, record, source);
+    }
+
+    /// The validated robot record waiting for its flash write: the board
+    /// writes it outside the control tick (in hold, motors off) and then
+    /// calls [`Self::robot_write_done`]. Arming is refused meanwhile.
+    pub fn pending_robot_write(&self) -> Option<&[u8]> {
+        match self.handler.control.state() {
+            RunState::Disarmed => self.handler.robot.pending_write(),
+            _ => None,
+        }
+    }
+
+    /// The board's write of [`Self::pending_robot_write`] finished (`ok`:
+    /// stored and read back equal); the commit is answered now.
+    pub fn robot_write_done(&mut self, ok: bool) {
+        self.handler.robot_write_done(&mut self.framing, ok);
+    }
+
+    /// The host asked for a restart (acknowledged; in hold): the board
+    /// resets once the acknowledgement has left.
+    pub fn reboot_requested(&self) -> bool {
+        self.handler.robot.reboot_requested()
+    }
+
+    /// The robot record's status report.
+    pub fn robot_report(&self) -> wmr_protocol::RobotReport {
+        self.handler.robot.report()
     }
 
     /// The runtime.

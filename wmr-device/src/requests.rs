@@ -7,6 +7,7 @@ use crate::framing::{bump, Framing, RX_BYTES_PER_TICK};
 use crate::limits::{RobotLimits, MAX_POSITION_M};
 use crate::params::{self, in_hold, DeviceConfig, MAX_TELEMETRY_RATE_HZ, MAX_VELOCITY_TIMEOUT_MS};
 use crate::reference::{pose_from_msg, PlacedReference, SegmentError, VirtualVehicle};
+use crate::robot::RobotRecord;
 use crate::selection::{Mode, Selected, Selector, VelocityCmd};
 use crate::telemetry::{counters, TelemetryScheduler};
 use controller_core::estimator::{PoseMeasurement, RejectReason};
@@ -88,6 +89,8 @@ pub(crate) struct Handler<const H: usize> {
     pub selector: Selector,
     pub telemetry: TelemetryScheduler,
     pub session: Session,
+    /// The robot record (upload, stored record, pending write).
+    pub robot: RobotRecord,
 }
 
 impl<const H: usize> Handler<H> {
@@ -107,6 +110,7 @@ impl<const H: usize> Handler<H> {
                 pending_cause: None,
                 board: BoardReport::default(),
             },
+            robot: RobotRecord::new(),
         }
     }
 
@@ -149,6 +153,13 @@ impl<const H: usize> Handler<H> {
                 Some(Decoded::Frame { seq, msg }) => {
                     bump(&mut framing.counters.rx_frames);
                     self.session.last_rx_us = self.session.now_us;
+                    if let Request::RobotCommit = msg {
+                        // Answered when the board's write has finished.
+                        if let Some(answer) = self.robot_commit(seq) {
+                            answer_with(framing, seq, answer);
+                        }
+                        continue;
+                    }
                     let answer = self.handle(seq, msg, framing, motors);
                     answer_with(framing, seq, answer);
                 }
@@ -216,6 +227,37 @@ impl<const H: usize> Handler<H> {
             },
             nonfinite_telemetry: self.telemetry.nonfinite_frames(),
             board: self.session.board,
+            robot: self.robot.report(),
+        }
+    }
+
+    /// `RobotCommit`: `None` when the write is now pending (answered by
+    /// [`Self::robot_write_done`]).
+    fn robot_commit(&mut self, seq: u16) -> Option<Answer> {
+        if let Err(e) = self.robot_hold() {
+            return Some(Err(e));
+        }
+        match self.robot.commit(seq) {
+            Ok(None) => None,
+            Ok(Some(fault)) => Some(Ok(Some(Reply::RobotRejected { seq, fault }))),
+            Err(e) => Some(Err(e)),
+        }
+    }
+
+    /// The board finished the pending record write: answers the commit.
+    pub fn robot_write_done(&mut self, framing: &mut Framing, ok: bool) {
+        if let Some((seq, r)) = self.robot.write_done(ok) {
+            answer_with(framing, seq, r.map(|_| None));
+        }
+    }
+
+    /// Record writes and reboots: in hold only (motors off), never with a
+    /// latched stop or while running.
+    fn robot_hold(&self) -> Result<(), ErrorCode> {
+        match self.control.state() {
+            RunState::Disarmed => Ok(()),
+            RunState::Stopped(_) => Err(ErrorCode::Latched),
+            RunState::Running => Err(ErrorCode::Busy),
         }
     }
 
@@ -236,6 +278,32 @@ impl<const H: usize> Handler<H> {
                 status: self.status(framing),
             })),
             Request::Arm => self.arm(true).map(|_| None),
+            Request::RobotBegin { total_len } => {
+                self.robot_hold()?;
+                self.robot.begin(total_len).map(|_| None)
+            }
+            Request::RobotChunk { offset, data } => {
+                self.robot_hold()?;
+                self.robot.chunk(offset, &data).map(|_| None)
+            }
+            // Handled before (its answer may wait for the write).
+            Request::RobotCommit => Err(ErrorCode::WrongMode),
+            Request::RobotRead { offset } => {
+                let (total_len, chunk) = self.robot.read(offset)?;
+                let mut data = heapless::Vec::new();
+                // Never fails: a chunk is at most ROBOT_CHUNK bytes.
+                let _ = data.extend_from_slice(chunk);
+                Ok(Some(Reply::RobotData {
+                    seq,
+                    total_len,
+                    offset,
+                    data,
+                }))
+            }
+            Request::Reboot => {
+                self.robot_hold()?;
+                self.robot.request_reboot().map(|_| None)
+            }
             Request::Disarm => {
                 self.disarm(motors, StopCode::Disarmed);
                 Ok(None)
@@ -405,6 +473,10 @@ impl<const H: usize> Handler<H> {
     /// Arms the loaded mode (`host`: under host control, with the link
     /// watchdog).
     pub fn arm(&mut self, host: bool) -> Result<(), ErrorCode> {
+        // Never with a flash write pending or a restart coming.
+        if self.robot.write_pending() || self.robot.reboot_requested() {
+            return Err(ErrorCode::Busy);
+        }
         match self.control.state() {
             RunState::Running if self.selector.braking.is_some() => return Err(ErrorCode::Busy),
             RunState::Running => return Ok(()),

@@ -649,6 +649,14 @@ fn one_of_each() -> Vec<Request> {
             selection: TELEMETRY_ALL,
             rate_hz: 10,
         },
+        Request::RobotBegin { total_len: 10 },
+        Request::RobotChunk {
+            offset: 0,
+            data: heapless::Vec::new(),
+        },
+        Request::RobotCommit,
+        Request::RobotRead { offset: 0 },
+        Request::Reboot,
     ]
 }
 
@@ -685,7 +693,7 @@ fn rig_in(state: RunStateMsg) -> Rig {
 #[test]
 fn every_request_in_every_state() {
     let reqs = one_of_each();
-    assert_eq!(reqs.len(), 16, "one of each Request variant");
+    assert_eq!(reqs.len(), 21, "one of each Request variant");
     for state in [
         RunStateMsg::Hold,
         RunStateMsg::Running,
@@ -714,6 +722,36 @@ fn every_request_in_every_state() {
                 | (RunStateMsg::Running | RunStateMsg::Stopping, Request::TrajectoryBegin { .. }) =>
                 {
                     assert_eq!(refused, Some(ErrorCode::Busy), "{state:?} {req:?}")
+                }
+                // The robot record: hold only, and this rig has no store.
+                (
+                    RunStateMsg::Running | RunStateMsg::Stopping,
+                    Request::RobotBegin { .. }
+                    | Request::RobotChunk { .. }
+                    | Request::RobotCommit
+                    | Request::Reboot,
+                ) => assert_eq!(refused, Some(ErrorCode::Busy), "{state:?} {req:?}"),
+                (
+                    RunStateMsg::Stopped,
+                    Request::RobotBegin { .. }
+                    | Request::RobotChunk { .. }
+                    | Request::RobotCommit
+                    | Request::Reboot,
+                ) => assert_eq!(refused, Some(ErrorCode::Latched), "{req:?}"),
+                (_, Request::RobotRead { .. })
+                | (
+                    RunStateMsg::Hold,
+                    Request::RobotBegin { .. } | Request::RobotChunk { .. } | Request::RobotCommit,
+                ) => assert_eq!(refused, Some(ErrorCode::NoStore), "{state:?} {req:?}"),
+                (RunStateMsg::Hold, Request::Reboot) => {
+                    assert_eq!(answer, Reply::Ack { seq });
+                    assert!(rig.dev.reboot_requested());
+                    let again = rig.request(&Request::Arm, 9999);
+                    assert_eq!(
+                        nack(&again),
+                        Some(ErrorCode::Busy),
+                        "armed before the reboot"
+                    );
                 }
                 (_, Request::EmergencyStop) => {
                     assert_eq!(refused, None);
@@ -1097,4 +1135,229 @@ fn a_retried_segment_is_acknowledged_again() {
         matches!(r, Reply::TrajectoryAck { next_index: 24, .. }),
         "{r:?}"
     );
+}
+
+// ---- Issue 18: the robot record --------------------------------------
+
+/// A test record: bytes whose last four are a checksum of the rest; a
+/// record with byte 5 = 0xEE is "out of range" at field `body.mass_kg`.
+fn record(len: usize, seed: u8) -> Vec<u8> {
+    let mut b: Vec<u8> = (0..len - 4).map(|i| seed.wrapping_add(i as u8)).collect();
+    b[5] = 0;
+    let s: u32 = b.iter().map(|&x| x as u32).sum();
+    b.extend(s.to_le_bytes());
+    b
+}
+
+fn check_record(b: &[u8]) -> Result<(), RobotFault> {
+    if b.len() < 8 {
+        return Err(RobotFault::new(RobotFaultKind::Truncated, "", None));
+    }
+    let n = b.len() - 4;
+    let s: u32 = b[..n].iter().map(|&x| x as u32).sum();
+    if s.to_le_bytes() != b[n..] {
+        return Err(RobotFault::new(RobotFaultKind::BadCrc, "", None));
+    }
+    if b[5] == 0xEE {
+        return Err(RobotFault::new(
+            RobotFaultKind::OutOfRange,
+            "body.mass_kg",
+            Some([0.1, 500.0]),
+        ));
+    }
+    Ok(())
+}
+
+fn with_store() -> (Rig, Vec<u8>) {
+    let mut rig = Rig::new();
+    let default = record(100, 1);
+    rig.dev
+        .attach_robot_store(check_record, &default, RobotSource::DefaultMissing);
+    (rig, default)
+}
+
+/// Uploads `rec` in chunks (acked each); returns the commit's answer
+/// after `write` (the board's write result, `None`: not performed).
+fn push(rig: &mut Rig, rec: &[u8], seq0: u16) {
+    let a = rig.request(
+        &Request::RobotBegin {
+            total_len: rec.len() as u16,
+        },
+        seq0,
+    );
+    assert_eq!(a, Reply::Ack { seq: seq0 });
+    for (k, c) in rec.chunks(ROBOT_CHUNK).enumerate() {
+        let seq = seq0 + 1 + k as u16;
+        let req = Request::RobotChunk {
+            offset: (k * ROBOT_CHUNK) as u16,
+            data: c.iter().copied().collect(),
+        };
+        assert_eq!(rig.request(&req, seq), Reply::Ack { seq });
+    }
+}
+
+fn pull(rig: &mut Rig, seq0: u16) -> Vec<u8> {
+    let mut out = Vec::new();
+    for k in 0..10u16 {
+        match rig.request(
+            &Request::RobotRead {
+                offset: out.len() as u16,
+            },
+            seq0 + k,
+        ) {
+            Reply::RobotData {
+                total_len,
+                data,
+                offset,
+                ..
+            } => {
+                assert_eq!(offset as usize, out.len());
+                out.extend(data.iter());
+                if out.len() == total_len as usize {
+                    return out;
+                }
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+    panic!("read did not end");
+}
+
+fn status(rig: &mut Rig, seq: u16) -> StatusMsg {
+    match rig.request(&Request::GetStatus, seq) {
+        Reply::Status { status, .. } => status,
+        other => panic!("{other:?}"),
+    }
+}
+
+/// A valid record: uploaded in chunks, validated on commit, the commit
+/// answered only when the board's write finished, arming refused in
+/// between, then read back equal and reported in the status.
+#[test]
+fn a_valid_record_is_stored_after_the_boards_write_and_reads_back() {
+    let (mut rig, default) = with_store();
+    assert_eq!(pull(&mut rig, 10), default);
+    let st = status(&mut rig, 20);
+    assert_eq!(st.robot.source, RobotSource::DefaultMissing);
+    assert_eq!(st.robot.stored_crc32, 0);
+    let rec = record(300, 7);
+    push(&mut rig, &rec, 100);
+    rig.replies.clear();
+    rig.send(&Request::RobotCommit, 200);
+    for _ in 0..5 {
+        rig.tick();
+    }
+    assert!(
+        rig.replies.iter().all(|r| r.seq() != Some(200)),
+        "answered before the write"
+    );
+    assert_eq!(rig.dev.pending_robot_write(), Some(rec.as_slice()));
+    rig.request(&circle(), 201);
+    assert_eq!(
+        nack(&rig.request(&Request::Arm, 202)),
+        Some(ErrorCode::Busy)
+    );
+    assert_eq!(rig.dev.state(), RunStateMsg::Hold);
+    rig.dev.robot_write_done(true);
+    rig.tick();
+    assert!(rig.replies.contains(&Reply::Ack { seq: 200 }));
+    assert_eq!(rig.dev.pending_robot_write(), None);
+    assert_eq!(pull(&mut rig, 300), rec);
+    let st = status(&mut rig, 400);
+    // Takes effect at the next boot: the active record is still the default.
+    assert_eq!(st.robot.source, RobotSource::DefaultMissing);
+    assert_eq!(
+        st.robot.active_crc32,
+        wmr_device::robot::record_crc32(&default)
+    );
+    assert_eq!(st.robot.stored_crc32, wmr_device::robot::record_crc32(&rec));
+    assert_eq!(st.robot.writes, 1);
+    // Arming works again.
+    assert_eq!(rig.request(&Request::Arm, 401), Reply::Ack { seq: 401 });
+}
+
+/// A record the validator refuses is answered with the field, and nothing
+/// is handed to the board; a failed write keeps the old record.
+#[test]
+fn a_bad_record_is_refused_naming_the_field_and_a_failed_write_keeps_the_old() {
+    let (mut rig, default) = with_store();
+    let mut bad = record(200, 3);
+    bad[5] = 0xEE;
+    let n = bad.len() - 4;
+    let s: u32 = bad[..n].iter().map(|&x| x as u32).sum();
+    bad[n..].copy_from_slice(&s.to_le_bytes());
+    push(&mut rig, &bad, 10);
+    match rig.request(&Request::RobotCommit, 50) {
+        Reply::RobotRejected { fault, .. } => {
+            assert_eq!(fault.kind, RobotFaultKind::OutOfRange);
+            assert_eq!(fault.field.as_str(), "body.mass_kg");
+            assert_eq!(fault.range, Some([0.1, 500.0]));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(rig.dev.pending_robot_write(), None);
+    // A corrupted byte: the checksum.
+    let mut torn = record(200, 4);
+    torn[100] ^= 1;
+    push(&mut rig, &torn, 60);
+    assert!(matches!(
+        rig.request(&Request::RobotCommit, 90),
+        Reply::RobotRejected {
+            fault: RobotFault {
+                kind: RobotFaultKind::BadCrc,
+                ..
+            },
+            ..
+        }
+    ));
+    // The board's write fails: StoreFailed, the old record stays.
+    push(&mut rig, &record(150, 5), 100);
+    rig.send(&Request::RobotCommit, 120);
+    rig.tick();
+    rig.dev.robot_write_done(false);
+    rig.tick();
+    assert!(rig.replies.contains(&Reply::Nack {
+        seq: 120,
+        error: ErrorCode::StoreFailed
+    }));
+    assert_eq!(pull(&mut rig, 130), default);
+    assert_eq!(status(&mut rig, 140).robot.write_failures, 1);
+}
+
+/// Chunks out of order or past the declared length, a commit before the
+/// last chunk, a length of 0 or above the maximum: refused.
+#[test]
+fn uploads_that_do_not_add_up_are_refused() {
+    let (mut rig, _) = with_store();
+    let chunk = |offset: u16, n: usize| Request::RobotChunk {
+        offset,
+        data: (0..n as u8).collect(),
+    };
+    assert_eq!(
+        nack(&rig.request(&chunk(0, 10), 1)),
+        Some(ErrorCode::OutOfOrder)
+    );
+    for (seq, len) in [(2, 0u16), (3, ROBOT_BLOB_MAX as u16 + 1)] {
+        let a = rig.request(&Request::RobotBegin { total_len: len }, seq);
+        assert_eq!(nack(&a), Some(ErrorCode::InvalidValue));
+    }
+    rig.request(&Request::RobotBegin { total_len: 200 }, 4);
+    assert_eq!(rig.request(&chunk(0, 128), 5), Reply::Ack { seq: 5 });
+    assert_eq!(
+        nack(&rig.request(&chunk(0, 10), 6)),
+        Some(ErrorCode::OutOfOrder)
+    );
+    assert_eq!(
+        nack(&rig.request(&chunk(128, 100), 7)),
+        Some(ErrorCode::InvalidValue)
+    );
+    assert_eq!(
+        nack(&rig.request(&Request::RobotCommit, 8)),
+        Some(ErrorCode::UploadIncomplete)
+    );
+    assert_eq!(
+        nack(&rig.request(&Request::RobotRead { offset: 1000 }, 9)),
+        Some(ErrorCode::InvalidValue)
+    );
+    assert_eq!(rig.dev.pending_robot_write(), None);
 }

@@ -3,11 +3,12 @@
 //! the crate documentation.
 
 /// Bottom to top.
-const LAYERS: [&str; 7] = [
+const LAYERS: [&str; 8] = [
     "framing",
     "limits",
     "reference",
     "params",
+    "robot",
     "telemetry",
     "selection",
     "requests",

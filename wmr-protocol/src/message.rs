@@ -214,6 +214,156 @@ pub enum Request {
         /// Frames per second (0 = off).
         rate_hz: u16,
     },
+    /// Start a robot-record upload (hold only, protocol 4): clears the
+    /// staging buffer; `total_len` bytes follow in [`Request::RobotChunk`]s.
+    RobotBegin {
+        /// Length of the whole record \[bytes\] (1..=[`ROBOT_BLOB_MAX`]).
+        total_len: u16,
+    },
+    /// The next bytes of the record (in order: `offset` = bytes received).
+    RobotChunk {
+        /// Offset of the first byte in the record \[bytes\].
+        offset: u16,
+        /// Up to [`ROBOT_CHUNK`] bytes.
+        data: Vec<u8, ROBOT_CHUNK>,
+    },
+    /// Validate the whole staged record on the robot and store it in flash
+    /// (hold only, motors off). Answered when the write has finished: an
+    /// ack, [`Reply::RobotRejected`] naming the field, or a nack.
+    RobotCommit,
+    /// Read `ROBOT_CHUNK` bytes of the stored record from `offset`:
+    /// answered by [`Reply::RobotData`].
+    RobotRead {
+        /// Offset \[bytes\].
+        offset: u16,
+    },
+    /// Restart the robot (hold only): acknowledged, then the robot resets
+    /// and boots with the stored record.
+    Reboot,
+}
+
+/// Largest robot record on the link and in flash \[bytes\] (robot-file's
+/// `MAX_ENCODED_LEN`).
+pub const ROBOT_BLOB_MAX: usize = 512;
+/// Record bytes per [`Request::RobotChunk`] / [`Reply::RobotData`].
+pub const ROBOT_CHUNK: usize = 128;
+/// Longest field path in a [`RobotFault`] \[bytes\].
+pub const ROBOT_FIELD_LEN: usize = 48;
+
+/// Validates a whole robot record (robot-file's `Robot::decode`: header,
+/// CRC-32, every field); the fault names the field. The robot side (store,
+/// device) takes one from the board, which knows the robot type.
+pub type RobotValidator = fn(&[u8]) -> Result<(), RobotFault>;
+
+/// Why a robot record was refused (robot-file's decode and validation
+/// errors, in wire form).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum RobotFaultKind {
+    /// Shorter than its header and CRC, or than its header says.
+    Truncated,
+    /// Not a robot record (magic).
+    BadMagic,
+    /// Another record format than the robot's build reads.
+    UnsupportedFormat,
+    /// Length inconsistent (too long, bytes after the CRC).
+    BadLength,
+    /// The record's CRC-32 does not match: corrupted.
+    BadCrc,
+    /// The payload is not a robot.
+    Malformed,
+    /// A field is NaN or infinite.
+    NotFinite,
+    /// A field is outside its physical range (`range`).
+    OutOfRange,
+    /// A field is inconsistent with another one.
+    Inconsistent,
+    /// The controller or the runtime refused the configuration the
+    /// robot derives from the record.
+    Refused,
+}
+
+/// A refused robot record: what is wrong and where.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RobotFault {
+    /// What is wrong.
+    pub kind: RobotFaultKind,
+    /// The field's TOML path (e.g. `body.wheel_radius_m[1]`), empty when
+    /// the record as a whole is refused; cut at [`ROBOT_FIELD_LEN`] bytes.
+    pub field: heapless::String<ROBOT_FIELD_LEN>,
+    /// The accepted range \[min, max\] for [`RobotFaultKind::OutOfRange`].
+    pub range: Option<[f32; 2]>,
+}
+
+impl RobotFault {
+    /// A fault of `kind` at `field` (cut to [`ROBOT_FIELD_LEN`] bytes on a
+    /// character boundary).
+    pub fn new(kind: RobotFaultKind, field: &str, range: Option<[f32; 2]>) -> Self {
+        let mut f = heapless::String::new();
+        for c in field.chars() {
+            if f.push(c).is_err() {
+                break;
+            }
+        }
+        Self {
+            kind,
+            field: f,
+            range,
+        }
+    }
+}
+
+impl RobotFaultKind {
+    /// One-line reason, as the host tool prints it.
+    pub const fn reason(self) -> &'static str {
+        match self {
+            Self::Truncated => "record truncated",
+            Self::BadMagic => "not a robot record",
+            Self::UnsupportedFormat => "record format not supported by the robot's build",
+            Self::BadLength => "record length inconsistent",
+            Self::BadCrc => "record CRC-32 mismatch (corrupted)",
+            Self::Malformed => "record payload malformed",
+            Self::NotFinite => "not a finite number",
+            Self::OutOfRange => "outside its physical range",
+            Self::Inconsistent => "inconsistent with another field",
+            Self::Refused => "refused by the controller or the runtime",
+        }
+    }
+}
+
+/// Where the robot in force came from (status, protocol 4).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RobotSource {
+    /// The compiled-in default: the board has no robot store.
+    #[default]
+    Builtin,
+    /// The record in flash.
+    Flash,
+    /// The compiled-in default: no record in flash.
+    DefaultMissing,
+    /// The compiled-in default: the record in flash is corrupt or invalid.
+    DefaultCorrupt,
+}
+
+/// The robot part of [`StatusMsg`] (protocol 4).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RobotReport {
+    /// Where the robot in force came from.
+    pub source: RobotSource,
+    /// CRC-32 (ISO-HDLC) of the record in force (the default's encoding
+    /// when it is the default).
+    pub active_crc32: u32,
+    /// CRC-32 of the record now in flash (0: none); differs from
+    /// `active_crc32` after a write until the robot reboots into it.
+    pub stored_crc32: u32,
+    /// Successful record writes since boot.
+    pub writes: u16,
+    /// Failed record writes since boot.
+    pub write_failures: u16,
 }
 
 /// Why a request was refused.
@@ -263,6 +413,11 @@ pub enum ErrorCode {
     PoseOutOfOrder,
     /// External pose refused: another one waits for the same tick.
     PoseQueueFull,
+    /// The board has no robot store (protocol 4).
+    NoStore,
+    /// The flash write of the robot record failed; the previous record
+    /// is still the stored one (protocol 4).
+    StoreFailed,
 }
 
 /// The robot's run state as the host sees it.
@@ -363,6 +518,8 @@ pub const CAP_TRAJECTORY: Capabilities = 2;
 pub const CAP_VELOCITY: Capabilities = 4;
 /// A simulated robot (`hil-sim device`).
 pub const CAP_SIMULATED: Capabilities = 8;
+/// Stores the robot record in flash (`Request::Robot*`, protocol 4).
+pub const CAP_ROBOT_STORE: Capabilities = 16;
 
 /// Status counters.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -426,6 +583,9 @@ pub struct StatusMsg {
     /// What the board itself reports: its last reset's cause and its link
     /// port's own losses (protocol 3).
     pub board: BoardReport,
+    /// The robot record: where the robot in force came from, its hash and
+    /// the stored one's (protocol 4).
+    pub robot: RobotReport,
 }
 
 /// Why the robot's MCU last reset, read from its reset controller at boot
@@ -592,7 +752,9 @@ impl Reply {
             | Reply::Status { seq, .. }
             | Reply::Param { seq, .. }
             | Reply::ClockSync { seq, .. }
-            | Reply::TrajectoryAck { seq, .. } => Some(*seq),
+            | Reply::TrajectoryAck { seq, .. }
+            | Reply::RobotRejected { seq, .. }
+            | Reply::RobotData { seq, .. } => Some(*seq),
             Reply::FrameError { .. } | Reply::Telemetry(_) | Reply::Event(_) => None,
         }
     }
@@ -670,6 +832,25 @@ pub enum Reply {
     Telemetry(Telemetry),
     /// An event.
     Event(Event),
+    /// Answer to [`Request::RobotCommit`]: the staged record was refused
+    /// (nothing was stored).
+    RobotRejected {
+        /// Sequence number of the request.
+        seq: u16,
+        /// What is wrong and where.
+        fault: RobotFault,
+    },
+    /// Answer to [`Request::RobotRead`].
+    RobotData {
+        /// Sequence number of the request.
+        seq: u16,
+        /// Length of the whole stored record \[bytes\].
+        total_len: u16,
+        /// Offset of `data` \[bytes\].
+        offset: u16,
+        /// Up to [`ROBOT_CHUNK`] bytes (empty at or past the end).
+        data: Vec<u8, ROBOT_CHUNK>,
+    },
 }
 
 impl ParamId {
@@ -742,6 +923,8 @@ impl ErrorCode {
             Self::PoseTooOld => "pose older than the estimator's history",
             Self::PoseOutOfOrder => "pose stamped before the last accepted one",
             Self::PoseQueueFull => "another pose waits for the same tick",
+            Self::NoStore => "the robot has no robot store",
+            Self::StoreFailed => "flash write failed (the previous record is kept)",
         }
     }
 }

@@ -72,7 +72,84 @@ fn sample_requests() -> StdVec<Request> {
     v.push(Request::ClockSync {
         host_time_us: u64::MAX,
     });
+    // The largest robot-record chunk.
+    v.push(Request::RobotChunk {
+        offset: u16::MAX,
+        data: (0..ROBOT_CHUNK).map(|i| i as u8 | 0x80).collect(),
+    });
     v
+}
+
+/// The largest robot replies: a full data chunk, a fault with the longest
+/// field path and a range.
+fn sample_robot_replies() -> StdVec<Reply> {
+    let field: String = "x".repeat(ROBOT_FIELD_LEN + 10);
+    let fault = RobotFault::new(
+        RobotFaultKind::OutOfRange,
+        &field,
+        Some([f32::MIN, f32::MAX]),
+    );
+    assert_eq!(fault.field.len(), ROBOT_FIELD_LEN, "cut to the limit");
+    std::vec![
+        Reply::RobotData {
+            seq: u16::MAX,
+            total_len: u16::MAX,
+            offset: u16::MAX,
+            data: (0..ROBOT_CHUNK).map(|i| i as u8 | 0x80).collect(),
+        },
+        Reply::RobotRejected {
+            seq: u16::MAX,
+            fault,
+        },
+        Reply::Status {
+            seq: u16::MAX,
+            status: StatusMsg {
+                state: RunStateMsg::Stopped,
+                mode: ModeMsg::Trajectory,
+                last_stop: Some(StopCode::Other),
+                t_robot_us: u32::MAX,
+                buffered_points: u16::MAX,
+                counters: Counters {
+                    ticks: u32::MAX,
+                    run_ticks: u32::MAX,
+                    overruns: u32::MAX,
+                    max_loop_time_us: u32::MAX,
+                    encoder_jumps: u32::MAX,
+                    input_faults: u32::MAX,
+                    torque_saturated: u32::MAX,
+                    duty_saturated: u32::MAX,
+                    external_poses: u32::MAX,
+                    stops: u32::MAX,
+                    rx_frames: u32::MAX,
+                    rx_errors: u32::MAX,
+                    rx_overflow: u32::MAX,
+                    tx_dropped: u32::MAX,
+                    nacks: u32::MAX,
+                },
+                pose_rejects: PoseRejects {
+                    non_finite: u32::MAX,
+                    bad_std_dev: u32::MAX,
+                    from_future: u32::MAX,
+                    too_old: u32::MAX,
+                    out_of_order: u32::MAX,
+                    outlier: u32::MAX,
+                },
+                nonfinite_telemetry: u32::MAX,
+                board: BoardReport {
+                    reset_cause: ResetCause::LowPower,
+                    port_rx_dropped: u32::MAX,
+                    port_rx_errors: u32::MAX,
+                },
+                robot: RobotReport {
+                    source: RobotSource::DefaultCorrupt,
+                    active_crc32: u32::MAX,
+                    stored_crc32: u32::MAX,
+                    writes: u16::MAX,
+                    write_failures: u16::MAX,
+                },
+            },
+        },
+    ]
 }
 
 #[test]
@@ -97,6 +174,7 @@ fn every_message_round_trips_through_a_frame() {
         );
     }
     let mut replies = variants::<Reply>();
+    replies.extend(sample_robot_replies());
     replies.push(Reply::Telemetry(Telemetry {
         seq: u32::MAX,
         t_robot_us: u32::MAX,
@@ -127,7 +205,8 @@ fn every_message_round_trips_through_a_frame() {
 #[test]
 fn the_enumeration_finds_every_variant() {
     // Guards the doc test below: it must see all of them.
-    assert_eq!(variants::<Request>().len(), 16);
+    assert_eq!(variants::<Request>().len(), 21);
+    assert_eq!(variants::<Reply>().len(), 12);
     assert_eq!(variants::<ParamId>().len(), ParamId::ALL.len());
     for (p, q) in variants::<ParamId>().into_iter().zip(ParamId::ALL) {
         assert_eq!(p, q);
@@ -177,6 +256,12 @@ fn every_message_is_documented() {
     variants::<BuiltinShape>()
         .iter()
         .for_each(|v| check("BuiltinShape", variant_name(v)));
+    variants::<RobotFaultKind>()
+        .iter()
+        .for_each(|v| check("RobotFaultKind", variant_name(v)));
+    variants::<RobotSource>()
+        .iter()
+        .for_each(|v| check("RobotSource", variant_name(v)));
     for p in ParamId::ALL {
         check("ParamId", variant_name(&p));
         check("name", p.name().into());

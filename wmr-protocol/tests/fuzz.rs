@@ -47,6 +47,20 @@ fn a_request() -> impl Strategy<Value = Request> {
             omega_radps: w,
             timeout_ms: t
         }),
+        // The robot record (protocol 4): chunks of any bytes (zeros
+        // included: COBS must carry them), begin/read at any offset.
+        (
+            any::<u16>(),
+            proptest::collection::vec(any::<u8>(), 0..=ROBOT_CHUNK)
+        )
+            .prop_map(|(offset, data)| Request::RobotChunk {
+                offset,
+                data: data.into_iter().collect(),
+            }),
+        any::<u16>().prop_map(|total_len| Request::RobotBegin { total_len }),
+        any::<u16>().prop_map(|offset| Request::RobotRead { offset }),
+        Just(Request::RobotCommit),
+        Just(Request::Reboot),
     ]
 }
 
