@@ -40,13 +40,11 @@ impl SimRobot {
     /// the host go to the same estimator.
     pub fn new(scn: &Scenario, kind: ControllerKind) -> Result<Self, String> {
         scn.validate()?;
-        let scn = &Scenario {
-            sensing: match scn.sensing {
-                Sensing::Ideal => Sensing::Mocap,
-                s => s,
-            },
-            ..scn.clone()
-        };
+        let mut served = scn.clone();
+        if served.sensing.preset == Sensing::Ideal {
+            served.sensing.preset = Sensing::Mocap;
+        }
+        let scn = &served;
         let controller = controller_config(scn, kind);
         let cfg = scn.runtime_config(controller, crate::hil::HilOptions::default().safety);
         // The runtime gives the estimator its geometry and initial pose.
@@ -194,6 +192,7 @@ pub fn open_pty() -> Result<(serialport::TTYPort, serialport::TTYPort, String), 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scenario::PerturbationPart;
     use wmr_protocol::{Request, RunStateMsg, MAX_FRAME};
 
     fn send(robot: &mut SimRobot, seq: u16, req: &Request) {
@@ -241,23 +240,17 @@ mod tests {
     /// the weak wheels and drove off.
     #[test]
     fn robot_behind_the_link_has_the_scenarios_weak_wheels() {
-        let still = Scenario {
+        let mut still = Scenario::default().with_sensing(Sensing::Mocap);
+        still.perturbations = PerturbationPart {
             window_s: [0.0, 100.0],
-            beta: 0.0,
-            eps: 0.0,
-            skid_scale: 0.0,
-            disturbance_nm: 0.0,
-            sensing: Sensing::Mocap,
             wheel_torque_scale: [0.0, 0.0],
-            ..Scenario::default()
+            ..PerturbationPart::none()
         };
         let (dead, driven) = drive(&still);
         assert!(driven, "the runtime never drove the bridge");
         assert!(dead < 1e-12, "a robot without wheel torque moved {dead} m");
-        let healthy = Scenario {
-            wheel_torque_scale: [1.0, 1.0],
-            ..still
-        };
+        let mut healthy = still;
+        healthy.perturbations.wheel_torque_scale = [1.0, 1.0];
         let (moved, _) = drive(&healthy);
         assert!(moved > 0.1, "healthy robot moved only {moved} m");
     }

@@ -34,7 +34,7 @@ pub fn run_runtime(
     trace_every: usize,
 ) -> Result<HilOutput, String> {
     scn.validate()?;
-    if scn.sensing == Sensing::Ideal {
+    if scn.sensing.preset == Sensing::Ideal {
         return Err("the firmware runtime needs a firmware sensing preset, not ideal".into());
     }
     let cfg = scn.runtime_config(controller, opts.safety);

@@ -119,9 +119,10 @@ pub fn compare_sensing_runs(
 ) -> Result<Vec<(Sensing, Scenario, Vec<SimOutput>)>, String> {
     let scns: Vec<Scenario> = COMPARE_SENSING
         .iter()
-        .map(|&sensing| Scenario {
-            sensing,
-            ..Scenario::paper_case(2, seed, beta, eps).as_printed()
+        .map(|&sensing| {
+            Scenario::paper_case(2, seed, beta, eps)
+                .as_printed()
+                .with_sensing(sensing)
         })
         .collect();
     let jobs: Vec<(usize, ControllerKind)> = (0..scns.len())
@@ -138,8 +139,8 @@ pub fn compare_sensing_runs(
             .by_ref()
             .take(ControllerKind::ALL.len())
             .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| format!("case 2, sensing {}: {e}", scn.sensing.name()))?;
-        res.push((scn.sensing, scn, runs));
+            .map_err(|e| format!("case 2, sensing {}: {e}", scn.sensing.preset.name()))?;
+        res.push((scn.sensing.preset, scn, runs));
     }
     Ok(res)
 }

@@ -74,11 +74,14 @@ fn flags_override_the_preset_and_the_file() {
     };
     let s = a.scenario.build().unwrap();
     assert_eq!(s.name, "case1");
-    assert_eq!((s.beta, s.eps, s.seed), (0.15, 0.0, 4));
-    assert_eq!(s.mass_scale, 1.1);
+    assert_eq!(
+        (s.perturbations.beta, s.perturbations.eps, s.seed),
+        (0.15, 0.0, 4)
+    );
+    assert_eq!(s.plant.mass_scale, 1.1);
     assert_eq!(s.trajectory, TrajectoryKind::Figure8);
-    assert_eq!(s.k_y, Some(10.0));
-    assert_eq!(s.encoder_cpr, 1024);
+    assert_eq!(s.controller.k_y, Some(10.0));
+    assert_eq!(s.sensing.encoder_cpr, 1024);
 
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("s.toml");
@@ -87,13 +90,15 @@ fn flags_override_the_preset_and_the_file() {
         "name = \"file\"\nbeta = 0.01\nsensing = \"mocap\"\npwm_levels = 255\npose_rate_hz = 50.0\n",
     )
     .unwrap();
-    let a = ScenarioArgs {
-        scenario: Some(f),
-        beta: Some(0.02),
-        ..Default::default()
+    let cli = parse(&["run", "--scenario", f.to_str().unwrap(), "--beta", "0.02"]).unwrap();
+    let Command::Run(a) = cli.command else {
+        panic!()
     };
-    let s = a.build().unwrap();
-    assert_eq!((s.name.as_str(), s.beta, s.pwm_levels), ("file", 0.02, 255));
+    let s = a.scenario.build().unwrap();
+    assert_eq!(
+        (s.name.as_str(), s.perturbations.beta, s.sensing.pwm_levels),
+        ("file", 0.02, 255)
+    );
 }
 
 #[test]
@@ -114,13 +119,13 @@ fn sensing_flags_override_the_preset() {
         panic!()
     };
     let s = a.scenario.build().unwrap();
-    assert_eq!(s.sensing, Sensing::Uwb);
-    assert_eq!(s.pose.pose_rate_hz, Some(20.0));
+    assert_eq!(s.sensing.preset, Sensing::Uwb);
+    assert_eq!(s.sensing.pose.pose_rate_hz, Some(20.0));
     assert_eq!(
-        s.pose.pose_outage_s,
+        s.sensing.pose.pose_outage_s,
         Some(crate::sensing::Window([20.0, 22.0]))
     );
-    assert_eq!(s.gyro.gyro_bias_radps, Some(-0.01));
+    assert_eq!(s.sensing.gyro.gyro_bias_radps, Some(-0.01));
     let e = parse(&["run", "--sensing", "mocap", "--pose-outage", "20"]).unwrap_err();
     assert!(e.to_string().contains("START,END"), "{e}");
     let e = run_to_string(&["run", "--sensing", "odometry", "--pose-rate", "5"]).unwrap_err();
@@ -217,7 +222,7 @@ fn compare_without_plots_writes_metrics_json() {
     assert_eq!(v[5]["controller"], "proposed");
     // The paper's setting: no governor, so no governor metrics.
     assert!(v[5].get("time_lag_final_s").is_none());
-    assert_eq!(v[5]["scenario"]["governor"], false);
+    assert_eq!(v[5]["scenario"]["governor"]["enabled"], false);
     let g: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.path().join("metrics_governor.json")).unwrap(),
     )
@@ -225,7 +230,7 @@ fn compare_without_plots_writes_metrics_json() {
     assert_eq!(g.as_array().unwrap().len(), 6);
     assert!(g[5]["time_lag_final_s"].as_f64().unwrap() >= 0.0);
     assert!(
-        g[5]["scenario"].get("governor").is_none(),
+        g[5]["scenario"]["governor"].get("enabled").is_none(),
         "on: the default"
     );
 }
@@ -235,11 +240,11 @@ fn compare_without_plots_writes_metrics_json() {
 /// is not a trace is a clear error.
 #[test]
 fn report_of_a_full_trace_csv_equals_the_run() {
-    let scn = Scenario {
+    let mut scn = Scenario {
         duration_s: 6.0,
-        window_s: [2.0, 4.0],
         ..Scenario::paper_case(1, 2, None, None)
     };
+    scn.perturbations.window_s = [2.0, 4.0];
     let cfg = crate::sim::controller_config(&scn, ControllerKind::Asmc);
     let out = crate::sim::run_with(&scn, cfg, 1).unwrap();
     let dir = tempfile::tempdir().unwrap();

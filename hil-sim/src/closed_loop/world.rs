@@ -17,7 +17,7 @@ fn world(
     dead_encoder: Option<DeadEncoder>,
 ) -> Result<World, String> {
     World::new(&WorldConfig {
-        plant: PlantParams::from_robot(robot, scn.mass_scale, scn.inertia_scale),
+        plant: PlantParams::from_robot(robot, scn.plant.mass_scale, scn.plant.inertia_scale),
         perturbations: scn.perturbations(),
         initial_pose: scn.initial_pose,
         period_s: scn.control_period_s,
@@ -25,7 +25,7 @@ fn world(
         seed: scn.seed,
         instruments,
         faults: Faults {
-            wheel_torque_scale: scn.wheel_torque_scale,
+            wheel_torque_scale: scn.perturbations.wheel_torque_scale,
             dead_encoder,
         },
     })
@@ -37,8 +37,8 @@ fn world(
 /// over the controller's period, torques applied exactly.
 pub fn ideal_world(scn: &Scenario, controller: &ControllerConfig) -> Result<World, String> {
     let ideal = IdealSensing {
-        position_noise_m: scn.pose_noise_m,
-        heading_noise_rad: scn.heading_noise_rad,
+        position_noise_m: scn.sensing.pose_noise_m,
+        heading_noise_rad: scn.sensing.heading_noise_rad,
         rate_period_s: controller.period_s as f64,
     };
     world(scn, &controller.robot, Instruments::Ideal(ideal), None)
