@@ -114,6 +114,7 @@ mod tests {
             counts_per_wheel_rev: 1000.0,
             inverted: [false, true],
             speed_window_ticks: 1,
+            ..EncoderParams::EXAMPLE
         };
         let mut e = SimEncoders::new(&p);
         // 70 revolutions in 100 steps: 70 000 counts, more than one 16-bit

@@ -34,6 +34,12 @@ pub struct EncoderParams {
     /// Larger N: finer speed quantization (one count per N·dt) but a group
     /// delay of N·dt/2.
     pub speed_window_ticks: u8,
+    /// Per wheel `[right, left]`: the wheel's radius over the controller
+    /// model's (mean) radius, r_i/r̄, in [`Self::RADIUS_SCALE_RANGE`]. The
+    /// runtime's wheel angle per count is `2π·radius_scale/cpr`, so the
+    /// model's r̄ times it is the wheel's true arc per count (docs/DECISIONS.md
+    /// D60). 1 for equal wheels.
+    pub radius_scale: [f32; 2],
 }
 
 impl EncoderParams {
@@ -43,7 +49,12 @@ impl EncoderParams {
         counts_per_wheel_rev: 24_000.0,
         inverted: super::hardware::MIRRORED_LEFT,
         speed_window_ticks: 4,
+        radius_scale: [1.0; 2],
     };
+
+    /// Accepted [`Self::radius_scale`]: the wheels may differ from their
+    /// mean by at most 10 %.
+    pub const RADIUS_SCALE_RANGE: (f32, f32) = (0.9, 1.1);
 
     /// Checks the resolution and the window.
     pub fn validate(self) -> Result<Self, RuntimeConfigError> {
@@ -54,12 +65,18 @@ impl EncoderParams {
         if n == 0 || n > MAX_SPEED_WINDOW {
             return Err(RuntimeConfigError::InvalidSpeedWindow);
         }
+        let (lo, hi) = Self::RADIUS_SCALE_RANGE;
+        if !self.radius_scale.iter().all(|s| (lo..=hi).contains(s)) {
+            return Err(RuntimeConfigError::InvalidRadiusScale);
+        }
         Ok(self)
     }
 
-    /// Wheel angle per count \[rad/count\].
-    pub fn rad_per_count(&self) -> f32 {
-        2.0 * core::f32::consts::PI / self.counts_per_wheel_rev
+    /// Wheel angle per count of a wheel of the model's radius \[rad/count\]
+    /// `[right, left]`: `2π·radius_scale/cpr`.
+    pub fn rad_per_count(&self) -> [f32; 2] {
+        let base = 2.0 * core::f32::consts::PI / self.counts_per_wheel_rev;
+        [base * self.radius_scale[0], base * self.radius_scale[1]]
     }
 }
 
@@ -68,7 +85,7 @@ impl EncoderParams {
 #[derive(Clone, Debug)]
 pub struct WheelCounts {
     params: EncoderParams,
-    rad_per_count: f32,
+    rad_per_count: [f32; 2],
     prev_raw: [u16; 2],
     primed: bool,
     /// Accumulated signed position \[counts\] (wrapping i32).
@@ -189,11 +206,11 @@ impl WheelCounts {
             rate[i] = if self.filled <= 1 {
                 0.0
             } else if span_s > 0.0 {
-                counts * self.rad_per_count / span_s
+                counts * self.rad_per_count[i] / span_s
             } else {
                 self.last_rate[i] // no time passed (never on a real clock)
             };
-            dphi[i] = delta[i] as f32 * self.rad_per_count;
+            dphi[i] = delta[i] as f32 * self.rad_per_count[i];
         }
         self.last_rate = rate;
         CountSample {
@@ -229,6 +246,32 @@ mod tests {
             counts_per_wheel_rev: cpr,
             inverted: [false, true],
             speed_window_ticks: window,
+            ..EncoderParams::EXAMPLE
+        }
+    }
+
+    /// Each wheel's arc per count is right with unequal wheels: a wheel 5 %
+    /// larger than the mean advances 5 % more per count in the model's
+    /// radius, and a scale outside 0.9..=1.1 is refused.
+    #[test]
+    fn radius_scale_makes_each_wheels_arc_right() {
+        let p = EncoderParams {
+            radius_scale: [1.05, 0.95],
+            ..params(1000.0, 1)
+        };
+        let mut wc = WheelCounts::new(p).unwrap();
+        wc.update([0, 0], 1e-3);
+        // Right +100 counts; the left counter is inverted, so -100 raw is +100.
+        let s = wc.update([100, 0u16.wrapping_sub(100)], 1e-3);
+        let true_angle = 100.0 * 2.0 * PI / 1000.0;
+        assert!((s.dphi_rad[0] - 1.05 * true_angle).abs() < 1e-5);
+        assert!((s.dphi_rad[1] - 0.95 * true_angle).abs() < 1e-5);
+        for bad in [0.89, 1.11, f32::NAN] {
+            let p = EncoderParams {
+                radius_scale: [1.0, bad],
+                ..params(1000.0, 1)
+            };
+            assert_eq!(p.validate(), Err(RuntimeConfigError::InvalidRadiusScale));
         }
     }
 

@@ -14,6 +14,8 @@ pub enum RuntimeConfigError {
     NonPositiveEncoderResolution,
     /// Speed window must be in `1..=MAX_SPEED_WINDOW` ticks.
     InvalidSpeedWindow,
+    /// Encoder radius scale outside `EncoderParams::RADIUS_SCALE_RANGE`.
+    InvalidRadiusScale,
     /// Motor torque constant must be finite and > 0.
     NonPositiveTorqueConstant,
     /// Winding resistance must be finite and > 0.
@@ -59,6 +61,7 @@ impl core::fmt::Display for RuntimeConfigError {
             Self::Estimator(e) => return write!(f, "{e}"),
             Self::NonPositiveEncoderResolution => "encoder counts per wheel rev must be > 0",
             Self::InvalidSpeedWindow => "speed window must be 1..=32 ticks",
+            Self::InvalidRadiusScale => "encoder radius scale must be within 0.9..=1.1",
             Self::NonPositiveTorqueConstant => "motor torque constant must be > 0",
             Self::NonPositiveResistance => "winding resistance must be > 0",
             Self::NonPositiveGearRatio => "gear ratio must be > 0",

@@ -1,0 +1,182 @@
+//! What the runtime, the simulator and the firmware take from a robot:
+//! every derived value with its formula (docs/robot.md, "Derived values").
+
+use crate::error::{Reason, RobotError};
+use crate::sections::{Limits, Robot};
+use controller_core::controller::DEFAULT_TORQUE_LIMIT_NM;
+use controller_core::pacer::PacingConfig;
+use controller_core::runtime::{EncoderParams, MotorParams, RuntimeConfig, SafetyLimits};
+use controller_core::trajectory::Reference;
+use controller_core::types::Pose;
+use controller_core::{ControllerConfig, ControllerKind, RobotParams};
+
+/// Control period the derivations assume \[s\]: the paper's 1 kHz
+/// (`ControllerConfig::paper(..).period_s`).
+pub const CONTROL_PERIOD_S: f32 = ControllerConfig::paper(ControllerKind::Proposed).period_s;
+/// The encoder jump limit is the count change per tick at this multiple of
+/// the no-load wheel speed (faster is no wheel: a glitch or a slipped count).
+pub const JUMP_SPEED_FACTOR: f32 = 2.5;
+/// The stall check arms at this fraction of the torque limit.
+pub const STALL_TORQUE_FRACTION: f32 = 0.2;
+/// A wheel pushing that hard without a count for this long is stalled \[s\].
+pub const STALL_TIME_S: f32 = 0.25;
+
+/// The paper robot's limits: controller-core's torque limit (D14) and the
+/// link defaults of wmr-device (`LinkConfig::DEFAULT`: 1 m/s, 3 rad/s,
+/// 1 m/s², 500 ms; a wmr-device test checks they agree).
+pub(crate) fn paper_limits() -> Limits {
+    Limits {
+        torque_nm: DEFAULT_TORQUE_LIMIT_NM,
+        max_speed_mps: 1.0,
+        max_yaw_rate_radps: 3.0,
+        max_accel_mps2: 1.0,
+        link_timeout_ms: 500,
+    }
+}
+
+impl Robot {
+    /// Mean wheel radius \[m\].
+    pub fn mean_wheel_radius_m(&self) -> f32 {
+        0.5 * (self.body.wheel_radius_m[0] + self.body.wheel_radius_m[1])
+    }
+
+    /// Stall torque at the wheel, η·N·k·V/R \[N·m\].
+    pub fn stall_torque_nm(&self) -> f32 {
+        let m = &self.motors;
+        m.gear_efficiency * m.gear_ratio * m.torque_constant_nm_per_a * m.supply_voltage_v
+            / m.resistance_ohm
+    }
+
+    /// No-load wheel speed, V/(k·N) \[rad/s\].
+    pub fn no_load_wheel_speed_radps(&self) -> f32 {
+        let m = &self.motors;
+        m.supply_voltage_v / (m.torque_constant_nm_per_a * m.gear_ratio)
+    }
+
+    /// No-load forward speed of the smaller wheel, r_min·V/(k·N) \[m/s\].
+    pub fn no_load_speed_mps(&self) -> f32 {
+        let [r0, r1] = self.body.wheel_radius_m;
+        r0.min(r1) * self.no_load_wheel_speed_radps()
+    }
+
+    /// The controller's model: mean wheel radius, half track = track/2
+    /// (per-wheel radii reach the runtime through the encoder scale, D60).
+    pub fn robot_params(&self) -> RobotParams {
+        let b = &self.body;
+        RobotParams {
+            mass_kg: b.mass_kg,
+            inertia_kgm2: b.inertia_kgm2,
+            wheel_inertia_kgm2: b.wheel_inertia_kgm2,
+            wheel_radius_m: self.mean_wheel_radius_m(),
+            half_track_m: 0.5 * b.track_m,
+            com_offset_m: b.com_offset_m,
+        }
+    }
+
+    /// The configuration of controller `kind`: the paper's for `kind` with
+    /// this robot's model, torque limit and gains (its `[gains.<kind>]`
+    /// section, or Table 2's).
+    pub fn controller_config(&self, kind: ControllerKind) -> ControllerConfig {
+        let mut c = ControllerConfig::paper(kind);
+        c.robot = self.robot_params();
+        c.torque_limit_nm = self.limits.torque_nm;
+        self.gains.resolved(kind).apply(&mut c);
+        c
+    }
+
+    /// The motor model's parameters for a PWM timer of `duty_full_scale`
+    /// counts at 100 %.
+    pub fn motor_params(&self, duty_full_scale: u16) -> MotorParams {
+        let m = &self.motors;
+        MotorParams {
+            torque_constant_nm_per_a: m.torque_constant_nm_per_a,
+            winding_resistance_ohm: m.resistance_ohm,
+            gear_ratio: m.gear_ratio,
+            gear_efficiency: m.gear_efficiency,
+            supply_voltage_v: m.supply_voltage_v,
+            max_duty_fraction: self.bridge.max_duty_fraction,
+            duty_full_scale,
+        }
+    }
+
+    /// The encoders' parameters; each wheel's radius reaches the runtime as
+    /// its `radius_scale` r_i/r̄ (D60).
+    pub fn encoder_params(&self) -> EncoderParams {
+        let e = &self.encoders;
+        let r = self.mean_wheel_radius_m();
+        let [r0, r1] = self.body.wheel_radius_m;
+        EncoderParams {
+            counts_per_wheel_rev: e.counts_per_wheel_rev,
+            inverted: e.inverted,
+            speed_window_ticks: e.speed_window_ticks,
+            radius_scale: [r0 / r, r1 / r],
+        }
+    }
+
+    /// Encoder counts per control tick of `period_s` at wheel speed
+    /// `wheel_speed_radps`: ω·T·cpr/(2π).
+    pub fn counts_per_tick(&self, wheel_speed_radps: f32, period_s: f32) -> f32 {
+        wheel_speed_radps * period_s * self.encoders.counts_per_wheel_rev
+            / (2.0 * core::f32::consts::PI)
+    }
+
+    /// The runtime's safety thresholds for a control period `period_s`:
+    /// - jump limit: counts per tick at [`JUMP_SPEED_FACTOR`] × the no-load
+    ///   wheel speed, rounded up, at least 4, at most `i16::MAX`;
+    /// - stall torque: [`STALL_TORQUE_FRACTION`] × `limits.torque_nm`;
+    /// - stall ticks: [`STALL_TIME_S`] / period;
+    /// - overrun limit: half a period;
+    /// - consecutive overruns and input faults: `SafetyLimits::EXAMPLE`'s.
+    pub fn safety_limits(&self, period_s: f32) -> SafetyLimits {
+        let jump = self.counts_per_tick(
+            JUMP_SPEED_FACTOR * self.no_load_wheel_speed_radps(),
+            period_s,
+        );
+        let jump = libm::ceilf(jump).clamp(4.0, i16::MAX as f32) as u16;
+        let stall_ticks = libm::roundf(STALL_TIME_S / period_s).clamp(1.0, u16::MAX as f32) as u16;
+        let overrun = libm::roundf(0.5 * period_s * 1e6).max(1.0) as u32;
+        SafetyLimits {
+            max_counts_per_tick: jump,
+            stall_torque_nm: STALL_TORQUE_FRACTION * self.limits.torque_nm,
+            stall_ticks,
+            overrun_limit_us: overrun,
+            ..SafetyLimits::EXAMPLE
+        }
+    }
+
+    /// The whole runtime configuration for controller `kind`, following
+    /// `reference` from `initial_pose`, with PWM from a timer clocked at
+    /// `timer_clock_hz` (duty full scale from `BridgeParams::duty_full_scale`).
+    pub fn runtime_config(
+        &self,
+        kind: ControllerKind,
+        reference: Reference,
+        initial_pose: Pose,
+        timer_clock_hz: u32,
+    ) -> Result<RuntimeConfig, RobotError> {
+        self.validate()?;
+        let full_scale =
+            self.bridge
+                .params()
+                .duty_full_scale(timer_clock_hz)
+                .ok_or(RobotError::new(
+                    "bridge.pwm_frequency_hz",
+                    Reason::Inconsistent {
+                        with: "the board's timer clock",
+                        why: "duty resolution outside 100..=65535 levels",
+                    },
+                ))?;
+        let controller = self.controller_config(kind);
+        let cfg = RuntimeConfig {
+            controller,
+            reference,
+            initial_pose,
+            encoder: self.encoder_params(),
+            motor: self.motor_params(full_scale),
+            motor_inverted: self.bridge.motor_inverted,
+            safety: self.safety_limits(controller.period_s),
+            pacing: PacingConfig::on(),
+        };
+        Ok(cfg)
+    }
+}

@@ -1,0 +1,75 @@
+//! Validation errors: the field by its TOML path and the reason.
+
+use controller_core::error::ConfigError;
+use controller_core::runtime::RuntimeConfigError;
+
+/// Why a field is refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum Reason {
+    /// NaN or infinite.
+    NotFinite,
+    /// Outside the physical range `[min, max]` (in `unit`).
+    OutOfRange {
+        /// Smallest accepted value.
+        min: f32,
+        /// Largest accepted value.
+        max: f32,
+        /// Unit of the three numbers.
+        unit: &'static str,
+    },
+    /// Inconsistent with another field (`with`, a TOML path): `why`.
+    Inconsistent {
+        /// The other field.
+        with: &'static str,
+        /// The rule broken.
+        why: &'static str,
+    },
+    /// `format` is not the version this build reads ([`crate::FORMAT`]).
+    UnsupportedFormat {
+        /// The version found.
+        found: u32,
+    },
+    /// controller-core refused the controller configuration.
+    Controller(ConfigError),
+    /// controller-core refused the runtime configuration.
+    Runtime(RuntimeConfigError),
+}
+
+/// A robot refused by [`crate::Robot::validate`] (or a derivation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RobotError {
+    /// TOML path of the field, e.g. `"body.wheel_radius_m[1]"`.
+    pub field: &'static str,
+    /// Why.
+    pub reason: Reason,
+}
+
+impl RobotError {
+    pub(crate) const fn new(field: &'static str, reason: Reason) -> Self {
+        Self { field, reason }
+    }
+}
+
+impl core::fmt::Display for RobotError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "{}: ", self.field)?;
+        match self.reason {
+            Reason::NotFinite => write!(f, "not a finite number"),
+            Reason::OutOfRange { min, max, unit } => {
+                write!(f, "outside the physical range [{min}, {max}] {unit}")
+            }
+            Reason::Inconsistent { with, why } => write!(f, "inconsistent with {with}: {why}"),
+            Reason::UnsupportedFormat { found } => write!(
+                f,
+                "format {found} is not supported (this build reads format {})",
+                crate::FORMAT
+            ),
+            Reason::Controller(e) => write!(f, "refused by the controller: {e}"),
+            Reason::Runtime(e) => write!(f, "refused by the runtime: {e:?}"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for RobotError {}

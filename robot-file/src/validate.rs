@@ -1,0 +1,580 @@
+//! [`Robot::validate`]: every field against its physical range, then the
+//! fields against each other, then the gains through controller-core's own
+//! validation. Ranges and their reasons: docs/robot.md.
+
+use crate::derive::CONTROL_PERIOD_S;
+use crate::error::{Reason, RobotError};
+use crate::sections::{GainSet, Robot, SwitchingGain, FORMAT};
+use controller_core::runtime::{BridgeParams, MAX_SPEED_WINDOW};
+use controller_core::ControllerKind;
+
+/// Timer clocks of the supported boards' PWM timers \[Hz\] (STM32F411 at
+/// 96 MHz, STM32F405 at 168 MHz): a PWM frequency must give 100..=65,535
+/// duty levels on each.
+pub const SUPPORTED_TIMER_CLOCKS_HZ: [u32; 2] = [96_000_000, 168_000_000];
+
+/// Largest relative difference of the two wheel radii (10 %).
+pub const MAX_WHEEL_RADIUS_MISMATCH: f32 = 0.1;
+
+/// Every leaf field of a robot file with every gain section present (SMC
+/// with a fixed switching gain, ASMC and proposed adaptive), by TOML path,
+/// in validation order. A test checks it against the serialized form, so a
+/// new field cannot be left out of the field-by-field tests.
+pub const FIELDS: &[&str] = &[
+    "name",
+    "format",
+    "body.mass_kg",
+    "body.inertia_kgm2",
+    "body.wheel_inertia_kgm2",
+    "body.com_offset_m",
+    "body.wheel_radius_m[0]",
+    "body.wheel_radius_m[1]",
+    "body.track_m",
+    "motors.torque_constant_nm_per_a",
+    "motors.resistance_ohm",
+    "motors.gear_ratio",
+    "motors.gear_efficiency",
+    "motors.supply_voltage_v",
+    "motors.viscous_friction_nms_per_rad[0]",
+    "motors.viscous_friction_nms_per_rad[1]",
+    "motors.coulomb_friction_nm[0]",
+    "motors.coulomb_friction_nm[1]",
+    "encoders.counts_per_wheel_rev",
+    "encoders.inverted[0]",
+    "encoders.inverted[1]",
+    "encoders.speed_window_ticks",
+    "bridge.mode",
+    "bridge.pwm_frequency_hz",
+    "bridge.idle",
+    "bridge.max_duty_fraction",
+    "bridge.motor_inverted[0]",
+    "bridge.motor_inverted[1]",
+    "imu.yaw_axis",
+    "limits.torque_nm",
+    "limits.max_speed_mps",
+    "limits.max_yaw_rate_radps",
+    "limits.max_accel_mps2",
+    "limits.link_timeout_ms",
+    // gains.<kind>.*: the same list for each kind, see `gain_fields!`.
+];
+
+macro_rules! gain_path {
+    ($kind:expr, $p:literal) => {
+        match $kind {
+            ControllerKind::Proposed => concat!("gains.proposed.", $p),
+            ControllerKind::Smc => concat!("gains.smc.", $p),
+            ControllerKind::Asmc => concat!("gains.asmc.", $p),
+        }
+    };
+}
+
+/// The gain fields of one section, relative to `gains.<kind>.`.
+pub const GAIN_FIELDS: &[&str] = &[
+    "kinematic.k_x",
+    "kinematic.k_y",
+    "kinematic.k_th",
+    "kinematic.large_error_m",
+    "kinematic.printed_2ey_term",
+    "observer.l_v",
+    "observer.l_omega",
+    "observer.max_estimate[0]",
+    "observer.max_estimate[1]",
+    "eso.lambda[0]",
+    "eso.lambda[1]",
+    "eso.lambda[2]",
+    "eso.zeta",
+    "eso.alpha",
+    "eso.max_disturbance[0]",
+    "eso.max_disturbance[1]",
+    "sliding.k_s",
+    "sliding.switching.fixed.k",
+    "sliding.switching.adaptive.gamma",
+    "sliding.switching.adaptive.dead_zone",
+    "sliding.switching.adaptive.leakage",
+    "sliding.switching.adaptive.rho0",
+    "sliding.switching.adaptive.rho_min",
+    "sliding.switching.adaptive.rho_max",
+];
+
+/// Largest gain accepted (any unit): beyond it a 1 kHz discrete loop is
+/// far past stability; tuning stays well inside.
+pub const MAX_GAIN: f32 = 1.0e4;
+
+fn range(
+    field: &'static str,
+    x: f32,
+    min: f32,
+    max: f32,
+    unit: &'static str,
+) -> Result<(), RobotError> {
+    if !x.is_finite() {
+        return Err(RobotError::new(field, Reason::NotFinite));
+    }
+    if x < min || x > max {
+        return Err(RobotError::new(
+            field,
+            Reason::OutOfRange { min, max, unit },
+        ));
+    }
+    Ok(())
+}
+
+fn consistent(
+    ok: bool,
+    field: &'static str,
+    with: &'static str,
+    why: &'static str,
+) -> Result<(), RobotError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(RobotError::new(field, Reason::Inconsistent { with, why }))
+    }
+}
+
+impl Robot {
+    /// Checks every field against its physical range, the fields against
+    /// each other and the gains of each controller (controller-core's own
+    /// validation of the configuration built from them). The error names
+    /// the first field refused, by its TOML path, and why.
+    pub fn validate(&self) -> Result<(), RobotError> {
+        self.validate_ranges()?;
+        self.validate_consistency()?;
+        for kind in ControllerKind::ALL {
+            if let Some(g) = self.gains.of(kind) {
+                validate_gains(kind, g)?;
+            }
+            self.controller_config(kind)
+                .validate()
+                .map_err(|e| RobotError::new(gain_section(kind), Reason::Controller(e)))?;
+        }
+        Ok(())
+    }
+
+    fn validate_ranges(&self) -> Result<(), RobotError> {
+        let n = self.name.len() as f32;
+        if n < 1.0 {
+            return Err(RobotError::new(
+                "name",
+                Reason::OutOfRange {
+                    min: 1.0,
+                    max: crate::NAME_MAX_LEN as f32,
+                    unit: "bytes",
+                },
+            ));
+        }
+        if self.format != FORMAT {
+            return Err(RobotError::new(
+                "format",
+                Reason::UnsupportedFormat { found: self.format },
+            ));
+        }
+        let b = &self.body;
+        range("body.mass_kg", b.mass_kg, 0.1, 500.0, "kg")?;
+        range("body.inertia_kgm2", b.inertia_kgm2, 1e-5, 500.0, "kg·m²")?;
+        range(
+            "body.wheel_inertia_kgm2",
+            b.wheel_inertia_kgm2,
+            0.0,
+            1.0,
+            "kg·m²",
+        )?;
+        range("body.com_offset_m", b.com_offset_m, 0.0, 2.0, "m")?;
+        range(
+            "body.wheel_radius_m[0]",
+            b.wheel_radius_m[0],
+            0.005,
+            0.5,
+            "m",
+        )?;
+        range(
+            "body.wheel_radius_m[1]",
+            b.wheel_radius_m[1],
+            0.005,
+            0.5,
+            "m",
+        )?;
+        range("body.track_m", b.track_m, 0.03, 2.0, "m")?;
+        let m = &self.motors;
+        range(
+            "motors.torque_constant_nm_per_a",
+            m.torque_constant_nm_per_a,
+            1e-4,
+            5.0,
+            "N·m/A",
+        )?;
+        range("motors.resistance_ohm", m.resistance_ohm, 0.01, 1000.0, "Ω")?;
+        range("motors.gear_ratio", m.gear_ratio, 1.0, 1000.0, "")?;
+        range("motors.gear_efficiency", m.gear_efficiency, 0.1, 1.0, "")?;
+        range(
+            "motors.supply_voltage_v",
+            m.supply_voltage_v,
+            1.0,
+            60.0,
+            "V",
+        )?;
+        range(
+            "motors.viscous_friction_nms_per_rad[0]",
+            m.viscous_friction_nms_per_rad[0],
+            0.0,
+            10.0,
+            "N·m·s/rad",
+        )?;
+        range(
+            "motors.viscous_friction_nms_per_rad[1]",
+            m.viscous_friction_nms_per_rad[1],
+            0.0,
+            10.0,
+            "N·m·s/rad",
+        )?;
+        range(
+            "motors.coulomb_friction_nm[0]",
+            m.coulomb_friction_nm[0],
+            0.0,
+            100.0,
+            "N·m",
+        )?;
+        range(
+            "motors.coulomb_friction_nm[1]",
+            m.coulomb_friction_nm[1],
+            0.0,
+            100.0,
+            "N·m",
+        )?;
+        let e = &self.encoders;
+        range(
+            "encoders.counts_per_wheel_rev",
+            e.counts_per_wheel_rev,
+            4.0,
+            1.0e6,
+            "counts",
+        )?;
+        range(
+            "encoders.speed_window_ticks",
+            e.speed_window_ticks as f32,
+            1.0,
+            MAX_SPEED_WINDOW as f32,
+            "ticks",
+        )?;
+        let br = &self.bridge;
+        let (lo, hi) = BridgeParams::PWM_FREQUENCY_RANGE_HZ;
+        range(
+            "bridge.pwm_frequency_hz",
+            br.pwm_frequency_hz as f32,
+            lo as f32,
+            hi as f32,
+            "Hz",
+        )?;
+        range(
+            "bridge.max_duty_fraction",
+            br.max_duty_fraction,
+            0.05,
+            1.0,
+            "",
+        )?;
+        let l = &self.limits;
+        range("limits.torque_nm", l.torque_nm, 1e-3, 1000.0, "N·m")?;
+        range("limits.max_speed_mps", l.max_speed_mps, 0.01, 20.0, "m/s")?;
+        range(
+            "limits.max_yaw_rate_radps",
+            l.max_yaw_rate_radps,
+            0.01,
+            50.0,
+            "rad/s",
+        )?;
+        range(
+            "limits.max_accel_mps2",
+            l.max_accel_mps2,
+            0.01,
+            50.0,
+            "m/s²",
+        )?;
+        range(
+            "limits.link_timeout_ms",
+            l.link_timeout_ms as f32,
+            50.0,
+            10_000.0,
+            "ms",
+        )?;
+        Ok(())
+    }
+
+    fn validate_consistency(&self) -> Result<(), RobotError> {
+        let b = &self.body;
+        let [r0, r1] = b.wheel_radius_m;
+        let r_mean = 0.5 * (r0 + r1);
+        let r_max = r0.max(r1);
+        let m = b.mass_kg;
+        consistent(
+            (r0 - r1).abs() <= MAX_WHEEL_RADIUS_MISMATCH * r_mean,
+            "body.wheel_radius_m[1]",
+            "body.wheel_radius_m[0]",
+            "the wheel radii differ by more than 10 % of their mean",
+        )?;
+        consistent(
+            b.com_offset_m <= b.track_m,
+            "body.com_offset_m",
+            "body.track_m",
+            "the centre of mass is farther than one track ahead of the axle",
+        )?;
+        // All of the mass within sqrt(track² + r²) of G bounds the yaw
+        // inertia from above; a robot with all of its mass within 3 % of
+        // the track of G (1/1000 of m·track²) is not a robot.
+        consistent(
+            b.inertia_kgm2 <= m * (b.track_m * b.track_m + r_max * r_max),
+            "body.inertia_kgm2",
+            "body.mass_kg",
+            "above m·(track² + r²): more than the whole mass at the wheels' reach",
+        )?;
+        consistent(
+            b.inertia_kgm2 >= 1e-3 * m * b.track_m * b.track_m,
+            "body.inertia_kgm2",
+            "body.mass_kg",
+            "below m·track²/1000: the mass would sit within 3 % of the track of G",
+        )?;
+        consistent(
+            b.wheel_inertia_kgm2 <= m * r_max * r_max,
+            "body.wheel_inertia_kgm2",
+            "body.mass_kg",
+            "above m·r²: a wheel heavier than the robot as a ring at its rim",
+        )?;
+        let stall = self.stall_torque_nm();
+        let w0 = self.no_load_wheel_speed_radps();
+        let mo = &self.motors;
+        for (i, f) in [
+            "motors.viscous_friction_nms_per_rad[0]",
+            "motors.viscous_friction_nms_per_rad[1]",
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            consistent(
+                mo.viscous_friction_nms_per_rad[i] * w0 <= 0.5 * stall,
+                f,
+                "motors (stall torque η·N·k·V/R, no-load speed V/(k·N))",
+                "at the no-load speed it takes more than half the stall torque",
+            )?;
+        }
+        for (i, f) in [
+            "motors.coulomb_friction_nm[0]",
+            "motors.coulomb_friction_nm[1]",
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            consistent(
+                mo.coulomb_friction_nm[i] <= 0.5 * stall,
+                f,
+                "motors (stall torque η·N·k·V/R)",
+                "more than half the stall torque",
+            )?;
+        }
+        let l = &self.limits;
+        consistent(
+            l.torque_nm <= stall,
+            "limits.torque_nm",
+            "motors (stall torque η·N·k·V/R at the wheel)",
+            "above what the motor gives at stall",
+        )?;
+        consistent(
+            l.max_speed_mps <= self.no_load_speed_mps(),
+            "limits.max_speed_mps",
+            "motors and body.wheel_radius_m (no-load speed r·V/(k·N))",
+            "faster than the motors turn without load",
+        )?;
+        consistent(
+            l.max_yaw_rate_radps <= 2.0 * self.no_load_speed_mps() / b.track_m,
+            "limits.max_yaw_rate_radps",
+            "motors and body (2·r·V/(k·N)/track)",
+            "faster than the wheels turning in opposite directions at no-load speed",
+        )?;
+        consistent(
+            l.max_accel_mps2 <= 2.0 * l.torque_nm / (r_max * m),
+            "limits.max_accel_mps2",
+            "limits.torque_nm (2·τ/(r·m))",
+            "more than both wheels at the torque limit can give",
+        )?;
+        let cpt = self.counts_per_tick(l.max_speed_mps / r0.min(r1), CONTROL_PERIOD_S);
+        consistent(
+            cpt <= i16::MAX as f32,
+            "encoders.counts_per_wheel_rev",
+            "limits.max_speed_mps",
+            "more counts per 1 ms tick at the top speed than half the 16-bit counter",
+        )?;
+        let bp = self.bridge.params();
+        for clock in SUPPORTED_TIMER_CLOCKS_HZ {
+            consistent(
+                bp.duty_full_scale(clock).is_some(),
+                "bridge.pwm_frequency_hz",
+                "the boards' timer clocks (96 and 168 MHz)",
+                "the duty resolution is not within 100..=65,535 levels",
+            )?;
+        }
+        Ok(())
+    }
+}
+
+fn gain_section(kind: ControllerKind) -> &'static str {
+    match kind {
+        ControllerKind::Proposed => "gains.proposed",
+        ControllerKind::Smc => "gains.smc",
+        ControllerKind::Asmc => "gains.asmc",
+    }
+}
+
+fn validate_gains(kind: ControllerKind, g: &GainSet) -> Result<(), RobotError> {
+    const P: f32 = 1e-6;
+    let k = &g.kinematic;
+    range(gain_path!(kind, "kinematic.k_x"), k.k_x, P, MAX_GAIN, "1/s")?;
+    range(
+        gain_path!(kind, "kinematic.k_y"),
+        k.k_y,
+        P,
+        MAX_GAIN,
+        "rad/m²",
+    )?;
+    range(
+        gain_path!(kind, "kinematic.k_th"),
+        k.k_th,
+        P,
+        MAX_GAIN,
+        "1/s",
+    )?;
+    range(
+        gain_path!(kind, "kinematic.large_error_m"),
+        k.large_error_m,
+        0.0,
+        100.0,
+        "m",
+    )?;
+    let o = &g.observer;
+    range(gain_path!(kind, "observer.l_v"), o.l_v, P, MAX_GAIN, "1/s")?;
+    range(
+        gain_path!(kind, "observer.l_omega"),
+        o.l_omega,
+        P,
+        MAX_GAIN,
+        "1/s",
+    )?;
+    range(
+        gain_path!(kind, "observer.max_estimate[0]"),
+        o.max_estimate[0],
+        P,
+        100.0,
+        "m/s",
+    )?;
+    range(
+        gain_path!(kind, "observer.max_estimate[1]"),
+        o.max_estimate[1],
+        P,
+        100.0,
+        "rad/s",
+    )?;
+    let e = &g.eso;
+    range(
+        gain_path!(kind, "eso.lambda[0]"),
+        e.lambda[0],
+        P,
+        MAX_GAIN,
+        "",
+    )?;
+    range(
+        gain_path!(kind, "eso.lambda[1]"),
+        e.lambda[1],
+        P,
+        MAX_GAIN,
+        "",
+    )?;
+    range(
+        gain_path!(kind, "eso.lambda[2]"),
+        e.lambda[2],
+        P,
+        MAX_GAIN,
+        "",
+    )?;
+    range(gain_path!(kind, "eso.zeta"), e.zeta, P, 100.0, "")?;
+    range(gain_path!(kind, "eso.alpha"), e.alpha, P, 1.0 - 1e-6, "")?;
+    range(
+        gain_path!(kind, "eso.max_disturbance[0]"),
+        e.max_disturbance[0],
+        P,
+        1000.0,
+        "m/s²",
+    )?;
+    range(
+        gain_path!(kind, "eso.max_disturbance[1]"),
+        e.max_disturbance[1],
+        P,
+        1000.0,
+        "rad/s²",
+    )?;
+    let s = &g.sliding;
+    range(gain_path!(kind, "sliding.k_s"), s.k_s, P, MAX_GAIN, "1/s")?;
+    match s.switching {
+        SwitchingGain::Fixed { k } => range(
+            gain_path!(kind, "sliding.switching.fixed.k"),
+            k,
+            0.0,
+            MAX_GAIN,
+            "",
+        )?,
+        SwitchingGain::Adaptive {
+            gamma,
+            dead_zone,
+            leakage,
+            rho0,
+            rho_min,
+            rho_max,
+        } => {
+            range(
+                gain_path!(kind, "sliding.switching.adaptive.gamma"),
+                gamma,
+                0.0,
+                MAX_GAIN,
+                "",
+            )?;
+            range(
+                gain_path!(kind, "sliding.switching.adaptive.dead_zone"),
+                dead_zone,
+                0.0,
+                100.0,
+                "",
+            )?;
+            range(
+                gain_path!(kind, "sliding.switching.adaptive.leakage"),
+                leakage,
+                0.0,
+                MAX_GAIN,
+                "1/s",
+            )?;
+            range(
+                gain_path!(kind, "sliding.switching.adaptive.rho0"),
+                rho0,
+                0.0,
+                MAX_GAIN,
+                "",
+            )?;
+            range(
+                gain_path!(kind, "sliding.switching.adaptive.rho_min"),
+                rho_min,
+                0.0,
+                MAX_GAIN,
+                "",
+            )?;
+            range(
+                gain_path!(kind, "sliding.switching.adaptive.rho_max"),
+                rho_max,
+                0.0,
+                MAX_GAIN,
+                "",
+            )?;
+            consistent(
+                rho_min <= rho0 && rho0 <= rho_max,
+                gain_path!(kind, "sliding.switching.adaptive.rho0"),
+                gain_path!(kind, "sliding.switching.adaptive.rho_min"),
+                "need rho_min <= rho0 <= rho_max",
+            )?;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,561 @@
+//! The robot file: examples, round trips, every field's error, the binary
+//! form's corruption and fuzz checks.
+
+use controller_core::runtime::{
+    BridgeParams, EncoderParams, MotorParams, RuntimeConfig, SafetyLimits, MIRRORED_LEFT,
+};
+use controller_core::{ControllerConfig, ControllerKind, RobotParams};
+use robot_file::{
+    DecodeError, GainSet, Reason, Robot, RobotFileError, FIELDS, GAIN_FIELDS, MAX_ENCODED_LEN,
+};
+use std::collections::BTreeSet;
+
+fn robots_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots")
+}
+
+fn read(name: &str) -> String {
+    std::fs::read_to_string(robots_dir().join(name)).unwrap()
+}
+
+/// The paper robot with every gain section written out (SMC fixed, the
+/// others adaptive): every field of the schema present.
+fn full() -> Robot {
+    let mut r = Robot::paper();
+    r.gains.proposed = Some(GainSet::paper(ControllerKind::Proposed));
+    r.gains.smc = Some(GainSet::paper(ControllerKind::Smc));
+    r.gains.asmc = Some(GainSet::paper(ControllerKind::Asmc));
+    r
+}
+
+/// Every field path: FIELDS then GAIN_FIELDS under each kind that has it.
+fn all_fields() -> Vec<String> {
+    let mut v: Vec<String> = FIELDS.iter().map(|s| s.to_string()).collect();
+    for kind in ["proposed", "smc", "asmc"] {
+        for g in GAIN_FIELDS {
+            let fixed = g.contains("switching.fixed");
+            let adaptive = g.contains("switching.adaptive");
+            if (kind == "smc" && adaptive) || (kind != "smc" && fixed) {
+                continue;
+            }
+            v.push(format!("gains.{kind}.{g}"));
+        }
+    }
+    v
+}
+
+fn leaves(prefix: &str, v: &toml::Value, out: &mut BTreeSet<String>) {
+    match v {
+        toml::Value::Table(t) => {
+            for (k, v) in t {
+                let p = if prefix.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{prefix}.{k}")
+                };
+                leaves(&p, v, out);
+            }
+        }
+        toml::Value::Array(a) => {
+            for (i, v) in a.iter().enumerate() {
+                leaves(&format!("{prefix}[{i}]"), v, out);
+            }
+        }
+        _ => {
+            out.insert(prefix.to_string());
+        }
+    }
+}
+
+/// The value at `path` in a TOML document.
+fn at<'a>(v: &'a mut toml::Value, path: &str) -> &'a mut toml::Value {
+    let mut cur = v;
+    for part in path.split('.') {
+        let (key, idx) = match part.split_once('[') {
+            Some((k, i)) => (k, Some(i.trim_end_matches(']').parse::<usize>().unwrap())),
+            None => (part, None),
+        };
+        cur = cur.as_table_mut().unwrap().get_mut(key).unwrap();
+        if let Some(i) = idx {
+            cur = &mut cur.as_array_mut().unwrap()[i];
+        }
+    }
+    cur
+}
+
+fn doc(r: &Robot) -> toml::Value {
+    toml::Value::try_from(r).unwrap()
+}
+
+fn parse(v: &toml::Value) -> Result<Robot, RobotFileError> {
+    Robot::from_toml_str(&toml::to_string(v).unwrap())
+}
+
+#[test]
+fn paper_toml_is_robot_paper() {
+    let r = Robot::from_toml_str(&read("paper.toml")).unwrap();
+    assert_eq!(r, Robot::paper());
+}
+
+#[test]
+fn paper_robot_is_built_from_controller_core() {
+    let r = Robot::paper();
+    r.validate().unwrap();
+    assert_eq!(r.robot_params(), RobotParams::paper());
+    assert_eq!(r.encoder_params(), EncoderParams::EXAMPLE);
+    assert_eq!(
+        r.motor_params(MotorParams::EXAMPLE.duty_full_scale),
+        MotorParams::EXAMPLE
+    );
+    assert_eq!(r.bridge.params(), BridgeParams::EXAMPLE);
+    assert_eq!(r.bridge.motor_inverted, MIRRORED_LEFT);
+    for kind in ControllerKind::ALL {
+        assert_eq!(r.controller_config(kind), ControllerConfig::paper(kind));
+    }
+}
+
+#[test]
+fn paper_runtime_config_is_the_example() {
+    // RuntimeConfig::example is the configuration every test and the paper
+    // comparison ran with; the paper robot must give it, except the
+    // safety limits, which are now derived (checked apart below).
+    let r = Robot::paper();
+    for kind in ControllerKind::ALL {
+        let ex = RuntimeConfig::example(kind);
+        // 96 MHz / 20 kHz = 4,800 = MotorParams::EXAMPLE's full scale.
+        let c = r
+            .runtime_config(kind, ex.reference, ex.initial_pose, 96_000_000)
+            .unwrap();
+        assert_eq!(
+            RuntimeConfig {
+                safety: ex.safety,
+                ..c
+            },
+            ex
+        );
+    }
+}
+
+#[test]
+fn derived_safety_limits_follow_their_formulas() {
+    let r = Robot::paper();
+    let s = r.safety_limits(1e-3);
+    // No-load 40 rad/s; 2.5 × 40 rad/s × 1 ms × 24,000/(2π) = 381.97 → 382.
+    assert_eq!(s.max_counts_per_tick, 382);
+    // A fifth of the 10 N·m torque limit: SafetyLimits::EXAMPLE's 2 N·m.
+    assert_eq!(s.stall_torque_nm, SafetyLimits::EXAMPLE.stall_torque_nm);
+    assert_eq!(s.stall_ticks, 250);
+    assert_eq!(s.overrun_limit_us, 500);
+    s.validate().unwrap();
+    // Jump limit above the counts per tick at the no-load speed: a real
+    // wheel never trips it.
+    assert!(s.max_counts_per_tick as f32 > r.counts_per_tick(40.0, 1e-3));
+}
+
+#[test]
+fn examples_parse_and_round_trip() {
+    for f in ["paper.toml", "tb6612-2kg.toml", "bts7960-10kg.toml"] {
+        let text = read(f);
+        let r = Robot::from_toml_str(&text).unwrap_or_else(|e| panic!("{f}: {e}"));
+        let back = Robot::from_toml_str(&r.to_toml_string()).unwrap();
+        assert_eq!(back, r, "{f}");
+        let mut buf = [0u8; MAX_ENCODED_LEN];
+        let n = r.encode(&mut buf).unwrap();
+        assert_eq!(Robot::decode(&buf[..n]).unwrap(), r, "{f}");
+        for kind in ControllerKind::ALL {
+            r.runtime_config(
+                kind,
+                RuntimeConfig::example(kind).reference,
+                Default::default(),
+                96_000_000,
+            )
+            .unwrap_or_else(|e| panic!("{f} {kind:?}: {e}"));
+        }
+    }
+}
+
+#[test]
+fn full_robot_round_trips_both_forms() {
+    let r = full();
+    r.validate().unwrap();
+    assert_eq!(Robot::from_toml_str(&r.to_toml_string()).unwrap(), r);
+    let mut buf = [0u8; MAX_ENCODED_LEN];
+    let n = r.encode(&mut buf).unwrap();
+    assert_eq!(Robot::decode(&buf[..n]).unwrap(), r);
+}
+
+#[test]
+fn field_list_is_every_leaf_of_the_file() {
+    let mut got = BTreeSet::new();
+    leaves("", &doc(&full()), &mut got);
+    let want: BTreeSet<String> = all_fields().into_iter().collect();
+    assert_eq!(got, want);
+}
+
+#[test]
+fn schema_lists_every_section_field() {
+    // The schema's properties of each section are the keys of the file.
+    let schema: serde_json::Value = serde_json::from_str(&robot_file::json_schema()).unwrap();
+    let props = schema["properties"].as_object().unwrap();
+    let top: BTreeSet<_> = props.keys().cloned().collect();
+    let d = doc(&full());
+    let file_top: BTreeSet<_> = d.as_table().unwrap().keys().cloned().collect();
+    assert_eq!(top, file_top);
+}
+
+#[test]
+fn committed_schema_is_current() {
+    let path = robots_dir().join("robot.schema.json");
+    let now = robot_file::json_schema();
+    if std::env::var_os("ROBOT_FILE_WRITE_SCHEMA").is_some() {
+        std::fs::write(&path, &now).unwrap();
+    }
+    let committed = std::fs::read_to_string(&path).unwrap_or_default();
+    assert!(
+        committed == now,
+        "robots/robot.schema.json is stale: regenerate with \
+         `ROBOT_FILE_WRITE_SCHEMA=1 cargo test -p robot-file --test robot_file committed_schema`"
+    );
+}
+
+fn bad_value(path: &str, v: &toml::Value) -> Option<toml::Value> {
+    Some(match v {
+        toml::Value::Float(_) => toml::Value::Float(1e30),
+        toml::Value::Integer(_) => match path {
+            "encoders.speed_window_ticks" => toml::Value::Integer(200),
+            _ => toml::Value::Integer(4_000_000_000),
+        },
+        toml::Value::String(_) => match path {
+            "name" => toml::Value::String(String::new()),
+            _ => toml::Value::String("sideways".into()),
+        },
+        toml::Value::Boolean(_) => return None,
+        _ => unreachable!("{path}"),
+    })
+}
+
+#[test]
+fn every_field_out_of_range_names_it() {
+    for path in all_fields() {
+        let mut d = doc(&full());
+        let slot = at(&mut d, &path);
+        let Some(bad) = bad_value(&path, slot) else {
+            continue;
+        };
+        *slot = bad;
+        let e = parse(&d).expect_err(&path);
+        assert_eq!(e.field(), Some(path.as_str()), "{path}: {e}");
+        // Also in the message a user reads.
+        assert!(e.to_string().contains(&path), "{path}: {e}");
+    }
+}
+
+#[test]
+fn every_float_field_nan_names_it() {
+    for path in all_fields() {
+        let mut d = doc(&full());
+        let slot = at(&mut d, &path);
+        if !slot.is_float() {
+            continue;
+        }
+        *slot = toml::Value::Float(f64::NAN);
+        let e = parse(&d).expect_err(&path);
+        assert_eq!(e.field(), Some(path.as_str()), "{path}: {e}");
+        let Err(RobotFileError::Invalid { error, .. }) = parse(&d) else {
+            panic!("{path}")
+        };
+        assert_eq!(error.reason, Reason::NotFinite, "{path}");
+    }
+}
+
+#[test]
+fn every_field_missing_names_it() {
+    for path in all_fields() {
+        // An array element cannot be missing; the whole array can.
+        let path = path.split('[').next().unwrap().to_string();
+        let mut d = doc(&full());
+        let (parent, key) = match path.rsplit_once('.') {
+            Some((p, k)) => (Some(p), k),
+            None => (None, path.as_str()),
+        };
+        let t = match parent {
+            Some(p) => at(&mut d, p),
+            None => &mut d,
+        };
+        t.as_table_mut().unwrap().remove(key);
+        let e = parse(&d).expect_err(&path);
+        let text = e.to_string();
+        assert!(text.contains(key), "{path}: {text}");
+        assert_eq!(e.field(), Some(path.as_str()), "{path}: {e}");
+    }
+}
+
+#[test]
+fn unknown_key_in_every_table_names_it() {
+    let mut tables = BTreeSet::new();
+    for path in all_fields() {
+        let mut p = path.as_str();
+        while let Some((t, _)) = p.rsplit_once('.') {
+            tables.insert(t.to_string());
+            p = t;
+        }
+    }
+    tables.insert(String::new());
+    for t in tables {
+        // Variant tables of an enum take no extra key either.
+        let mut d = doc(&full());
+        let tbl = if t.is_empty() { &mut d } else { at(&mut d, &t) };
+        tbl.as_table_mut()
+            .unwrap()
+            .insert("wheel_colour".into(), toml::Value::Integer(3));
+        let e = parse(&d).expect_err(&t);
+        if t.ends_with("switching") {
+            assert_eq!(e.field(), Some(t.as_str()), "{t}: {e}");
+            assert!(e.to_string().contains("exactly one key"), "{t}: {e}");
+            continue;
+        }
+        assert!(e.to_string().contains("wheel_colour"), "{t}: {e}");
+        let want = if t.is_empty() {
+            "wheel_colour".to_string()
+        } else {
+            format!("{t}.wheel_colour")
+        };
+        if !t.contains("switching") {
+            assert_eq!(e.field(), Some(want.as_str()), "{t}: {e}");
+        }
+    }
+}
+
+#[test]
+fn wrong_type_names_field_and_line() {
+    let text = read("paper.toml").replace("mass_kg = 15.0", "mass_kg = \"heavy\"");
+    let e = Robot::from_toml_str(&text).unwrap_err();
+    let line = text.lines().position(|l| l.starts_with("mass_kg")).unwrap() + 1;
+    match &e {
+        RobotFileError::Toml { field, line: l, .. } => {
+            assert_eq!(field.as_deref(), Some("body.mass_kg"));
+            assert_eq!(*l, Some(line));
+        }
+        other => panic!("{other}"),
+    }
+}
+
+#[test]
+fn invalid_value_names_its_line() {
+    let text = read("paper.toml").replace("track_m = 0.4", "track_m = 40.0");
+    let line = text.lines().position(|l| l.starts_with("track_m")).unwrap() + 1;
+    match Robot::from_toml_str(&text).unwrap_err() {
+        RobotFileError::Invalid { error, line: l } => {
+            assert_eq!(error.field, "body.track_m");
+            assert_eq!(l, Some(line));
+        }
+        other => panic!("{other}"),
+    }
+}
+
+#[test]
+fn another_format_is_refused_clearly() {
+    let text = read("paper.toml").replace("format = 1", "format = 2");
+    let e = Robot::from_toml_str(&text).unwrap_err();
+    assert_eq!(e, RobotFileError::UnsupportedFormat { found: 2 });
+    assert!(e.to_string().contains("format 2"));
+}
+
+/// Physical-range checks that a plain "finite and positive" check misses.
+#[test]
+fn implausible_robots_are_refused_with_the_field() {
+    type Edit = Box<dyn Fn(&mut Robot)>;
+    let cases: Vec<(&str, Edit)> = vec![
+        ("body.mass_kg", Box::new(|r| r.body.mass_kg = 0.02)),
+        ("body.mass_kg", Box::new(|r| r.body.mass_kg = 2000.0)),
+        (
+            "body.wheel_radius_m[0]",
+            Box::new(|r| r.body.wheel_radius_m[0] = 0.001),
+        ),
+        (
+            "motors.gear_efficiency",
+            Box::new(|r| r.motors.gear_efficiency = 1.05),
+        ),
+        // 24.48 N·m stall torque at the wheel.
+        ("limits.torque_nm", Box::new(|r| r.limits.torque_nm = 25.0)),
+        // 4 m/s no-load speed.
+        (
+            "limits.max_speed_mps",
+            Box::new(|r| r.limits.max_speed_mps = 4.1),
+        ),
+        (
+            "body.wheel_radius_m[1]",
+            Box::new(|r| r.body.wheel_radius_m[1] = 0.111),
+        ),
+        (
+            "body.com_offset_m",
+            Box::new(|r| r.body.com_offset_m = 0.41),
+        ),
+        // m·(track² + r²) = 15·0.17 = 2.55 kg·m².
+        ("body.inertia_kgm2", Box::new(|r| r.body.inertia_kgm2 = 2.6)),
+        (
+            "encoders.counts_per_wheel_rev",
+            // 1 m/s on r = 0.1 m is 10 rad/s; 32,767 counts per ms at 10
+            // rad/s is 2.06e7 counts/rev: above the range anyway; with
+            // a 5 m/s limit... use a small wheel instead.
+            Box::new(|r| {
+                r.body.wheel_radius_m = [0.01, 0.01];
+                r.body.wheel_inertia_kgm2 = 1e-4;
+                r.body.inertia_kgm2 = 0.5;
+                r.motors.gear_ratio = 1.0;
+                r.limits.torque_nm = 1.0;
+                r.limits.max_accel_mps2 = 1.0;
+                r.limits.max_speed_mps = 4.0;
+                r.limits.max_yaw_rate_radps = 1.0;
+                r.encoders.counts_per_wheel_rev = 600_000.0;
+            }),
+        ),
+        // 96 MHz / 1 kHz = 96,000 levels: does not fit the 16-bit timer.
+        (
+            "bridge.pwm_frequency_hz",
+            Box::new(|r| r.bridge.pwm_frequency_hz = 1_000),
+        ),
+        (
+            "gains.proposed.sliding.switching.adaptive.rho0",
+            Box::new(|r| {
+                let mut g = GainSet::paper(ControllerKind::Proposed);
+                g.sliding.switching = robot_file::SwitchingGain::Adaptive {
+                    gamma: 0.1,
+                    dead_zone: 0.01,
+                    leakage: 0.01,
+                    rho0: 6.0,
+                    rho_min: 0.0,
+                    rho_max: 5.0,
+                };
+                r.gains.proposed = Some(g);
+            }),
+        ),
+    ];
+    for (field, f) in cases {
+        let mut r = Robot::paper();
+        f(&mut r);
+        let e = r.validate().expect_err(field);
+        assert_eq!(e.field, field, "{e}");
+    }
+}
+
+#[test]
+fn binary_lengths_fit_max_encoded_len() {
+    let mut buf = [0u8; 2 * MAX_ENCODED_LEN];
+    let n = Robot::paper().encode(&mut buf).unwrap();
+    assert!(n <= MAX_ENCODED_LEN);
+    // Worst case: every gain section, the longest name, every varint at its
+    // widest.
+    let mut r = full();
+    r.name = robot_file::Name::try_from("ÿ".repeat(16).as_str()).unwrap();
+    r.format = u32::MAX;
+    r.bridge.pwm_frequency_hz = u32::MAX;
+    r.limits.link_timeout_ms = u32::MAX;
+    let n = r.encode(&mut buf).unwrap();
+    assert!(n <= MAX_ENCODED_LEN, "{n}");
+    // Too small a buffer is an error, not a panic.
+    for len in 0..n {
+        assert!(Robot::paper().encode(&mut buf[..len.min(20)]).is_err() || len >= 20);
+    }
+}
+
+#[test]
+fn every_corrupted_byte_is_refused() {
+    let mut buf = [0u8; MAX_ENCODED_LEN];
+    let n = full().encode(&mut buf).unwrap();
+    for i in 0..n {
+        for flip in [0x01u8, 0x80, 0xff] {
+            let mut b = buf;
+            b[i] ^= flip;
+            assert!(
+                Robot::decode(&b[..n]).is_err(),
+                "byte {i} ^ {flip:#x} accepted"
+            );
+        }
+    }
+    // Truncated anywhere or extended.
+    for len in 0..n {
+        assert!(Robot::decode(&buf[..len]).is_err());
+    }
+    assert_eq!(Robot::decode(&buf[..n + 1]), Err(DecodeError::BadLength));
+}
+
+#[test]
+fn a_valid_record_of_an_invalid_robot_is_refused() {
+    let mut r = Robot::paper();
+    r.body.mass_kg = f32::NAN;
+    let mut buf = [0u8; MAX_ENCODED_LEN];
+    let n = r.encode(&mut buf).unwrap();
+    match Robot::decode(&buf[..n]) {
+        Err(DecodeError::Invalid(e)) => assert_eq!(e.field, "body.mass_kg"),
+        other => panic!("{other:?}"),
+    }
+}
+
+/// xorshift64*: a seeded generator for the fuzz loop.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+}
+
+#[test]
+fn decoding_arbitrary_bytes_never_panics() {
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let mut valid = [0u8; MAX_ENCODED_LEN];
+    let n = full().encode(&mut valid).unwrap();
+    for round in 0..20_000 {
+        let mut b = [0u8; MAX_ENCODED_LEN + 16];
+        let len = (rng.next() as usize) % b.len();
+        if round % 2 == 0 {
+            for x in b[..len].iter_mut() {
+                *x = rng.next() as u8;
+            }
+        } else {
+            // A real record with a few random bytes: reaches the payload.
+            b[..n].copy_from_slice(&valid[..n]);
+            for _ in 0..1 + rng.next() % 4 {
+                let i = (rng.next() as usize) % n;
+                b[i] = rng.next() as u8;
+            }
+        }
+        let _ = Robot::decode(&b[..len.max(if round % 2 == 0 { 0 } else { n }).min(b.len())]);
+    }
+}
+
+#[test]
+fn payload_that_passes_the_crc_but_is_not_a_robot_is_malformed() {
+    // A header + CRC around garbage: the CRC is right, postcard refuses it.
+    let payload = [0xffu8; 40];
+    let mut b = Vec::new();
+    b.extend_from_slice(&robot_file::MAGIC);
+    b.extend_from_slice(&1u16.to_le_bytes());
+    b.extend_from_slice(&(payload.len() as u16).to_le_bytes());
+    b.extend_from_slice(&payload);
+    let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&b);
+    b.extend_from_slice(&crc.to_le_bytes());
+    assert_eq!(Robot::decode(&b), Err(DecodeError::Malformed));
+}
+
+#[test]
+fn unequal_wheels_reach_the_runtime_as_arc_per_count() {
+    let mut r = Robot::paper();
+    r.body.wheel_radius_m = [0.105, 0.095];
+    r.validate().unwrap();
+    let model = r.robot_params();
+    assert!((model.wheel_radius_m - 0.1).abs() < 1e-7);
+    let e = r.encoder_params();
+    let cpr = r.encoders.counts_per_wheel_rev;
+    for i in 0..2 {
+        // The model's radius times the runtime's angle per count is the
+        // wheel's own arc per count, 2π·r_i/cpr.
+        let arc = model.wheel_radius_m * e.rad_per_count()[i];
+        let want = 2.0 * std::f32::consts::PI * r.body.wheel_radius_m[i] / cpr;
+        assert!((arc - want).abs() < 1e-9, "{i}: {arc} {want}");
+    }
+    e.validate().unwrap();
+}
