@@ -35,9 +35,12 @@ pub mod world;
 
 pub use hardware::{MotorDrive, SimDriver, SimEncoders};
 pub use perturbation::{PerturbationGrid, PerturbationProfile};
-pub use plant::{Drive, Perturbation, Plant, PlantParams, PlantState, TorqueScaled};
+pub use plant::{
+    ActuatorDynamics, Drive, Perturbation, Plant, PlantParams, PlantParamsError, PlantState,
+    TorqueScaled, WheelFriction,
+};
 pub use sensors::{GyroModel, PoseSourceModel, SimGyro, SimPoseSource};
 pub use world::{
-    Actuation, DeadEncoder, Faults, HardwareSensing, IdealSensing, Instruments, Reading, World,
-    WorldConfig, WorldError,
+    Actuation, DeadEncoder, Faults, HardwareSensing, IdealSensing, Instruments, Reading, Wiring,
+    World, WorldConfig, WorldError,
 };

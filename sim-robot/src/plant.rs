@@ -28,7 +28,49 @@ use controller_core::params::{eta_from_wheel_rates, m1_diagonal, wheel_rates};
 use controller_core::RobotParams;
 use core::cell::Cell;
 
-/// Plant physical parameters (f64 copy of [`RobotParams`], possibly scaled).
+/// Friction at one wheel (bearing, gearbox and rolling losses seen at the
+/// wheel shaft), opposing the wheel's rotation: τ_f = b·φ̇ + c·sgn_w(φ̇), with
+/// sgn_w(x) = x/√(x² + w²) a smooth sign (D69).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct WheelFriction {
+    /// Viscous coefficient b \[N·m·s/rad\] (>= 0).
+    pub viscous_nms_per_rad: f64,
+    /// Coulomb (dry) friction torque c \[N·m\] (>= 0): the breakaway torque.
+    pub coulomb_nm: f64,
+}
+
+impl WheelFriction {
+    /// No friction (the paper's plant).
+    pub const NONE: Self = Self {
+        viscous_nms_per_rad: 0.0,
+        coulomb_nm: 0.0,
+    };
+}
+
+/// The actuator's own dynamics between the command and the wheel torque
+/// (used by [`World`](crate::World); the [`Plant`] itself integrates the
+/// torque it is given).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ActuatorDynamics {
+    /// Pure delay between a command and its effect at the wheels \[s\]
+    /// (>= 0; the bus, the PWM update, the driver's dead time).
+    pub delay_s: f64,
+    /// Motor electrical time constant L/R \[s\] (>= 0; 0 = the current,
+    /// and so the torque, follows the command instantly): the torque lags
+    /// the one the command asks for as a first-order system.
+    pub electrical_time_constant_s: f64,
+}
+
+impl ActuatorDynamics {
+    /// No delay, no lag (the paper's plant).
+    pub const NONE: Self = Self {
+        delay_s: 0.0,
+        electrical_time_constant_s: 0.0,
+    };
+}
+
+/// Plant physical parameters: what the simulated robot *has*, which may
+/// differ from what the controller's model believes in every field.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlantParams {
     /// m \[kg\].
@@ -37,31 +79,125 @@ pub struct PlantParams {
     pub inertia_kgm2: f64,
     /// I_w \[kg·m²\].
     pub wheel_inertia_kgm2: f64,
-    /// r \[m\].
-    pub wheel_radius_m: f64,
-    /// h \[m\].
+    /// Wheel radii `[r_R, r_L]` \[m\] (equal on the paper's robot; Eq. (3)
+    /// with unequal radii: D68).
+    pub wheel_radius_m: [f64; 2],
+    /// h \[m\] (half the track width).
     pub half_track_m: f64,
     /// d \[m\].
     pub com_offset_m: f64,
+    /// Friction at each wheel `[right, left]`.
+    pub friction: [WheelFriction; 2],
+    /// Actuation delay and motor electrical lag.
+    pub actuator: ActuatorDynamics,
+}
+
+/// A physically impossible plant parameter, named.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum PlantParamsError {
+    /// Mass, inertia, radii and half track must be finite and > 0 (wheel
+    /// inertia >= 0), the offset finite and smaller than the half track.
+    Geometry(&'static str),
+    /// Friction coefficients must be finite and >= 0.
+    Friction(&'static str),
+    /// Delay and electrical time constant must be finite, >= 0 and at most
+    /// 1 s.
+    Actuator(&'static str),
+}
+
+impl core::fmt::Display for PlantParamsError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Geometry(n) => write!(f, "plant: {n} is not physical"),
+            Self::Friction(n) => write!(f, "plant: friction {n} must be finite and >= 0"),
+            Self::Actuator(n) => write!(f, "plant: {n} must be finite, >= 0 and <= 1 s"),
+        }
+    }
 }
 
 impl PlantParams {
-    /// The robot of `p` with mass and body inertia scaled (model mismatch).
+    /// The robot of `p` with mass and body inertia scaled (model mismatch),
+    /// otherwise exactly as the model (equal radii, no friction, no delay).
     pub fn from_robot(p: &RobotParams, mass_scale: f64, inertia_scale: f64) -> Self {
         Self {
             mass_kg: p.mass_kg as f64 * mass_scale,
             inertia_kgm2: p.inertia_kgm2 as f64 * inertia_scale,
             wheel_inertia_kgm2: p.wheel_inertia_kgm2 as f64,
-            wheel_radius_m: p.wheel_radius_m as f64,
+            wheel_radius_m: [p.wheel_radius_m as f64; 2],
             half_track_m: p.half_track_m as f64,
             com_offset_m: p.com_offset_m as f64,
+            friction: [WheelFriction::NONE; 2],
+            actuator: ActuatorDynamics::NONE,
         }
     }
 
-    /// Diagonal of M1 (controller-core's [`m1_diagonal`], in f64).
+    /// Every field physical (see [`PlantParamsError`]).
+    pub fn validate(&self) -> Result<(), PlantParamsError> {
+        let pos = |x: f64| x.is_finite() && x > 0.0;
+        let nonneg = |x: f64| x.is_finite() && x >= 0.0;
+        let geo = PlantParamsError::Geometry;
+        if !pos(self.mass_kg) {
+            return Err(geo("mass_kg"));
+        }
+        if !pos(self.inertia_kgm2) {
+            return Err(geo("inertia_kgm2"));
+        }
+        if !nonneg(self.wheel_inertia_kgm2) {
+            return Err(geo("wheel_inertia_kgm2"));
+        }
+        if !self.wheel_radius_m.iter().all(|&r| pos(r)) {
+            return Err(geo("wheel_radius_m"));
+        }
+        if !pos(self.half_track_m) {
+            return Err(geo("half_track_m"));
+        }
+        if !(self.com_offset_m.is_finite() && self.com_offset_m.abs() < self.half_track_m) {
+            return Err(geo("com_offset_m"));
+        }
+        for f in &self.friction {
+            if !nonneg(f.viscous_nms_per_rad) {
+                return Err(PlantParamsError::Friction("viscous_nms_per_rad"));
+            }
+            if !nonneg(f.coulomb_nm) {
+                return Err(PlantParamsError::Friction("coulomb_nm"));
+            }
+        }
+        let a = self.actuator;
+        if !(nonneg(a.delay_s) && a.delay_s <= 1.0) {
+            return Err(PlantParamsError::Actuator("delay_s"));
+        }
+        if !(nonneg(a.electrical_time_constant_s) && a.electrical_time_constant_s <= 1.0) {
+            return Err(PlantParamsError::Actuator("electrical_time_constant_s"));
+        }
+        Ok(())
+    }
+
+    /// Diagonal of M1 with equal wheel radii (controller-core's
+    /// [`m1_diagonal`], in f64, at the right wheel's radius); unequal radii
+    /// also give an off-diagonal term: [`Self::m1`].
     pub fn m1_diag(&self) -> [f64; 2] {
         let (m, i, iw, r, h, d) = self.unpack();
         m1_diagonal(m, i, iw, r, h, d)
+    }
+
+    /// M1 = SᵀM0S as \[M11, M12, M22\] (symmetric) with per-wheel radii:
+    /// the body part of [`m1_diagonal`] plus I_w·Σ s_i s_iᵀ, s_R = \[1/r_R,
+    /// h/r_R\], s_L = \[1/r_L, −h/r_L\] (D68).
+    pub fn m1(&self) -> [f64; 3] {
+        let [rr, rl] = self.wheel_radius_m;
+        if rr == rl {
+            let [a, c] = self.m1_diag();
+            return [a, 0.0, c];
+        }
+        let (m, i, iw, _, h, d) = self.unpack();
+        let body = m1_diagonal(m, i, 0.0, 1.0, h, d);
+        let (qr, ql) = (1.0 / (rr * rr), 1.0 / (rl * rl));
+        [
+            body[0] + iw * (qr + ql),
+            iw * h * (qr - ql),
+            body[1] + iw * h * h * (qr + ql),
+        ]
     }
 
     fn unpack(&self) -> (f64, f64, f64, f64, f64, f64) {
@@ -69,7 +205,7 @@ impl PlantParams {
             self.mass_kg,
             self.inertia_kgm2,
             self.wheel_inertia_kgm2,
-            self.wheel_radius_m,
+            self.wheel_radius_m[0],
             self.half_track_m,
             self.com_offset_m,
         )
@@ -171,16 +307,31 @@ pub struct Plant {
 /// Products and reciprocals of the parameters used at every evaluation.
 #[derive(Clone, Copy, Debug)]
 struct Constants {
+    /// 1/r_R (1/r with equal radii).
     inv_r: f64,
+    /// 1/r_L.
+    inv_rl: f64,
+    /// r_R = r_L: the paper's formulas in their original operation order.
+    equal_r: bool,
     h: f64,
     d: f64,
     m: f64,
     /// 2·m·d (N1 and P1).
     two_md: f64,
-    /// I_w/r (P1).
+    /// I_w/r_R (P1).
     iw_over_r: f64,
-    /// 1/M1 diagonal.
+    /// I_w/r_L (P1).
+    iw_over_rl: f64,
+    /// 1/M1 diagonal (equal radii).
     inv_m1: [f64; 2],
+    /// M1⁻¹ as \[(1,1), (1,2), (2,2)\] (unequal radii).
+    inv_m1_full: [f64; 3],
+    /// Any friction at all.
+    has_friction: bool,
+    friction: [WheelFriction; 2],
+    /// Per wheel: ∂φ̇_i/∂τ_i = s_iᵀM1⁻¹s_i \[rad/s² per N·m\] (1/effective
+    /// inertia at the wheel), which scales the friction's smoothing (D69).
+    inv_j: [f64; 2],
 }
 
 /// The parts of (3) and (6) that depend only on the perturbations at one
@@ -202,21 +353,41 @@ struct Forcing {
 }
 
 impl Plant {
-    /// The plant with these parameters.
+    /// The plant with these parameters (assumed physical:
+    /// [`PlantParams::validate`]; [`World`](crate::World) checks them).
     pub fn new(params: PlantParams) -> Self {
         let (m, _, iw, r, h, d) = params.unpack();
+        let rl = params.wheel_radius_m[1];
         let m1 = params.m1_diag();
+        let [a, b, c] = params.m1();
+        let det = a * c - b * b;
+        let inv_m1_full = [c / det, -b / det, a / det];
+        // s_iᵀ M1⁻¹ s_i with s_R = [1/r_R, h/r_R], s_L = [1/r_L, −h/r_L].
+        let quad = |s: [f64; 2]| {
+            let [ia, ib, ic] = inv_m1_full;
+            s[0] * (ia * s[0] + ib * s[1]) + s[1] * (ib * s[0] + ic * s[1])
+        };
+        let friction = params.friction;
         Self {
             params,
             theta_end: Cell::new((f64::NAN.to_bits(), (0.0, 1.0))),
             k: Constants {
                 inv_r: 1.0 / r,
+                inv_rl: 1.0 / rl,
+                equal_r: r == rl,
                 h,
                 d,
                 m,
                 two_md: 2.0 * m * d,
                 iw_over_r: iw / r,
+                iw_over_rl: iw / rl,
                 inv_m1: [1.0 / m1[0], 1.0 / m1[1]],
+                inv_m1_full,
+                has_friction: friction
+                    .iter()
+                    .any(|f| f.viscous_nms_per_rad != 0.0 || f.coulomb_nm != 0.0),
+                friction,
+                inv_j: [quad([1.0 / r, h / r]), quad([1.0 / rl, -h / rl])],
             },
         }
     }
@@ -229,11 +400,16 @@ impl Plant {
 
     /// σ = \[σ_v, σ_ω\] of eq. (3) for wheel slip ϖ (with the sign fixed: D15):
     /// the η that wheel rates ϖ would give (controller-core's
-    /// [`eta_from_wheel_rates`], in f64).
+    /// [`eta_from_wheel_rates`], in f64; per-wheel radii: D68).
     #[inline]
     pub fn sigma(&self, slip: [f64; 2]) -> [f64; 2] {
-        let (r, h) = (self.params.wheel_radius_m, self.params.half_track_m);
-        eta_from_wheel_rates(r, h, slip)
+        let h = self.params.half_track_m;
+        if self.k.equal_r {
+            return eta_from_wheel_rates(self.params.wheel_radius_m[0], h, slip);
+        }
+        let [rr, rl] = self.params.wheel_radius_m;
+        let (ur, ul) = (rr * slip[0], rl * slip[1]);
+        [0.5 * (ur + ul), 0.5 * (ur - ul) / h]
     }
 
     /// η = ν + σ: the wheel-imposed velocities the encoders see.
@@ -243,10 +419,33 @@ impl Plant {
         [st.nu[0] + s[0], st.nu[1] + s[1]]
     }
 
-    /// Wheel rates φ̇ = \[(v + hω)/r, (v − hω)/r\] \[rad/s\] (eq. 3, rows 4-5).
+    /// Wheel rates φ̇ = \[(v + hω)/r_R, (v − hω)/r_L\] \[rad/s\] (eq. 3, rows 4-5).
     #[inline]
     pub fn wheel_rates_radps(&self, st: &PlantState, p: &Perturbation) -> [f64; 2] {
-        wheel_rates(self.k.inv_r, self.k.h, self.eta(st, p))
+        self.rates(self.eta(st, p))
+    }
+
+    #[inline]
+    fn rates(&self, eta: [f64; 2]) -> [f64; 2] {
+        let k = &self.k;
+        if k.equal_r {
+            wheel_rates(k.inv_r, k.h, eta)
+        } else {
+            let hw = k.h * eta[1];
+            [(eta[0] + hw) * k.inv_r, (eta[0] - hw) * k.inv_rl]
+        }
+    }
+
+    /// B1-like map of wheel torques to \[Σ τ_i/r_i, h(τ_R/r_R − τ_L/r_L)\].
+    #[inline]
+    fn wheel_forces(&self, t: [f64; 2]) -> [f64; 2] {
+        let k = &self.k;
+        if k.equal_r {
+            [(t[0] + t[1]) * k.inv_r, k.h * (t[0] - t[1]) * k.inv_r]
+        } else {
+            let (fr, fl) = (t[0] * k.inv_r, t[1] * k.inv_rl);
+            [fr + fl, k.h * (fr - fl)]
+        }
     }
 
     #[inline]
@@ -254,19 +453,32 @@ impl Plant {
         let k = &self.k;
         let sr = p.wheel_slip_rate_radps2;
         let t = p.tau_d;
+        let (p1_rest, tau_body) = if k.equal_r {
+            (
+                [
+                    k.iw_over_r * (sr[0] + sr[1]),
+                    k.two_md * p.skid_rate_mps2 + k.iw_over_r * k.h * (sr[0] - sr[1]),
+                ],
+                [
+                    (t[3] + t[4]) * k.inv_r,
+                    t[2] + k.h * (t[3] - t[4]) * k.inv_r,
+                ],
+            )
+        } else {
+            let (wr, wl) = (k.iw_over_r * sr[0], k.iw_over_rl * sr[1]);
+            let w = self.wheel_forces([t[3], t[4]]);
+            (
+                [wr + wl, k.two_md * p.skid_rate_mps2 + k.h * (wr - wl)],
+                [w[0], t[2] + w[1]],
+            )
+        };
         Forcing {
             sigma: self.sigma(p.wheel_slip_radps),
             healthy: 1.0 - p.fault_eps,
             skid_mps: p.skid_mps,
-            p1_rest: [
-                k.iw_over_r * (sr[0] + sr[1]),
-                k.two_md * p.skid_rate_mps2 + k.iw_over_r * k.h * (sr[0] - sr[1]),
-            ],
+            p1_rest,
             force_xy: [t[0], t[1]],
-            tau_body: [
-                (t[3] + t[4]) * k.inv_r,
-                t[2] + k.h * (t[3] - t[4]) * k.inv_r,
-            ],
+            tau_body,
         }
     }
 
@@ -285,7 +497,7 @@ impl Plant {
         let vb = f.healthy * eta[0] - f.sigma[0];
         let wb = f.healthy * eta[1] - f.sigma[1];
         let dl = f.skid_mps;
-        let [rate_r, rate_l] = wheel_rates(k.inv_r, k.h, eta);
+        let [rate_r, rate_l] = self.rates(eta);
         [
             vb * c - k.d * wb * s - s * dl,
             vb * s + k.d * wb * c + c * dl,
@@ -295,13 +507,38 @@ impl Plant {
         ]
     }
 
-    /// ν̇ from eq. (6) for wheel torques `[right, left]`.
+    /// ν̇ from eq. (6) for net wheel torques `[right, left]` (after
+    /// friction).
     #[inline]
     pub fn nu_dot(&self, st: &PlantState, p: &Perturbation, torque_nm: [f64; 2]) -> [f64; 2] {
         let sc = sin_cos(st.q[2]);
         let f = self.forcing(p);
         let theta_dot = self.q_dot_f(st, &f, sc)[2];
         self.nu_dot_f(st, &f, torque_nm, theta_dot, sc)
+    }
+
+    /// The friction torques `[right, left]` \[N·m\] opposing these wheel
+    /// rates, the Coulomb part's sign smoothed over `smooth_radps` (D69).
+    #[inline]
+    pub fn friction_nm(&self, wheel_rates_radps: [f64; 2], smooth_radps: [f64; 2]) -> [f64; 2] {
+        core::array::from_fn(|i| {
+            let f = self.k.friction[i];
+            let x = wheel_rates_radps[i];
+            let mut t = f.viscous_nms_per_rad * x;
+            if f.coulomb_nm > 0.0 {
+                let w = smooth_radps[i];
+                t += f.coulomb_nm * x / libm::sqrt(x * x + w * w);
+            }
+            t
+        })
+    }
+
+    /// The Coulomb smoothing speeds for an integration step `h_s`: w_i =
+    /// c_i·h·(∂φ̇_i/∂τ_i), so that the smoothed friction's stiffness times
+    /// the step is 1 (RK4 stays stable and monotone; D69).
+    #[inline]
+    pub fn friction_smoothing_radps(&self, h_s: f64) -> [f64; 2] {
+        core::array::from_fn(|i| self.k.friction[i].coulomb_nm * h_s * self.k.inv_j[i])
     }
 
     /// ν̇ of eq. (6): M1·ν̇ = B1·τ − N1(θ̇)·ν − P1 − Sᵀτ_d.
@@ -323,18 +560,21 @@ impl Plant {
             c * fx + s * fy + f.tau_body[0],
             k.d * (c * fy - s * fx) + f.tau_body[1],
         ];
-        let b1tau = [
-            (torque_nm[0] + torque_nm[1]) * k.inv_r,
-            k.h * (torque_nm[0] - torque_nm[1]) * k.inv_r,
+        let b1tau = self.wheel_forces(torque_nm);
+        let rhs = [
+            b1tau[0] - n1nu[0] - p1[0] - std[0],
+            b1tau[1] - n1nu[1] - p1[1] - std[1],
         ];
-        [
-            (b1tau[0] - n1nu[0] - p1[0] - std[0]) * k.inv_m1[0],
-            (b1tau[1] - n1nu[1] - p1[1] - std[1]) * k.inv_m1[1],
-        ]
+        if k.equal_r {
+            [rhs[0] * k.inv_m1[0], rhs[1] * k.inv_m1[1]]
+        } else {
+            let [ia, ib, ic] = k.inv_m1_full;
+            [ia * rhs[0] + ib * rhs[1], ib * rhs[0] + ic * rhs[1]]
+        }
     }
 
     /// (q̇, ν̇) at (sin θ, cos θ) = `sc`, the drive's torque taken at the
-    /// state's wheel rates (q̇ rows 4-5).
+    /// state's wheel rates (q̇ rows 4-5), less the wheels' friction.
     #[inline]
     fn deriv(
         &self,
@@ -342,17 +582,44 @@ impl Plant {
         f: &Forcing,
         drive: &impl Drive,
         sc: (f64, f64),
+        smooth: [f64; 2],
     ) -> PlantState {
         let q = self.q_dot_f(st, f, sc);
         let tau = drive.torque_nm([q[3], q[4]]);
+        self.deriv_with(st, f, q, tau, sc, smooth)
+    }
+
+    #[inline]
+    fn deriv_with(
+        &self,
+        st: &PlantState,
+        f: &Forcing,
+        q: [f64; 5],
+        mut tau: [f64; 2],
+        sc: (f64, f64),
+        smooth: [f64; 2],
+    ) -> PlantState {
+        if self.k.has_friction {
+            let fr = self.friction_nm([q[3], q[4]], smooth);
+            tau = [tau[0] - fr[0], tau[1] - fr[1]];
+        }
         let nu = self.nu_dot_f(st, f, tau, q[2], sc);
         PlantState { q, nu }
+    }
+
+    #[inline]
+    fn start_sin_cos(&self, th0: f64) -> (f64, f64) {
+        match self.theta_end.get() {
+            (bits, sc) if bits == th0.to_bits() => sc,
+            _ => sin_cos(th0),
+        }
     }
 
     /// One classical RK4 step of length `h_s` from `t_s`; `perturb(t)` gives
     /// the perturbations at time t (asked at t, t + h/2 and t + h: a
     /// [`PerturbationGrid`](crate::PerturbationGrid) of step h/2 serves them
-    /// cheaply), `drive` the wheel torques at each stage.
+    /// cheaply), `drive` the wheel torques at each stage (less the wheels'
+    /// friction).
     #[inline]
     pub fn rk4_step(
         &self,
@@ -362,41 +629,73 @@ impl Plant {
         drive: &impl Drive,
         perturb: &mut impl FnMut(f64) -> Perturbation,
     ) -> PlantState {
-        let add = |a: &PlantState, k: &PlantState, f: f64| {
-            let mut o = *a;
-            for i in 0..5 {
-                o.q[i] += f * k.q[i];
-            }
-            for i in 0..2 {
-                o.nu[i] += f * k.nu[i];
-            }
-            o
-        };
         let th0 = st.q[2];
-        let sc0 = match self.theta_end.get() {
-            (bits, sc) if bits == th0.to_bits() => sc,
-            _ => sin_cos(th0),
-        };
+        let sc0 = self.start_sin_cos(th0);
+        let w = self.friction_smoothing_radps(h_s);
         let p0 = self.forcing(&perturb(t_s));
         let pm = self.forcing(&perturb(t_s + 0.5 * h_s));
         let p1 = self.forcing(&perturb(t_s + h_s));
-        let k1 = self.deriv(st, &p0, drive, sc0);
+        let k1 = self.deriv(st, &p0, drive, sc0, w);
         let s2 = add(st, &k1, 0.5 * h_s);
-        let k2 = self.deriv(&s2, &pm, drive, sin_cos_offset(th0, sc0, s2.q[2] - th0));
+        let k2 = self.deriv(&s2, &pm, drive, sin_cos_offset(th0, sc0, s2.q[2] - th0), w);
         let s3 = add(st, &k2, 0.5 * h_s);
-        let k3 = self.deriv(&s3, &pm, drive, sin_cos_offset(th0, sc0, s3.q[2] - th0));
+        let k3 = self.deriv(&s3, &pm, drive, sin_cos_offset(th0, sc0, s3.q[2] - th0), w);
         let s4 = add(st, &k3, h_s);
-        let k4 = self.deriv(&s4, &p1, drive, sin_cos_offset(th0, sc0, s4.q[2] - th0));
-        let mut o = *st;
-        for i in 0..5 {
-            o.q[i] += h_s / 6.0 * (k1.q[i] + 2.0 * k2.q[i] + 2.0 * k3.q[i] + k4.q[i]);
-        }
-        for i in 0..2 {
-            o.nu[i] += h_s / 6.0 * (k1.nu[i] + 2.0 * k2.nu[i] + 2.0 * k3.nu[i] + k4.nu[i]);
-        }
+        let k4 = self.deriv(&s4, &p1, drive, sin_cos_offset(th0, sc0, s4.q[2] - th0), w);
+        let o = combine(st, h_s, [&k1, &k2, &k3, &k4]);
         let sc_end = sin_cos_offset(th0, sc0, o.q[2] - th0);
         self.theta_end.set((o.q[2].to_bits(), sc_end));
         o
+    }
+
+    /// One RK4 step of the plant with a first-order lag of time constant
+    /// `tau_e_s` between the drive and the wheels (the motor's current,
+    /// L/R): the state is augmented with the wheel torques `torque_nm`,
+    /// dτ/dt = (drive(φ̇) − τ)/τ_e, the plant driven by τ. Returns the new
+    /// state and torques. Stable for h ≤ 2.7·τ_e; [`World`](crate::World)
+    /// asks for h ≤ 2·τ_e.
+    #[allow(clippy::too_many_arguments)]
+    pub fn rk4_step_lagged(
+        &self,
+        st: &PlantState,
+        torque_nm: [f64; 2],
+        tau_e_s: f64,
+        t_s: f64,
+        h_s: f64,
+        drive: &impl Drive,
+        perturb: &mut impl FnMut(f64) -> Perturbation,
+    ) -> (PlantState, [f64; 2]) {
+        let th0 = st.q[2];
+        let sc0 = self.start_sin_cos(th0);
+        let w = self.friction_smoothing_radps(h_s);
+        let inv_te = 1.0 / tau_e_s;
+        let p0 = self.forcing(&perturb(t_s));
+        let pm = self.forcing(&perturb(t_s + 0.5 * h_s));
+        let p1 = self.forcing(&perturb(t_s + h_s));
+        let d = |s: &PlantState, tau: [f64; 2], f: &Forcing, sc| {
+            let q = self.q_dot_f(s, f, sc);
+            let want = drive.torque_nm([q[3], q[4]]);
+            let dt = [(want[0] - tau[0]) * inv_te, (want[1] - tau[1]) * inv_te];
+            (self.deriv_with(s, f, q, tau, sc, w), dt)
+        };
+        let addt = |a: [f64; 2], k: [f64; 2], f: f64| [a[0] + f * k[0], a[1] + f * k[1]];
+        let (k1, l1) = d(st, torque_nm, &p0, sc0);
+        let s2 = add(st, &k1, 0.5 * h_s);
+        let t2 = addt(torque_nm, l1, 0.5 * h_s);
+        let (k2, l2) = d(&s2, t2, &pm, sin_cos_offset(th0, sc0, s2.q[2] - th0));
+        let s3 = add(st, &k2, 0.5 * h_s);
+        let t3 = addt(torque_nm, l2, 0.5 * h_s);
+        let (k3, l3) = d(&s3, t3, &pm, sin_cos_offset(th0, sc0, s3.q[2] - th0));
+        let s4 = add(st, &k3, h_s);
+        let t4 = addt(torque_nm, l3, h_s);
+        let (k4, l4) = d(&s4, t4, &p1, sin_cos_offset(th0, sc0, s4.q[2] - th0));
+        let o = combine(st, h_s, [&k1, &k2, &k3, &k4]);
+        let tau = core::array::from_fn(|i| {
+            torque_nm[i] + h_s / 6.0 * (l1[i] + 2.0 * l2[i] + 2.0 * l3[i] + l4[i])
+        });
+        let sc_end = sin_cos_offset(th0, sc0, o.q[2] - th0);
+        self.theta_end.set((o.q[2].to_bits(), sc_end));
+        (o, tau)
     }
 
     /// True when every state component is finite. (One sum: a NaN or an
@@ -408,6 +707,32 @@ impl Plant {
         let [f, g] = st.nu;
         (a + b + c + d + e + f + g).is_finite()
     }
+}
+
+/// a + f·k.
+#[inline]
+fn add(a: &PlantState, k: &PlantState, f: f64) -> PlantState {
+    let mut o = *a;
+    for i in 0..5 {
+        o.q[i] += f * k.q[i];
+    }
+    for i in 0..2 {
+        o.nu[i] += f * k.nu[i];
+    }
+    o
+}
+
+/// RK4's weighted sum of the stages.
+#[inline]
+fn combine(st: &PlantState, h_s: f64, [k1, k2, k3, k4]: [&PlantState; 4]) -> PlantState {
+    let mut o = *st;
+    for i in 0..5 {
+        o.q[i] += h_s / 6.0 * (k1.q[i] + 2.0 * k2.q[i] + 2.0 * k3.q[i] + k4.q[i]);
+    }
+    for i in 0..2 {
+        o.nu[i] += h_s / 6.0 * (k1.nu[i] + 2.0 * k2.nu[i] + 2.0 * k3.nu[i] + k4.nu[i]);
+    }
+    o
 }
 
 #[cfg(test)]
@@ -495,14 +820,14 @@ mod tests {
                 Perturbation::default()
             });
         }
-        let a = 2.0 * tau / (plant.params().wheel_radius_m * plant.params().m1_diag()[0]);
+        let a = 2.0 * tau / (plant.params().wheel_radius_m[0] * plant.params().m1_diag()[0]);
         let dist = 0.5 * a * t_end * t_end;
         assert!((st.nu[0] - a * t_end).abs() < 1e-9);
         assert!(st.nu[1].abs() < 1e-12);
         assert!((st.q[0] - (1.0 + dist * 0.4f64.cos())).abs() < 1e-9);
         assert!((st.q[1] - (-1.0 + dist * 0.4f64.sin())).abs() < 1e-9);
         // Wheel angles: φ = distance / r.
-        assert!((st.q[3] - dist / plant.params().wheel_radius_m).abs() < 1e-8);
+        assert!((st.q[3] - dist / plant.params().wheel_radius_m[0]).abs() < 1e-8);
     }
 
     /// Opposite torques from rest: ω̇ = 2hτ/(r·M1₂₂) = α constant (N1 ν has no
@@ -521,7 +846,7 @@ mod tests {
         }
         let p = *plant.params();
         let m1 = p.m1_diag();
-        let alpha = 2.0 * p.half_track_m * tau / (p.wheel_radius_m * m1[1]);
+        let alpha = 2.0 * p.half_track_m * tau / (p.wheel_radius_m[0] * m1[1]);
         let v_expect = 2.0 * p.mass_kg * p.com_offset_m * alpha * alpha / (3.0 * m1[0]);
         // ω̇ gets −2md·ω·v/M1₂₂, a relative correction of order 1e-4 here.
         assert!(
@@ -542,7 +867,7 @@ mod tests {
     fn perturbed_constraint_holds_along_run() {
         let plant = paper_plant();
         let p = *plant.params();
-        let (r, h, d) = (p.wheel_radius_m, p.half_track_m, p.com_offset_m);
+        let (r, h, d) = (p.wheel_radius_m[0], p.half_track_m, p.com_offset_m);
         let mut st = PlantState {
             q: [0.0, 0.0, 0.5, 0.0, 0.0],
             nu: [0.3, 0.2],
@@ -648,5 +973,239 @@ mod tests {
                 p1_impl[j]
             );
         }
+    }
+    fn params_lr(rr: f64, rl: f64) -> PlantParams {
+        PlantParams {
+            wheel_radius_m: [rr, rl],
+            ..PlantParams::from_robot(&RobotParams::paper(), 1.0, 1.0)
+        }
+    }
+
+    /// M1 with unequal radii equals SᵀM0S of the 5x5 inertia matrix (at
+    /// any heading: the body part's θ dependence cancels).
+    #[test]
+    fn m1_unequal_radii_matches_matrices() {
+        let p = params_lr(0.103, 0.097);
+        let (m, i, iw, h, d) = (
+            p.mass_kg,
+            p.inertia_kgm2,
+            p.wheel_inertia_kgm2,
+            p.half_track_m,
+            p.com_offset_m,
+        );
+        let [rr, rl] = p.wheel_radius_m;
+        for th in [0.0, 0.7, -2.1] {
+            let (s, c) = f64::sin_cos(th);
+            let mut m0 = [[0.0; 5]; 5];
+            m0[0][0] = m;
+            m0[1][1] = m;
+            m0[0][2] = -m * d * s;
+            m0[2][0] = m0[0][2];
+            m0[1][2] = m * d * c;
+            m0[2][1] = m0[1][2];
+            m0[2][2] = i;
+            m0[3][3] = iw;
+            m0[4][4] = iw;
+            let sm = [
+                [c, -d * s],
+                [s, d * c],
+                [0.0, 1.0],
+                [1.0 / rr, h / rr],
+                [1.0 / rl, -h / rl],
+            ];
+            let mut m1 = [[0.0; 2]; 2];
+            for a in 0..2 {
+                for b in 0..2 {
+                    for x in 0..5 {
+                        for y in 0..5 {
+                            m1[a][b] += sm[x][a] * m0[x][y] * sm[y][b];
+                        }
+                    }
+                }
+            }
+            let got = p.m1();
+            let want = [m1[0][0], m1[0][1], m1[1][1]];
+            for k in 0..3 {
+                assert!(
+                    (got[k] - want[k]).abs() < 1e-12 * want[0],
+                    "{k}: {got:?} {want:?}"
+                );
+            }
+        }
+    }
+
+    /// Unequal radii, coasting straight without torque or friction: ν stays
+    /// [v, 0] (N1ν = 0 at θ̇ = 0), each wheel turns by L/r_i, and odometry
+    /// with the model's single radius r reads a heading change
+    /// r·(φ_R − φ_L)/(2h) = r·L·(1/r_R − 1/r_L)/(2h): the analytic drift.
+    #[test]
+    fn wheel_radius_mismatch_gives_analytic_odometry_drift() {
+        let (r, e) = (0.1, 0.01);
+        let plant = Plant::new(params_lr(r * (1.0 + e), r));
+        let h = plant.params().half_track_m;
+        let v = 0.5;
+        let mut st = PlantState {
+            q: [0.0, 0.0, 0.3, 0.0, 0.0],
+            nu: [v, 0.0],
+        };
+        let dt = 1e-3;
+        for k in 0..10_000 {
+            st = plant.rk4_step(&st, k as f64 * dt, dt, &[0.0, 0.0], &mut |_| {
+                Perturbation::default()
+            });
+        }
+        let dist = v * 10.0;
+        assert!((st.nu[0] - v).abs() < 1e-12 && st.nu[1].abs() < 1e-12);
+        assert!((st.q[2] - 0.3).abs() < 1e-12, "the body goes straight");
+        assert!((st.q[3] - dist / (r * (1.0 + e))).abs() < 1e-9);
+        assert!((st.q[4] - dist / r).abs() < 1e-9);
+        let odo_heading = r * (st.q[3] - st.q[4]) / (2.0 * h);
+        let analytic = r * dist * (1.0 / (r * (1.0 + e)) - 1.0 / r) / (2.0 * h);
+        assert!(
+            (odo_heading - analytic).abs() < 1e-9,
+            "{odo_heading} {analytic}"
+        );
+        // About −0.124 rad over 5 m for a 1 % larger right wheel.
+        assert!(analytic < -0.1);
+    }
+
+    /// Equal torques with a larger right wheel: the right wheel pushes with
+    /// less force (τ/r_R < τ/r_L), so the robot turns right (ω < 0).
+    #[test]
+    fn larger_right_wheel_turns_right_under_equal_torques() {
+        let plant = Plant::new(params_lr(0.105, 0.1));
+        let mut st = PlantState::default();
+        for k in 0..500 {
+            st = plant.rk4_step(&st, k as f64 * 1e-3, 1e-3, &[0.5, 0.5], &mut |_| {
+                Perturbation::default()
+            });
+        }
+        assert!(st.nu[0] > 0.0 && st.nu[1] < 0.0, "{:?}", st.nu);
+    }
+
+    /// The perturbed constraint (2) with per-wheel radii:
+    /// c·ẋ + s·ẏ ± h·θ̇ − r_i·φ̇_i = −r_i·ϖ_i, along a perturbed run.
+    #[test]
+    fn perturbed_constraint_holds_with_unequal_radii() {
+        let plant = Plant::new(params_lr(0.102, 0.099));
+        let p = *plant.params();
+        let ([rr, rl], h, d) = (p.wheel_radius_m, p.half_track_m, p.com_offset_m);
+        let mut st = PlantState {
+            q: [0.0, 0.0, 0.5, 0.0, 0.0],
+            nu: [0.3, 0.2],
+        };
+        for k in 0..2000 {
+            let t = k as f64 * 1e-3;
+            let pert = perturbed(t);
+            let qd = plant.q_dot(&st, &pert);
+            let (s, c) = st.q[2].sin_cos();
+            let aq = [
+                -s * qd[0] + c * qd[1] - d * qd[2],
+                c * qd[0] + s * qd[1] + h * qd[2] - rr * qd[3],
+                c * qd[0] + s * qd[1] - h * qd[2] - rl * qd[4],
+            ];
+            let ds = [
+                pert.skid_mps,
+                -rr * pert.wheel_slip_radps[0],
+                -rl * pert.wheel_slip_radps[1],
+            ];
+            for i in 0..3 {
+                assert!((aq[i] - ds[i]).abs() < 1e-12, "row {i} at t {t}");
+            }
+            st = plant.rk4_step(&st, t, 1e-3, &[0.3, 0.1], &mut perturbed);
+        }
+    }
+
+    fn with_friction(viscous: f64, coulomb: f64) -> Plant {
+        Plant::new(PlantParams {
+            friction: [WheelFriction {
+                viscous_nms_per_rad: viscous,
+                coulomb_nm: coulomb,
+            }; 2],
+            ..PlantParams::from_robot(&RobotParams::paper(), 1.0, 1.0)
+        })
+    }
+
+    fn straight(plant: &Plant, tau: f64, h: f64, t_end: f64) -> PlantState {
+        let mut st = PlantState::default();
+        for k in 0..(t_end / h).round() as usize {
+            st = plant.rk4_step(&st, k as f64 * h, h, &[tau, tau], &mut |_| {
+                Perturbation::default()
+            });
+        }
+        st
+    }
+
+    /// Coulomb friction c: a torque below the breakaway leaves the wheels
+    /// still but for the smooth sign's creep, while the same torque without friction turns
+    /// them by radians; above it the robot accelerates at the analytic
+    /// 2(τ − c)/(r·M1₁₁) (the smooth sign is ±1 away from zero speed).
+    #[test]
+    fn coulomb_friction_holds_below_breakaway() {
+        let c = 1.0;
+        let h = 2.5e-4;
+        let held = straight(&with_friction(0.0, c), 0.5 * c, h, 1.0);
+        let free = straight(&with_friction(0.0, 0.0), 0.5 * c, h, 1.0);
+        // The smooth sign lets the wheel creep at the rate where
+        // c·x/√(x² + w²) = τ: x = w·u/√(1 − u²), u = τ/c (D69), here about
+        // 1 mrad/s; the transient lasts a few steps.
+        let plant = with_friction(0.0, c);
+        let w = plant.friction_smoothing_radps(h)[0];
+        let creep = w * 0.5 / (1.0f64 - 0.25).sqrt();
+        assert!(creep < 2e-3, "creep {creep} rad/s");
+        assert!(
+            (held.q[3] - creep).abs() < 0.02 * creep,
+            "held wheel turned {} rad, creep {creep}",
+            held.q[3]
+        );
+        assert!(free.q[3] > 100.0 * held.q[3], "free wheel {}", free.q[3]);
+        let (a1, a2) = (
+            straight(&plant, 2.0 * c, h, 1.0),
+            straight(&plant, 2.0 * c, h, 2.0),
+        );
+        let p = *plant.params();
+        let a = 2.0 * (2.0 * c - c) / (p.wheel_radius_m[0] * p.m1_diag()[0]);
+        let measured = a2.nu[0] - a1.nu[0];
+        assert!((measured - a).abs() < 1e-6 * a, "{measured} vs {a}");
+    }
+
+    /// Viscous friction b: under a constant torque the wheels reach the
+    /// terminal rate φ̇ = τ/b (torque balance at the wheel).
+    #[test]
+    fn viscous_friction_terminal_rate() {
+        let (b, tau) = (2.0, 0.5);
+        let plant = with_friction(b, 0.0);
+        let st = straight(&plant, tau, 1e-3, 60.0);
+        let rate = st.nu[0] / plant.params().wheel_radius_m[0];
+        assert!((rate - tau / b).abs() < 1e-6, "{rate} vs {}", tau / b);
+    }
+
+    /// The paper's plant has no friction and equal radii: the new fields'
+    /// defaults, which keep every run bit-identical (the equal-radius path
+    /// is the original arithmetic).
+    #[test]
+    fn defaults_are_the_model() {
+        let p = PlantParams::from_robot(&RobotParams::paper(), 1.0, 1.0);
+        assert_eq!(p.friction, [WheelFriction::NONE; 2]);
+        assert_eq!(p.actuator, ActuatorDynamics::NONE);
+        assert_eq!(p.wheel_radius_m[0], p.wheel_radius_m[1]);
+        assert_eq!(p.validate(), Ok(()));
+        let bad = |f: &dyn Fn(&mut PlantParams)| {
+            let mut q = p;
+            f(&mut q);
+            q.validate().err()
+        };
+        assert_eq!(
+            bad(&|q| q.wheel_radius_m[1] = f64::NAN),
+            Some(PlantParamsError::Geometry("wheel_radius_m"))
+        );
+        assert_eq!(
+            bad(&|q| q.friction[0].coulomb_nm = -1.0),
+            Some(PlantParamsError::Friction("coulomb_nm"))
+        );
+        assert_eq!(
+            bad(&|q| q.actuator.delay_s = 2.0),
+            Some(PlantParamsError::Actuator("delay_s"))
+        );
     }
 }

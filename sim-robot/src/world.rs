@@ -26,7 +26,9 @@
 
 use crate::hardware::{MotorDrive, SimDriver, SimEncoders};
 use crate::perturbation::{PerturbationGrid, PerturbationProfile};
-use crate::plant::{Drive, Perturbation, Plant, PlantParams, PlantState, TorqueScaled};
+use crate::plant::{
+    Drive, Perturbation, Plant, PlantParams, PlantParamsError, PlantState, TorqueScaled,
+};
 use crate::sensors::{
     GyroModel, PoseSourceModel, PoseSourceStats, SensorModelError, SimGyro, SimPoseSource, SimRng,
 };
@@ -35,6 +37,10 @@ use controller_core::runtime::{
     EncoderParams, Gyro, MotorModel, MotorParams, PoseSource, WheelEncoders,
 };
 use controller_core::Pose;
+
+/// Control periods of command history the actuation delay may need
+/// (delay <= (MAX_DELAY_PERIODS − 1) periods).
+pub const MAX_DELAY_PERIODS: usize = 32;
 
 /// Salt of the gyro's noise seed (`seed ^ GYRO_SEED_SALT`).
 pub const GYRO_SEED_SALT: u64 = 0x6779_726F;
@@ -60,12 +66,18 @@ pub struct IdealSensing {
 }
 
 /// The simulated hardware: encoders, the H-bridge into the DC motors, and
-/// optionally a gyro and an external pose source.
+/// optionally a gyro and an external pose source. Every value is the
+/// *plant's*, what the robot has, which may differ from what the runtime
+/// believes (its `RuntimeConfig`): a plant motor of another torque constant,
+/// encoders of another resolution ([`WorldConfig::of_runtime`] makes them
+/// equal).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HardwareSensing {
-    /// The quadrature encoders (resolution, mounting).
+    /// The plant's quadrature encoders (resolution, mounting).
     pub encoder: EncoderParams,
-    /// The motors behind the H-bridge.
+    /// The plant's motors behind the H-bridge (torque constant, resistance,
+    /// gear, efficiency, supply), run forward by the runtime's
+    /// [`MotorModel`] formulas.
     pub motor: MotorParams,
     /// Per wheel: the motor is mounted mirrored.
     pub motor_inverted: [bool; 2],
@@ -94,6 +106,34 @@ pub struct DeadEncoder {
     pub from_s: f64,
 }
 
+/// Wiring mistakes between the board and the robot (hardware sensing only),
+/// on top of the configured mountings: what commissioning must catch.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Wiring {
+    /// Per wheel `[right, left]`: the encoder's A/B lines swapped (it
+    /// counts opposite to its configured direction).
+    pub encoder_inverted: [bool; 2],
+    /// Per wheel: the motor's leads swapped (it turns opposite to its
+    /// configured direction).
+    pub motor_inverted: [bool; 2],
+    /// The bridge's right channel drives the left wheel's motor and the
+    /// left channel the right one.
+    pub motors_swapped: bool,
+    /// The right encoder counter reads the left wheel's encoder and the
+    /// left counter the right one's.
+    pub encoders_swapped: bool,
+}
+
+impl Wiring {
+    /// Wired as configured.
+    pub const CORRECT: Self = Self {
+        encoder_inverted: [false; 2],
+        motor_inverted: [false; 2],
+        motors_swapped: false,
+        encoders_swapped: false,
+    };
+}
+
 /// Injected faults beyond the paper's actuator fault ε (which is a
 /// perturbation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -102,8 +142,10 @@ pub struct Faults {
     /// delivers inside the perturbation window (a weak wheel; \[1, 1\] =
     /// healthy).
     pub wheel_torque_scale: [f64; 2],
-    /// A dead encoder (hardware sensing only).
+    /// A dead encoder (hardware sensing only; `wheel` names the counter).
     pub dead_encoder: Option<DeadEncoder>,
+    /// Wiring mistakes (hardware sensing only).
+    pub wiring: Wiring,
 }
 
 impl Faults {
@@ -111,6 +153,7 @@ impl Faults {
     pub const NONE: Self = Self {
         wheel_torque_scale: [1.0, 1.0],
         dead_encoder: None,
+        wiring: Wiring::CORRECT,
     };
 }
 
@@ -172,6 +215,59 @@ impl WorldConfig {
     }
 }
 
+#[cfg(any(test, feature = "robot-file"))]
+impl WorldConfig {
+    /// The robot of the robot file `plant` as the plant (what it *has*: its
+    /// per-wheel radii, track, masses, friction per wheel, motors, encoder
+    /// resolution and directions, motor directions), controlled by a runtime
+    /// configured as `model_runtime` (what the controller *believes*: it sets
+    /// only the initial pose, the control period and the duty full scale of
+    /// the PWM timer, a board property). One RK4 sub-step, unperturbed, no
+    /// gyro, no pose source, no fault, no actuation delay or electrical lag
+    /// (set `plant.actuator`, `substeps`, ... with `..`). With the file the
+    /// runtime was derived from, the plant is the model but for the per-wheel
+    /// radii (the model takes their mean, D60). Errors: the file's own
+    /// validation ([`WorldError::Robot`]).
+    pub fn of_robot(
+        plant: &robot_file::Robot,
+        model_runtime: &controller_core::runtime::RuntimeConfig,
+    ) -> Result<Self, WorldError> {
+        plant.validate().map_err(WorldError::Robot)?;
+        let b = &plant.body;
+        let m = &plant.motors;
+        let friction = core::array::from_fn(|i| crate::plant::WheelFriction {
+            viscous_nms_per_rad: m.viscous_friction_nms_per_rad[i] as f64,
+            coulomb_nm: m.coulomb_friction_nm[i] as f64,
+        });
+        let e = plant.encoder_params();
+        Ok(Self {
+            plant: PlantParams {
+                mass_kg: b.mass_kg as f64,
+                inertia_kgm2: b.inertia_kgm2 as f64,
+                wheel_inertia_kgm2: b.wheel_inertia_kgm2 as f64,
+                wheel_radius_m: [b.wheel_radius_m[0] as f64, b.wheel_radius_m[1] as f64],
+                half_track_m: 0.5 * b.track_m as f64,
+                com_offset_m: b.com_offset_m as f64,
+                friction,
+                actuator: crate::plant::ActuatorDynamics::NONE,
+            },
+            instruments: Instruments::Hardware(HardwareSensing {
+                // The simulated counters count the true wheel angle
+                // (radius_scale is the runtime's business).
+                encoder: EncoderParams {
+                    radius_scale: [1.0; 2],
+                    ..e
+                },
+                motor: plant.motor_params(model_runtime.motor.duty_full_scale),
+                motor_inverted: plant.bridge.motor_inverted,
+                gyro: None,
+                pose_source: None,
+            }),
+            ..Self::of_runtime(model_runtime)
+        })
+    }
+}
+
 /// A world configuration rejected at construction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
@@ -188,6 +284,19 @@ pub enum WorldError {
     InvalidIdealSensing,
     /// The motor parameters are not physical.
     InvalidMotor,
+    /// A plant parameter is not physical.
+    Plant(PlantParamsError),
+    /// The actuation delay needs more than [`MAX_DELAY_PERIODS`] control
+    /// periods of history.
+    DelayTooLong,
+    /// The RK4 sub-step must be at most twice the motor's electrical time
+    /// constant (raise `substeps`).
+    StiffActuator,
+    /// Wiring faults need hardware sensing.
+    InvalidWiring,
+    /// The plant's robot file is invalid.
+    #[cfg(any(test, feature = "robot-file"))]
+    Robot(robot_file::RobotError),
     /// A sensor model was rejected.
     Sensor(SensorModelError),
 }
@@ -205,6 +314,17 @@ impl core::fmt::Display for WorldError {
                 f.write_str("world: ideal sensing noise must be >= 0 and its period > 0")
             }
             Self::InvalidMotor => f.write_str("world: motor parameters are not physical"),
+            Self::Plant(e) => write!(f, "world: {e}"),
+            Self::DelayTooLong => write!(
+                f,
+                "world: actuation delay exceeds {MAX_DELAY_PERIODS} control periods"
+            ),
+            Self::StiffActuator => f.write_str(
+                "world: the RK4 sub-step exceeds twice the electrical time constant: raise substeps",
+            ),
+            Self::InvalidWiring => f.write_str("world: wiring faults need hardware sensing"),
+            #[cfg(any(test, feature = "robot-file"))]
+            Self::Robot(e) => write!(f, "world: plant robot file: {e}"),
             Self::Sensor(e) => write!(f, "world: {e}"),
         }
     }
@@ -308,8 +428,74 @@ enum State {
     },
     Hardware {
         motor: MotorModel,
+        /// Per wheel: the motor turns opposite to its wheel (mounting XOR
+        /// a wiring fault).
         inverted: [bool; 2],
+        /// The bridge's channels drive the other wheel's motor.
+        swapped: bool,
     },
+}
+
+/// The commands on their way to the wheels: each actuation with the time
+/// it was given; the first entry is the one acting now (D70).
+#[derive(Clone, Debug)]
+struct DelayLine {
+    delay_s: f64,
+    t_s: [f64; MAX_DELAY_PERIODS + 2],
+    act: [Actuation; MAX_DELAY_PERIODS + 2],
+    head: usize,
+    len: usize,
+}
+
+/// Two instants closer than this are the same switching time \[s\] (the
+/// delay's switch and a sub-step boundary a rounding apart).
+const SAME_INSTANT_S: f64 = 1e-9;
+
+impl DelayLine {
+    const CAP: usize = MAX_DELAY_PERIODS + 2;
+
+    fn new(delay_s: f64) -> Self {
+        let mut d = Self {
+            delay_s,
+            t_s: [f64::NEG_INFINITY; MAX_DELAY_PERIODS + 2],
+            act: [Actuation::Torque([0.0; 2]); MAX_DELAY_PERIODS + 2],
+            head: 0,
+            len: 1,
+        };
+        d.act[0] = Actuation::Torque([0.0; 2]);
+        d
+    }
+
+    fn push(&mut self, t_s: f64, act: Actuation) {
+        if self.len == Self::CAP {
+            // Only reached when stepped far below the configured period.
+            self.head = (self.head + 1) % Self::CAP;
+            self.len -= 1;
+        }
+        let i = (self.head + self.len) % Self::CAP;
+        self.t_s[i] = t_s;
+        self.act[i] = act;
+        self.len += 1;
+    }
+
+    /// The actuation acting at `t_s` (older ones dropped).
+    fn at(&mut self, t_s: f64) -> Actuation {
+        while self.len >= 2 {
+            let next = (self.head + 1) % Self::CAP;
+            if self.t_s[next] + self.delay_s <= t_s + SAME_INSTANT_S {
+                self.head = next;
+                self.len -= 1;
+            } else {
+                break;
+            }
+        }
+        self.act[self.head]
+    }
+
+    /// When the next pending actuation reaches the wheels.
+    fn next_switch_s(&self) -> Option<f64> {
+        (self.len >= 2).then(|| self.t_s[(self.head + 1) % Self::CAP] + self.delay_s)
+    }
 }
 
 /// The simulated world (see the module documentation).
@@ -328,6 +514,13 @@ pub struct World {
     bridge: SimDriver,
     gyro: WorldGyro,
     pose_source: WorldPoseSource,
+    /// The encoder counters read the other wheel.
+    encoders_swapped: bool,
+    /// Commands in flight (actuation delay or electrical lag configured).
+    delay: Option<DelayLine>,
+    /// The lagged wheel torques \[N·m\] and L/R \[s\] (electrical lag
+    /// configured).
+    lag: Option<([f64; 2], f64)>,
 }
 
 impl World {
@@ -349,8 +542,19 @@ impl World {
         {
             return Err(WorldError::InvalidTorqueScale);
         }
+        cfg.plant.validate().map_err(WorldError::Plant)?;
+        let substep_s = cfg.period_s / cfg.substeps as f64;
+        let act = cfg.plant.actuator;
+        if act.delay_s > (MAX_DELAY_PERIODS - 1) as f64 * cfg.period_s {
+            return Err(WorldError::DelayTooLong);
+        }
+        let te = act.electrical_time_constant_s;
+        if te > 0.0 && substep_s > 2.0 * te {
+            return Err(WorldError::StiffActuator);
+        }
+        let wiring = cfg.faults.wiring;
         let seed = cfg.seed;
-        let (instruments, encoder, gyro, pose_source) = match cfg.instruments {
+        let (instruments, mut encoder, gyro, pose_source) = match cfg.instruments {
             Instruments::Ideal(ideal) => {
                 if !(nonneg(ideal.position_noise_m)
                     && nonneg(ideal.heading_noise_rad)
@@ -360,6 +564,9 @@ impl World {
                 }
                 if cfg.faults.dead_encoder.is_some() {
                     return Err(WorldError::InvalidDeadEncoder);
+                }
+                if wiring != Wiring::CORRECT {
+                    return Err(WorldError::InvalidWiring);
                 }
                 let state = State::Ideal {
                     cfg: ideal,
@@ -389,15 +596,29 @@ impl World {
                     ),
                     None => None,
                 };
+                let m = hw.motor_inverted;
+                let w = wiring.motor_inverted;
                 let state = State::Hardware {
                     motor,
-                    inverted: hw.motor_inverted,
+                    inverted: [m[0] ^ w[0], m[1] ^ w[1]],
+                    swapped: wiring.motors_swapped,
                 };
                 (state, hw.encoder, gyro, pose)
             }
         };
+        // The counter of channel i reads wheel w(i)'s encoder, mounted (and
+        // mis-wired) as that wheel's.
+        let wheel_inv = [
+            encoder.inverted[0] ^ wiring.encoder_inverted[0],
+            encoder.inverted[1] ^ wiring.encoder_inverted[1],
+        ];
+        encoder.inverted = if wiring.encoders_swapped {
+            [wheel_inv[1], wheel_inv[0]]
+        } else {
+            wheel_inv
+        };
         let p0 = cfg.initial_pose;
-        let substep_s = cfg.period_s / cfg.substeps as f64;
+        let dynamic = act.delay_s > 0.0 || te > 0.0;
         Ok(Self {
             plant: Plant::new(cfg.plant),
             state: PlantState {
@@ -415,7 +636,16 @@ impl World {
             bridge: SimDriver::default(),
             gyro: WorldGyro(gyro),
             pose_source: WorldPoseSource(pose_source),
+            encoders_swapped: wiring.encoders_swapped,
+            delay: dynamic.then(|| DelayLine::new(act.delay_s)),
+            lag: (te > 0.0).then_some(([0.0; 2], te)),
         })
+    }
+
+    /// The wheel torques the lagging motor currents deliver now \[N·m\]
+    /// (None without an electrical time constant; before friction).
+    pub fn lagged_torque_nm(&self) -> Option<[f64; 2]> {
+        self.lag.map(|(t, _)| t)
     }
 
     /// The plant.
@@ -487,7 +717,11 @@ impl World {
                 })
             }
             State::Hardware { .. } => {
-                self.encoders.set_angles(angles);
+                self.encoders.set_angles(if self.encoders_swapped {
+                    [angles[1], angles[0]]
+                } else {
+                    angles
+                });
                 if let Some(d) = self.faults.dead_encoder {
                     if t_s >= d.from_s {
                         self.encoders.kill(d.wheel);
@@ -557,10 +791,21 @@ impl World {
     fn drive(&self, actuation: &Actuation) -> WorldDrive {
         match (actuation, &self.instruments) {
             (Actuation::Torque(t), _) => WorldDrive::Torque(*t),
-            (Actuation::Bridge(b), State::Hardware { motor, inverted }) => {
+            (
+                Actuation::Bridge(b),
+                State::Hardware {
+                    motor,
+                    inverted,
+                    swapped,
+                },
+            ) => {
+                let mut bridge = *b;
+                if *swapped {
+                    bridge.duty = [b.duty[1], b.duty[0]];
+                }
                 WorldDrive::Motor(MotorDrive {
                     model: *motor,
-                    bridge: *b,
+                    bridge,
                     inverted: *inverted,
                 })
             }
@@ -571,8 +816,15 @@ impl World {
     /// The plant over `dt_s` from the last reading's time, `actuation`
     /// held (zero-order hold), in the configured RK4 sub-steps, each wheel
     /// delivering its share of the torque (a weak wheel inside the
-    /// perturbation window, judged at the step's start).
+    /// perturbation window, judged at the step's start). With an actuation
+    /// delay d, the wheels feel the actuation given d earlier (nothing
+    /// before the first command reaches them), switching exactly at the
+    /// delayed instants (a sub-step is split there: D70); with an
+    /// electrical time constant the torque lags it (first order).
     pub fn advance(&mut self, actuation: Actuation, dt_s: f64) -> Result<(), Diverged> {
+        if self.delay.is_some() {
+            return self.advance_dynamic(actuation, dt_s);
+        }
         let t = self.t_s;
         let drive = self.drive(&actuation);
         let scaled = TorqueScaled {
@@ -596,6 +848,77 @@ impl World {
             Ok(())
         } else {
             Err(Diverged { t_s: t })
+        }
+    }
+}
+
+impl World {
+    fn advance_dynamic(&mut self, actuation: Actuation, dt_s: f64) -> Result<(), Diverged> {
+        let t = self.t_s;
+        let scale = if self.perturbations.in_window(t) {
+            self.faults.wheel_torque_scale
+        } else {
+            [1.0, 1.0]
+        };
+        let mut line = self.delay.take().unwrap_or_else(|| DelayLine::new(0.0));
+        line.push(t, actuation);
+        let h = dt_s / self.substeps as f64;
+        for j in 0..self.substeps {
+            let mut a = t + j as f64 * h;
+            let end = if j + 1 == self.substeps {
+                t + dt_s
+            } else {
+                t + (j + 1) as f64 * h
+            };
+            loop {
+                let act = line.at(a);
+                let piece_end = match line.next_switch_s() {
+                    Some(s) if s < end - SAME_INSTANT_S => s,
+                    _ => end,
+                };
+                self.piece(&act, scale, a, piece_end - a);
+                a = piece_end;
+                if piece_end == end {
+                    break;
+                }
+            }
+        }
+        self.delay = Some(line);
+        self.t_s = t + dt_s;
+        if Plant::state_is_finite(&self.state) {
+            Ok(())
+        } else {
+            Err(Diverged { t_s: t })
+        }
+    }
+
+    /// One RK4 step of length `len_s` from `t_s` with `act` held.
+    fn piece(&mut self, act: &Actuation, scale: [f64; 2], t_s: f64, len_s: f64) {
+        let drive = self.drive(act);
+        let scaled = TorqueScaled {
+            drive: &drive,
+            scale,
+        };
+        let grid = &mut self.grid;
+        match &mut self.lag {
+            Some((tau, te)) => {
+                let (st, t_new) = self.plant.rk4_step_lagged(
+                    &self.state,
+                    *tau,
+                    *te,
+                    t_s,
+                    len_s,
+                    &scaled,
+                    &mut |t| grid.at(t),
+                );
+                self.state = st;
+                *tau = t_new;
+            }
+            None => {
+                self.state = self
+                    .plant
+                    .rk4_step(&self.state, t_s, len_s, &scaled, &mut |t| grid.at(t));
+            }
         }
     }
 }
@@ -823,5 +1146,236 @@ mod tests {
             .advance(Actuation::Torque([f64::INFINITY, 0.0]), 1e-3)
             .unwrap_err();
         assert_eq!(e, Diverged { t_s: 0.5 });
+    }
+    fn with_actuator(delay_s: f64, tau_e_s: f64, substeps: u32) -> WorldConfig {
+        let mut c = cfg(ideal());
+        c.initial_pose = [0.0, 0.0, 0.0];
+        c.substeps = substeps;
+        c.plant.actuator = crate::plant::ActuatorDynamics {
+            delay_s,
+            electrical_time_constant_s: tau_e_s,
+        };
+        c
+    }
+
+    /// Equal torques τ from rest: x(t) = a·(t − d)²/2 for t > d, 0 before,
+    /// a = 2τ/(r·M1₁₁): a delay d (here 1.3 periods, so the switch falls
+    /// inside a sub-step) shifts the step response by exactly d.
+    #[test]
+    fn delay_shifts_the_step_response() {
+        let d = 1.3e-3;
+        let mut w = World::new(&with_actuator(d, 0.0, 4)).unwrap();
+        let p = *w.plant().params();
+        let tau = 0.5;
+        let a = 2.0 * tau / (p.wheel_radius_m[0] * p.m1_diag()[0]);
+        for k in 0..50 {
+            let t = k as f64 * 1e-3;
+            w.sense(t);
+            let x = w.true_pose()[0];
+            let want = if t > d {
+                0.5 * a * (t - d) * (t - d)
+            } else {
+                0.0
+            };
+            assert!((x - want).abs() < 1e-12, "t {t}: {x} vs {want}");
+            w.advance(Actuation::Torque([tau, tau]), 1e-3).unwrap();
+        }
+    }
+
+    /// Electrical time constant τ_e: after a torque step the delivered
+    /// torque is τ·(1 − e^(−t/τ_e)) and the speed a·(t − τ_e(1 − e^(−t/τ_e))).
+    #[test]
+    fn electrical_lag_is_first_order() {
+        let te = 2e-3;
+        let mut w = World::new(&with_actuator(0.0, te, 4)).unwrap();
+        let p = *w.plant().params();
+        let tau = 0.5;
+        let a = 2.0 * tau / (p.wheel_radius_m[0] * p.m1_diag()[0]);
+        for k in 0..20 {
+            w.sense(k as f64 * 1e-3);
+            w.advance(Actuation::Torque([tau, tau]), 1e-3).unwrap();
+            let t = (k + 1) as f64 * 1e-3;
+            let e = (-t / te).exp();
+            let got = w.lagged_torque_nm().unwrap()[0];
+            assert!((got - tau * (1.0 - e)).abs() < 1e-5 * tau, "t {t}: {got}");
+            let v = a * (t - te * (1.0 - e));
+            assert!((w.state().nu[0] - v).abs() < 1e-5 * a * t, "t {t}");
+        }
+        // A sub-step longer than 2·τ_e is refused.
+        assert_eq!(
+            World::new(&with_actuator(0.0, 1e-4, 1)).err(),
+            Some(WorldError::StiffActuator)
+        );
+        assert_eq!(
+            World::new(&with_actuator(0.05, 0.0, 1)).err(),
+            Some(WorldError::DelayTooLong)
+        );
+    }
+
+    fn duty(d: i32) -> DutyCommand {
+        DutyCommand {
+            duty: d.unsigned_abs() as u16,
+            reverse: d < 0,
+        }
+    }
+
+    /// The wheels' angles after `ms` periods of `cmd` on a hardware world
+    /// with this wiring (starting at rest).
+    fn drive_wired(wiring: Wiring, cmd: [i32; 2], ms: usize) -> (World, [u16; 2]) {
+        let mut c = cfg(hardware());
+        c.faults.wiring = wiring;
+        let mut w = World::new(&c).unwrap();
+        let c0 = w.encoder_counts();
+        for k in 0..ms {
+            w.sense(k as f64 * 1e-3);
+            w.io().motors.set([duty(cmd[0]), duty(cmd[1])]);
+            w.advance(Actuation::Bridge(w.bridge()), 1e-3).unwrap();
+        }
+        w.sense(ms as f64 * 1e-3);
+        (w, c0)
+    }
+
+    /// Swapped motors: a command on the right channel alone drives the
+    /// left motor: the run equals the correctly wired one with that command
+    /// on the left channel (the same signal into the same motor), and the
+    /// robot turns right instead of left.
+    #[test]
+    fn swapped_motors_turn_the_other_wheel() {
+        let swapped = Wiring {
+            motors_swapped: true,
+            ..Wiring::CORRECT
+        };
+        let (sw, _) = drive_wired(swapped, [-1500, 0], 100);
+        let (left, _) = drive_wired(Wiring::CORRECT, [0, -1500], 100);
+        let (right, _) = drive_wired(Wiring::CORRECT, [-1500, 0], 100);
+        assert_eq!(sw.state(), left.state());
+        // The left wheel (mirrored motor, reverse duty) drives forward.
+        assert!(sw.state().q[4] > sw.state().q[3] && sw.state().nu[1] < 0.0);
+        assert!(right.state().nu[1] > 0.0 || right.state().nu[0] < 0.0);
+    }
+
+    /// A motor with its leads swapped turns backwards on a forward command.
+    #[test]
+    fn inverted_motor_turns_backwards() {
+        let w = Wiring {
+            motor_inverted: [true, false],
+            ..Wiring::CORRECT
+        };
+        let (world, _) = drive_wired(w, [1500, 0], 100);
+        assert!(world.state().q[3] < 0.0);
+    }
+
+    /// Encoder faults: an inverted encoder counts the other way; swapped
+    /// encoders report each wheel's angle on the other counter (with that
+    /// wheel's mounting), counts = floor(φ·cpr/2π) per the mounting.
+    #[test]
+    fn encoder_wiring_faults_as_counted() {
+        let cpr = EncoderParams::EXAMPLE.counts_per_wheel_rev as f64;
+        let mount = EncoderParams::EXAMPLE.inverted;
+        let count = |phi: f64, inv: bool| {
+            let c = (phi * cpr / core::f64::consts::TAU).floor() as i64;
+            (if inv { -c } else { c }) as u16
+        };
+        let cmd = [1500, -600];
+        for wiring in [
+            Wiring::CORRECT,
+            Wiring {
+                encoder_inverted: [true, false],
+                ..Wiring::CORRECT
+            },
+            Wiring {
+                encoders_swapped: true,
+                ..Wiring::CORRECT
+            },
+            Wiring {
+                encoders_swapped: true,
+                encoder_inverted: [false, true],
+                ..Wiring::CORRECT
+            },
+        ] {
+            let (mut w, _) = drive_wired(wiring, cmd, 50);
+            let q = w.state().q;
+            let phi = [q[3], q[4]];
+            let inv = |wheel: usize| mount[wheel] ^ wiring.encoder_inverted[wheel];
+            let want = if wiring.encoders_swapped {
+                [count(phi[1], inv(1)), count(phi[0], inv(0))]
+            } else {
+                [count(phi[0], inv(0)), count(phi[1], inv(1))]
+            };
+            assert_eq!(w.encoder_counts(), want, "{wiring:?}");
+        }
+        // Ideal sensing has no wires.
+        let mut c = cfg(ideal());
+        c.faults.wiring.motors_swapped = true;
+        assert_eq!(World::new(&c).err(), Some(WorldError::InvalidWiring));
+    }
+
+    /// The plant's encoders may have another resolution than the
+    /// runtime's: counts scale with it.
+    #[test]
+    fn plant_encoder_resolution() {
+        let mut c = cfg(hardware());
+        if let Instruments::Hardware(hw) = &mut c.instruments {
+            hw.encoder.counts_per_wheel_rev = 1320.0;
+            hw.encoder.inverted = [false; 2];
+        }
+        let mut w = World::new(&c).unwrap();
+        for k in 0..100 {
+            w.sense(k as f64 * 1e-3);
+            w.advance(Actuation::Torque([2.0, 2.0]), 1e-3).unwrap();
+        }
+        w.sense(0.1);
+        let phi = w.state().q[3];
+        let want = (phi * 1320.0 / core::f64::consts::TAU).floor() as i64 as u16;
+        assert_eq!(w.encoder_counts()[0], want);
+    }
+    /// A robot file as the plant: the paper's file behind the runtime
+    /// derived from it is exactly `of_runtime`'s world (two constructions
+    /// of the same robot); a plant file that differs reaches the plant, its
+    /// motors and encoders; an invalid file is refused naming the field.
+    #[cfg(any(test, feature = "robot-file"))]
+    #[test]
+    fn world_of_a_robot_file() {
+        use controller_core::runtime::RuntimeConfig;
+        use controller_core::ControllerKind;
+        use robot_file::Robot;
+        let kind = ControllerKind::Proposed;
+        let model = Robot::paper();
+        let rt = model
+            .runtime_config(
+                kind,
+                RuntimeConfig::example(kind).reference,
+                Pose::new(0.5, -0.2, 0.1),
+                96_000_000,
+            )
+            .unwrap();
+        let same = WorldConfig::of_robot(&model, &rt).unwrap();
+        assert_eq!(same, WorldConfig::of_runtime(&rt));
+        let mut plant = model.clone();
+        plant.body.wheel_radius_m = [0.102, 0.1];
+        plant.body.track_m = 0.42;
+        plant.motors.torque_constant_nm_per_a = 0.06;
+        plant.motors.coulomb_friction_nm = [0.3, 0.2];
+        plant.encoders.counts_per_wheel_rev = 1320.0;
+        plant.encoders.inverted = [true, true];
+        let c = WorldConfig::of_robot(&plant, &rt).unwrap();
+        assert_eq!(c.plant.wheel_radius_m, [0.102f32 as f64, 0.1f32 as f64]);
+        assert_eq!(c.plant.half_track_m, 0.5 * 0.42f32 as f64);
+        assert_eq!(c.plant.friction[0].coulomb_nm, 0.3f32 as f64);
+        assert_eq!(c.period_s, rt.controller.period_s as f64);
+        let Instruments::Hardware(hw) = c.instruments else {
+            panic!("hardware expected");
+        };
+        assert_eq!(hw.motor.torque_constant_nm_per_a, 0.06);
+        assert_eq!(hw.motor.duty_full_scale, rt.motor.duty_full_scale);
+        assert_eq!(hw.encoder.counts_per_wheel_rev, 1320.0);
+        assert_eq!(hw.encoder.inverted, [true, true]);
+        assert!(World::new(&c).is_ok());
+        let mut bad = plant.clone();
+        bad.body.mass_kg = f32::NAN;
+        match WorldConfig::of_robot(&bad, &rt) {
+            Err(WorldError::Robot(e)) => assert_eq!(e.field, "body.mass_kg"),
+            other => panic!("{other:?}"),
+        }
     }
 }

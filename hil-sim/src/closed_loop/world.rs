@@ -27,6 +27,7 @@ fn world(
         faults: Faults {
             wheel_torque_scale: scn.perturbations.wheel_torque_scale,
             dead_encoder,
+            ..Faults::NONE
         },
     })
     .map_err(|e| format!("scenario '{}': {e}", scn.name))
