@@ -31,6 +31,20 @@ pub struct SimRobot {
     step: u64,
 }
 
+/// The link's limits from the robot file's `[limits]` (timeout, speed,
+/// yaw rate, acceleration), the rest `LinkConfig::DEFAULT`'s; the paper
+/// robot's are the defaults (robot-file's `paper_limits`).
+pub fn link_config(robot: &crate::scenario::Robot) -> LinkConfig {
+    let l = &robot.limits;
+    LinkConfig {
+        link_timeout_ms: l.link_timeout_ms,
+        accel_mps2: l.max_accel_mps2,
+        max_speed_mps: l.max_speed_mps,
+        max_yaw_rate_radps: l.max_yaw_rate_radps,
+        ..LinkConfig::DEFAULT
+    }
+}
+
 impl SimRobot {
     /// The robot of `scn` (at rest at `initial_pose`, in hold) with the
     /// runtime running `kind` at the scenario's gains and the simulated
@@ -46,13 +60,13 @@ impl SimRobot {
         }
         let scn = &served;
         let controller = controller_config(scn, kind);
-        let cfg = scn.runtime_config(controller, crate::hil::HilOptions::default().safety);
+        let cfg = scn.runtime_config(controller, scn.safety_limits());
         // The runtime gives the estimator its geometry and initial pose.
         let estimator = sensing_estimator_config(&scn.sensor_setup()?);
         let dev_cfg = DeviceConfig {
             chip: "sim",
             capabilities: CAP_EXTERNAL_POSE | CAP_TRAJECTORY | CAP_VELOCITY | CAP_SIMULATED,
-            link: LinkConfig::DEFAULT,
+            link: link_config(&scn.robot),
             button_reference: None,
         };
         let device =
@@ -193,6 +207,7 @@ pub fn open_pty() -> Result<(serialport::TTYPort, serialport::TTYPort, String), 
 mod tests {
     use super::*;
     use crate::scenario::PerturbationPart;
+    use crate::scenario::Robot;
     use wmr_protocol::{Request, RunStateMsg, MAX_FRAME};
 
     fn send(robot: &mut SimRobot, seq: u16, req: &Request) {
@@ -253,5 +268,34 @@ mod tests {
         healthy.perturbations.wheel_torque_scale = [1.0, 1.0];
         let (moved, _) = drive(&healthy);
         assert!(moved > 0.1, "healthy robot moved only {moved} m");
+    }
+
+    /// `device --robot FILE` serves that robot: the runtime's encoder, motor
+    /// and controller model are the file's, the link's limits its
+    /// `[limits]`; the paper robot's link limits are the defaults.
+    #[test]
+    fn device_serves_the_robot_of_its_file() {
+        assert_eq!(link_config(&Robot::paper()), LinkConfig::DEFAULT);
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robots/tb6612-2kg.toml"
+        ))
+        .unwrap();
+        let robot = Robot::from_toml_str(&text).unwrap();
+        let scn = Scenario::default().with_robots(Some(&robot), None);
+        let mut sim = SimRobot::new(&scn, ControllerKind::Proposed).unwrap();
+        let link = *sim.device().link_config();
+        assert_eq!(
+            (link.max_speed_mps, link.max_yaw_rate_radps),
+            (robot.limits.max_speed_mps, robot.limits.max_yaw_rate_radps)
+        );
+        let cfg = *sim.device().control().config();
+        assert_eq!(cfg.encoder.counts_per_wheel_rev, 1320.0);
+        assert_eq!(cfg.controller.robot.wheel_radius_m, 0.035);
+        assert_eq!(cfg.controller.torque_limit_nm, robot.limits.torque_nm);
+        assert_eq!(
+            cfg.motor.torque_constant_nm_per_a,
+            robot.motors.torque_constant_nm_per_a
+        );
     }
 }

@@ -78,10 +78,10 @@ pub fn check_scenario(s: &Scenario) -> Result<(), String> {
             "scenario '{name}': duration_s / control_period_s x substeps = {steps:.3e} plant steps, beyond the {MAX_PLANT_STEPS:.0e} limit (minutes of computing per 1e9)"
         ));
     }
-    if !(0.0..=MAX_TORQUE_LIMIT_NM).contains(&s.plant.torque_limit_nm) {
+    if !(0.0..=MAX_TORQUE_LIMIT_NM).contains(&s.torque_limit_nm()) {
         return Err(format!(
             "scenario '{name}': torque_limit_nm = {} N·m is beyond the {MAX_TORQUE_LIMIT_NM} N·m limit",
-            num(s.plant.torque_limit_nm)
+            num(s.torque_limit_nm())
         ));
     }
     let [x, y, th] = s.initial_pose;
@@ -229,7 +229,7 @@ mod tests {
             (|s| s.duration_s = 1e9, "duration_s"),
             (|s| s.control_period_s = 1e-9, "control_period_s"),
             (|s| s.substeps = 4_000_000_000, "substeps"),
-            (|s| s.plant.torque_limit_nm = 1e30, "torque_limit_nm"),
+            (|s| s.plant.torque_limit_nm = Some(1e30), "torque_limit_nm"),
             (|s| s.initial_pose = [1e308, 0.0, 0.0], "initial_pose"),
             (|s| s.initial_pose = [0.0, -256.0, 0.0], "initial_pose"),
             (

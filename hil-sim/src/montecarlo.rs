@@ -212,7 +212,7 @@ pub fn stats_from_records(records: &[SimRecord]) -> Vec<ControllerStats> {
 }
 
 /// Monte-Carlo settings (stored in every shard file's header).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct McConfig {
     /// Runs per controller.
     pub runs: usize,
@@ -233,6 +233,14 @@ pub struct McConfig {
     /// files of default sweeps, so their format is unchanged.
     #[serde(default, skip_serializing_if = "is_false")]
     pub paper_setting: bool,
+    /// The controller's robot (`--robot`; None = the paper's); absent from
+    /// shard files of paper-robot sweeps, so their format is unchanged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<crate::scenario::Robot>,
+    /// The simulated robot when it differs (`--plant`; None = the
+    /// controller's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plant: Option<crate::scenario::Robot>,
 }
 
 fn is_ideal(s: &Sensing) -> bool {
@@ -255,7 +263,7 @@ impl McConfig {
         if self.paper_setting {
             scn = scn.as_printed();
         }
-        scn
+        scn.with_robots(self.robot.as_ref(), self.plant.as_ref())
     }
 
     /// Rejects settings no run could use (checks run 0's scenario).

@@ -530,10 +530,11 @@ fn fig_torques<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, d: &CaseData) -
         &root,
         &format!(
             "{}: applied wheel torques, limit ±{} N·m (paper Fig. 4b/7b)",
-            d.case_title, d.scn.plant.torque_limit_nm
+            d.case_title,
+            d.scn.torque_limit_nm()
         ),
     )?;
-    let l = d.scn.plant.torque_limit_nm * 1.08;
+    let l = d.scn.torque_limit_nm() * 1.08;
     let panels = root.split_evenly((2, 1));
     for (i, (area, name)) in panels
         .iter()

@@ -157,7 +157,7 @@ pub fn scenario_summary(scn: &Scenario) -> String {
         scn.perturbations.skid_scale,
         scn.perturbations.disturbance_nm,
         scn.plant.mass_scale,
-        scn.plant.torque_limit_nm,
+        scn.torque_limit_nm(),
         scn.seed
     )
 }

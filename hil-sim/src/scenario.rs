@@ -18,6 +18,7 @@ use crate::rng::Rng;
 pub use crate::sensing::Sensing;
 use crate::sensing::{GyroOverrides, PoseOverrides};
 use controller_core::runtime::{EncoderParams, MotorParams};
+pub use robot_file::Robot;
 use serde::{Deserialize, Serialize};
 use sim_robot::{Perturbation, PerturbationProfile};
 
@@ -103,6 +104,14 @@ pub struct Scenario {
     /// Seed for the measurement noise (and for β, ε in the presets).
     #[arg(long)]
     pub seed: u64,
+    /// The robot the controller is configured for: its model, gains, motor,
+    /// encoder and limits, and (unless [`PlantPart`] says otherwise) the
+    /// simulated robot too. The paper's robot ([`Robot::paper`]) unless
+    /// `--robot FILE` (a robot file, docs/robot.md) names another; not a
+    /// key of the scenario file.
+    #[serde(skip, default = "Robot::paper")]
+    #[arg(skip = Robot::paper())]
+    pub robot: Robot,
     /// The simulated robot against the controller's model.
     #[command(flatten)]
     pub plant: PlantPart,
@@ -120,7 +129,11 @@ pub struct Scenario {
     pub governor: GovernorPart,
 }
 
-/// `[plant]`: the simulated robot against the controller's model.
+/// `[plant]`: the simulated robot against the controller's model. The
+/// plant is the controller's robot ([`Scenario::robot`]), or the robot file
+/// of `--plant FILE` ([`Self::robot`]), with the robot-file fields of the
+/// `[plant.body]`, `[plant.motors]`, ... tables over it, then the scales,
+/// the actuation delay and the electrical lag below ([`Scenario::plant_robot`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(default, deny_unknown_fields)]
 pub struct PlantPart {
@@ -130,9 +143,47 @@ pub struct PlantPart {
     /// Plant inertia / controller model inertia.
     #[arg(long)]
     pub inertia_scale: f64,
-    /// Per-wheel torque limit [N·m] (controller saturation and actuator limit).
+    /// Per-wheel torque limit [N·m] (controller saturation and actuator
+    /// limit; None = the robot file's `limits.torque_nm`).
+    #[serde(skip_serializing_if = "Option::is_none")]
     #[arg(long = "torque-limit", value_name = "N·m")]
-    pub torque_limit_nm: f64,
+    pub torque_limit_nm: Option<f64>,
+    /// Actuation delay of the plant [s]: the torque the controller commands
+    /// acts this much later (0 = none; the model assumes none).
+    #[arg(long = "actuation-delay", value_name = "s")]
+    pub actuation_delay_s: f64,
+    /// Electrical time constant L/R of the plant's motors [s]: the torque
+    /// follows the command with this first-order lag (0 = none; the model
+    /// assumes none).
+    #[arg(long = "electrical-time-constant", value_name = "s")]
+    pub electrical_time_constant_s: f64,
+    /// The plant's own robot file (`--plant FILE`), when it differs from
+    /// the controller's; not a key of the scenario file (its fields are:
+    /// the tables below).
+    #[serde(skip)]
+    #[arg(skip)]
+    pub robot: Option<Robot>,
+    /// Fields of the robot file's `[body]` for the plant (`[plant.body]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(skip)]
+    pub body: Option<toml::Table>,
+    /// Fields of the robot file's `[motors]` for the plant (`[plant.motors]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(skip)]
+    pub motors: Option<toml::Table>,
+    /// Fields of the robot file's `[encoders]` for the plant (`[plant.encoders]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(skip)]
+    pub encoders: Option<toml::Table>,
+    /// Fields of the robot file's `[bridge]` for the plant (`[plant.bridge]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(skip)]
+    pub bridge: Option<toml::Table>,
+    /// Fields of the robot file's `[limits]` for the plant (`[plant.limits]`:
+    /// `torque_nm` is the drive's hard limit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(skip)]
+    pub limits: Option<toml::Table>,
 }
 
 impl Default for PlantPart {
@@ -140,8 +191,35 @@ impl Default for PlantPart {
         Self {
             mass_scale: 1.0,
             inertia_scale: 1.0,
-            torque_limit_nm: controller_core::controller::DEFAULT_TORQUE_LIMIT_NM as f64,
+            torque_limit_nm: None,
+            actuation_delay_s: 0.0,
+            electrical_time_constant_s: 0.0,
+            robot: None,
+            body: None,
+            motors: None,
+            encoders: None,
+            bridge: None,
+            limits: None,
         }
+    }
+}
+
+impl PlantPart {
+    /// The robot-file sections this part overrides, by section name.
+    fn sections(&self) -> [(&'static str, &Option<toml::Table>); 5] {
+        [
+            ("body", &self.body),
+            ("motors", &self.motors),
+            ("encoders", &self.encoders),
+            ("bridge", &self.bridge),
+            ("limits", &self.limits),
+        ]
+    }
+
+    /// True when the plant is the controller's robot as it is (no file, no
+    /// field override; the scales, delay and lag aside).
+    pub fn is_model(&self) -> bool {
+        self.robot.is_none() && self.sections().iter().all(|(_, t)| t.is_none())
     }
 }
 
@@ -311,6 +389,8 @@ pub const PARTS: [&str; 5] = [
 pub fn every_key_set() -> Scenario {
     let mut s = Scenario::default().with_sensing(Sensing::Mocap);
     s.perturbations.eps_end = Some(0.3);
+    s.plant.torque_limit_nm = Some(8.0);
+    s.plant.actuation_delay_s = 0.002;
     s.perturbations.wheel_torque_scale = [1.0, 0.5];
     s.controller.k_y = Some(20.0);
     s.controller.clean_start = false;
@@ -365,6 +445,7 @@ impl Default for Scenario {
             initial_pose: [2.5, 0.0, 0.0],
             trajectory: TrajectoryKind::Paper,
             seed: 1,
+            robot: Robot::paper(),
             plant: PlantPart::default(),
             perturbations: PerturbationPart::default(),
             sensing: SensingPart::default(),
@@ -412,6 +493,18 @@ impl Scenario {
         self
     }
 
+    /// This scenario with `robot` as the controller's robot and `plant` as
+    /// the simulated one (each None: unchanged).
+    pub fn with_robots(mut self, robot: Option<&Robot>, plant: Option<&Robot>) -> Self {
+        if let Some(r) = robot {
+            self.robot = r.clone();
+        }
+        if let Some(p) = plant {
+            self.plant.robot = Some(p.clone());
+        }
+        self
+    }
+
     /// This scenario with the sensing preset `preset` (its overrides kept).
     pub fn with_sensing(mut self, preset: Sensing) -> Self {
         self.sensing.preset = preset;
@@ -432,7 +525,7 @@ impl Scenario {
         let pos = |x: f64| x.is_finite() && x > 0.0;
         let nonneg = |x: f64| x.is_finite() && x >= 0.0;
         let ideal = self.sensing.preset == Sensing::Ideal;
-        let checks: [(bool, &str); 17] = [
+        let checks: [(bool, &str); 18] = [
             (pos(self.duration_s), "duration_s must be > 0"),
             (
                 pos(self.control_period_s) && self.control_period_s <= 0.1,
@@ -465,7 +558,13 @@ impl Scenario {
                 pos(self.plant.mass_scale) && pos(self.plant.inertia_scale),
                 "mass_scale and inertia_scale must be > 0",
             ),
-            (pos(self.plant.torque_limit_nm), "torque_limit_nm must be > 0"),
+            (self.plant.torque_limit_nm.is_none_or(pos), "torque_limit_nm must be > 0"),
+            (
+                nonneg(self.plant.actuation_delay_s) && self.plant.actuation_delay_s <= 1.0
+                    && nonneg(self.plant.electrical_time_constant_s)
+                    && self.plant.electrical_time_constant_s <= 1.0,
+                "actuation_delay_s and electrical_time_constant_s must be in [0, 1] s",
+            ),
             (
                 nonneg(self.sensing.pose_noise_m) && nonneg(self.sensing.heading_noise_rad),
                 "noise must be >= 0",
@@ -501,6 +600,7 @@ impl Scenario {
             None => self
                 .sensor_setup()
                 .map(|_| ())
+                .and_then(|_| self.plant_robot().map(|_| ()))
                 .map_err(|e| format!("scenario '{}': {e}", self.name)),
         }
     }
@@ -536,44 +636,73 @@ impl Scenario {
         self.perturbations().at(t_s)
     }
 
-    /// The simulated encoders (firmware sensing): `encoder_cpr` and
-    /// `speed_window_ticks`, the example encoder's where 0, left mirrored.
+    /// The controller's encoders (firmware sensing): the robot's, with
+    /// `encoder_cpr` and `speed_window_ticks` where not 0.
     pub fn encoder(&self) -> EncoderParams {
-        let ex = EncoderParams::EXAMPLE;
+        Self::encoder_of(&self.robot, &self.sensing)
+    }
+
+    /// `robot`'s encoders with the sensing part's overrides.
+    fn encoder_of(robot: &Robot, sensing: &SensingPart) -> EncoderParams {
+        let e = robot.encoder_params();
         EncoderParams {
-            counts_per_wheel_rev: match self.sensing.encoder_cpr {
-                0 => ex.counts_per_wheel_rev,
+            counts_per_wheel_rev: match sensing.encoder_cpr {
+                0 => e.counts_per_wheel_rev,
                 n => n as f32,
             },
-            speed_window_ticks: match self.sensing.speed_window_ticks {
-                0 => ex.speed_window_ticks,
+            speed_window_ticks: match sensing.speed_window_ticks {
+                0 => e.speed_window_ticks,
                 n => n,
             },
-            ..ex
+            ..e
         }
     }
 
-    /// Controller configuration for this scenario: Table 2 gains plus the
-    /// scenario's torque limit, period and optional k_y override.
+    /// The per-wheel torque limit [N·m]: `plant.torque_limit_nm`, or the
+    /// robot file's `limits.torque_nm`.
+    pub fn torque_limit_nm(&self) -> f64 {
+        self.plant
+            .torque_limit_nm
+            .unwrap_or(f64::from(self.robot.limits.torque_nm))
+    }
+
+    /// Controller configuration for this scenario: the robot's model and
+    /// gains (`[gains.<kind>]`, Table 2's without), the scenario's torque
+    /// limit, period and optional k_y override; with `clean_start` the
+    /// large-error bound (the file's, or D23's default where the file has
+    /// the paper's unbounded one), without it eq. (14) as printed.
     pub fn controller_config(
         &self,
         kind: controller_core::ControllerKind,
     ) -> controller_core::ControllerConfig {
-        let mut cfg = controller_core::ControllerConfig::paper(kind);
-        cfg.torque_limit_nm = self.plant.torque_limit_nm as f32;
+        let printed = controller_core::ControllerConfig::paper(kind)
+            .kinematic
+            .large_error_m;
+        let mut cfg = self.robot.controller_config(kind);
+        cfg.torque_limit_nm = self.torque_limit_nm() as f32;
         cfg.period_s = self.control_period_s as f32;
         if let Some(k_y) = self.controller.k_y {
             cfg.kinematic.k_y = k_y as f32;
         }
-        if self.controller.clean_start {
-            cfg.kinematic.large_error_m = controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
-        }
+        cfg.kinematic.large_error_m = match self.controller.clean_start {
+            false => printed,
+            true if cfg.kinematic.large_error_m == printed => {
+                controller_core::kinematic::DEFAULT_LARGE_ERROR_M
+            }
+            true => cfg.kinematic.large_error_m,
+        };
         cfg
     }
 
+    /// The runtime's safety limits for this scenario's robot and period
+    /// (`Robot::safety_limits`).
+    pub fn safety_limits(&self) -> controller_core::runtime::SafetyLimits {
+        self.robot.safety_limits(self.control_period_s as f32)
+    }
+
     /// The firmware runtime's configuration for this scenario: `controller`,
-    /// the scenario's reference and initial pose, its encoders and motors
-    /// (left mirrored), `safety`, and its pacing.
+    /// the scenario's reference and initial pose, the robot's encoders,
+    /// motors and motor directions, `safety`, and its pacing.
     pub fn runtime_config(
         &self,
         controller: controller_core::ControllerConfig,
@@ -586,25 +715,84 @@ impl Scenario {
             initial_pose: controller_core::Pose::new(p0[0] as f32, p0[1] as f32, p0[2] as f32),
             encoder: self.encoder(),
             motor: self.motor(),
-            motor_inverted: controller_core::runtime::MIRRORED_LEFT,
+            motor_inverted: self.robot.bridge.motor_inverted,
             safety,
             pacing: self.pacing(),
         }
     }
 
-    /// The simulated motors (firmware sensing): the example motor with
-    /// `pwm_levels` counts at full duty (the example's where 0).
+    /// The PWM counts at full duty: `pwm_levels`, or the robot's bridge
+    /// frequency on the F411's timer clock ([`TIMER_CLOCK_HZ`]).
+    fn duty_full_scale(&self) -> u16 {
+        match self.sensing.pwm_levels {
+            0 => self
+                .robot
+                .bridge
+                .params()
+                .duty_full_scale(TIMER_CLOCK_HZ)
+                .unwrap_or(MotorParams::EXAMPLE.duty_full_scale),
+            n => n as u16,
+        }
+    }
+
+    /// The controller's motors (firmware sensing): the robot's, with
+    /// `pwm_levels` counts at full duty (where not 0).
     pub fn motor(&self) -> MotorParams {
-        let ex = MotorParams::EXAMPLE;
-        MotorParams {
-            duty_full_scale: match self.sensing.pwm_levels {
-                0 => ex.duty_full_scale,
-                n => n as u16,
-            },
-            ..ex
+        self.robot.motor_params(self.duty_full_scale())
+    }
+
+    /// The simulated robot: the plant's robot file (`--plant`, or the
+    /// controller's robot) with the `[plant.<section>]` fields over it,
+    /// validated as a robot file (errors name the field as `plant.<path>`).
+    pub fn plant_robot(&self) -> Result<Robot, String> {
+        let base = self.plant.robot.as_ref().unwrap_or(&self.robot);
+        if self.plant.sections().iter().all(|(_, t)| t.is_none()) {
+            return Ok(base.clone());
+        }
+        let mut table: toml::Table =
+            toml::from_str(&base.to_toml_string()).map_err(|e| format!("plant: {e}"))?;
+        for (name, over) in self.plant.sections() {
+            let Some(over) = over else { continue };
+            match table.get_mut(name) {
+                Some(toml::Value::Table(t)) => {
+                    for (k, v) in over {
+                        if !t.contains_key(k) {
+                            return Err(format!(
+                                "plant.{name}.{k}: not a field of the robot file's [{name}] (docs/robot.md)"
+                            ));
+                        }
+                        t.insert(k.clone(), v.clone());
+                    }
+                }
+                _ => return Err(format!("plant.{name}: not a section of the robot file")),
+            }
+        }
+        let text = toml::to_string(&table).map_err(|e| format!("plant: {e}"))?;
+        Robot::from_toml_str(&text)
+            .map_err(|e| format!("plant (robot file with the [plant.*] fields): {e}"))
+    }
+
+    /// The simulated motors: the plant robot's, with the controller's PWM
+    /// resolution (a board property).
+    pub fn plant_motor(&self, plant: &Robot) -> MotorParams {
+        plant.motor_params(self.duty_full_scale())
+    }
+
+    /// The simulated encoders: the plant robot's, with the sensing part's
+    /// overrides, counting the true wheel angle (the radius scale is the
+    /// runtime's business).
+    pub fn plant_encoder(&self, plant: &Robot) -> EncoderParams {
+        EncoderParams {
+            radius_scale: [1.0; 2],
+            ..Self::encoder_of(plant, &self.sensing)
         }
     }
 }
+
+/// Timer clock the PWM resolution is derived at when `pwm_levels` is 0
+/// [Hz]: the STM32F411's 96 MHz (robot-file's first supported clock; the
+/// paper robot's 20 kHz gives the example's 4,800 levels).
+pub const TIMER_CLOCK_HZ: u32 = robot_file::SUPPORTED_TIMER_CLOCKS_HZ[0];
 
 #[cfg(test)]
 mod tests {
@@ -638,7 +826,7 @@ mod tests {
         s.perturbations.eps = 1.5;
         assert!(s.validate().unwrap_err().contains("eps"));
         let mut s = Scenario::default();
-        s.plant.torque_limit_nm = f64::NAN;
+        s.plant.torque_limit_nm = Some(f64::NAN);
         assert!(s.validate().unwrap_err().contains("torque"));
     }
 }

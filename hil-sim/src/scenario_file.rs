@@ -220,6 +220,44 @@ mod tests {
         }
     }
 
+    /// `[plant.<section>]` tables set robot-file fields of the simulated
+    /// robot only; a misspelt or unphysical field is an error naming it.
+    #[test]
+    fn plant_tables_override_robot_fields() {
+        let s = parse_scenario(
+            "version = 2\n[plant]\nactuation_delay_s = 0.002\n[plant.body]\ntrack_m = 0.42\n[plant.motors]\ncoulomb_friction_nm = [0.5, 0.5]\n",
+            "p",
+        )
+        .unwrap();
+        let p = s.plant_robot().unwrap();
+        assert_eq!(p.body.track_m, 0.42);
+        assert_eq!(p.motors.coulomb_friction_nm, [0.5, 0.5]);
+        assert_eq!(s.robot, crate::scenario::Robot::paper());
+        assert_eq!(
+            s.controller_config(controller_core::ControllerKind::Proposed)
+                .robot
+                .half_track_m,
+            0.2
+        );
+        for (text, needle) in [
+            (
+                "version = 2\n[plant.body]\ntrak_m = 0.42\n",
+                "plant.body.trak_m",
+            ),
+            (
+                "version = 2\n[plant.body]\ntrack_m = -0.4\n",
+                "body.track_m",
+            ),
+            (
+                "version = 2\n[plant]\nactuation_delay_s = -1.0\n",
+                "actuation_delay_s",
+            ),
+        ] {
+            let e = parse_scenario(text, "p.toml").unwrap_err();
+            assert!(e.contains(needle), "{e}");
+        }
+    }
+
     #[test]
     fn version_2_unknown_keys_are_named() {
         for (text, key) in [

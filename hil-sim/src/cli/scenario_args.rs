@@ -67,6 +67,9 @@ pub struct ScenarioArgs {
     /// Scenario TOML file (schema: docs/scenario.md); the flags below override it.
     #[arg(long, value_name = "FILE.toml")]
     pub scenario: Option<PathBuf>,
+    /// The robot files (`--robot`, `--plant`).
+    #[command(flatten)]
+    pub robots: super::robot_arg::RobotArgs,
     /// Every knob of the scenario (docs/scenario.md): the fields of
     /// [`Scenario`] and of its parts.
     #[command(flatten)]
@@ -86,6 +89,8 @@ impl ScenarioArgs {
                 None,
             ),
         };
+        let (robot, plant) = self.robots.load()?;
+        scn = scn.with_robots(robot.as_ref(), plant.as_ref());
         self.flags.apply(&mut scn)?;
         scn.validate()?;
         Ok(scn)

@@ -308,3 +308,94 @@ fn absurd_values_are_refused_before_running() {
         assert!(e.contains("--for-s"), "{bad}: {e}");
     }
 }
+
+/// The repository's robots/ directory.
+fn robots_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots")
+}
+
+/// `--robot robots/paper.toml` runs the same robot as no flag: `compare`'s
+/// text (every table) is identical but for the timing and the output path;
+/// another robot changes it (the flag is not ignored).
+#[test]
+fn compare_with_the_paper_robot_file_equals_no_flag() {
+    let paper = robots_dir().join("paper.toml");
+    let small = robots_dir().join("tb6612-2kg.toml");
+    let text = |extra: &[&str]| {
+        let dir = tempfile::tempdir().unwrap();
+        let mut args = vec![
+            "compare",
+            "--out",
+            dir.path().to_str().unwrap(),
+            "--no-plots",
+        ];
+        args.extend_from_slice(extra);
+        let t = run_to_string(&args).unwrap();
+        let out = dir.path().to_str().unwrap().to_string();
+        t.lines()
+            .filter(|l| !l.contains(" simulations in "))
+            .map(|l| l.replace(&out, "OUT"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let none = text(&[]);
+    assert_eq!(none, text(&["--robot", paper.to_str().unwrap()]));
+    assert_ne!(none, text(&["--robot", small.to_str().unwrap()]));
+}
+
+/// A bad robot file is an error naming the file and the field, never a
+/// panic, for every command that takes one.
+#[test]
+fn bad_robot_files_are_errors_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(robots_dir().join("paper.toml")).unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, text.replace("track_m = 0.4", "track_m = -0.4")).unwrap();
+    let bad = bad.to_str().unwrap();
+    let out = dir.path().to_str().unwrap();
+    for args in [
+        vec!["run", "--duration", "0.1", "--robot", bad],
+        vec!["run", "--duration", "0.1", "--plant", bad],
+        vec!["compare", "--no-plots", "--out", out, "--robot", bad],
+        vec![
+            "montecarlo",
+            "--runs",
+            "1",
+            "--duration",
+            "0.1",
+            "--robot",
+            bad,
+        ],
+        vec!["sweep", "--duration", "0.1", "--robot", bad],
+    ] {
+        let e = run_to_string(&args).unwrap_err();
+        assert!(
+            e.contains("bad.toml") && e.contains("body.track_m"),
+            "{args:?}: {e}"
+        );
+    }
+    let e = run_to_string(&["run", "--robot", "/nonexistent/robot.toml"]).unwrap_err();
+    assert!(e.contains("cannot read robot file"), "{e}");
+}
+
+/// `--plant` with a robot whose track is 5 % wider changes the run (the
+/// plant differs from the model), and the same file as `--robot` and
+/// `--plant` equals `--robot` alone.
+#[test]
+fn plant_file_makes_the_simulated_robot_differ() {
+    let dir = tempfile::tempdir().unwrap();
+    let paper = robots_dir().join("paper.toml");
+    let text = std::fs::read_to_string(&paper).unwrap();
+    let wide = dir.path().join("wide.toml");
+    std::fs::write(&wide, text.replace("track_m = 0.4", "track_m = 0.42")).unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run", "--duration", "12", "--json"];
+        args.extend_from_slice(extra);
+        let v: serde_json::Value = serde_json::from_str(&run_to_string(&args).unwrap()).unwrap();
+        v["rms_pos_err_window_m"].as_f64().unwrap()
+    };
+    let p = paper.to_str().unwrap();
+    let nominal = run(&["--robot", p]);
+    assert_eq!(nominal, run(&["--robot", p, "--plant", p]));
+    assert_ne!(nominal, run(&["--plant", wide.to_str().unwrap()]));
+}
