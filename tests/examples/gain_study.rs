@@ -48,7 +48,7 @@ fn main() {
         let scn = {
             let mut s = Scenario::paper_case(2, 1, None, None);
             s.controller.k_y = Some(k_y);
-            s.plant.torque_limit_nm = 5.0;
+            s.plant.torque_limit_nm = Some(5.0);
             s
         };
         row(
@@ -82,7 +82,7 @@ fn main() {
     for lim in [2.0, 5.0, 10.0, 20.0, 1000.0] {
         let scn = {
             let mut s = Scenario::paper_case(2, 1, None, None);
-            s.plant.torque_limit_nm = lim;
+            s.plant.torque_limit_nm = Some(lim);
             s
         };
         for kind in ControllerKind::ALL {

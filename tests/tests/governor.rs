@@ -35,7 +35,7 @@ fn proposed_keeps_the_path_at_low_torque_limits() {
         for seed in SEEDS {
             let scn = {
                 let mut s = case2_fixed(seed);
-                s.plant.torque_limit_nm = limit;
+                s.plant.torque_limit_nm = Some(limit);
                 s
             };
             let p = metrics(&scn, ControllerKind::Proposed);
@@ -178,7 +178,7 @@ fn weak_wheel_slows_and_keeps_the_path() {
     for seed in SEEDS {
         let scn = {
             let mut s = case2_fixed(seed);
-            s.plant.torque_limit_nm = 5.0;
+            s.plant.torque_limit_nm = Some(5.0);
             s.perturbations.wheel_torque_scale = [1.0, 0.5];
             s
         };
@@ -208,7 +208,7 @@ fn traced_time_scale_bounded_and_clock_never_ahead() {
         case2_fixed(1),
         {
             let mut s = case2_fixed(2);
-            s.plant.torque_limit_nm = 3.0;
+            s.plant.torque_limit_nm = Some(3.0);
             s
         },
         {

@@ -93,7 +93,7 @@ fn all_controllers_bounded_over_monte_carlo_sample() {
             let out = run(&scn, kind).unwrap();
             let m = &out.metrics;
             assert_eq!(out.rejected_steps, 0);
-            assert!(m.max_abs_torque_nm <= scn.plant.torque_limit_nm + 1e-9);
+            assert!(m.max_abs_torque_nm <= scn.torque_limit_nm() + 1e-9);
             assert!(m.max_pos_err_window_m < 1.0, "{seed} {kind:?}: {m:?}");
             assert!(
                 m.final_pos_err_m < 0.05,
