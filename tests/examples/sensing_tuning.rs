@@ -39,7 +39,7 @@ fn main() {
                             s.spawn(move || {
                                 let scn = {
                                     let mut s = Scenario {
-                                        seed: seed,
+                                        seed,
                                         ..Scenario::paper_case(2, seed, Some(0.1), Some(0.2))
                                     };
                                     s.sensing.preset = sensing;
