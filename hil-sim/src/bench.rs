@@ -186,6 +186,8 @@ pub fn run_bench(cfg: &BenchConfig) -> BenchReport {
             duration_s: None,
             sensing: Default::default(),
             paper_setting: false,
+            robot: None,
+            plant: None,
         },
         &|| {},
     );

@@ -59,16 +59,18 @@ struct BootConfig {
     dev_cfg: DeviceConfig,
     runtime: RuntimeConfig,
     estimator: EstimatorConfig,
+    /// The compiled-in robot's record (`default_record`).
+    default_record: Vec<u8>,
 }
 
-/// The compiled-in robot of the simulated device: the paper's robot, in
-/// robot-file's binary form.
-fn default_record() -> Vec<u8> {
+/// The compiled-in robot of the simulated device: the scenario's robot
+/// (`--robot`, default the paper's), in robot-file's binary form.
+fn default_record(robot: &robot_file::Robot) -> Result<Vec<u8>, String> {
     let mut buf = [0u8; ROBOT_BLOB_MAX];
-    let n = robot_file::Robot::paper()
+    let n = robot
         .encode(&mut buf)
-        .expect("the paper's robot fits its binary form");
-    buf[..n].to_vec()
+        .map_err(|e| format!("robot {}: binary form: {e:?}", robot.name))?;
+    Ok(buf[..n].to_vec())
 }
 
 /// Builds the device the way a boot does: the record in flash (validated)
@@ -78,7 +80,7 @@ fn default_record() -> Vec<u8> {
 /// and reports `DefaultCorrupt`.
 fn boot_device(boot: &BootConfig, store: &mut FlashRecord<SimFlash>) -> Result<Device, String> {
     let mut record = [0u8; ROBOT_BLOB_MAX];
-    let default = default_record();
+    let default = boot.default_record.clone();
     let (n, mut source, _) = embassy_futures::block_on(load_record(store, &default, &mut record));
     let from_flash = match source {
         RobotSource::Flash => robot_file::Robot::decode(&record[..n])
@@ -117,6 +119,20 @@ fn boot_device(boot: &BootConfig, store: &mut FlashRecord<SimFlash>) -> Result<D
     Ok(device)
 }
 
+/// The link's limits from the robot file's `[limits]` (timeout, speed,
+/// yaw rate, acceleration), the rest `LinkConfig::DEFAULT`'s; the paper
+/// robot's are the defaults (robot-file's `paper_limits`).
+pub fn link_config(robot: &crate::scenario::Robot) -> LinkConfig {
+    let l = &robot.limits;
+    LinkConfig {
+        link_timeout_ms: l.link_timeout_ms,
+        accel_mps2: l.max_accel_mps2,
+        max_speed_mps: l.max_speed_mps,
+        max_yaw_rate_radps: l.max_yaw_rate_radps,
+        ..LinkConfig::DEFAULT
+    }
+}
+
 impl SimRobot {
     /// The robot of `scn` (at rest at `initial_pose`, in hold) with the
     /// runtime running `kind` at the scenario's gains and the simulated
@@ -126,15 +142,13 @@ impl SimRobot {
     /// the host go to the same estimator.
     pub fn new(scn: &Scenario, kind: ControllerKind) -> Result<Self, String> {
         scn.validate()?;
-        let scn = &Scenario {
-            sensing: match scn.sensing {
-                Sensing::Ideal => Sensing::Mocap,
-                s => s,
-            },
-            ..scn.clone()
-        };
+        let mut served = scn.clone();
+        if served.sensing.preset == Sensing::Ideal {
+            served.sensing.preset = Sensing::Mocap;
+        }
+        let scn = &served;
         let controller = controller_config(scn, kind);
-        let cfg = scn.runtime_config(controller, crate::hil::HilOptions::default().safety);
+        let cfg = scn.runtime_config(controller, scn.safety_limits());
         // The runtime gives the estimator its geometry and initial pose.
         let estimator = sensing_estimator_config(&scn.sensor_setup()?);
         let dev_cfg = DeviceConfig {
@@ -144,7 +158,7 @@ impl SimRobot {
                 | CAP_VELOCITY
                 | CAP_SIMULATED
                 | CAP_ROBOT_STORE,
-            link: LinkConfig::DEFAULT,
+            link: link_config(&scn.robot),
             button_reference: None,
         };
         let boot = BootConfig {
@@ -152,6 +166,7 @@ impl SimRobot {
             dev_cfg,
             runtime: cfg,
             estimator,
+            default_record: default_record(&scn.robot)?,
         };
         let mut store = FlashRecord {
             store: RobotStore::new(SimFlash::new(), 0..16 * 1024)
@@ -331,6 +346,8 @@ pub fn open_pty() -> Result<(serialport::TTYPort, serialport::TTYPort, String), 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scenario::PerturbationPart;
+    use crate::scenario::Robot;
     use wmr_protocol::{Request, RunStateMsg, MAX_FRAME};
 
     fn send(robot: &mut SimRobot, seq: u16, req: &Request) {
@@ -378,24 +395,47 @@ mod tests {
     /// the weak wheels and drove off.
     #[test]
     fn robot_behind_the_link_has_the_scenarios_weak_wheels() {
-        let still = Scenario {
+        let mut still = Scenario::default().with_sensing(Sensing::Mocap);
+        still.perturbations = PerturbationPart {
             window_s: [0.0, 100.0],
-            beta: 0.0,
-            eps: 0.0,
-            skid_scale: 0.0,
-            disturbance_nm: 0.0,
-            sensing: Sensing::Mocap,
             wheel_torque_scale: [0.0, 0.0],
-            ..Scenario::default()
+            ..PerturbationPart::none()
         };
         let (dead, driven) = drive(&still);
         assert!(driven, "the runtime never drove the bridge");
         assert!(dead < 1e-12, "a robot without wheel torque moved {dead} m");
-        let healthy = Scenario {
-            wheel_torque_scale: [1.0, 1.0],
-            ..still
-        };
+        let mut healthy = still;
+        healthy.perturbations.wheel_torque_scale = [1.0, 1.0];
         let (moved, _) = drive(&healthy);
         assert!(moved > 0.1, "healthy robot moved only {moved} m");
+    }
+
+    /// `device --robot FILE` serves that robot: the runtime's encoder, motor
+    /// and controller model are the file's, the link's limits its
+    /// `[limits]`; the paper robot's link limits are the defaults.
+    #[test]
+    fn device_serves_the_robot_of_its_file() {
+        assert_eq!(link_config(&Robot::paper()), LinkConfig::DEFAULT);
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robots/tb6612-2kg.toml"
+        ))
+        .unwrap();
+        let robot = Robot::from_toml_str(&text).unwrap();
+        let scn = Scenario::default().with_robots(Some(&robot), None);
+        let mut sim = SimRobot::new(&scn, ControllerKind::Proposed).unwrap();
+        let link = *sim.device().link_config();
+        assert_eq!(
+            (link.max_speed_mps, link.max_yaw_rate_radps),
+            (robot.limits.max_speed_mps, robot.limits.max_yaw_rate_radps)
+        );
+        let cfg = *sim.device().control().config();
+        assert_eq!(cfg.encoder.counts_per_wheel_rev, 1320.0);
+        assert_eq!(cfg.controller.robot.wheel_radius_m, 0.035);
+        assert_eq!(cfg.controller.torque_limit_nm, robot.limits.torque_nm);
+        assert_eq!(
+            cfg.motor.torque_constant_nm_per_a,
+            robot.motors.torque_constant_nm_per_a
+        );
     }
 }

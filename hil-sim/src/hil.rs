@@ -34,10 +34,10 @@ pub fn run_runtime(
     trace_every: usize,
 ) -> Result<HilOutput, String> {
     scn.validate()?;
-    if scn.sensing == Sensing::Ideal {
+    if scn.sensing.preset == Sensing::Ideal {
         return Err("the firmware runtime needs a firmware sensing preset, not ideal".into());
     }
-    let cfg = scn.runtime_config(controller, opts.safety);
+    let cfg = scn.runtime_config(controller, opts.safety.unwrap_or(scn.safety_limits()));
     let sensors = scn.sensor_setup()?;
     let est = opts
         .estimator

@@ -28,6 +28,7 @@ pub mod sensing;
 pub mod shard;
 pub mod sides;
 pub mod sim;
+pub mod sweep;
 
 pub use metrics::Metrics;
 pub use scenario::Scenario;

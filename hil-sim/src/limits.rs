@@ -21,8 +21,23 @@ pub const MAX_PLANT_STEPS: f64 = 1e9;
 /// Largest per-wheel torque limit [N·m]: 10x the paper's 10 N·m, already
 /// 2 kN at the paper's 5 cm wheel radius on a 10 kg robot.
 pub const MAX_TORQUE_LIMIT_NM: f64 = 100.0;
-/// Largest |x|, |y| of the initial pose [m]: a 2 km square around the path.
-pub const MAX_INITIAL_POSITION_M: f64 = 1000.0;
+/// Bits of an f32's significand after the leading one: the spacing of f32
+/// values in [2^k, 2^(k+1)) is 2^(k − 23).
+const F32_FRACTION_BITS: i32 = 23;
+
+/// Largest |x|, |y| of the initial pose [m] for a robot whose encoder
+/// resolves `count_m` metres of wheel travel per count: the runtime and the
+/// controllers hold the pose in f32 (controller-core), and where the f32
+/// spacing exceeds one count of travel, single counts are rounded out of
+/// the odometry and the position error is quantised coarser than the
+/// robot can measure. The bound is the largest power of two 2^(k+1) with
+/// spacing 2^(k − 23) ≤ `count_m` below it: 256 m for the example encoder
+/// on the paper's wheel (24,000 counts per revolution of a 0.1 m wheel,
+/// 26 µm per count); a coarser encoder allows more.
+pub fn max_initial_position_m(count_m: f64) -> f64 {
+    let k = count_m.log2().floor() as i32 + F32_FRACTION_BITS;
+    2f64.powi(k + 1)
+}
 /// Largest |θ| of the initial pose [rad] (about 16 turns).
 pub const MAX_INITIAL_HEADING_RAD: f64 = 100.0;
 /// Largest CSV a run writes without `--force` [bytes] (estimated).
@@ -63,19 +78,27 @@ pub fn check_scenario(s: &Scenario) -> Result<(), String> {
             "scenario '{name}': duration_s / control_period_s x substeps = {steps:.3e} plant steps, beyond the {MAX_PLANT_STEPS:.0e} limit (minutes of computing per 1e9)"
         ));
     }
-    if !(0.0..=MAX_TORQUE_LIMIT_NM).contains(&s.torque_limit_nm) {
+    if !(0.0..=MAX_TORQUE_LIMIT_NM).contains(&s.torque_limit_nm()) {
         return Err(format!(
             "scenario '{name}': torque_limit_nm = {} N·m is beyond the {MAX_TORQUE_LIMIT_NM} N·m limit",
-            num(s.torque_limit_nm)
+            num(s.torque_limit_nm())
         ));
     }
     let [x, y, th] = s.initial_pose;
-    let within = |v: f64| (0.0..=MAX_INITIAL_POSITION_M).contains(&v.abs());
+    let radius_m = f64::from(
+        s.controller_config(controller_core::ControllerKind::Proposed)
+            .robot
+            .wheel_radius_m,
+    );
+    let count_m = std::f64::consts::TAU * radius_m / f64::from(s.encoder().counts_per_wheel_rev);
+    let max_m = max_initial_position_m(count_m);
+    let within = |v: f64| (0.0..max_m).contains(&v.abs());
     if !(within(x) && within(y)) {
         return Err(format!(
-            "scenario '{name}': initial_pose position ({}, {}) m is beyond ±{MAX_INITIAL_POSITION_M} m",
+            "scenario '{name}': initial_pose position ({}, {}) m is beyond ±{max_m} m, where the runtime's f32 pose no longer resolves one encoder count ({:.1} µm)",
             num(x),
-            num(y)
+            num(y),
+            count_m * 1e6
         ));
     }
     if !(0.0..=MAX_INITIAL_HEADING_RAD).contains(&th.abs()) {
@@ -163,18 +186,52 @@ mod tests {
         Scenario::paper_case(2, 1, None, None)
     }
 
+    /// The position bound against f32 itself: below the bound one count of
+    /// travel added to the position changes it; at the bound's f32 spacing
+    /// doubled it would be rounded away.
+    #[test]
+    fn initial_position_bound_resolves_one_count() {
+        let count_m = std::f64::consts::TAU * 0.1 / 24_000.0;
+        let max_m = max_initial_position_m(count_m);
+        assert_eq!(max_m, 256.0);
+        let below = (max_m as f32).next_down();
+        assert_ne!(
+            below + count_m as f32,
+            below,
+            "one count lost below the bound"
+        );
+        // Past the bound (spacing 2^-15 m = 30.5 µm > 26 µm) a count is rounded to
+        // the next f32 value or lost: never resolved exactly.
+        let above = 2.0 * max_m as f32;
+        let moved = f64::from((above + count_m as f32) - above);
+        assert!((moved - count_m).abs() > 0.1 * count_m, "moved {moved}");
+        let mut s = paper();
+        s.initial_pose = [255.0, -255.0, 0.0];
+        check_scenario(&s).unwrap();
+        s.initial_pose = [256.0, 0.0, 0.0];
+        assert!(
+            check_scenario(&s).unwrap_err().contains("26.2 µm"),
+            "{}",
+            check_scenario(&s).unwrap_err()
+        );
+        s.sensing.preset = crate::scenario::Sensing::Odometry;
+        s.sensing.encoder_cpr = 1024;
+        check_scenario(&s).unwrap();
+    }
+
     /// The values of issue 21 item 7 are refused, each with its field named;
     /// the paper's scenario passes.
     #[test]
     fn absurd_values_are_refused_by_name() {
         check_scenario(&paper()).unwrap();
         type Case = (fn(&mut Scenario), &'static str);
-        let cases: [Case; 6] = [
+        let cases: [Case; 7] = [
             (|s| s.duration_s = 1e9, "duration_s"),
             (|s| s.control_period_s = 1e-9, "control_period_s"),
             (|s| s.substeps = 4_000_000_000, "substeps"),
-            (|s| s.torque_limit_nm = 1e30, "torque_limit_nm"),
+            (|s| s.plant.torque_limit_nm = Some(1e30), "torque_limit_nm"),
             (|s| s.initial_pose = [1e308, 0.0, 0.0], "initial_pose"),
+            (|s| s.initial_pose = [0.0, -256.0, 0.0], "initial_pose"),
             (
                 |s| {
                     s.duration_s = 80_000.0;

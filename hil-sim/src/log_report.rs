@@ -40,12 +40,12 @@ pub fn plot_trace(
     kind: ControllerKind,
 ) -> Result<Vec<PathBuf>, String> {
     let duration = trace.last().map_or(0.0, |s| s.t_s);
-    let scn = Scenario {
+    let mut scn = Scenario {
         name: prefix.into(),
         duration_s: duration.max(1e-3),
-        window_s,
         ..Scenario::default()
     };
+    scn.perturbations.window_s = window_s;
     let run = SimOutput {
         kind,
         trace,

@@ -38,7 +38,7 @@ pub fn sample_scenario(case: u8, base_seed: u64, i: u64, vary_mass: bool) -> Sce
     if vary_mass {
         let mut r = Rng::new(seed ^ 0x6D61_7373); // independent of β, ε
         let u = r.uniform();
-        scn.mass_scale = MASS_SCALE_RANGE.0 + (MASS_SCALE_RANGE.1 - MASS_SCALE_RANGE.0) * u;
+        scn.plant.mass_scale = MASS_SCALE_RANGE.0 + (MASS_SCALE_RANGE.1 - MASS_SCALE_RANGE.0) * u;
     }
     scn
 }
@@ -212,7 +212,7 @@ pub fn stats_from_records(records: &[SimRecord]) -> Vec<ControllerStats> {
 }
 
 /// Monte-Carlo settings (stored in every shard file's header).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct McConfig {
     /// Runs per controller.
     pub runs: usize,
@@ -233,6 +233,14 @@ pub struct McConfig {
     /// files of default sweeps, so their format is unchanged.
     #[serde(default, skip_serializing_if = "is_false")]
     pub paper_setting: bool,
+    /// The controller's robot (`--robot`; None = the paper's); absent from
+    /// shard files of paper-robot sweeps, so their format is unchanged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<crate::scenario::Robot>,
+    /// The simulated robot when it differs (`--plant`; None = the
+    /// controller's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub plant: Option<crate::scenario::Robot>,
 }
 
 fn is_ideal(s: &Sensing) -> bool {
@@ -251,11 +259,11 @@ impl McConfig {
         if let Some(d) = self.duration_s {
             scn.duration_s = d;
         }
-        scn.sensing = self.sensing;
+        scn.sensing.preset = self.sensing;
         if self.paper_setting {
             scn = scn.as_printed();
         }
-        scn
+        scn.with_robots(self.robot.as_ref(), self.plant.as_ref())
     }
 
     /// Rejects settings no run could use (checks run 0's scenario).
@@ -466,17 +474,17 @@ mod tests {
         let mut betas = Vec::new();
         for i in 0..100 {
             let s = sample_scenario(2, 42, i, true);
-            assert!(s.beta > 0.0 && s.beta < 0.2);
-            assert!(s.eps > 0.125 && s.eps < 0.25);
-            assert!((0.8..=1.2).contains(&s.mass_scale));
+            assert!(s.perturbations.beta > 0.0 && s.perturbations.beta < 0.2);
+            assert!(s.perturbations.eps > 0.125 && s.perturbations.eps < 0.25);
+            assert!((0.8..=1.2).contains(&s.plant.mass_scale));
             assert_eq!(s, sample_scenario(2, 42, i, true));
-            betas.push(s.beta);
+            betas.push(s.perturbations.beta);
         }
         betas.sort_by(f64::total_cmp);
         betas.dedup();
         assert_eq!(betas.len(), 100);
-        assert_eq!(sample_scenario(1, 42, 3, false).mass_scale, 1.0);
-        assert_eq!(sample_scenario(1, 42, 3, false).eps, 0.0);
+        assert_eq!(sample_scenario(1, 42, 3, false).plant.mass_scale, 1.0);
+        assert_eq!(sample_scenario(1, 42, 3, false).perturbations.eps, 0.0);
     }
 
     #[test]

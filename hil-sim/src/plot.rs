@@ -304,7 +304,7 @@ impl CaseData<'_> {
         0.0..self.scn.duration_s
     }
     fn window(&self) -> Option<[f64; 2]> {
-        let [a, b] = self.scn.window_s;
+        let [a, b] = self.scn.perturbations.window_s;
         (a < b).then_some([a, b])
     }
     fn times(&self) -> Vec<f64> {
@@ -530,10 +530,11 @@ fn fig_torques<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, d: &CaseData) -
         &root,
         &format!(
             "{}: applied wheel torques, limit ±{} N·m (paper Fig. 4b/7b)",
-            d.case_title, d.scn.torque_limit_nm
+            d.case_title,
+            d.scn.torque_limit_nm()
         ),
     )?;
-    let l = d.scn.torque_limit_nm * 1.08;
+    let l = d.scn.torque_limit_nm() * 1.08;
     let panels = root.split_evenly((2, 1));
     for (i, (area, name)) in panels
         .iter()
@@ -564,7 +565,7 @@ fn fig_faults<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, d: &CaseData) ->
         &format!(
             "{}: actuator fault F = ε·η and its estimate (paper Fig. 6){}",
             d.case_title,
-            if d.scn.eps == 0.0 {
+            if d.scn.perturbations.eps == 0.0 {
                 ", no fault injected"
             } else {
                 ""
@@ -698,7 +699,7 @@ pub fn write_case_plots(
         case_title: case_title.into(),
     };
     let mut written = Vec::new();
-    let pacing = scn.governor.then_some(PACING_FIGURE);
+    let pacing = scn.governor.enabled.then_some(PACING_FIGURE);
     for (name, size) in FIGURES.into_iter().chain(pacing) {
         let p = dir.join(format!("{prefix}_{name}.png"));
         {
@@ -739,11 +740,11 @@ mod tests {
             eprintln!("skipped: {e}");
             return;
         }
-        let scn = Scenario {
+        let mut scn = Scenario {
             duration_s: 3.0,
-            window_s: [1.0, 2.0],
             ..Scenario::paper_case(2, 1, None, None)
         };
+        scn.perturbations.window_s = [1.0, 2.0];
         let runs: Vec<SimOutput> = ControllerKind::ALL
             .iter()
             .map(|&k| crate::sim::run(&scn, k).unwrap())

@@ -152,12 +152,12 @@ pub fn metrics_table_with(
 pub fn scenario_summary(scn: &Scenario) -> String {
     format!(
         "beta {:.4} rad/s, eps {:.4}, skid x{}, disturbance {} N·m, mass x{}, torque limit {} N·m, seed {}",
-        scn.beta,
-        scn.eps,
-        scn.skid_scale,
-        scn.disturbance_nm,
-        scn.mass_scale,
-        scn.torque_limit_nm,
+        scn.perturbations.beta,
+        scn.perturbations.eps,
+        scn.perturbations.skid_scale,
+        scn.perturbations.disturbance_nm,
+        scn.plant.mass_scale,
+        scn.torque_limit_nm(),
         scn.seed
     )
 }
@@ -206,7 +206,7 @@ pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutpu
         let _ = writeln!(
             s,
             "  sensing {}: {} external poses accepted, {} rejected ({} outliers, {} too old, {} out of order), {} resets; gyro {:?}, bias {:.4} rad/s; final std x {:.4} m, θ {:.4} rad",
-            scn.sensing.name(),
+            scn.sensing.preset.name(),
             e.accepted,
             e.rejected.total(),
             e.rejected.outlier,
@@ -274,9 +274,9 @@ pub fn compare_json(rows: &[CompareRow]) -> Result<String, String> {
 pub fn case_plot_title(case: u8, scn: &Scenario) -> String {
     format!(
         "Case {case} (β = {:.3} rad/s{})",
-        scn.beta,
-        if scn.eps > 0.0 {
-            format!(", ε = {:.3}", scn.eps)
+        scn.perturbations.beta,
+        if scn.perturbations.eps > 0.0 {
+            format!(", ε = {:.3}", scn.perturbations.eps)
         } else {
             String::new()
         }
@@ -315,16 +315,28 @@ settle: error stays < 0.1 m until the window;\nsat: steps at the torque limit; F
         rayon::current_num_threads(),
         metrics_path.display()
     );
-    if let Some((files, dir)) = plot_files {
-        if !files.is_empty() {
-            text += &format!(
-                "{} plot files written to {} (case<N>_{{xy,errors,velocities,torques,faults}}.{{png,svg}})\n",
-                files.iter().map(Vec::len).sum::<usize>(),
-                dir.display()
-            );
-        }
-    }
+    text += &plot_files_text(
+        plot_files,
+        "case<N>_{xy,errors,velocities,torques,faults}.{png,svg}",
+    );
     text
+}
+
+/// The line saying how many plot files went where (`what`: their names),
+/// or nothing when no plot was written: every subcommand's one wording.
+pub fn plot_files_text(plot_files: Option<(&[Vec<PathBuf>], &Path)>, what: &str) -> String {
+    match plot_files {
+        Some((files, dir)) if !files.is_empty() => {
+            let n = files.iter().map(Vec::len).sum::<usize>();
+            let what = if what.is_empty() {
+                String::new()
+            } else {
+                format!(" ({what})")
+            };
+            format!("{n} plot files written to {}{what}\n", dir.display())
+        }
+        _ => String::new(),
+    }
 }
 
 /// The second part of `compare`'s text: the same runs with the reference
@@ -357,15 +369,10 @@ health machine, large-error bound of the kinematic law; error against the govern
         "\nlag: t − τ at the end (how far the governed reference is behind the nominal clock); \
 s_min: smallest time scale;\ndegr: steps in a degraded health mode; h_tr: health transitions\n";
     text += &format!("\nmetrics written to {}\n", metrics_path.display());
-    if let Some((files, dir)) = plot_files {
-        if !files.is_empty() {
-            text += &format!(
-                "{} plot files written to {} (case<N>_gov_{{xy,errors,velocities,torques,faults,pacing}}.{{png,svg}})\n",
-                files.iter().map(Vec::len).sum::<usize>(),
-                dir.display()
-            );
-        }
-    }
+    text += &plot_files_text(
+        plot_files,
+        "case<N>_gov_{xy,errors,velocities,torques,faults,pacing}.{png,svg}",
+    );
     text
 }
 
@@ -540,14 +547,15 @@ mod tests {
     /// accumulator fed the same values).
     #[test]
     fn metrics_from_a_full_trace_equal_the_simulation() {
-        let scn = Scenario {
+        let mut scn = Scenario {
             duration_s: 12.0,
-            window_s: [4.0, 9.0],
             ..Scenario::paper_case(2, 3, None, None)
         };
+        scn.perturbations.window_s = [4.0, 9.0];
         let cfg = crate::sim::controller_config(&scn, ControllerKind::Proposed);
         let out = crate::sim::run_with(&scn, cfg, 1).unwrap();
-        let m = track_log::metrics_from_trace(&out.trace, scn.window_s, true).unwrap();
+        let m =
+            track_log::metrics_from_trace(&out.trace, scn.perturbations.window_s, true).unwrap();
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * (1.0 + a.abs());
         let s = &out.metrics;
         assert!(close(m.rms_pos_err_m, s.rms_pos_err_m));

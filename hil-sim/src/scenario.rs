@@ -4,16 +4,21 @@
 //! (paper: 10-35 s); their formulas are in `sim_robot::perturbation` (skid
 //! δ_sl, wheel slip ϖ, disturbance τ_d, actuator fault ε).
 //!
-//! [`Sensing`] chooses what sits between the plant and the controller: the
-//! paper's ideal measurements, or the firmware's runtime behind simulated
-//! encoders, an H-bridge and the preset's gyro and external pose source
-//! ([`crate::sensing`], which also holds the `gyro_*`/`pose_*` overrides:
-//! one struct each, flattened here so the TOML keys stay top-level).
+//! A scenario is the run's own keys and five parts ([`PlantPart`],
+//! [`PerturbationPart`], [`SensingPart`], [`ControllerPart`],
+//! [`GovernorPart`]), each one struct read by serde (a TOML table of that
+//! name) and by clap (the `hil-sim run`/`device` flags), so each knob is
+//! declared once. [`Sensing`] chooses what sits between the plant and the
+//! controller: the paper's ideal measurements, or the firmware's runtime
+//! behind simulated encoders, an H-bridge and the preset's gyro and external
+//! pose source ([`crate::sensing`], which also holds the `gyro_*`/`pose_*`
+//! overrides, flattened into `[sensing]`).
 
 use crate::rng::Rng;
 pub use crate::sensing::Sensing;
 use crate::sensing::{GyroOverrides, PoseOverrides};
 use controller_core::runtime::{EncoderParams, MotorParams};
+pub use robot_file::Robot;
 use serde::{Deserialize, Serialize};
 use sim_robot::{Perturbation, PerturbationProfile};
 
@@ -60,119 +65,392 @@ impl TrajectoryKind {
     }
 }
 
-/// A complete description of one simulated run (except the controller kind).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default)]
+/// The schema version of scenario files this build writes and reads
+/// (`version = 2`: nested parts; files without `version` are version 1,
+/// flat, and are upgraded on load: [`crate::scenario_file`]).
+pub const SCENARIO_VERSION: u32 = 2;
+
+/// A complete description of one simulated run (except the controller kind):
+/// the run's own keys, then one part per concern (TOML tables `[plant]`,
+/// `[perturbations]`, `[sensing]`, `[controller]`, `[governor]`).
+///
+/// Each part is one struct that serde (scenario files) and clap (the
+/// `hil-sim run`/`device` flags, through [`crate::cli::ScenarioArgs`]) both
+/// read, so a knob is declared once: its field, unit, doc and flag name.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, clap::Args)]
+#[serde(default, deny_unknown_fields)]
 pub struct Scenario {
+    /// Schema version of the file (2; see [`SCENARIO_VERSION`]).
+    #[arg(skip = SCENARIO_VERSION)]
+    pub version: u32,
     /// Name shown in tables and plots.
+    #[arg(skip)]
     pub name: String,
-    /// Run length \[s\].
+    /// Run length [s].
+    #[arg(long = "duration", value_name = "s")]
     pub duration_s: f64,
-    /// Controller period \[s\].
+    /// Controller period [s].
+    #[arg(long = "control-period", value_name = "s")]
     pub control_period_s: f64,
     /// RK4 sub-steps per control period.
+    #[arg(long)]
     pub substeps: u32,
-    /// Perturbation window \[start, end) \[s\].
-    pub window_s: [f64; 2],
-    /// Initial pose of G \[x m, y m, θ rad\].
+    /// Initial pose of G [x m, y m, θ rad] (`X,Y,THETA`).
+    #[arg(long, value_name = "X,Y,THETA", value_parser = floats::<3>, allow_negative_numbers = true)]
     pub initial_pose: [f64; 3],
     /// Reference trajectory.
+    #[arg(long, value_enum)]
     pub trajectory: TrajectoryKind,
-    /// Wheel slip amplitude β \[rad/s\].
+    /// Seed for the measurement noise (and for β, ε in the presets).
+    #[arg(long)]
+    pub seed: u64,
+    /// The robot the controller is configured for: its model, gains, motor,
+    /// encoder and limits, and (unless [`PlantPart`] says otherwise) the
+    /// simulated robot too. The paper's robot ([`Robot::paper`]) unless
+    /// `--robot FILE` (a robot file, docs/robot.md) names another; not a
+    /// key of the scenario file.
+    #[serde(skip, default = "Robot::paper")]
+    #[arg(skip = Robot::paper())]
+    pub robot: Robot,
+    /// The simulated robot against the controller's model.
+    #[command(flatten)]
+    pub plant: PlantPart,
+    /// Section-4 perturbations and the faults beyond the paper.
+    #[command(flatten)]
+    pub perturbations: PerturbationPart,
+    /// Measurements and actuation between plant and controller.
+    #[command(flatten)]
+    pub sensing: SensingPart,
+    /// Overrides of the controller's configuration.
+    #[command(flatten)]
+    pub controller: ControllerPart,
+    /// Reference governor and health machine.
+    #[command(flatten)]
+    pub governor: GovernorPart,
+}
+
+/// `[plant]`: the simulated robot against the controller's model. The
+/// plant is the controller's robot ([`Scenario::robot`]), or the robot file
+/// of `--plant FILE` ([`Self::robot`]), with the robot-file fields of the
+/// `[plant.body]`, `[plant.motors]`, ... tables over it, then the scales,
+/// the actuation delay and the electrical lag below ([`Scenario::plant_robot`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, clap::Args)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlantPart {
+    /// Plant mass / controller model mass.
+    #[arg(long)]
+    pub mass_scale: f64,
+    /// Plant inertia / controller model inertia.
+    #[arg(long)]
+    pub inertia_scale: f64,
+    /// Per-wheel torque limit [N·m] (controller saturation and actuator
+    /// limit; None = the robot file's `limits.torque_nm`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(long = "torque-limit", value_name = "N·m")]
+    pub torque_limit_nm: Option<f64>,
+    /// Actuation delay of the plant [s]: the torque the controller commands
+    /// acts this much later (0 = none; the model assumes none).
+    #[arg(long = "actuation-delay", value_name = "s")]
+    pub actuation_delay_s: f64,
+    /// Electrical time constant L/R of the plant's motors [s]: the torque
+    /// follows the command with this first-order lag (0 = none; the model
+    /// assumes none).
+    #[arg(long = "electrical-time-constant", value_name = "s")]
+    pub electrical_time_constant_s: f64,
+    /// The plant's own robot file (`--plant FILE`), when it differs from
+    /// the controller's; not a key of the scenario file (its fields are:
+    /// the tables below).
+    #[serde(skip)]
+    #[arg(skip)]
+    pub robot: Option<Robot>,
+    /// Fields of the robot file's `[body]` for the plant (`[plant.body]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(skip)]
+    pub body: Option<toml::Table>,
+    /// Fields of the robot file's `[motors]` for the plant (`[plant.motors]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(skip)]
+    pub motors: Option<toml::Table>,
+    /// Fields of the robot file's `[encoders]` for the plant (`[plant.encoders]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(skip)]
+    pub encoders: Option<toml::Table>,
+    /// Fields of the robot file's `[bridge]` for the plant (`[plant.bridge]`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(skip)]
+    pub bridge: Option<toml::Table>,
+    /// Fields of the robot file's `[limits]` for the plant (`[plant.limits]`:
+    /// `torque_nm` is the drive's hard limit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(skip)]
+    pub limits: Option<toml::Table>,
+}
+
+impl Default for PlantPart {
+    fn default() -> Self {
+        Self {
+            mass_scale: 1.0,
+            inertia_scale: 1.0,
+            torque_limit_nm: None,
+            actuation_delay_s: 0.0,
+            electrical_time_constant_s: 0.0,
+            robot: None,
+            body: None,
+            motors: None,
+            encoders: None,
+            bridge: None,
+            limits: None,
+        }
+    }
+}
+
+impl PlantPart {
+    /// The robot-file sections this part overrides, by section name.
+    fn sections(&self) -> [(&'static str, &Option<toml::Table>); 5] {
+        [
+            ("body", &self.body),
+            ("motors", &self.motors),
+            ("encoders", &self.encoders),
+            ("bridge", &self.bridge),
+            ("limits", &self.limits),
+        ]
+    }
+
+    /// True when the plant is the controller's robot as it is (no file, no
+    /// field override; the scales, delay and lag aside).
+    pub fn is_model(&self) -> bool {
+        self.robot.is_none() && self.sections().iter().all(|(_, t)| t.is_none())
+    }
+}
+
+/// `[perturbations]`: what acts on the plant inside the window (paper
+/// section 4, and the faults beyond it).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, clap::Args)]
+#[serde(default, deny_unknown_fields)]
+pub struct PerturbationPart {
+    /// Perturbation window [start, end) [s] (`START,END`).
+    #[arg(long = "window", value_name = "START,END", value_parser = floats::<2>, allow_negative_numbers = true)]
+    pub window_s: [f64; 2],
+    /// Wheel slip amplitude β [rad/s].
+    #[arg(long)]
     pub beta: f64,
-    /// Actuator fault ε (0 = none).
+    /// Actuator fault ε in [0, 1) (body moves at (1 − ε)·η in the window).
+    #[arg(long)]
     pub eps: f64,
     /// Growing fault (beyond the paper): ε at the window's end, ramped
     /// linearly from `eps` at its start (None = constant `eps`).
     #[serde(skip_serializing_if = "Option::is_none")]
+    #[arg(long)]
     pub eps_end: Option<f64>,
-    /// Fraction of the commanded torque each wheel `[right, left]` delivers
-    /// inside the window (beyond the paper; \[1, 1\] = healthy).
+    /// Fraction of the commanded torque each wheel `RIGHT,LEFT` delivers
+    /// inside the window (beyond the paper; 1,1 = healthy).
     #[serde(skip_serializing_if = "is_healthy_wheels")]
+    #[arg(long, value_name = "RIGHT,LEFT", value_parser = floats::<2>)]
     pub wheel_torque_scale: [f64; 2],
-    /// Scale of the lateral skid δ_sl (1 = as printed).
+    /// Scale of the lateral skid δ_sl (1 = as printed in the paper).
+    #[arg(long)]
     pub skid_scale: f64,
-    /// Disturbance amplitude A \[N·m\].
+    /// Disturbance amplitude A [N·m].
+    #[arg(long = "disturbance", value_name = "N·m")]
     pub disturbance_nm: f64,
-    /// Plant mass / controller model mass.
-    pub mass_scale: f64,
-    /// Plant inertia / controller model inertia.
-    pub inertia_scale: f64,
-    /// Per-wheel torque limit \[N·m\] (controller saturation and actuator limit).
-    pub torque_limit_nm: f64,
-    /// Measurements and actuation between plant and controller.
-    pub sensing: Sensing,
-    /// Encoder counts per wheel revolution after ×4 decoding (firmware
-    /// sensing only; 0 = the example encoder's).
-    pub encoder_cpr: u32,
-    /// Speed-estimate window \[ticks\] (firmware sensing only; 0 = the
-    /// example encoder's).
-    pub speed_window_ticks: u8,
-    /// PWM counts at 100 % duty (firmware sensing only; 0 = the example
-    /// motor's).
-    pub pwm_levels: u32,
-    /// Std. dev. of the position measurement noise \[m\].
-    pub pose_noise_m: f64,
-    /// Std. dev. of the heading measurement noise \[rad\].
-    pub heading_noise_rad: f64,
-    /// Overrides of the sensing preset's gyro (keys `gyro_*`).
-    #[serde(flatten)]
-    pub gyro: GyroOverrides,
-    /// Overrides of the sensing preset's external pose source (keys `pose_*`).
-    #[serde(flatten)]
-    pub pose: PoseOverrides,
-    /// Seed for the measurement noise (and for β, ε in the presets).
-    pub seed: u64,
-    /// Override of the kinematic gain k_y (None = controller default).
-    pub k_y: Option<f64>,
-    /// Reference governor and health machine (`controller_core::pacer`),
-    /// beyond the paper; on by default, off in [`Self::as_printed`].
-    #[serde(skip_serializing_if = "is_true")]
-    pub governor: bool,
-    /// Large-error bound of the kinematic law's lateral term (D23), beyond
-    /// the paper; on by default, off in [`Self::as_printed`].
-    #[serde(skip_serializing_if = "is_true")]
-    pub clean_start: bool,
-    /// Keys of a scenario file that are not in the schema: a scenario with
-    /// any is invalid ([`Self::validate`]), so a typo never silently falls
-    /// back to a default. (serde's `deny_unknown_fields` cannot be combined
-    /// with the flattened parts.)
-    #[serde(flatten, skip_serializing)]
-    pub unknown_keys: std::collections::BTreeMap<String, toml::Value>,
 }
 
-impl Default for Scenario {
+impl Default for PerturbationPart {
     fn default() -> Self {
         Self {
-            name: "custom".into(),
-            duration_s: 40.0,
-            control_period_s: 1e-3,
-            substeps: 1,
             window_s: [10.0, 35.0],
-            initial_pose: [2.5, 0.0, 0.0],
-            trajectory: TrajectoryKind::Paper,
             beta: 0.1,
             eps: 0.0,
             eps_end: None,
             wheel_torque_scale: [1.0, 1.0],
             skid_scale: 0.05,
             disturbance_nm: 1.0,
-            mass_scale: 1.0,
-            inertia_scale: 1.0,
-            torque_limit_nm: controller_core::controller::DEFAULT_TORQUE_LIMIT_NM as f64,
-            sensing: Sensing::Ideal,
-            encoder_cpr: 0,
-            speed_window_ticks: 0,
-            pwm_levels: 0,
-            pose_noise_m: 0.0,
-            heading_noise_rad: 0.0,
-            gyro: GyroOverrides::default(),
-            pose: PoseOverrides::default(),
-            seed: 1,
+        }
+    }
+}
+
+impl PerturbationPart {
+    /// No perturbation at all: an empty window, no slip, fault, skid or
+    /// disturbance (nominal tracking).
+    pub fn none() -> Self {
+        Self {
+            window_s: [0.0, 0.0],
+            beta: 0.0,
+            eps: 0.0,
+            eps_end: None,
+            wheel_torque_scale: [1.0, 1.0],
+            skid_scale: 0.0,
+            disturbance_nm: 0.0,
+        }
+    }
+}
+
+/// `[sensing]`: the sensor preset between plant and controller and its
+/// overrides.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, clap::Args)]
+#[serde(default)]
+pub struct SensingPart {
+    /// Sensor preset between plant and controller: the paper's ideal
+    /// measurements, or the firmware runtime behind simulated encoders and
+    /// PWM with a gyro (imu) and an external pose (mocap, uwb); the
+    /// --gyro-* and --pose-* flags override the preset (docs/scenario.md).
+    #[arg(long = "sensing", value_enum)]
+    pub preset: Sensing,
+    /// Encoder counts per wheel revolution after ×4 decoding (firmware
+    /// sensing only; 0 = the example encoder's 24000).
+    #[arg(long)]
+    pub encoder_cpr: u32,
+    /// Speed-estimate window [ticks] (firmware sensing only; 0 = the
+    /// example encoder's 4).
+    #[arg(long = "speed-window", value_name = "TICKS")]
+    pub speed_window_ticks: u8,
+    /// PWM counts at 100 % duty (firmware sensing only; 0 = the example
+    /// motor's 4800).
+    #[arg(long)]
+    pub pwm_levels: u32,
+    /// Std. dev. of the position measurement noise [m] (ideal sensing).
+    #[arg(long = "pose-noise", value_name = "m")]
+    pub pose_noise_m: f64,
+    /// Std. dev. of the heading measurement noise [rad] (ideal sensing).
+    #[arg(long = "heading-noise", value_name = "rad")]
+    pub heading_noise_rad: f64,
+    /// Overrides of the preset's gyro (keys `gyro_*`, flags `--gyro-*`).
+    #[serde(flatten)]
+    #[command(flatten)]
+    pub gyro: GyroOverrides,
+    /// Overrides of the preset's external pose source (keys `pose_*`,
+    /// flags `--pose-*`).
+    #[serde(flatten)]
+    #[command(flatten)]
+    pub pose: PoseOverrides,
+    /// Keys of the `[sensing]` table that are not in the schema: a scenario
+    /// with any is invalid ([`Scenario::validate`]), so a typo never
+    /// silently falls back to a default. (serde's `deny_unknown_fields`
+    /// cannot be combined with the flattened overrides.)
+    #[serde(flatten, skip_serializing)]
+    #[arg(skip)]
+    pub unknown_keys: std::collections::BTreeMap<String, toml::Value>,
+}
+
+/// `[controller]`: overrides of the controller's configuration (Table 2
+/// gains otherwise).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, clap::Args)]
+#[serde(default, deny_unknown_fields)]
+pub struct ControllerPart {
+    /// Override of the kinematic gain k_y (None = controller default).
+    #[arg(long)]
+    pub k_y: Option<f64>,
+    /// Large-error bound of the kinematic law's lateral term (D23), beyond
+    /// the paper; on by default, off in [`Scenario::as_printed`].
+    #[serde(skip_serializing_if = "is_true")]
+    #[arg(long, value_name = "BOOL", action = clap::ArgAction::Set)]
+    pub clean_start: bool,
+}
+
+impl Default for ControllerPart {
+    fn default() -> Self {
+        Self {
             k_y: None,
-            governor: true,
             clean_start: true,
-            unknown_keys: Default::default(),
+        }
+    }
+}
+
+/// `[governor]`: the reference governor and health machine
+/// (`controller_core::pacer`), beyond the paper.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, clap::Args)]
+#[serde(default, deny_unknown_fields)]
+pub struct GovernorPart {
+    /// Governor and health machine on (default; off in
+    /// [`Scenario::as_printed`]).
+    #[serde(skip_serializing_if = "is_true")]
+    #[arg(long = "governor", value_name = "BOOL", action = clap::ArgAction::Set)]
+    pub enabled: bool,
+}
+
+impl Default for GovernorPart {
+    fn default() -> Self {
+        Self { enabled: true }
+    }
+}
+
+/// The parts of a scenario, as the TOML tables of a version-2 file.
+pub const PARTS: [&str; 5] = [
+    "plant",
+    "perturbations",
+    "sensing",
+    "controller",
+    "governor",
+];
+
+/// A scenario with every optional key set (and every key that is left out
+/// at its default set to another value), so that its TOML form shows every
+/// key of the schema: what the docs test and the version-1 upgrade read.
+pub fn every_key_set() -> Scenario {
+    let mut s = Scenario::default().with_sensing(Sensing::Mocap);
+    s.perturbations.eps_end = Some(0.3);
+    s.plant.torque_limit_nm = Some(8.0);
+    s.plant.actuation_delay_s = 0.002;
+    s.perturbations.wheel_torque_scale = [1.0, 0.5];
+    s.controller.k_y = Some(20.0);
+    s.controller.clean_start = false;
+    s.governor.enabled = false;
+    s.sensing.gyro = GyroOverrides {
+        gyro_noise_density: Some(1e-4),
+        gyro_bias_radps: Some(0.01),
+        gyro_bias_walk: Some(1e-4),
+        gyro_scale_error: Some(0.01),
+        gyro_saturation_radps: Some(30.0),
+        gyro_rate_hz: Some(500.0),
+    };
+    s.sensing.pose = PoseOverrides {
+        pose_rate_hz: Some(50.0),
+        pose_latency_s: Some(0.01),
+        pose_jitter_s: Some(0.001),
+        pose_std_m: Some(0.002),
+        pose_heading_std_rad: Some(0.004),
+        pose_dropout: Some(0.1),
+        pose_outage_s: Some(crate::sensing::Window([1.0, 2.0])),
+        pose_outlier_fraction: Some(0.05),
+        pose_outlier_m: Some(1.0),
+    };
+    s
+}
+
+/// `N` comma-separated numbers (`1,2` or `2.5,0,0`), the command-line form
+/// of the scenario's array keys.
+pub fn floats<const N: usize>(s: &str) -> Result<[f64; N], String> {
+    let v: Vec<&str> = s.split(',').collect();
+    if v.len() != N {
+        return Err(format!("takes {N} comma-separated numbers, not '{s}'"));
+    }
+    let mut out = [0.0; N];
+    for (o, t) in out.iter_mut().zip(v) {
+        *o = t
+            .trim()
+            .parse::<f64>()
+            .map_err(|_| format!("'{t}' is not a number"))?;
+    }
+    Ok(out)
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Self {
+            version: SCENARIO_VERSION,
+            name: "custom".into(),
+            duration_s: 40.0,
+            control_period_s: 1e-3,
+            substeps: 1,
+            initial_pose: [2.5, 0.0, 0.0],
+            trajectory: TrajectoryKind::Paper,
+            seed: 1,
+            robot: Robot::paper(),
+            plant: PlantPart::default(),
+            perturbations: PerturbationPart::default(),
+            sensing: SensingPart::default(),
+            controller: ControllerPart::default(),
+            governor: GovernorPart::default(),
         }
     }
 }
@@ -197,26 +475,45 @@ impl Scenario {
         let mut rng = Rng::new(seed);
         let b = rng.uniform_open(BETA_RANGE.0, BETA_RANGE.1);
         let e = rng.uniform_open(EPS_RANGE.0, EPS_RANGE.1);
-        Self {
+        let mut s = Self {
             name: format!("case{case}"),
-            beta: beta.unwrap_or(b),
-            eps: if case >= 2 { eps.unwrap_or(e) } else { 0.0 },
             seed,
             ..Self::default()
-        }
+        };
+        s.perturbations.beta = beta.unwrap_or(b);
+        s.perturbations.eps = if case >= 2 { eps.unwrap_or(e) } else { 0.0 };
+        s
     }
 
     /// This scenario in the paper's setting: no governor, no health machine
     /// (what `compare`'s first table runs).
     pub fn as_printed(mut self) -> Self {
-        self.governor = false;
-        self.clean_start = false;
+        self.governor.enabled = false;
+        self.controller.clean_start = false;
+        self
+    }
+
+    /// This scenario with `robot` as the controller's robot and `plant` as
+    /// the simulated one (each None: unchanged).
+    pub fn with_robots(mut self, robot: Option<&Robot>, plant: Option<&Robot>) -> Self {
+        if let Some(r) = robot {
+            self.robot = r.clone();
+        }
+        if let Some(p) = plant {
+            self.plant.robot = Some(p.clone());
+        }
+        self
+    }
+
+    /// This scenario with the sensing preset `preset` (its overrides kept).
+    pub fn with_sensing(mut self, preset: Sensing) -> Self {
+        self.sensing.preset = preset;
         self
     }
 
     /// The runtime/simulator pacing configuration for this scenario.
     pub fn pacing(&self) -> controller_core::pacer::PacingConfig {
-        if self.governor {
+        if self.governor.enabled {
             controller_core::pacer::PacingConfig::on()
         } else {
             controller_core::pacer::PacingConfig::off()
@@ -227,8 +524,8 @@ impl Scenario {
     pub fn validate(&self) -> Result<(), String> {
         let pos = |x: f64| x.is_finite() && x > 0.0;
         let nonneg = |x: f64| x.is_finite() && x >= 0.0;
-        let ideal = self.sensing == Sensing::Ideal;
-        let checks: [(bool, &str); 17] = [
+        let ideal = self.sensing.preset == Sensing::Ideal;
+        let checks: [(bool, &str); 18] = [
             (pos(self.duration_s), "duration_s must be > 0"),
             (
                 pos(self.control_period_s) && self.control_period_s <= 0.1,
@@ -236,54 +533,66 @@ impl Scenario {
             ),
             (self.substeps >= 1, "substeps must be >= 1"),
             (
-                self.window_s.iter().all(|x| x.is_finite()) && self.window_s[0] <= self.window_s[1],
+                self.perturbations.window_s.iter().all(|x| x.is_finite()) && self.perturbations.window_s[0] <= self.perturbations.window_s[1],
                 "window_s must be finite, start <= end",
             ),
             (
                 self.initial_pose.iter().all(|x| x.is_finite()),
                 "initial_pose must be finite",
             ),
-            (nonneg(self.beta), "beta must be >= 0"),
-            (nonneg(self.eps) && self.eps < 1.0, "eps must be in [0, 1)"),
+            (nonneg(self.perturbations.beta), "beta must be >= 0"),
+            (nonneg(self.perturbations.eps) && self.perturbations.eps < 1.0, "eps must be in [0, 1)"),
             (
-                self.eps_end.is_none_or(|e| nonneg(e) && e < 1.0),
+                self.perturbations.eps_end.is_none_or(|e| nonneg(e) && e < 1.0),
                 "eps_end must be in [0, 1)",
             ),
             (
-                self.wheel_torque_scale.iter().all(|&k| nonneg(k) && k <= 1.0),
+                self.perturbations.wheel_torque_scale.iter().all(|&k| nonneg(k) && k <= 1.0),
                 "wheel_torque_scale must be in [0, 1]",
             ),
             (
-                nonneg(self.skid_scale) && nonneg(self.disturbance_nm),
+                nonneg(self.perturbations.skid_scale) && nonneg(self.perturbations.disturbance_nm),
                 "skid_scale and disturbance_nm must be >= 0",
             ),
             (
-                pos(self.mass_scale) && pos(self.inertia_scale),
+                pos(self.plant.mass_scale) && pos(self.plant.inertia_scale),
                 "mass_scale and inertia_scale must be > 0",
             ),
-            (pos(self.torque_limit_nm), "torque_limit_nm must be > 0"),
+            (self.plant.torque_limit_nm.is_none_or(pos), "torque_limit_nm must be > 0"),
             (
-                nonneg(self.pose_noise_m) && nonneg(self.heading_noise_rad),
+                nonneg(self.plant.actuation_delay_s) && self.plant.actuation_delay_s <= 1.0
+                    && nonneg(self.plant.electrical_time_constant_s)
+                    && self.plant.electrical_time_constant_s <= 1.0,
+                "actuation_delay_s and electrical_time_constant_s must be in [0, 1] s",
+            ),
+            (
+                nonneg(self.sensing.pose_noise_m) && nonneg(self.sensing.heading_noise_rad),
                 "noise must be >= 0",
             ),
-            (self.k_y.is_none_or(pos), "k_y must be > 0"),
+            (self.controller.k_y.is_none_or(pos), "k_y must be > 0"),
             (
-                !ideal || (self.encoder_cpr == 0 && self.pwm_levels == 0 && self.speed_window_ticks == 0),
+                !ideal || (self.sensing.encoder_cpr == 0 && self.sensing.pwm_levels == 0 && self.sensing.speed_window_ticks == 0),
                 "encoder_cpr, pwm_levels and speed_window_ticks need a firmware sensing preset (ideal sensing has no encoders or PWM)",
             ),
             (
-                ideal || (self.pose_noise_m == 0.0 && self.heading_noise_rad == 0.0),
+                ideal || (self.sensing.pose_noise_m == 0.0 && self.sensing.heading_noise_rad == 0.0),
                 "pose_noise_m and heading_noise_rad are the noise of ideal sensing; the external pose of mocap/uwb takes pose_std_m and pose_heading_std_rad",
             ),
             (
-                self.pwm_levels <= u16::MAX as u32,
+                self.sensing.pwm_levels <= u16::MAX as u32,
                 "pwm_levels must be <= 65535 (a 16-bit timer)",
             ),
         ];
-        if let Some(key) = self.unknown_keys.keys().next() {
+        if let Some(key) = self.sensing.unknown_keys.keys().next() {
             return Err(format!(
-                "scenario '{}': unknown key `{key}` (schema: docs/scenario.md)",
+                "scenario '{}': unknown key `{key}` in [sensing] (schema: docs/scenario.md)",
                 self.name
+            ));
+        }
+        if self.version != SCENARIO_VERSION {
+            return Err(format!(
+                "scenario '{}': version = {} is not a scenario schema this build reads (1 = flat keys, upgraded on load; {SCENARIO_VERSION} = nested parts: docs/scenario.md)",
+                self.name, self.version
             ));
         }
         match checks.iter().find(|(ok, _)| !ok) {
@@ -291,24 +600,29 @@ impl Scenario {
             None => self
                 .sensor_setup()
                 .map(|_| ())
+                .and_then(|_| self.plant_robot().map(|_| ()))
                 .map_err(|e| format!("scenario '{}': {e}", self.name)),
         }
     }
 
     /// The sensors of this scenario: its sensing preset with its overrides.
     pub fn sensor_setup(&self) -> Result<crate::sensing::SensorModels, String> {
-        crate::sensing::SensorModels::of(self.sensing, &self.gyro, &self.pose)
+        crate::sensing::SensorModels::of(
+            self.sensing.preset,
+            &self.sensing.gyro,
+            &self.sensing.pose,
+        )
     }
 
     /// The section-4 perturbations of this scenario.
     pub fn perturbations(&self) -> PerturbationProfile {
         PerturbationProfile {
-            window_s: self.window_s,
-            beta_radps: self.beta,
-            fault_eps: self.eps,
-            skid_scale: self.skid_scale,
-            disturbance_nm: self.disturbance_nm,
-            fault_eps_end: self.eps_end,
+            window_s: self.perturbations.window_s,
+            beta_radps: self.perturbations.beta,
+            fault_eps: self.perturbations.eps,
+            skid_scale: self.perturbations.skid_scale,
+            disturbance_nm: self.perturbations.disturbance_nm,
+            fault_eps_end: self.perturbations.eps_end,
         }
     }
 
@@ -322,44 +636,73 @@ impl Scenario {
         self.perturbations().at(t_s)
     }
 
-    /// The simulated encoders (firmware sensing): `encoder_cpr` and
-    /// `speed_window_ticks`, the example encoder's where 0, left mirrored.
+    /// The controller's encoders (firmware sensing): the robot's, with
+    /// `encoder_cpr` and `speed_window_ticks` where not 0.
     pub fn encoder(&self) -> EncoderParams {
-        let ex = EncoderParams::EXAMPLE;
+        Self::encoder_of(&self.robot, &self.sensing)
+    }
+
+    /// `robot`'s encoders with the sensing part's overrides.
+    fn encoder_of(robot: &Robot, sensing: &SensingPart) -> EncoderParams {
+        let e = robot.encoder_params();
         EncoderParams {
-            counts_per_wheel_rev: match self.encoder_cpr {
-                0 => ex.counts_per_wheel_rev,
+            counts_per_wheel_rev: match sensing.encoder_cpr {
+                0 => e.counts_per_wheel_rev,
                 n => n as f32,
             },
-            speed_window_ticks: match self.speed_window_ticks {
-                0 => ex.speed_window_ticks,
+            speed_window_ticks: match sensing.speed_window_ticks {
+                0 => e.speed_window_ticks,
                 n => n,
             },
-            ..ex
+            ..e
         }
     }
 
-    /// Controller configuration for this scenario: Table 2 gains plus the
-    /// scenario's torque limit, period and optional k_y override.
+    /// The per-wheel torque limit [N·m]: `plant.torque_limit_nm`, or the
+    /// robot file's `limits.torque_nm`.
+    pub fn torque_limit_nm(&self) -> f64 {
+        self.plant
+            .torque_limit_nm
+            .unwrap_or(f64::from(self.robot.limits.torque_nm))
+    }
+
+    /// Controller configuration for this scenario: the robot's model and
+    /// gains (`[gains.<kind>]`, Table 2's without), the scenario's torque
+    /// limit, period and optional k_y override; with `clean_start` the
+    /// large-error bound (the file's, or D23's default where the file has
+    /// the paper's unbounded one), without it eq. (14) as printed.
     pub fn controller_config(
         &self,
         kind: controller_core::ControllerKind,
     ) -> controller_core::ControllerConfig {
-        let mut cfg = controller_core::ControllerConfig::paper(kind);
-        cfg.torque_limit_nm = self.torque_limit_nm as f32;
+        let printed = controller_core::ControllerConfig::paper(kind)
+            .kinematic
+            .large_error_m;
+        let mut cfg = self.robot.controller_config(kind);
+        cfg.torque_limit_nm = self.torque_limit_nm() as f32;
         cfg.period_s = self.control_period_s as f32;
-        if let Some(k_y) = self.k_y {
+        if let Some(k_y) = self.controller.k_y {
             cfg.kinematic.k_y = k_y as f32;
         }
-        if self.clean_start {
-            cfg.kinematic.large_error_m = controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
-        }
+        cfg.kinematic.large_error_m = match self.controller.clean_start {
+            false => printed,
+            true if cfg.kinematic.large_error_m == printed => {
+                controller_core::kinematic::DEFAULT_LARGE_ERROR_M
+            }
+            true => cfg.kinematic.large_error_m,
+        };
         cfg
     }
 
+    /// The runtime's safety limits for this scenario's robot and period
+    /// (`Robot::safety_limits`).
+    pub fn safety_limits(&self) -> controller_core::runtime::SafetyLimits {
+        self.robot.safety_limits(self.control_period_s as f32)
+    }
+
     /// The firmware runtime's configuration for this scenario: `controller`,
-    /// the scenario's reference and initial pose, its encoders and motors
-    /// (left mirrored), `safety`, and its pacing.
+    /// the scenario's reference and initial pose, the robot's encoders,
+    /// motors and motor directions, `safety`, and its pacing.
     pub fn runtime_config(
         &self,
         controller: controller_core::ControllerConfig,
@@ -372,25 +715,84 @@ impl Scenario {
             initial_pose: controller_core::Pose::new(p0[0] as f32, p0[1] as f32, p0[2] as f32),
             encoder: self.encoder(),
             motor: self.motor(),
-            motor_inverted: controller_core::runtime::MIRRORED_LEFT,
+            motor_inverted: self.robot.bridge.motor_inverted,
             safety,
             pacing: self.pacing(),
         }
     }
 
-    /// The simulated motors (firmware sensing): the example motor with
-    /// `pwm_levels` counts at full duty (the example's where 0).
+    /// The PWM counts at full duty: `pwm_levels`, or the robot's bridge
+    /// frequency on the F411's timer clock ([`TIMER_CLOCK_HZ`]).
+    fn duty_full_scale(&self) -> u16 {
+        match self.sensing.pwm_levels {
+            0 => self
+                .robot
+                .bridge
+                .params()
+                .duty_full_scale(TIMER_CLOCK_HZ)
+                .unwrap_or(MotorParams::EXAMPLE.duty_full_scale),
+            n => n as u16,
+        }
+    }
+
+    /// The controller's motors (firmware sensing): the robot's, with
+    /// `pwm_levels` counts at full duty (where not 0).
     pub fn motor(&self) -> MotorParams {
-        let ex = MotorParams::EXAMPLE;
-        MotorParams {
-            duty_full_scale: match self.pwm_levels {
-                0 => ex.duty_full_scale,
-                n => n as u16,
-            },
-            ..ex
+        self.robot.motor_params(self.duty_full_scale())
+    }
+
+    /// The simulated robot: the plant's robot file (`--plant`, or the
+    /// controller's robot) with the `[plant.<section>]` fields over it,
+    /// validated as a robot file (errors name the field as `plant.<path>`).
+    pub fn plant_robot(&self) -> Result<Robot, String> {
+        let base = self.plant.robot.as_ref().unwrap_or(&self.robot);
+        if self.plant.sections().iter().all(|(_, t)| t.is_none()) {
+            return Ok(base.clone());
+        }
+        let mut table: toml::Table =
+            toml::from_str(&base.to_toml_string()).map_err(|e| format!("plant: {e}"))?;
+        for (name, over) in self.plant.sections() {
+            let Some(over) = over else { continue };
+            match table.get_mut(name) {
+                Some(toml::Value::Table(t)) => {
+                    for (k, v) in over {
+                        if !t.contains_key(k) {
+                            return Err(format!(
+                                "plant.{name}.{k}: not a field of the robot file's [{name}] (docs/robot.md)"
+                            ));
+                        }
+                        t.insert(k.clone(), v.clone());
+                    }
+                }
+                _ => return Err(format!("plant.{name}: not a section of the robot file")),
+            }
+        }
+        let text = toml::to_string(&table).map_err(|e| format!("plant: {e}"))?;
+        Robot::from_toml_str(&text)
+            .map_err(|e| format!("plant (robot file with the [plant.*] fields): {e}"))
+    }
+
+    /// The simulated motors: the plant robot's, with the controller's PWM
+    /// resolution (a board property).
+    pub fn plant_motor(&self, plant: &Robot) -> MotorParams {
+        plant.motor_params(self.duty_full_scale())
+    }
+
+    /// The simulated encoders: the plant robot's, with the sensing part's
+    /// overrides, counting the true wheel angle (the radius scale is the
+    /// runtime's business).
+    pub fn plant_encoder(&self, plant: &Robot) -> EncoderParams {
+        EncoderParams {
+            radius_scale: [1.0; 2],
+            ..Self::encoder_of(plant, &self.sensing)
         }
     }
 }
+
+/// Timer clock the PWM resolution is derived at when `pwm_levels` is 0
+/// [Hz]: the STM32F411's 96 MHz (robot-file's first supported clock; the
+/// paper robot's 20 kHz gives the example's 4,800 levels).
+pub const TIMER_CLOCK_HZ: u32 = robot_file::SUPPORTED_TIMER_CLOCKS_HZ[0];
 
 #[cfg(test)]
 mod tests {
@@ -400,12 +802,12 @@ mod tests {
     fn presets_draw_in_paper_ranges_and_are_seeded() {
         for seed in 0..200 {
             let c2 = Scenario::paper_case(2, seed, None, None);
-            assert!(c2.beta > 0.0 && c2.beta < 0.2);
-            assert!(c2.eps > 0.125 && c2.eps < 0.25);
+            assert!(c2.perturbations.beta > 0.0 && c2.perturbations.beta < 0.2);
+            assert!(c2.perturbations.eps > 0.125 && c2.perturbations.eps < 0.25);
             assert_eq!(c2, Scenario::paper_case(2, seed, None, None));
             let c1 = Scenario::paper_case(1, seed, None, None);
-            assert_eq!(c1.eps, 0.0);
-            assert_eq!(c1.beta, c2.beta);
+            assert_eq!(c1.perturbations.eps, 0.0);
+            assert_eq!(c1.perturbations.beta, c2.perturbations.beta);
             c2.validate().unwrap();
         }
     }
@@ -420,15 +822,11 @@ mod tests {
 
     #[test]
     fn bad_scenarios_rejected() {
-        let s = Scenario {
-            eps: 1.5,
-            ..Scenario::default()
-        };
+        let mut s = Scenario::default();
+        s.perturbations.eps = 1.5;
         assert!(s.validate().unwrap_err().contains("eps"));
-        let s = Scenario {
-            torque_limit_nm: f64::NAN,
-            ..Scenario::default()
-        };
+        let mut s = Scenario::default();
+        s.plant.torque_limit_nm = Some(f64::NAN);
         assert!(s.validate().unwrap_err().contains("torque"));
     }
 }

@@ -2,7 +2,7 @@
 //! the firmware runtime, with what parameters (docs/scenario.md lists them),
 //! and the `gyro_*`/`pose_*` overrides on top ([`GyroOverrides`],
 //! [`PoseOverrides`]: each knob one field, read by serde for scenario files
-//! and by clap for the command line).
+//! and by clap for the command line, inside the scenario's `[sensing]` part).
 
 use serde::{Deserialize, Serialize};
 use sim_robot::{GyroModel, PoseSourceModel};
@@ -144,21 +144,6 @@ pub struct PoseOverrides {
     pub pose_outlier_m: Option<f64>,
 }
 
-/// `top`'s set fields over `base` (the command line over a file): both
-/// through TOML, which leaves unset (None) fields out, so every knob is
-/// named only where it is declared.
-pub fn overlay<T: Serialize + serde::de::DeserializeOwned>(base: &T, top: &T) -> T {
-    let table = |v: &T| match toml::Value::try_from(v) {
-        Ok(toml::Value::Table(t)) => t,
-        _ => unreachable!("override structs serialise to TOML tables"),
-    };
-    let mut merged = table(base);
-    merged.extend(table(top));
-    toml::Value::Table(merged)
-        .try_into()
-        .expect("a merge of two valid override tables is valid")
-}
-
 /// The sensor models of a scenario: its preset's, with the overrides applied.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SensorModels {
@@ -247,25 +232,8 @@ mod tests {
     use super::*;
     use crate::scenario::Scenario;
 
-    /// The command line over a file: set fields win, unset ones keep the
-    /// file's value.
     #[test]
-    fn overlay_keeps_unset_fields() {
-        let file = PoseOverrides {
-            pose_rate_hz: Some(20.0),
-            pose_std_m: Some(0.01),
-            ..PoseOverrides::default()
-        };
-        let flags = PoseOverrides {
-            pose_std_m: Some(0.03),
-            pose_outage_s: Some(Window([1.0, 2.0])),
-            ..PoseOverrides::default()
-        };
-        let m = overlay(&file, &flags);
-        assert_eq!(m.pose_rate_hz, Some(20.0));
-        assert_eq!(m.pose_std_m, Some(0.03));
-        assert_eq!(m.pose_outage_s, Some(Window([1.0, 2.0])));
-        assert_eq!(m.pose_dropout, None);
+    fn windows_parse() {
         assert_eq!("3,4".parse::<Window>(), Ok(Window([3.0, 4.0])));
         assert!("3".parse::<Window>().unwrap_err().contains("START,END"));
         assert!("a,4".parse::<Window>().unwrap_err().contains("'a'"));
@@ -313,20 +281,23 @@ mod tests {
     #[test]
     fn overrides_apply_and_misplaced_ones_are_errors() {
         let scn = Scenario {
-            sensing: Sensing::Mocap,
-            pose: PoseOverrides {
-                pose_rate_hz: Some(50.0),
-                pose_heading_std_rad: Some(0.0),
-                pose_outage_s: Some(Window([20.0, 22.0])),
-                ..PoseOverrides::default()
-            },
-            gyro: GyroOverrides {
-                gyro_bias_radps: Some(0.02),
-                ..GyroOverrides::default()
+            sensing: crate::scenario::SensingPart {
+                preset: Sensing::Mocap,
+                pose: PoseOverrides {
+                    pose_rate_hz: Some(50.0),
+                    pose_heading_std_rad: Some(0.0),
+                    pose_outage_s: Some(Window([20.0, 22.0])),
+                    ..PoseOverrides::default()
+                },
+                gyro: GyroOverrides {
+                    gyro_bias_radps: Some(0.02),
+                    ..GyroOverrides::default()
+                },
+                ..Default::default()
             },
             ..Scenario::default()
         };
-        let s = SensorModels::of(scn.sensing, &scn.gyro, &scn.pose).unwrap();
+        let s = SensorModels::of(scn.sensing.preset, &scn.sensing.gyro, &scn.sensing.pose).unwrap();
         let p = s.pose.unwrap();
         assert_eq!(
             (p.rate_hz, p.heading_noise_rad, p.outage_s),
@@ -334,37 +305,49 @@ mod tests {
         );
         assert_eq!(s.gyro.unwrap().bias_radps, 0.02);
         let bad = Scenario {
-            sensing: Sensing::Imu,
-            pose: PoseOverrides {
-                pose_rate_hz: Some(50.0),
-                ..PoseOverrides::default()
+            sensing: crate::scenario::SensingPart {
+                preset: Sensing::Imu,
+                pose: PoseOverrides {
+                    pose_rate_hz: Some(50.0),
+                    ..PoseOverrides::default()
+                },
+                ..Default::default()
             },
             ..Scenario::default()
         };
         assert!(bad.validate().unwrap_err().contains("pose_*"));
         let bad = Scenario {
-            sensing: Sensing::Odometry,
-            gyro: GyroOverrides {
-                gyro_rate_hz: Some(50.0),
-                ..GyroOverrides::default()
+            sensing: crate::scenario::SensingPart {
+                preset: Sensing::Odometry,
+                gyro: GyroOverrides {
+                    gyro_rate_hz: Some(50.0),
+                    ..GyroOverrides::default()
+                },
+                ..Default::default()
             },
             ..Scenario::default()
         };
         assert!(bad.validate().unwrap_err().contains("gyro_*"));
         let bad = Scenario {
-            sensing: Sensing::Uwb,
-            pose: PoseOverrides {
-                pose_latency_s: Some(0.3),
-                ..PoseOverrides::default()
+            sensing: crate::scenario::SensingPart {
+                preset: Sensing::Uwb,
+                pose: PoseOverrides {
+                    pose_latency_s: Some(0.3),
+                    ..PoseOverrides::default()
+                },
+                ..Default::default()
             },
             ..Scenario::default()
         };
         assert!(bad.validate().unwrap_err().contains("history"));
         let bad = Scenario {
-            sensing: Sensing::Uwb,
-            pose: PoseOverrides {
-                pose_dropout: Some(2.0),
-                ..PoseOverrides::default()
+            sensing: crate::scenario::SensingPart {
+                preset: Sensing::Uwb,
+                pose: PoseOverrides {
+                    pose_dropout: Some(2.0),
+                    ..PoseOverrides::default()
+                },
+                ..Default::default()
             },
             ..Scenario::default()
         };

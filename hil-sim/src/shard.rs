@@ -104,7 +104,7 @@ impl ShardHeader {
             format: SHARD_FORMAT.into(),
             version: SHARD_FORMAT_VERSION,
             hil_sim_version: env!("CARGO_PKG_VERSION").into(),
-            sweep: *sweep,
+            sweep: sweep.clone(),
             run0_scenario: sweep.scenario(0),
             shard,
             runs: [r.start, r.end],
@@ -367,7 +367,7 @@ pub fn merge_shards(paths: &[PathBuf]) -> Result<Merged, String> {
             ));
         }
     }
-    let sweep = h0.sweep;
+    let sweep = h0.sweep.clone();
     let runs = sweep.runs as u64;
     let nk = ControllerKind::ALL.len();
     let slot = |r: &SimRecord| {
@@ -480,6 +480,8 @@ mod tests {
             duration_s: None,
             sensing: Default::default(),
             paper_setting: false,
+            robot: None,
+            plant: None,
         };
         let mut rng = Rng::new(9);
         let mut any = || loop {

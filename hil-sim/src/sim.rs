@@ -24,7 +24,7 @@ pub fn run_with(
     trace_every: usize,
 ) -> Result<SimOutput, String> {
     scn.validate()?;
-    match scn.sensing {
+    match scn.sensing.preset {
         Sensing::Ideal => {
             let side = IdealSide::new(cfg, scn.pacing(), scn.trajectory.reference())?;
             let mut world = crate::closed_loop::world::ideal_world(scn, &cfg)?;

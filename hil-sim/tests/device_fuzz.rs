@@ -184,10 +184,10 @@ struct Fuzz {
 impl Fuzz {
     fn new() -> Self {
         let scn = Scenario {
-            sensing: Sensing::Mocap,
             substeps: 2,
             ..Scenario::default()
-        };
+        }
+        .with_sensing(Sensing::Mocap);
         let mut robot = SimRobot::new(&scn, ControllerKind::Proposed).unwrap();
         let cfg = *robot.device().control().config();
         let mut f = Self {

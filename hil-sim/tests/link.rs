@@ -7,7 +7,7 @@
 
 use controller_core::ControllerKind;
 use hil_sim::device::{open_pty, serve, SimRobot};
-use hil_sim::scenario::{Scenario, Sensing, TrajectoryKind};
+use hil_sim::scenario::{PerturbationPart, Scenario, Sensing, TrajectoryKind};
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -75,15 +75,11 @@ fn nominal(trajectory: TrajectoryKind, duration_s: f64) -> Scenario {
     Scenario {
         name: "nominal".into(),
         duration_s,
-        window_s: [0.0, 0.0],
         trajectory,
-        beta: 0.0,
-        eps: 0.0,
-        skid_scale: 0.0,
-        disturbance_nm: 0.0,
-        sensing: Sensing::Mocap,
+        perturbations: PerturbationPart::none(),
         ..Scenario::default()
     }
+    .with_sensing(Sensing::Mocap)
 }
 
 fn ok(link: &mut Link, req: Request) {

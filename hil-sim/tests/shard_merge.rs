@@ -72,6 +72,8 @@ fn three_shards_merged_equal_the_unsharded_run() {
         duration_s: Some(DURATION.parse().unwrap()),
         sensing: Default::default(),
         paper_setting: false,
+        robot: None,
+        plant: None,
     };
     let whole = run_montecarlo(&cfg, &|| {});
     // Non-trivial sample: the runs differ and the window metrics are defined.

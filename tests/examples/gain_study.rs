@@ -30,13 +30,14 @@ fn main() {
     let c2 = Scenario::paper_case(2, 1, None, None);
     println!(
         "Case 2 seed 1: beta = {:.4} rad/s, eps = {:.4}",
-        c2.beta, c2.eps
+        c2.perturbations.beta, c2.perturbations.eps
     );
     println!("== k_y (Case 2, seed 1) ==");
     for k_y in [250.0, 100.0, 50.0, 25.0, 10.0] {
-        let scn = Scenario {
-            k_y: Some(k_y),
-            ..Scenario::paper_case(2, 1, None, None)
+        let scn = {
+            let mut s = Scenario::paper_case(2, 1, None, None);
+            s.controller.k_y = Some(k_y);
+            s
         };
         for kind in ControllerKind::ALL {
             row(&format!("k_y = {k_y}"), &scn, kind, |_| {});
@@ -44,10 +45,11 @@ fn main() {
     }
     println!("== k_y at a 5 N·m torque limit (Case 2, seed 1) ==");
     for k_y in [50.0, 25.0, 10.0] {
-        let scn = Scenario {
-            k_y: Some(k_y),
-            torque_limit_nm: 5.0,
-            ..Scenario::paper_case(2, 1, None, None)
+        let scn = {
+            let mut s = Scenario::paper_case(2, 1, None, None);
+            s.controller.k_y = Some(k_y);
+            s.plant.torque_limit_nm = Some(5.0);
+            s
         };
         row(
             &format!("k_y = {k_y}, 5 N·m"),
@@ -63,10 +65,13 @@ fn main() {
         TrajectoryKind::PaperPrinted,
     ] {
         for k_y in [25.0, 250.0] {
-            let scn = Scenario {
-                trajectory: tr,
-                k_y: Some(k_y),
-                ..Scenario::paper_case(2, 1, None, None)
+            let scn = {
+                let mut s = Scenario {
+                    trajectory: tr,
+                    ..Scenario::paper_case(2, 1, None, None)
+                };
+                s.controller.k_y = Some(k_y);
+                s
             };
             for kind in ControllerKind::ALL {
                 row(&format!("{tr:?} k_y={k_y}"), &scn, kind, |_| {});
@@ -75,9 +80,10 @@ fn main() {
     }
     println!("== torque limit (Case 2, seed 1) ==");
     for lim in [2.0, 5.0, 10.0, 20.0, 1000.0] {
-        let scn = Scenario {
-            torque_limit_nm: lim,
-            ..Scenario::paper_case(2, 1, None, None)
+        let scn = {
+            let mut s = Scenario::paper_case(2, 1, None, None);
+            s.plant.torque_limit_nm = Some(lim);
+            s
         };
         for kind in ControllerKind::ALL {
             row(&format!("limit {lim} N·m"), &scn, kind, |_| {});

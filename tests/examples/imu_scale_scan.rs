@@ -45,13 +45,15 @@ fn main() {
     }
     let mut scns = vec![];
     for s in 1..=3u64 {
-        scns.push(Scenario {
-            sensing,
-            ..Scenario::paper_case(2, s, Some(0.1), Some(0.2)).as_printed()
+        scns.push({
+            let mut s = Scenario::paper_case(2, s, Some(0.1), Some(0.2)).as_printed();
+            s.sensing.preset = sensing;
+            s
         });
-        scns.push(Scenario {
-            sensing,
-            ..Scenario::paper_case(2, s, None, None).as_printed()
+        scns.push({
+            let mut s = Scenario::paper_case(2, s, None, None).as_printed();
+            s.sensing.preset = sensing;
+            s
         });
     }
     for (name, est) in &tunings {

@@ -37,10 +37,13 @@ fn main() {
                     let hs: Vec<_> = (1..=seeds)
                         .map(|seed| {
                             s.spawn(move || {
-                                let scn = Scenario {
-                                    sensing,
-                                    seed,
-                                    ..Scenario::paper_case(2, seed, Some(0.1), Some(0.2))
+                                let scn = {
+                                    let mut s = Scenario {
+                                        seed,
+                                        ..Scenario::paper_case(2, seed, Some(0.1), Some(0.2))
+                                    };
+                                    s.sensing.preset = sensing;
+                                    s
                                 };
                                 let opts = HilOptions {
                                     estimator: Some(*est),

@@ -14,11 +14,10 @@ const SEEDS: [u64; 3] = [1, 2, 3];
 
 /// Case 2 with the β = 0.1, ε = 0.2, seeded noise, governor on.
 fn case2_fixed(seed: u64) -> Scenario {
-    Scenario {
-        pose_noise_m: 0.001,
-        heading_noise_rad: 0.001,
-        ..Scenario::paper_case(2, seed, Some(0.1), Some(0.2))
-    }
+    let mut s = Scenario::paper_case(2, seed, Some(0.1), Some(0.2));
+    s.sensing.pose_noise_m = 0.001;
+    s.sensing.heading_noise_rad = 0.001;
+    s
 }
 
 fn metrics(scn: &Scenario, kind: ControllerKind) -> hil_sim::Metrics {
@@ -34,9 +33,10 @@ fn metrics(scn: &Scenario, kind: ControllerKind) -> hil_sim::Metrics {
 fn proposed_keeps_the_path_at_low_torque_limits() {
     for limit in [5.0, 4.0, 3.0] {
         for seed in SEEDS {
-            let scn = Scenario {
-                torque_limit_nm: limit,
-                ..case2_fixed(seed)
+            let scn = {
+                let mut s = case2_fixed(seed);
+                s.plant.torque_limit_nm = Some(limit);
+                s
             };
             let p = metrics(&scn, ControllerKind::Proposed);
             let a = metrics(&scn, ControllerKind::Asmc);
@@ -125,7 +125,9 @@ fn start_heads_for_the_path() {
 /// the health machine left nominal there.
 fn slowed_in_window(out: &SimOutput, scn: &Scenario) -> bool {
     out.trace.iter().any(|s| {
-        s.t_s >= scn.window_s[0] && s.t_s < scn.window_s[1] && (s.time_scale < 0.9 || s.health > 0)
+        s.t_s >= scn.perturbations.window_s[0]
+            && s.t_s < scn.perturbations.window_s[1]
+            && (s.time_scale < 0.9 || s.health > 0)
     })
 }
 
@@ -136,10 +138,11 @@ fn slowed_in_window(out: &SimOutput, scn: &Scenario) -> bool {
 #[test]
 fn growing_fault_slows_and_keeps_the_path() {
     for seed in SEEDS {
-        let scn = Scenario {
-            eps: 0.0,
-            eps_end: Some(0.6),
-            ..case2_fixed(seed)
+        let scn = {
+            let mut s = case2_fixed(seed);
+            s.perturbations.eps = 0.0;
+            s.perturbations.eps_end = Some(0.6);
+            s
         };
         let out = run(&scn, ControllerKind::Proposed).unwrap();
         let m = &out.metrics;
@@ -173,10 +176,11 @@ fn growing_fault_slows_and_keeps_the_path() {
 #[test]
 fn weak_wheel_slows_and_keeps_the_path() {
     for seed in SEEDS {
-        let scn = Scenario {
-            torque_limit_nm: 5.0,
-            wheel_torque_scale: [1.0, 0.5],
-            ..case2_fixed(seed)
+        let scn = {
+            let mut s = case2_fixed(seed);
+            s.plant.torque_limit_nm = Some(5.0);
+            s.perturbations.wheel_torque_scale = [1.0, 0.5];
+            s
         };
         let out = run(&scn, ControllerKind::Proposed).unwrap();
         let m = &out.metrics;
@@ -202,14 +206,16 @@ fn weak_wheel_slows_and_keeps_the_path() {
 fn traced_time_scale_bounded_and_clock_never_ahead() {
     let scns = [
         case2_fixed(1),
-        Scenario {
-            torque_limit_nm: 3.0,
-            ..case2_fixed(2)
+        {
+            let mut s = case2_fixed(2);
+            s.plant.torque_limit_nm = Some(3.0);
+            s
         },
-        Scenario {
-            eps: 0.0,
-            eps_end: Some(0.6),
-            ..case2_fixed(3)
+        {
+            let mut s = case2_fixed(3);
+            s.perturbations.eps = 0.0;
+            s.perturbations.eps_end = Some(0.6);
+            s
         },
     ];
     for scn in scns {

@@ -15,9 +15,10 @@ use hil_sim::{run, Scenario};
 #[test]
 fn quantised_loop_tracks_case1() {
     let ideal_scn = Scenario::paper_case(1, 1, None, None);
-    let scn = Scenario {
-        sensing: Sensing::Mocap,
-        ..ideal_scn.clone()
+    let scn = {
+        let mut s = ideal_scn.clone();
+        s.sensing.preset = Sensing::Mocap;
+        s
     };
     for kind in ControllerKind::ALL {
         let hil = run_hil(&scn, kind, HilOptions::default()).unwrap();
@@ -45,14 +46,16 @@ fn quantised_loop_tracks_case1() {
 /// Case 2 is much larger than with motion capture.
 #[test]
 fn odometry_cannot_see_the_actuator_fault() {
-    let scn = Scenario {
-        sensing: Sensing::Mocap,
-        ..Scenario::paper_case(2, 1, None, None)
+    let scn = {
+        let mut s = Scenario::paper_case(2, 1, None, None);
+        s.sensing.preset = Sensing::Mocap;
+        s
     };
     let ext = run_hil(&scn, ControllerKind::Proposed, HilOptions::default()).unwrap();
-    let odo_scn = Scenario {
-        sensing: Sensing::Odometry,
-        ..scn.clone()
+    let odo_scn = {
+        let mut s = scn.clone();
+        s.sensing.preset = Sensing::Odometry;
+        s
     };
     let odo = run_hil(&odo_scn, ControllerKind::Proposed, HilOptions::default()).unwrap();
     assert_eq!(ext.stop, None);
@@ -90,9 +93,10 @@ fn odometry_cannot_see_the_actuator_fault() {
 /// then on.
 #[test]
 fn dead_encoder_latches_a_safe_stop() {
-    let scn = Scenario {
-        sensing: Sensing::Mocap,
-        ..Scenario::paper_case(1, 1, None, None)
+    let scn = {
+        let mut s = Scenario::paper_case(1, 1, None, None);
+        s.sensing.preset = Sensing::Mocap;
+        s
     };
     let opts = HilOptions {
         dead_encoder: Some((1, 12.0)),

@@ -66,7 +66,7 @@ fn fault_estimate_follows_injected_fault() {
         assert!(
             rel < 0.35,
             "seed {seed} eps {}: relative residual {rel:.3}",
-            scn.eps
+            scn.perturbations.eps
         );
         assert!(
             (gain - 1.0).abs() < 0.15,
@@ -93,7 +93,7 @@ fn all_controllers_bounded_over_monte_carlo_sample() {
             let out = run(&scn, kind).unwrap();
             let m = &out.metrics;
             assert_eq!(out.rejected_steps, 0);
-            assert!(m.max_abs_torque_nm <= scn.torque_limit_nm + 1e-9);
+            assert!(m.max_abs_torque_nm <= scn.torque_limit_nm() + 1e-9);
             assert!(m.max_pos_err_window_m < 1.0, "{seed} {kind:?}: {m:?}");
             assert!(
                 m.final_pos_err_m < 0.05,
@@ -109,9 +109,10 @@ fn all_controllers_bounded_over_monte_carlo_sample() {
 /// (with pose noise) differs.
 #[test]
 fn deterministic_for_a_seed() {
-    let scn = Scenario {
-        pose_noise_m: 0.002,
-        ..Scenario::paper_case(2, 9, None, None).as_printed()
+    let scn = {
+        let mut s = Scenario::paper_case(2, 9, None, None).as_printed();
+        s.sensing.pose_noise_m = 0.002;
+        s
     };
     let a = run(&scn, ControllerKind::Proposed).unwrap();
     let b = run(&scn, ControllerKind::Proposed).unwrap();
@@ -125,9 +126,10 @@ fn deterministic_for_a_seed() {
 /// (errors below 1 cm at the end, from 3.35 m).
 #[test]
 fn nominal_plant_all_converge() {
-    let scn = Scenario {
-        window_s: [0.0, 0.0],
-        ..Scenario::paper_case(1, 1, None, None).as_printed()
+    let scn = {
+        let mut s = Scenario::paper_case(1, 1, None, None).as_printed();
+        s.perturbations.window_s = [0.0, 0.0];
+        s
     };
     for kind in ControllerKind::ALL {
         let m = run(&scn, kind).unwrap().metrics;
@@ -141,9 +143,10 @@ fn nominal_plant_all_converge() {
 /// stay within 2 cm of each other after the first second.
 #[test]
 fn proposed_and_asmc_agree_on_nominal_plant() {
-    let scn = Scenario {
-        window_s: [0.0, 0.0],
-        ..Scenario::paper_case(1, 1, None, None).as_printed()
+    let scn = {
+        let mut s = Scenario::paper_case(1, 1, None, None).as_printed();
+        s.perturbations.window_s = [0.0, 0.0];
+        s
     };
     let p = run_with(&scn, controller_config(&scn, ControllerKind::Proposed), 10).unwrap();
     let mut cfg = controller_config(&scn, ControllerKind::Asmc);
@@ -169,9 +172,10 @@ fn p_ks(scn: &Scenario) -> f32 {
 #[test]
 fn printed_k_y_is_unstable_on_the_reversing_reference() {
     let base = Scenario::paper_case(2, 1, None, None).as_printed();
-    let printed = Scenario {
-        k_y: Some(250.0),
-        ..base.clone()
+    let printed = {
+        let mut s = base.clone();
+        s.controller.k_y = Some(250.0);
+        s
     };
     let bad = window_rms(&printed, ControllerKind::Proposed);
     let good = window_rms(&base, ControllerKind::Proposed);

@@ -10,7 +10,7 @@
 use controller_core::ControllerKind;
 use hil_sim::hil::{run_hil, HilOptions, HilOutput};
 use hil_sim::scenario::Sensing;
-use hil_sim::sensing::{PoseOverrides, Window};
+use hil_sim::sensing::Window;
 use hil_sim::{run, Scenario};
 
 const SEEDS: [u64; 3] = [1, 2, 3];
@@ -32,9 +32,10 @@ fn case2_scenarios() -> Vec<Scenario> {
 }
 
 fn with(scn: &Scenario, sensing: Sensing) -> Scenario {
-    Scenario {
-        sensing,
-        ..scn.clone()
+    {
+        let mut s = scn.clone();
+        s.sensing.preset = sensing;
+        s
     }
 }
 
@@ -147,13 +148,8 @@ fn pose_outage_no_stop_and_recovery_within_1s() {
     let kinds = [ControllerKind::Proposed];
     for base in case2_scenarios() {
         let reference = with(&base, Sensing::Mocap);
-        let outage = Scenario {
-            pose: PoseOverrides {
-                pose_outage_s: Some(Window([20.0, 22.0])),
-                ..reference.pose
-            },
-            ..reference.clone()
-        };
+        let mut outage = reference.clone();
+        outage.sensing.pose.pose_outage_s = Some(Window([20.0, 22.0]));
         let o = hil_all(&[reference, outage], &kinds);
         let (r, a) = (&o[0][0], &o[1][0]);
         assert_eq!(a.stop, None, "{}", base.name);
@@ -192,14 +188,9 @@ fn outliers_rejected_and_counted() {
     let kinds = [ControllerKind::Proposed];
     for base in case2_scenarios() {
         let clean = with(&base, Sensing::Mocap);
-        let dirty = Scenario {
-            pose: PoseOverrides {
-                pose_outlier_fraction: Some(0.05),
-                pose_outlier_m: Some(1.0),
-                ..clean.pose
-            },
-            ..clean.clone()
-        };
+        let mut dirty = clean.clone();
+        dirty.sensing.pose.pose_outlier_fraction = Some(0.05);
+        dirty.sensing.pose.pose_outlier_m = Some(1.0);
         let o = hil_all(&[clean, dirty], &kinds);
         let (c, d) = (&o[0][0], &o[1][0]);
         let est = d.sensing.estimator;

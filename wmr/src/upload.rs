@@ -34,8 +34,15 @@ pub enum Upload {
     Waypoints(Vec<Waypoint>),
 }
 
-/// Scenario keys that describe the simulated world, not the reference.
-const SIMULATOR_KEYS: [&str; 21] = [
+/// Scenario keys that describe the simulated world, not the reference:
+/// the flat keys of version-1 scenario files and the `version` key and part
+/// tables of version 2 (docs/scenario.md).
+const SIMULATOR_KEYS: [&str; 26] = [
+    "version",
+    "plant",
+    "perturbations",
+    "controller",
+    "governor",
     "name",
     "duration_s",
     "control_period_s",
@@ -197,6 +204,8 @@ mod tests {
                 speed_scale: 1.0
             })
         );
+        assert!(ignored.contains(&"perturbations".to_string()));
+        let (_, ignored) = parse_upload("beta = 0.1\ntrajectory = \"line\"\n", "v1.toml").unwrap();
         assert!(ignored.contains(&"beta".to_string()));
     }
 

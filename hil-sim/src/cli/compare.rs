@@ -6,7 +6,7 @@ use crate::report::{
     beyond_paper_text, case_plot_title, compare_json, compare_rows, compare_sensing_json,
     compare_sensing_text, compare_text, CaseRuns,
 };
-use crate::scenario::{Scenario, Sensing};
+use crate::scenario::{Robot, Scenario, Sensing};
 use crate::sim::SimOutput;
 use clap::Args;
 use controller_core::ControllerKind;
@@ -35,6 +35,9 @@ pub struct CompareArgs {
     /// Skip the plots (table and metrics.json only).
     #[arg(long)]
     pub no_plots: bool,
+    /// The robot files (`--robot`, `--plant`).
+    #[command(flatten)]
+    pub robots: super::robot_arg::RobotArgs,
 }
 
 /// Runs both paper cases with the three controllers in parallel (traced),
@@ -45,11 +48,12 @@ pub fn compare_runs(
     beta: Option<f64>,
     eps: Option<f64>,
     beyond_paper: bool,
+    robots: Robots<'_>,
 ) -> Result<Vec<CaseRuns>, String> {
     let cases: Vec<(u8, Scenario)> = [1u8, 2]
         .iter()
         .map(|&c| {
-            let s = Scenario::paper_case(c, seed, beta, eps);
+            let s = Scenario::paper_case(c, seed, beta, eps).with_robots(robots.0, robots.1);
             (c, if beyond_paper { s } else { s.as_printed() })
         })
         .collect();
@@ -75,6 +79,10 @@ pub fn compare_runs(
     }
     Ok(res)
 }
+
+/// The controller's and the plant's robot of a comparison (None: the
+/// paper's, the controller's).
+pub type Robots<'a> = (Option<&'a Robot>, Option<&'a Robot>);
 
 /// Writes `json` to `dir/metrics.json` (creating `dir`); returns the path.
 pub fn write_metrics_json(dir: &Path, json: &str) -> Result<PathBuf, String> {
@@ -116,12 +124,15 @@ pub fn compare_sensing_runs(
     seed: u64,
     beta: Option<f64>,
     eps: Option<f64>,
+    robots: Robots<'_>,
 ) -> Result<Vec<(Sensing, Scenario, Vec<SimOutput>)>, String> {
     let scns: Vec<Scenario> = COMPARE_SENSING
         .iter()
-        .map(|&sensing| Scenario {
-            sensing,
-            ..Scenario::paper_case(2, seed, beta, eps).as_printed()
+        .map(|&sensing| {
+            Scenario::paper_case(2, seed, beta, eps)
+                .as_printed()
+                .with_sensing(sensing)
+                .with_robots(robots.0, robots.1)
         })
         .collect();
     let jobs: Vec<(usize, ControllerKind)> = (0..scns.len())
@@ -138,8 +149,8 @@ pub fn compare_sensing_runs(
             .by_ref()
             .take(ControllerKind::ALL.len())
             .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| format!("case 2, sensing {}: {e}", scn.sensing.name()))?;
-        res.push((scn.sensing, scn, runs));
+            .map_err(|e| format!("case 2, sensing {}: {e}", scn.sensing.preset.name()))?;
+        res.push((scn.sensing.preset, scn, runs));
     }
     Ok(res)
 }
@@ -149,10 +160,12 @@ pub fn compare_sensing_runs(
 /// with the governor on, into `metrics_governor.json` and `case<N>_gov_*`);
 /// a plot error is returned after the tables have been printed.
 pub fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
+    let (robot, plant) = a.robots.load()?;
+    let robots = (robot.as_ref(), plant.as_ref());
     let t0 = std::time::Instant::now();
-    let results = compare_runs(a.seed, a.beta, a.eps, false)?;
+    let results = compare_runs(a.seed, a.beta, a.eps, false, robots)?;
     let sim_time = t0.elapsed();
-    let sensing = compare_sensing_runs(a.seed, a.beta, a.eps)?;
+    let sensing = compare_sensing_runs(a.seed, a.beta, a.eps, robots)?;
     let rows = compare_rows(&results);
     let json = compare_json(&rows)?;
     let metrics_path = write_metrics_json(&a.out, &json)?;
@@ -177,7 +190,7 @@ pub fn compare(a: &CompareArgs, out: &mut dyn Write) -> Result<(), String> {
         })
     };
     // The same with the governor (the defaults beyond the paper).
-    let gov = compare_runs(a.seed, a.beta, a.eps, true)?;
+    let gov = compare_runs(a.seed, a.beta, a.eps, true, robots)?;
     let gov_rows = compare_rows(&gov);
     let gov_json = compare_json(&gov_rows)?;
     let gov_path = a.out.join("metrics_governor.json");

@@ -48,7 +48,7 @@ pub fn device(a: &DeviceArgs, out: &mut dyn Write) -> Result<(), String> {
     out.flush().map_err(|e| e.to_string())?;
     eprintln!(
         "simulated robot on {path} ({} sensing, {} controller, {}x real time); talk to it with `wmr --port {path} status`",
-        match scn.sensing {
+        match scn.sensing.preset {
             crate::scenario::Sensing::Ideal => "mocap",
             s => s.name(),
         },

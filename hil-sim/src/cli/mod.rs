@@ -13,12 +13,15 @@ pub mod device;
 pub mod merge;
 pub mod montecarlo;
 pub mod report;
+pub mod robot_arg;
 pub mod run;
 pub mod scenario_args;
+pub mod sweep;
 #[cfg(test)]
 mod tests;
 
 pub use controller_arg::ControllerArg;
+pub use robot_arg::RobotArgs;
 pub use scenario_args::ScenarioArgs;
 
 use clap::{Parser, Subcommand};
@@ -53,6 +56,9 @@ pub enum Command {
     Device(Box<device::DeviceArgs>),
     /// Metrics and plots of a trace CSV (`hil-sim run --csv` or `wmr record`).
     Report(report::ReportArgs),
+    /// Model-mismatch sweep of one robot (issue 18): wheel radius, track,
+    /// friction, motor constant, actuation delay; the three controllers.
+    Sweep(sweep::SweepArgs),
 }
 
 /// Executes a parsed command line, writing results to `out`.
@@ -65,6 +71,7 @@ pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
         Command::Bench(a) => bench::bench(a, out),
         Command::Device(a) => device::device(a, out),
         Command::Report(a) => report::report(a, out),
+        Command::Sweep(a) => sweep::sweep(a, out),
     }
 }
 

@@ -50,11 +50,15 @@ pub struct McArgs {
     /// No progress (bar on a terminal, else a line every 10 s on stderr).
     #[arg(long)]
     pub quiet: bool,
+    /// The robot files (`--robot`, `--plant`).
+    #[command(flatten)]
+    pub robots: super::robot_arg::RobotArgs,
 }
 
 /// `montecarlo`: run the sweep or one shard of it, write the records with
 /// `--shard`/`--out`, print the statistics (unsharded) or the shard's summary.
 pub fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
+    let (robot, plant) = a.robots.load()?;
     let cfg = McConfig {
         runs: a.runs as usize,
         case: a.case,
@@ -63,6 +67,8 @@ pub fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
         duration_s: a.duration,
         sensing: a.sensing,
         paper_setting: a.paper_setting,
+        robot,
+        plant,
     };
     cfg.validate()?;
     crate::limits::check_scenario(&cfg.scenario(0))?;

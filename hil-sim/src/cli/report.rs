@@ -63,13 +63,8 @@ pub fn report(a: &ReportArgs, out: &mut dyn Write) -> Result<(), String> {
     if !a.no_plots {
         let files = plot_trace(&a.out, &name, trace, m, window, kind)?;
         if !a.json {
-            writeln!(
-                out,
-                "{} plot files written to {}",
-                files.len(),
-                a.out.display()
-            )
-            .map_err(|e| e.to_string())?;
+            let text = crate::report::plot_files_text(Some((&[files], &a.out)), "");
+            out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
         }
     }
     Ok(())

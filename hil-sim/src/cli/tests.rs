@@ -74,11 +74,14 @@ fn flags_override_the_preset_and_the_file() {
     };
     let s = a.scenario.build().unwrap();
     assert_eq!(s.name, "case1");
-    assert_eq!((s.beta, s.eps, s.seed), (0.15, 0.0, 4));
-    assert_eq!(s.mass_scale, 1.1);
+    assert_eq!(
+        (s.perturbations.beta, s.perturbations.eps, s.seed),
+        (0.15, 0.0, 4)
+    );
+    assert_eq!(s.plant.mass_scale, 1.1);
     assert_eq!(s.trajectory, TrajectoryKind::Figure8);
-    assert_eq!(s.k_y, Some(10.0));
-    assert_eq!(s.encoder_cpr, 1024);
+    assert_eq!(s.controller.k_y, Some(10.0));
+    assert_eq!(s.sensing.encoder_cpr, 1024);
 
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("s.toml");
@@ -87,13 +90,15 @@ fn flags_override_the_preset_and_the_file() {
         "name = \"file\"\nbeta = 0.01\nsensing = \"mocap\"\npwm_levels = 255\npose_rate_hz = 50.0\n",
     )
     .unwrap();
-    let a = ScenarioArgs {
-        scenario: Some(f),
-        beta: Some(0.02),
-        ..Default::default()
+    let cli = parse(&["run", "--scenario", f.to_str().unwrap(), "--beta", "0.02"]).unwrap();
+    let Command::Run(a) = cli.command else {
+        panic!()
     };
-    let s = a.build().unwrap();
-    assert_eq!((s.name.as_str(), s.beta, s.pwm_levels), ("file", 0.02, 255));
+    let s = a.scenario.build().unwrap();
+    assert_eq!(
+        (s.name.as_str(), s.perturbations.beta, s.sensing.pwm_levels),
+        ("file", 0.02, 255)
+    );
 }
 
 #[test]
@@ -114,13 +119,13 @@ fn sensing_flags_override_the_preset() {
         panic!()
     };
     let s = a.scenario.build().unwrap();
-    assert_eq!(s.sensing, Sensing::Uwb);
-    assert_eq!(s.pose.pose_rate_hz, Some(20.0));
+    assert_eq!(s.sensing.preset, Sensing::Uwb);
+    assert_eq!(s.sensing.pose.pose_rate_hz, Some(20.0));
     assert_eq!(
-        s.pose.pose_outage_s,
+        s.sensing.pose.pose_outage_s,
         Some(crate::sensing::Window([20.0, 22.0]))
     );
-    assert_eq!(s.gyro.gyro_bias_radps, Some(-0.01));
+    assert_eq!(s.sensing.gyro.gyro_bias_radps, Some(-0.01));
     let e = parse(&["run", "--sensing", "mocap", "--pose-outage", "20"]).unwrap_err();
     assert!(e.to_string().contains("START,END"), "{e}");
     let e = run_to_string(&["run", "--sensing", "odometry", "--pose-rate", "5"]).unwrap_err();
@@ -217,7 +222,7 @@ fn compare_without_plots_writes_metrics_json() {
     assert_eq!(v[5]["controller"], "proposed");
     // The paper's setting: no governor, so no governor metrics.
     assert!(v[5].get("time_lag_final_s").is_none());
-    assert_eq!(v[5]["scenario"]["governor"], false);
+    assert_eq!(v[5]["scenario"]["governor"]["enabled"], false);
     let g: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.path().join("metrics_governor.json")).unwrap(),
     )
@@ -225,7 +230,7 @@ fn compare_without_plots_writes_metrics_json() {
     assert_eq!(g.as_array().unwrap().len(), 6);
     assert!(g[5]["time_lag_final_s"].as_f64().unwrap() >= 0.0);
     assert!(
-        g[5]["scenario"].get("governor").is_none(),
+        g[5]["scenario"]["governor"].get("enabled").is_none(),
         "on: the default"
     );
 }
@@ -235,11 +240,11 @@ fn compare_without_plots_writes_metrics_json() {
 /// is not a trace is a clear error.
 #[test]
 fn report_of_a_full_trace_csv_equals_the_run() {
-    let scn = Scenario {
+    let mut scn = Scenario {
         duration_s: 6.0,
-        window_s: [2.0, 4.0],
         ..Scenario::paper_case(1, 2, None, None)
     };
+    scn.perturbations.window_s = [2.0, 4.0];
     let cfg = crate::sim::controller_config(&scn, ControllerKind::Asmc);
     let out = crate::sim::run_with(&scn, cfg, 1).unwrap();
     let dir = tempfile::tempdir().unwrap();
@@ -302,4 +307,95 @@ fn absurd_values_are_refused_before_running() {
         let e = run_to_string(&["device", "--pty", &arg]).unwrap_err();
         assert!(e.contains("--for-s"), "{bad}: {e}");
     }
+}
+
+/// The repository's robots/ directory.
+fn robots_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots")
+}
+
+/// `--robot robots/paper.toml` runs the same robot as no flag: `compare`'s
+/// text (every table) is identical but for the timing and the output path;
+/// another robot changes it (the flag is not ignored).
+#[test]
+fn compare_with_the_paper_robot_file_equals_no_flag() {
+    let paper = robots_dir().join("paper.toml");
+    let small = robots_dir().join("tb6612-2kg.toml");
+    let text = |extra: &[&str]| {
+        let dir = tempfile::tempdir().unwrap();
+        let mut args = vec![
+            "compare",
+            "--out",
+            dir.path().to_str().unwrap(),
+            "--no-plots",
+        ];
+        args.extend_from_slice(extra);
+        let t = run_to_string(&args).unwrap();
+        let out = dir.path().to_str().unwrap().to_string();
+        t.lines()
+            .filter(|l| !l.contains(" simulations in "))
+            .map(|l| l.replace(&out, "OUT"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let none = text(&[]);
+    assert_eq!(none, text(&["--robot", paper.to_str().unwrap()]));
+    assert_ne!(none, text(&["--robot", small.to_str().unwrap()]));
+}
+
+/// A bad robot file is an error naming the file and the field, never a
+/// panic, for every command that takes one.
+#[test]
+fn bad_robot_files_are_errors_naming_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(robots_dir().join("paper.toml")).unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, text.replace("track_m = 0.4", "track_m = -0.4")).unwrap();
+    let bad = bad.to_str().unwrap();
+    let out = dir.path().to_str().unwrap();
+    for args in [
+        vec!["run", "--duration", "0.1", "--robot", bad],
+        vec!["run", "--duration", "0.1", "--plant", bad],
+        vec!["compare", "--no-plots", "--out", out, "--robot", bad],
+        vec![
+            "montecarlo",
+            "--runs",
+            "1",
+            "--duration",
+            "0.1",
+            "--robot",
+            bad,
+        ],
+        vec!["sweep", "--duration", "0.1", "--robot", bad],
+    ] {
+        let e = run_to_string(&args).unwrap_err();
+        assert!(
+            e.contains("bad.toml") && e.contains("body.track_m"),
+            "{args:?}: {e}"
+        );
+    }
+    let e = run_to_string(&["run", "--robot", "/nonexistent/robot.toml"]).unwrap_err();
+    assert!(e.contains("cannot read robot file"), "{e}");
+}
+
+/// `--plant` with a robot whose track is 5 % wider changes the run (the
+/// plant differs from the model), and the same file as `--robot` and
+/// `--plant` equals `--robot` alone.
+#[test]
+fn plant_file_makes_the_simulated_robot_differ() {
+    let dir = tempfile::tempdir().unwrap();
+    let paper = robots_dir().join("paper.toml");
+    let text = std::fs::read_to_string(&paper).unwrap();
+    let wide = dir.path().join("wide.toml");
+    std::fs::write(&wide, text.replace("track_m = 0.4", "track_m = 0.42")).unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run", "--duration", "12", "--json"];
+        args.extend_from_slice(extra);
+        let v: serde_json::Value = serde_json::from_str(&run_to_string(&args).unwrap()).unwrap();
+        v["rms_pos_err_window_m"].as_f64().unwrap()
+    };
+    let p = paper.to_str().unwrap();
+    let nominal = run(&["--robot", p]);
+    assert_eq!(nominal, run(&["--robot", p, "--plant", p]));
+    assert_ne!(nominal, run(&["--plant", wide.to_str().unwrap()]));
 }

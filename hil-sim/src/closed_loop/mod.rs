@@ -103,12 +103,13 @@ pub fn run_loop(
             t,
             pos_err,
             perturbations.in_window(t),
-            t < scn.window_s[0] || scn.window_s[0] >= scn.window_s[1],
+            t < scn.perturbations.window_s[0]
+                || scn.perturbations.window_s[0] >= scn.perturbations.window_s[1],
             tau,
             d.saturated,
             fe,
         );
-        if scn.governor {
+        if scn.governor.enabled {
             acc.push_pace(
                 t - rs_tau_s,
                 pace.scale as f64,
@@ -138,8 +139,12 @@ pub fn run_loop(
                 f_hat: f2(d.f_hat),
                 f_true,
                 saturated: d.saturated,
-                time_scale: if scn.governor { scale_before } else { 1.0 },
-                tau_s: if scn.governor { rs_tau_s } else { t },
+                time_scale: if scn.governor.enabled {
+                    scale_before
+                } else {
+                    1.0
+                },
+                tau_s: if scn.governor.enabled { rs_tau_s } else { t },
                 health: pace.mode.level(),
                 health_reason: pace.reason as u8,
             });

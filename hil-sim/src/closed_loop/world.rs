@@ -1,23 +1,51 @@
 //! The scenario's simulated world ([`sim_robot::World`]): its plant (the
-//! controller model's robot with the scenario's mass and inertia scales),
-//! perturbations, faults and instruments, built in one place for every
-//! loop hil-sim closes (`run`, the HIL runs, the robot behind the link).
+//! plant robot of the scenario, [`Scenario::plant_robot`], through
+//! sim-robot's [`WorldConfig::of_robot`], with the scenario's mass and
+//! inertia scales, actuation delay and electrical lag), perturbations,
+//! faults and instruments, built in one place for every loop hil-sim
+//! closes (`run`, the HIL runs, the robot behind the link).
 
 use crate::scenario::Scenario;
 use controller_core::runtime::RuntimeConfig;
-use controller_core::{ControllerConfig, RobotParams};
+use controller_core::ControllerConfig;
+use sim_robot::plant::ActuatorDynamics;
 use sim_robot::world::{DeadEncoder, Faults, HardwareSensing, IdealSensing, Instruments};
-use sim_robot::{PlantParams, World, WorldConfig};
+use sim_robot::{World, WorldConfig};
 
-/// The world of `scn` around `robot` with these instruments and dead encoder.
+/// The world of `scn` behind a controller configured as `model` with these
+/// instruments (None: the plant robot's own encoders, motors and motor
+/// directions with the scenario's gyro and pose source) and dead encoder.
 fn world(
     scn: &Scenario,
-    robot: &RobotParams,
-    instruments: Instruments,
+    model: &RuntimeConfig,
+    instruments: Option<Instruments>,
     dead_encoder: Option<DeadEncoder>,
 ) -> Result<World, String> {
+    let err = |e: String| format!("scenario '{}': {e}", scn.name);
+    let robot = scn.plant_robot().map_err(err)?;
+    let of_robot = WorldConfig::of_robot(&robot, model).map_err(|e| err(e.to_string()))?;
+    let mut plant = of_robot.plant;
+    plant.mass_kg *= scn.plant.mass_scale;
+    plant.inertia_kgm2 *= scn.plant.inertia_scale;
+    plant.actuator = ActuatorDynamics {
+        delay_s: scn.plant.actuation_delay_s,
+        electrical_time_constant_s: scn.plant.electrical_time_constant_s,
+    };
+    let instruments = match instruments {
+        Some(i) => i,
+        None => {
+            let sensors = scn.sensor_setup().map_err(err)?;
+            Instruments::Hardware(HardwareSensing {
+                encoder: scn.plant_encoder(&robot),
+                motor: scn.plant_motor(&robot),
+                motor_inverted: robot.bridge.motor_inverted,
+                gyro: sensors.gyro,
+                pose_source: sensors.pose,
+            })
+        }
+    };
     World::new(&WorldConfig {
-        plant: PlantParams::from_robot(robot, scn.mass_scale, scn.inertia_scale),
+        plant,
         perturbations: scn.perturbations(),
         initial_pose: scn.initial_pose,
         period_s: scn.control_period_s,
@@ -25,12 +53,12 @@ fn world(
         seed: scn.seed,
         instruments,
         faults: Faults {
-            wheel_torque_scale: scn.wheel_torque_scale,
+            wheel_torque_scale: scn.perturbations.wheel_torque_scale,
             dead_encoder,
             ..Faults::NONE
         },
     })
-    .map_err(|e| format!("scenario '{}': {e}", scn.name))
+    .map_err(|e| err(e.to_string()))
 }
 
 /// Ideal sensing for the bare controller of `controller`: the true pose of
@@ -38,35 +66,23 @@ fn world(
 /// over the controller's period, torques applied exactly.
 pub fn ideal_world(scn: &Scenario, controller: &ControllerConfig) -> Result<World, String> {
     let ideal = IdealSensing {
-        position_noise_m: scn.pose_noise_m,
-        heading_noise_rad: scn.heading_noise_rad,
+        position_noise_m: scn.sensing.pose_noise_m,
+        heading_noise_rad: scn.sensing.heading_noise_rad,
         rate_period_s: controller.period_s as f64,
     };
-    world(scn, &controller.robot, Instruments::Ideal(ideal), None)
+    let model = scn.runtime_config(*controller, scn.safety_limits());
+    world(scn, &model, Some(Instruments::Ideal(ideal)), None)
 }
 
-/// The simulated hardware behind the firmware runtime of `runtime`: its
-/// encoders and motors, the gyro and external pose source of the
-/// scenario's sensing preset (with its overrides), and a dead encoder
+/// The simulated hardware behind the firmware runtime of `runtime`: the
+/// plant robot's encoders and motors, the gyro and external pose source of
+/// the scenario's sensing preset (with its overrides), and a dead encoder
 /// `(wheel, from_s)` if asked.
 pub fn hardware_world(
     scn: &Scenario,
     runtime: &RuntimeConfig,
     dead_encoder: Option<(usize, f64)>,
 ) -> Result<World, String> {
-    let sensors = scn.sensor_setup()?;
-    let hw = HardwareSensing {
-        encoder: runtime.encoder,
-        motor: runtime.motor,
-        motor_inverted: runtime.motor_inverted,
-        gyro: sensors.gyro,
-        pose_source: sensors.pose,
-    };
     let dead = dead_encoder.map(|(wheel, from_s)| DeadEncoder { wheel, from_s });
-    world(
-        scn,
-        &runtime.controller.robot,
-        Instruments::Hardware(hw),
-        dead,
-    )
+    world(scn, runtime, None, dead)
 }

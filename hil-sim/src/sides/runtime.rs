@@ -23,26 +23,16 @@ use sim_robot::World;
 
 /// Options of a HIL run beyond the scenario: safety thresholds and fault
 /// injection. Resolution, sensing and motors come from the [`Scenario`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct HilOptions {
-    /// Safety thresholds.
-    pub safety: SafetyLimits,
+    /// Safety thresholds (None = the robot's, `Scenario::safety_limits`).
+    pub safety: Option<SafetyLimits>,
     /// Fault injection: from this time \[s\] on, the encoder of wheel
     /// `.0` (0 = right, 1 = left) stops counting (broken wire).
     pub dead_encoder: Option<(usize, f64)>,
     /// Estimator tuning (None = [`sensing_estimator_config`]); its initial
     /// pose and centre-of-mass offset are taken from the scenario.
     pub estimator: Option<EstimatorConfig>,
-}
-
-impl Default for HilOptions {
-    fn default() -> Self {
-        Self {
-            safety: SafetyLimits::EXAMPLE,
-            dead_encoder: None,
-            estimator: None,
-        }
-    }
 }
 
 /// The estimator tuning for a set of simulated sensors, as a user would
