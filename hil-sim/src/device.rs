@@ -9,6 +9,7 @@
 //! Robot time is simulated time (one control period per tick); `--speed N`
 //! paces the ticks N times faster than the wall clock.
 
+pub use crate::closed_loop::world::Miswire;
 use crate::hil::sensing_estimator_config;
 use crate::scenario::{Scenario, Sensing};
 use crate::sim::controller_config;
@@ -39,6 +40,19 @@ impl SimRobot {
     /// `mocap`: the runtime always reads encoders); external poses sent by
     /// the host go to the same estimator.
     pub fn new(scn: &Scenario, kind: ControllerKind) -> Result<Self, String> {
+        Self::miswired(scn, kind, &Miswire::default(), |_| {})
+    }
+
+    /// [`Self::new`] with wiring mistakes in the plant (`wmr commission`'s
+    /// test) and the runtime configuration changed by `runtime` (the robot
+    /// file the robot runs: its inversion flags and resolution), the plant
+    /// staying as the scenario builds it.
+    pub fn miswired(
+        scn: &Scenario,
+        kind: ControllerKind,
+        miswire: &Miswire,
+        runtime: impl FnOnce(&mut controller_core::runtime::RuntimeConfig),
+    ) -> Result<Self, String> {
         scn.validate()?;
         let scn = &Scenario {
             sensing: match scn.sensing {
@@ -48,7 +62,11 @@ impl SimRobot {
             ..scn.clone()
         };
         let controller = controller_config(scn, kind);
-        let cfg = scn.runtime_config(controller, crate::hil::HilOptions::default().safety);
+        let built = scn.runtime_config(controller, crate::hil::HilOptions::default().safety);
+        // The plant is built as `built` says (its mountings, resolution);
+        // the runtime may believe otherwise.
+        let mut cfg = built;
+        runtime(&mut cfg);
         // The runtime gives the estimator its geometry and initial pose.
         let estimator = sensing_estimator_config(&scn.sensor_setup()?);
         let dev_cfg = DeviceConfig {
@@ -63,7 +81,7 @@ impl SimRobot {
         Ok(Self {
             device,
             timer,
-            world: crate::closed_loop::world::hardware_world(scn, &cfg, None)?,
+            world: crate::closed_loop::world::hardware_world_miswired(scn, &built, None, miswire)?,
             period_s: scn.control_period_s,
             step: 0,
         })

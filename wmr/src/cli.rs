@@ -54,6 +54,9 @@ pub enum Command {
     Record(RecordArgs),
     /// Forward external poses from stdin lines or a UDP port.
     PoseFeed(PoseFeedArgs),
+    /// Guided first power-up: each wheel driven alone, wiring and the robot
+    /// file checked, the corrected file proposed (docs/commissioning.md).
+    Commission(crate::commission::CommissionArgs),
 }
 
 /// `upload` options.
@@ -252,6 +255,7 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
         Command::Params(a) => params(&a.op, link, out)?,
         Command::Record(a) => record(a, link, out)?,
         Command::PoseFeed(a) => pose_feed(a, link, out)?,
+        Command::Commission(a) => crate::commission::commission(a, link, out)?,
     }
     Ok(())
 }

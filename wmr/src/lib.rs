@@ -6,6 +6,7 @@
 #![deny(missing_docs)]
 
 pub mod cli;
+pub mod commission;
 pub mod link;
 pub mod record;
 pub mod timing;

@@ -15,6 +15,7 @@ fn world(
     robot: &RobotParams,
     instruments: Instruments,
     dead_encoder: Option<DeadEncoder>,
+    wiring: sim_robot::world::Wiring,
 ) -> Result<World, String> {
     World::new(&WorldConfig {
         plant: PlantParams::from_robot(robot, scn.mass_scale, scn.inertia_scale),
@@ -27,6 +28,7 @@ fn world(
         faults: Faults {
             wheel_torque_scale: scn.wheel_torque_scale,
             dead_encoder,
+            wiring,
             ..Faults::NONE
         },
     })
@@ -42,7 +44,13 @@ pub fn ideal_world(scn: &Scenario, controller: &ControllerConfig) -> Result<Worl
         heading_noise_rad: scn.heading_noise_rad,
         rate_period_s: controller.period_s as f64,
     };
-    world(scn, &controller.robot, Instruments::Ideal(ideal), None)
+    world(
+        scn,
+        &controller.robot,
+        Instruments::Ideal(ideal),
+        None,
+        sim_robot::world::Wiring::CORRECT,
+    )
 }
 
 /// The simulated hardware behind the firmware runtime of `runtime`: its
@@ -54,9 +62,34 @@ pub fn hardware_world(
     runtime: &RuntimeConfig,
     dead_encoder: Option<(usize, f64)>,
 ) -> Result<World, String> {
+    hardware_world_miswired(scn, runtime, dead_encoder, &Miswire::default())
+}
+
+/// Wiring mistakes of the robot behind the link (`hil-sim device
+/// --miswire`, `wmr commission`'s test): the plant's wiring faults and an
+/// encoder resolution other than the runtime's.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Miswire {
+    /// The wiring faults.
+    pub wiring: sim_robot::world::Wiring,
+    /// The plant's encoder counts per wheel revolution (None: the runtime's).
+    pub counts_per_wheel_rev: Option<f32>,
+}
+
+/// [`hardware_world`] with `miswire`'s mistakes.
+pub fn hardware_world_miswired(
+    scn: &Scenario,
+    runtime: &RuntimeConfig,
+    dead_encoder: Option<(usize, f64)>,
+    miswire: &Miswire,
+) -> Result<World, String> {
     let sensors = scn.sensor_setup()?;
+    let mut encoder = runtime.encoder;
+    if let Some(c) = miswire.counts_per_wheel_rev {
+        encoder.counts_per_wheel_rev = c;
+    }
     let hw = HardwareSensing {
-        encoder: runtime.encoder,
+        encoder,
         motor: runtime.motor,
         motor_inverted: runtime.motor_inverted,
         gyro: sensors.gyro,
@@ -68,5 +101,6 @@ pub fn hardware_world(
         &runtime.controller.robot,
         Instruments::Hardware(hw),
         dead,
+        miswire.wiring,
     )
 }
