@@ -29,7 +29,6 @@ fn world(
             wheel_torque_scale: scn.wheel_torque_scale,
             dead_encoder,
             wiring,
-            ..Faults::NONE
         },
     })
     .map_err(|e| format!("scenario '{}': {e}", scn.name))
