@@ -311,6 +311,10 @@ pub struct Board {
     pub imu: Option<crate::imu::ImuPeripherals>,
     /// External poses come over the host link only.
     pub pose_source: WheelOdometryOnly,
+    /// The flash controller, taken by `main` for the robot store.
+    pub flash: Option<embassy_stm32::Peri<'static, embassy_stm32::peripherals::FLASH>>,
+    /// The loop's watchdog setting while a robot-record write runs.
+    pub stretch: Option<crate::store::WatchdogStretch>,
 }
 
 // The motor outputs driven low at the very start of the reset handler,
@@ -511,6 +515,8 @@ pub fn init() -> Board {
         },
         button,
         watchdog,
+        flash: Some(p.FLASH),
+        stretch: None,
         link,
         #[cfg(feature = "imu")]
         gyro: crate::imu::gyro(),
@@ -579,6 +585,23 @@ impl robot_app::Board for Board {
 
     fn feed_watchdog(&mut self) {
         self.watchdog.pet();
+    }
+
+    /// The IWDG stretched to about 8 s for the flash write (store.rs).
+    fn flash_write_begins(&mut self) {
+        self.stretch = Some(crate::store::WatchdogStretch::begin());
+    }
+
+    fn flash_write_ends(&mut self) {
+        if let Some(s) = self.stretch.take() {
+            s.end();
+        }
+    }
+
+    /// SYSRESETREQ: the chip boots with the motors off and reads the
+    /// stored robot record.
+    fn reboot(&mut self) {
+        cortex_m::peripheral::SCB::sys_reset();
     }
 
     /// DWT CYCCNT (SYSCLK cycles), enabled in `main` with the

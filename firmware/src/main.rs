@@ -23,6 +23,7 @@ mod fault;
 mod imu;
 mod link;
 mod log;
+mod store;
 
 use controller_core::runtime::{ArmingButton, LoopTimer};
 use defmt::{error, info, unwrap};
@@ -97,13 +98,37 @@ async fn main(spawner: Spawner) {
     static ROBOT: StaticCell<Robot> = StaticCell::new();
     let device = ROBOT.init(device);
     device.board_report_mut().reset_cause = board.reset_cause;
-    spawner.spawn(unwrap!(control(board, device, task).ok()));
+    // The robot record in flash (store.rs), or the compiled-in default.
+    static STORE: StaticCell<robot_app::store::FlashRecord<store::StoreFlash>> = StaticCell::new();
+    let Some(flash) = board.flash.take().and_then(store::store) else {
+        never_armed()
+    };
+    let flash = STORE.init(flash);
+    let mut record = [0u8; wmr_protocol::ROBOT_BLOB_MAX];
+    let mut default = [0u8; wmr_protocol::ROBOT_BLOB_MAX];
+    let n_default = robot_file::Robot::paper().encode(&mut default).unwrap_or(0);
+    let (n, source, fault) =
+        robot_app::store::load_record(flash, &default[..n_default], &mut record).await;
+    info!(
+        "robot record: {} (CRC-32 {=u32:08x}), fallback reason {}",
+        source,
+        wmr_device::robot::record_crc32(&record[..n]),
+        fault
+    );
+    device.attach_robot_store(robot_store::validate_robot, &record[..n], source);
+    spawner.spawn(unwrap!(control(board, device, task, flash).ok()));
 }
 
 /// robot-app's control task with this board's types.
 #[embassy_executor::task]
-async fn control(mut board: board::Board, device: &'static mut Robot, task: ControlTask) {
-    robot_app::control_task(&mut board, device, &link::PIPES, task).await
+async fn control(
+    mut board: board::Board,
+    device: &'static mut Robot,
+    task: ControlTask,
+    flash: &'static mut robot_app::store::FlashRecord<store::StoreFlash>,
+) {
+    task.run_with_store(&mut board, device, &link::PIPES, flash)
+        .await
 }
 
 /// An invalid configuration: the motors stay off, the watchdog is never

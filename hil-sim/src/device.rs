@@ -13,15 +13,30 @@ pub use crate::closed_loop::world::Miswire;
 use crate::hil::sensing_estimator_config;
 use crate::scenario::{Scenario, Sensing};
 use crate::sim::controller_config;
+use controller_core::estimator::EstimatorConfig;
+use controller_core::runtime::RuntimeConfig;
 use controller_core::runtime::{LoopTimer, TickReport};
 use controller_core::ControllerKind;
+use robot_app::store::{load_record, FlashRecord, RecordWriter};
+use robot_store::{validate_robot, RamFlash, RobotStore};
 use sim_robot::world::Actuation;
 use sim_robot::World;
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 use wmr_device::{Device, DeviceConfig, LinkConfig};
-use wmr_protocol::{CAP_EXTERNAL_POSE, CAP_SIMULATED, CAP_TRAJECTORY, CAP_VELOCITY};
+use wmr_protocol::{
+    RobotSource, CAP_EXTERNAL_POSE, CAP_ROBOT_STORE, CAP_SIMULATED, CAP_TRAJECTORY, CAP_VELOCITY,
+    ROBOT_BLOB_MAX,
+};
+
+/// The simulated device's flash for the robot record: two pages of 8 KiB
+/// (the STM32 store's two 128 KiB sectors scaled down: the record and
+/// sequential-storage's map work the same; the sim need not erase seconds).
+pub type SimFlash = RamFlash<{ 16 * 1024 }, { 8 * 1024 }>;
+
+/// The timer clock the simulated device's PWM runs from \[Hz\] (the F411's).
+pub const SIM_TIMER_CLOCK_HZ: u32 = 96_000_000;
 
 /// The link handler, the runtime and the simulated world, one tick at a time.
 pub struct SimRobot {
@@ -30,6 +45,77 @@ pub struct SimRobot {
     world: World,
     period_s: f64,
     step: u64,
+    /// The robot store over the simulated flash (kept across reboots).
+    store: FlashRecord<SimFlash>,
+    /// What a boot builds the device from.
+    boot: BootConfig,
+    /// Reboots so far.
+    reboots: u32,
+}
+
+/// The scenario's configuration: the compiled-in robot of the simulated
+/// device, and what a robot from flash is combined with.
+struct BootConfig {
+    kind: ControllerKind,
+    dev_cfg: DeviceConfig,
+    runtime: RuntimeConfig,
+    estimator: EstimatorConfig,
+}
+
+/// The compiled-in robot of the simulated device: the paper's robot, in
+/// robot-file's binary form.
+fn default_record() -> Vec<u8> {
+    let mut buf = [0u8; ROBOT_BLOB_MAX];
+    let n = robot_file::Robot::paper()
+        .encode(&mut buf)
+        .expect("the paper's robot fits its binary form");
+    buf[..n].to_vec()
+}
+
+/// Builds the device the way a boot does: the record in flash (validated)
+/// or the default; a flash robot's runtime configuration from the robot
+/// file (with the scenario's reference and initial pose), the scenario's
+/// otherwise. A flash robot the runtime refuses falls back to the default
+/// and reports `DefaultCorrupt`.
+fn boot_device(boot: &BootConfig, store: &mut FlashRecord<SimFlash>) -> Result<Device, String> {
+    let mut record = [0u8; ROBOT_BLOB_MAX];
+    let default = default_record();
+    let (n, mut source, _) = embassy_futures::block_on(load_record(store, &default, &mut record));
+    let from_flash = match source {
+        RobotSource::Flash => robot_file::Robot::decode(&record[..n])
+            .ok()
+            .and_then(|r| {
+                r.runtime_config(
+                    boot.kind,
+                    boot.runtime.reference,
+                    boot.runtime.initial_pose,
+                    SIM_TIMER_CLOCK_HZ,
+                )
+                .ok()
+            })
+            .and_then(|cfg| Device::with_estimator(boot.dev_cfg, cfg, boot.estimator).ok()),
+        _ => None,
+    };
+    let (mut device, rec): (Device, &[u8]) = match from_flash {
+        Some(d) => (d, &record[..n]),
+        None => {
+            if source == RobotSource::Flash {
+                source = RobotSource::DefaultCorrupt;
+            }
+            let d = Device::with_estimator(boot.dev_cfg, boot.runtime, boot.estimator)
+                .map_err(|e| format!("device: {e}"))?;
+            (
+                d,
+                if source == RobotSource::Flash {
+                    &record[..n]
+                } else {
+                    &default
+                },
+            )
+        }
+    };
+    device.attach_robot_store(validate_robot, rec, source);
+    Ok(device)
 }
 
 impl SimRobot {
@@ -71,12 +157,26 @@ impl SimRobot {
         let estimator = sensing_estimator_config(&scn.sensor_setup()?);
         let dev_cfg = DeviceConfig {
             chip: "sim",
-            capabilities: CAP_EXTERNAL_POSE | CAP_TRAJECTORY | CAP_VELOCITY | CAP_SIMULATED,
+            capabilities: CAP_EXTERNAL_POSE
+                | CAP_TRAJECTORY
+                | CAP_VELOCITY
+                | CAP_SIMULATED
+                | CAP_ROBOT_STORE,
             link: LinkConfig::DEFAULT,
             button_reference: None,
         };
-        let device =
-            Device::with_estimator(dev_cfg, cfg, estimator).map_err(|e| format!("device: {e}"))?;
+        let boot = BootConfig {
+            kind,
+            dev_cfg,
+            runtime: cfg,
+            estimator,
+        };
+        let mut store = FlashRecord {
+            store: RobotStore::new(SimFlash::new(), 0..16 * 1024)
+                .map_err(|_| "robot store: flash range".to_string())?,
+            validate: validate_robot,
+        };
+        let device = boot_device(&boot, &mut store)?;
         let timer = LoopTimer::from_config(&cfg).map_err(|e| format!("loop timer: {e}"))?;
         Ok(Self {
             device,
@@ -84,7 +184,34 @@ impl SimRobot {
             world: crate::closed_loop::world::hardware_world_miswired(scn, &built, None, miswire)?,
             period_s: scn.control_period_s,
             step: 0,
+            store,
+            boot,
+            reboots: 0,
         })
+    }
+
+    /// Restarts the simulated MCU: a new device (hold, motors off) built
+    /// from the record in the simulated flash, which survives; the world
+    /// (the robot's hardware) goes on. The host's `Reboot` does this once
+    /// its acknowledgement has been sent.
+    pub fn reboot(&mut self) -> Result<(), String> {
+        // Like a power cycle: a fresh store over the same flash.
+        let old = std::mem::replace(
+            &mut self.store.store,
+            RobotStore::new(SimFlash::new(), 0..16 * 1024).map_err(|_| "flash range")?,
+        );
+        self.store.store =
+            RobotStore::new(old.into_flash(), 0..16 * 1024).map_err(|_| "flash range")?;
+        self.device = boot_device(&self.boot, &mut self.store)?;
+        self.timer = LoopTimer::from_config(self.device.control().config())
+            .map_err(|e| format!("loop timer: {e}"))?;
+        self.reboots += 1;
+        Ok(())
+    }
+
+    /// Reboots so far.
+    pub fn reboots(&self) -> u32 {
+        self.reboots
     }
 
     /// The link handler.
@@ -129,6 +256,16 @@ impl SimRobot {
             .advance(Actuation::Bridge(bridge), dt)
             .map_err(|e| e.to_string())?;
         self.step += 1;
+        // The robot record, between two ticks, as robot-app's control task
+        // does it (the device is in hold, motors off).
+        if let Some(record) = self.device.pending_robot_write() {
+            let record = record.to_vec();
+            let ok = embassy_futures::block_on(self.store.write(&record));
+            self.device.robot_write_done(ok);
+        }
+        if self.device.reboot_requested() && self.device.tx_len() == 0 {
+            self.reboot()?;
+        }
         Ok(rep)
     }
 }

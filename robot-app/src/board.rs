@@ -56,6 +56,22 @@ pub trait Board {
     /// chip, which boots with the motors off.
     fn feed_watchdog(&mut self);
 
+    /// A robot-record flash write is about to start (in hold, motors off,
+    /// outside the control tick). On an F4 a sector erase stalls every
+    /// flash read for up to seconds, longer than the loop's watchdog
+    /// timeout: the board stretches its watchdog beyond the longest write
+    /// here (and feeds it). Default: nothing (a flash that does not stall).
+    fn flash_write_begins(&mut self) {}
+
+    /// The robot-record write ended: the watchdog back to the loop's
+    /// timeout, fed. Default: nothing.
+    fn flash_write_ends(&mut self) {}
+
+    /// Restarts the MCU (the host's `Reboot`, after the acknowledgement has
+    /// left). The STM32 boards reset the core; the default does nothing
+    /// (the board keeps running the robot it booted with).
+    fn reboot(&mut self) {}
+
     /// A free-running, wrapping cycle counter (DWT CYCCNT on an STM32;
     /// guest instructions on the emulated board); 0 when the board has
     /// none. Used for the tick's execution-time statistics.
@@ -102,6 +118,14 @@ pub enum AppEvent<'a> {
     Telemetry(&'a TickReport),
     /// Every [`AppConfig::status_every_ticks`](crate::AppConfig) ticks.
     Status(StatusSummary),
+    /// A robot-record write to flash ended (`ok`: stored and read back
+    /// equal) after `duration_us` of stalled loop (motors off, in hold).
+    RobotWritten {
+        /// Stored and read back equal.
+        ok: bool,
+        /// How long the loop paused \[µs\].
+        duration_us: u32,
+    },
 }
 
 /// The periodic status: loop timing and the tick's execution time since the

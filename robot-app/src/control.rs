@@ -8,6 +8,11 @@ use wmr_protocol::RunStateMsg;
 
 use crate::board::{AppEvent, Board, StatusSummary};
 use crate::link::LinkPipes;
+use crate::store::RecordWriter;
+
+/// Longest wait for the acknowledgement of a `Reboot` to leave before
+/// the board restarts anyway \[ticks\].
+pub const REBOOT_DRAIN_TICKS: u32 = 50;
 
 /// How often the control task reports to the board's log.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -96,19 +101,79 @@ impl ControlTask {
     /// the schedule t₀ + n·period and gives the runtime the true elapsed
     /// time, and a sustained overrun latches a safe stop.
     pub async fn run<B: Board, const H: usize>(
-        mut self,
+        self,
         board: &mut B,
         dev: &mut Device<H>,
         pipes: &LinkPipes,
     ) -> ! {
+        self.run_with_store(board, dev, pipes, &mut crate::store::NoStore)
+            .await
+    }
+
+    /// [`Self::run`] with a robot store: after a tick that accepted a
+    /// `RobotCommit` (the device in hold, motors off), the record is
+    /// written here, between two ticks ([`Self::write_robot`]); after an
+    /// acknowledged `Reboot` the board restarts once the link's send pipe
+    /// has drained (at most [`REBOOT_DRAIN_TICKS`]).
+    pub async fn run_with_store<B: Board, const H: usize, S: RecordWriter>(
+        mut self,
+        board: &mut B,
+        dev: &mut Device<H>,
+        pipes: &LinkPipes,
+        store: &mut S,
+    ) -> ! {
         let mut ticker = Ticker::every(Duration::from_micros(self.timer.period_us() as u64));
         board.start_watchdog();
         board.event(&AppEvent::Started);
+        let mut reboot_in: Option<u32> = None;
         loop {
             ticker.next().await;
             let now_us = Instant::now().as_micros() as u32;
             self.tick(now_us, board, dev, pipes);
+            if dev.pending_robot_write().is_some() {
+                self.write_robot(board, dev, store).await;
+                // The ticker would fire the missed ticks back to back.
+                ticker.reset();
+            }
+            if dev.reboot_requested() {
+                let left = reboot_in.get_or_insert(REBOOT_DRAIN_TICKS);
+                if (dev.tx_len() == 0 && pipes.tx_len() == 0) || *left == 0 {
+                    board.reboot();
+                }
+                *left = left.saturating_sub(1);
+            }
         }
+    }
+
+    /// Writes the device's pending robot record (the device is in hold,
+    /// motors off): the board stretches its watchdog, the store writes and
+    /// reads back, the watchdog returns to the loop's timeout, the device
+    /// answers the commit, and the loop's schedule restarts at the next
+    /// tick ([`LoopTimer::resync`]: the pause is not an overrun). The
+    /// motors stay off throughout: nothing drives them between ticks, and
+    /// arming is refused while the write is pending.
+    pub async fn write_robot<B: Board, const H: usize, S: RecordWriter>(
+        &mut self,
+        board: &mut B,
+        dev: &mut Device<H>,
+        store: &mut S,
+    ) {
+        let mut record = [0u8; wmr_protocol::ROBOT_BLOB_MAX];
+        let n = match dev.pending_robot_write() {
+            Some(r) => {
+                record[..r.len()].copy_from_slice(r);
+                r.len()
+            }
+            None => return,
+        };
+        let t0 = Instant::now();
+        board.flash_write_begins();
+        let ok = store.write(&record[..n]).await;
+        board.flash_write_ends();
+        dev.robot_write_done(ok);
+        self.timer.resync();
+        let duration_us = Instant::now().duration_since(t0).as_micros() as u32;
+        board.event(&AppEvent::RobotWritten { ok, duration_us });
     }
 
     /// One period's work at robot time `now_us` (a wrapping µs clock):

@@ -10,6 +10,8 @@
 //! * [`link`]: the host link's two bounded byte pipes and the pumps that
 //!   move bytes between them and a byte-stream port (a UART) without the
 //!   control task ever waiting on the port;
+//! * [`store`]: the robot record's flash write between two ticks (in hold,
+//!   motors off, the watchdog stretched) and its load at boot;
 //! * [`imu`]: the gyro's logic above the registers (conversion, probe and
 //!   read-back checks, the frozen/implausible monitor, the retry backoff,
 //!   the sample cell the control tick reads).
@@ -34,6 +36,7 @@ pub mod control;
 pub mod imu;
 pub mod link;
 pub mod reset;
+pub mod store;
 
 pub use board::{AppEvent, Board, BoardIo, StatusSummary};
 pub use control::{control_task, AppConfig, AppConfigError, ControlTask};

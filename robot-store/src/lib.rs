@@ -33,8 +33,10 @@
 #![forbid(unsafe_code)]
 
 mod ram_flash;
+mod validate;
 
 pub use ram_flash::{RamFlash, RamFlashError};
+pub use validate::{decode_fault, robot_fault, validate_robot};
 pub use wmr_protocol::{RobotFault, RobotSource, RobotValidator, ROBOT_BLOB_MAX};
 
 use core::ops::Range;
@@ -189,3 +191,6 @@ impl<F: NorFlash> RobotStore<F> {
         }
     }
 }
+
+/// robot-file's largest record fits the link's and the store's buffers.
+const _: () = assert!(robot_file::MAX_ENCODED_LEN <= ROBOT_BLOB_MAX);

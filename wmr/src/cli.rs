@@ -57,6 +57,49 @@ pub enum Command {
     /// Guided first power-up: each wheel driven alone, wiring and the robot
     /// file checked, the corrected file proposed (docs/commissioning.md).
     Commission(crate::commission::CommissionArgs),
+    /// The robot file in the robot's flash: push, pull, diff, check.
+    Robot(RobotArgs),
+}
+
+/// `robot` options.
+#[derive(Debug, Args)]
+pub struct RobotArgs {
+    /// push, pull, diff or check.
+    #[command(subcommand)]
+    pub op: RobotOp,
+}
+
+/// `robot` operations.
+#[derive(Debug, Subcommand)]
+pub enum RobotOp {
+    /// Validate FILE locally, store it in the robot's flash (hold only),
+    /// read it back and compare, then reboot the robot into it.
+    Push {
+        /// Robot file (TOML, docs/robot.md).
+        file: PathBuf,
+        /// Store only: the robot runs it from its next boot.
+        #[arg(long)]
+        no_reboot: bool,
+        /// Skip the local validation (to see the robot's own refusal).
+        #[arg(long, hide = true)]
+        no_local_check: bool,
+    },
+    /// Read the robot's stored record and print it as a robot file.
+    Pull {
+        /// Write it to this file instead of stdout.
+        #[arg(short = 'o', long = "out")]
+        out: Option<PathBuf>,
+    },
+    /// Field-by-field differences between FILE and the robot's record.
+    Diff {
+        /// Robot file (TOML).
+        file: PathBuf,
+    },
+    /// Validate FILE offline (no robot needed) and print derived values.
+    Check {
+        /// Robot file (TOML).
+        file: PathBuf,
+    },
 }
 
 /// `upload` options.
@@ -180,6 +223,12 @@ fn link_of(cli: &Cli) -> Result<Link, LinkError> {
 
 /// Runs a parsed command line on a fresh link to `--port`.
 pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
+    if let Command::Robot(RobotArgs {
+        op: RobotOp::Check { file },
+    }) = &cli.command
+    {
+        return crate::robot::check(file, out).map_err(|e| e.to_string());
+    }
     let mut link = link_of(cli).map_err(|e| e.to_string())?;
     run(&cli.command, &mut link, out).map_err(|e| e.to_string())
 }
@@ -229,6 +278,30 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
                 s.board.reset_cause, s.board.port_rx_dropped, s.board.port_rx_errors
             )
             .map_err(io)?;
+            let r = s.robot;
+            let source = match r.source {
+                wmr_protocol::RobotSource::Builtin => "compiled-in (no robot store)",
+                wmr_protocol::RobotSource::Flash => "flash",
+                wmr_protocol::RobotSource::DefaultMissing => {
+                    "compiled-in default (no record in flash)"
+                }
+                wmr_protocol::RobotSource::DefaultCorrupt => {
+                    "compiled-in default (the record in flash is corrupt or invalid)"
+                }
+            };
+            writeln!(
+                out,
+                "robot record: {source}, CRC-32 {:08x}; stored {}; writes {}, failed {}",
+                r.active_crc32,
+                match r.stored_crc32 {
+                    0 => "none".to_string(),
+                    c if c == r.active_crc32 => "the same".to_string(),
+                    c => format!("{c:08x} (runs after a reboot)"),
+                },
+                r.writes,
+                r.write_failures
+            )
+            .map_err(io)?;
         }
         Command::Arm => {
             link.command(&Request::Arm)?;
@@ -256,6 +329,16 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
         Command::Record(a) => record(a, link, out)?,
         Command::PoseFeed(a) => pose_feed(a, link, out)?,
         Command::Commission(a) => crate::commission::commission(a, link, out)?,
+        Command::Robot(a) => match &a.op {
+            RobotOp::Push {
+                file,
+                no_reboot,
+                no_local_check,
+            } => crate::robot::push(link, file, !no_local_check, *no_reboot, out)?,
+            RobotOp::Pull { out: file } => crate::robot::pull(link, file.as_deref(), out)?,
+            RobotOp::Diff { file } => crate::robot::diff(link, file, out)?,
+            RobotOp::Check { file } => crate::robot::check(file, out)?,
+        },
     }
     Ok(())
 }

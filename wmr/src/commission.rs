@@ -13,7 +13,6 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use wmr_protocol::{
     ErrorCode, Reply, Request, RunStateMsg, WheelTestCmd, WheelTestEnd, WheelTestResult,
-    ROBOT_BLOB_MAX, ROBOT_CHUNK,
 };
 
 /// `commission` options.
@@ -321,35 +320,6 @@ fn parse_turns(s: &str) -> Result<[f32; 2], LinkError> {
     }
 }
 
-/// Pushes `robot` (the robot record upload, protocol 4). To be replaced by
-/// robot-store's `wmr robot push` code path once both are merged.
-fn push(link: &mut Link, robot: &Robot) -> Result<(), LinkError> {
-    let mut buf = [0u8; ROBOT_BLOB_MAX];
-    let n = robot
-        .encode(&mut buf)
-        .map_err(|e| LinkError::Io(format!("encoding the robot: {e:?}")))?;
-    link.command(&Request::RobotBegin {
-        total_len: n as u16,
-    })?;
-    for (i, c) in buf[..n].chunks(ROBOT_CHUNK).enumerate() {
-        let mut data = heapless::Vec::new();
-        let _ = data.extend_from_slice(c);
-        link.command(&Request::RobotChunk {
-            offset: (i * ROBOT_CHUNK) as u16,
-            data,
-        })?;
-    }
-    match link.command(&Request::RobotCommit)? {
-        Reply::Ack { .. } => Ok(()),
-        Reply::RobotRejected { fault, .. } => Err(LinkError::Io(format!(
-            "the robot refused the record: {} {}",
-            fault.field,
-            fault.kind.reason()
-        ))),
-        r => Err(LinkError::Unexpected(format!("{r:?}"))),
-    }
-}
-
 /// `wmr commission`. `Ok` only when nothing is wrong (or every finding
 /// was fixed in the pushed file); findings and unexpected stops are errors.
 pub fn commission(
@@ -490,12 +460,14 @@ pub fn commission(
         writeln!(out, "proposed robot file written to {}", p.display()).map_err(io)?;
     }
     if a.push && !wiring && confirm(a, "push the proposed file to the robot?", out)? {
-        push(link, &fixed)?;
-        writeln!(
-            out,
-            "pushed: reboot the robot into it and run commission again"
-        )
-        .map_err(io)?;
+        // robot-store's `wmr robot push` code path (write, read back,
+        // reboot into it, check).
+        let path = a
+            .output
+            .as_deref()
+            .ok_or_else(|| LinkError::Io("--push needs -o FILE (the file pushed)".into()))?;
+        crate::robot::push(link, path, true, false, out)?;
+        writeln!(out, "pushed: run commission again on the fixed file").map_err(io)?;
     }
     Err(LinkError::Io(format!(
         "{} finding(s){}",

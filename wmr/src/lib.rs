@@ -9,6 +9,7 @@ pub mod cli;
 pub mod commission;
 pub mod link;
 pub mod record;
+pub mod robot;
 pub mod timing;
 pub mod upload;
 pub mod watch;

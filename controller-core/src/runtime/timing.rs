@@ -168,6 +168,16 @@ impl LoopTimer {
         &self.stats
     }
 
+    /// Restarts the schedule at the next tick (t₀ := its start, elapsed one
+    /// period, not late) after a deliberate pause of the loop in hold with
+    /// the motors off (a flash erase: robot-app's robot-record write), so
+    /// the pause is neither late ticks nor an overrun episode. The
+    /// statistics are kept.
+    pub fn resync(&mut self) {
+        self.started = false;
+        self.consecutive_late = 0;
+    }
+
     /// Measures the tick starting at `now_us`.
     pub fn tick(&mut self, now_us: u32) -> TickTiming {
         let p = self.period_us;
@@ -224,6 +234,34 @@ mod tests {
     /// `SafetyLimits::EXAMPLE`: late beyond 500 µs, 5 in a row sustained.
     fn timer() -> LoopTimer {
         LoopTimer::from_config(&RuntimeConfig::example(ControllerKind::Proposed)).unwrap()
+    }
+
+    /// A pause of 3 s followed by `resync` is not late and not an
+    /// overrun; without `resync` the same pause is (the check is not blind).
+    #[test]
+    fn resync_forgives_a_deliberate_pause() {
+        for resync in [true, false] {
+            let mut t = timer();
+            for k in 0..10 {
+                t.tick(k * P);
+            }
+            if resync {
+                t.resync();
+            }
+            let mut late = 0;
+            for k in 0..10 {
+                let tt = t.tick(3_000_000 + k * P);
+                late += tt.late as u32;
+                if resync {
+                    assert_eq!(tt.elapsed_us, P);
+                }
+            }
+            if resync {
+                assert_eq!((late, t.stats().overrun_episodes), (0, 0));
+            } else {
+                assert!(late == 10 && t.stats().overrun_episodes == 1);
+            }
+        }
     }
 
     #[test]
