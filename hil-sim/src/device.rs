@@ -9,6 +9,7 @@
 //! Robot time is simulated time (one control period per tick); `--speed N`
 //! paces the ticks N times faster than the wall clock.
 
+pub use crate::closed_loop::world::Miswire;
 use crate::hil::sensing_estimator_config;
 use crate::scenario::{Scenario, Sensing};
 use crate::sim::controller_config;
@@ -141,6 +142,19 @@ impl SimRobot {
     /// `mocap`: the runtime always reads encoders); external poses sent by
     /// the host go to the same estimator.
     pub fn new(scn: &Scenario, kind: ControllerKind) -> Result<Self, String> {
+        Self::miswired(scn, kind, &Miswire::default(), |_| {})
+    }
+
+    /// [`Self::new`] with wiring mistakes in the plant (`wmr commission`'s
+    /// test) and the runtime configuration changed by `runtime` (the robot
+    /// file the robot runs: its inversion flags and resolution), the plant
+    /// staying as the scenario builds it.
+    pub fn miswired(
+        scn: &Scenario,
+        kind: ControllerKind,
+        miswire: &Miswire,
+        runtime: impl FnOnce(&mut controller_core::runtime::RuntimeConfig),
+    ) -> Result<Self, String> {
         scn.validate()?;
         let mut served = scn.clone();
         if served.sensing.preset == Sensing::Ideal {
@@ -148,7 +162,11 @@ impl SimRobot {
         }
         let scn = &served;
         let controller = controller_config(scn, kind);
-        let cfg = scn.runtime_config(controller, scn.safety_limits());
+        let built = scn.runtime_config(controller, scn.safety_limits());
+        // The plant is built as `built` says (its mountings, resolution);
+        // the runtime may believe otherwise.
+        let mut cfg = built;
+        runtime(&mut cfg);
         // The runtime gives the estimator its geometry and initial pose.
         let estimator = sensing_estimator_config(&scn.sensor_setup()?);
         let dev_cfg = DeviceConfig {
@@ -178,7 +196,7 @@ impl SimRobot {
         Ok(Self {
             device,
             timer,
-            world: crate::closed_loop::world::hardware_world(scn, &cfg, None)?,
+            world: crate::closed_loop::world::hardware_world_miswired(scn, &built, None, miswire)?,
             period_s: scn.control_period_s,
             step: 0,
             store,

@@ -30,7 +30,8 @@
 //! `tests/layers.rs`): [`framing`] (bytes and frames), [`limits`] (the
 //! physical limits, D41), [`reference`](mod@reference) (the references),
 //! [`params`] (configuration and parameters), [`robot`] (the robot record:
-//! upload, validation, the pending flash write), `telemetry` (telemetry and
+//! upload, validation, the pending flash write), [`wheel_test`] (the
+//! commissioning wheel test), `telemetry` (telemetry and
 //! events), `selection` (which reference drives each tick, controlled
 //! stops), `requests` (request handling against the state); [`Device`]
 //! here wires them.
@@ -46,6 +47,7 @@ mod requests;
 pub mod robot;
 mod selection;
 mod telemetry;
+pub mod wheel_test;
 
 use controller_core::estimator::{EstimatorConfig, PoseMeasurement, HISTORY_LEN};
 use controller_core::runtime::{
@@ -58,7 +60,10 @@ use limits::RobotLimits;
 use reference::PlacedReference;
 use requests::Handler;
 use selection::Mode;
-use wmr_protocol::{BoardReport, Counters, ModeMsg, RobotSource, RunStateMsg, StopCode};
+use wheel_test::{HoldOff, Tap};
+use wmr_protocol::{
+    BoardReport, Counters, ModeMsg, RobotSource, RunStateMsg, StopCode, WheelTestEnd,
+};
 
 pub use framing::{RX_BYTES_PER_TICK, RX_CAPACITY, TX_CAPACITY};
 pub use params::{DeviceConfig, DeviceConfigError, LinkConfig, MAX_VELOCITY_TIMEOUT_MS};
@@ -227,19 +232,66 @@ impl<const H: usize> Device<H> {
         h.session.now_us = now_us;
         h.process_rx(&mut self.framing, motors);
         h.watchdogs(&mut self.framing);
+        h.wheel_test_watchdog(&mut self.framing, motors);
         let reference = h.reference_for_tick(motors);
         let mut pose = HostOrBoard {
             host: h.session.pending_pose.take(),
             board: pose_source,
         };
-        let rep = h.control.tick_with_reference(
-            encoders,
-            motors,
-            gyro,
-            &mut pose,
-            timing,
-            &Fixed(reference),
-        );
+        let rep = if h.wheel_test.is_some() {
+            // The loop runs disarmed; its disable is held back until the
+            // test's decision below (module wheel_test, D88).
+            let mut m = HoldOff {
+                inner: motors,
+                disable_asked: false,
+            };
+            let mut g = Tap {
+                inner: gyro,
+                last: None,
+            };
+            let jumps = h.control.status().encoder_jumps;
+            let rep = h.control.tick_with_reference(
+                encoders,
+                &mut m,
+                &mut g,
+                &mut pose,
+                timing,
+                &Fixed(reference),
+            );
+            let clean =
+                rep.state == RunState::Disarmed && rep.stopped.is_none() && !rep.motors_enabled;
+            let period_s = h.period_s();
+            let end = match h.wheel_test.as_mut() {
+                Some(t) => {
+                    let jumped = h.control.status().encoder_jumps != jumps;
+                    t.step(rep.counts.delta, g.last, period_s, jumped)
+                }
+                None => Some(WheelTestEnd::Command),
+            };
+            let end = if clean {
+                end
+            } else {
+                Some(WheelTestEnd::Stopped)
+            };
+            match (h.wheel_test.as_ref(), end) {
+                (Some(t), None) => motors.set(t.duty()),
+                (_, end) => {
+                    let end = end.unwrap_or(WheelTestEnd::Stopped);
+                    h.end_wheel_test(&mut self.framing, motors, end);
+                    motors.disable();
+                }
+            }
+            rep
+        } else {
+            h.control.tick_with_reference(
+                encoders,
+                motors,
+                gyro,
+                &mut pose,
+                timing,
+                &Fixed(reference),
+            )
+        };
         // A pose the runtime did not take (a re-propagation in progress)
         // waits for the next tick instead of being lost.
         h.session.pending_pose = pose.host;
@@ -254,6 +306,11 @@ impl<const H: usize> Device<H> {
     /// Works without a host (the link watchdog stays off).
     pub fn button_pressed(&mut self, motors: &mut impl MotorDriver) {
         let h = &mut self.handler;
+        // A wheel test in progress: the press ends it, nothing else.
+        if h.wheel_test.is_some() {
+            h.end_wheel_test(&mut self.framing, motors, WheelTestEnd::Command);
+            return;
+        }
         match h.control.state() {
             RunState::Running => h.disarm(motors, StopCode::Disarmed),
             RunState::Stopped(_) => h.control.reset(),

@@ -10,12 +10,13 @@ use crate::reference::{pose_from_msg, PlacedReference, SegmentError, VirtualVehi
 use crate::robot::RobotRecord;
 use crate::selection::{Mode, Selected, Selector, VelocityCmd};
 use crate::telemetry::{counters, TelemetryScheduler};
+use crate::wheel_test::WheelTest;
 use controller_core::estimator::{PoseMeasurement, RejectReason};
 use controller_core::runtime::{ControlLoop, MotorDriver, RunState, StopReason, TickReport};
 use controller_core::trajectory::RefSample;
 use wmr_protocol::{
     BoardReport, Counters, Decoded, ErrorCode, Event, PoseRejects, Reply, Request, RobotInfo,
-    RunStateMsg, StatusMsg, StopCode, PROTOCOL_VERSION, TELEMETRY_ALL,
+    RunStateMsg, StatusMsg, StopCode, WheelTestEnd, PROTOCOL_VERSION, TELEMETRY_ALL,
 };
 
 /// One request's answer.
@@ -91,6 +92,8 @@ pub(crate) struct Handler<const H: usize> {
     pub session: Session,
     /// The robot record (upload, stored record, pending write).
     pub robot: RobotRecord,
+    /// The commissioning wheel test in progress.
+    pub wheel_test: Option<WheelTest>,
 }
 
 impl<const H: usize> Handler<H> {
@@ -111,6 +114,7 @@ impl<const H: usize> Handler<H> {
                 board: BoardReport::default(),
             },
             robot: RobotRecord::new(),
+            wheel_test: None,
         }
     }
 
@@ -153,6 +157,10 @@ impl<const H: usize> Handler<H> {
                 Some(Decoded::Frame { seq, msg }) => {
                     bump(&mut framing.counters.rx_frames);
                     self.session.last_rx_us = self.session.now_us;
+                    // Any request but a read ends a wheel test first.
+                    if !matches!(msg, Request::GetStatus | Request::GetParam(_)) {
+                        self.end_wheel_test(framing, motors, WheelTestEnd::Command);
+                    }
                     if let Request::RobotCommit = msg {
                         // Answered when the board's write has finished.
                         if let Some(answer) = self.robot_commit(seq) {
@@ -303,6 +311,14 @@ impl<const H: usize> Handler<H> {
             Request::Reboot => {
                 self.robot_hold()?;
                 self.robot.request_reboot().map(|_| None)
+            }
+            Request::WheelTest(cmd) => {
+                self.robot_hold()?;
+                if self.robot.write_pending() || self.robot.reboot_requested() {
+                    return Err(ErrorCode::Busy);
+                }
+                self.wheel_test = Some(WheelTest::start(seq, cmd, self.control.config())?);
+                Ok(None)
             }
             Request::Disarm => {
                 self.disarm(motors, StopCode::Disarmed);
@@ -582,6 +598,34 @@ impl<const H: usize> Handler<H> {
             self.control.status(),
             rep,
         );
+    }
+
+    /// Ends the wheel test in progress, if any, for `end`: motors off now,
+    /// its result sent.
+    pub fn end_wheel_test(
+        &mut self,
+        framing: &mut Framing,
+        motors: &mut impl MotorDriver,
+        end: WheelTestEnd,
+    ) {
+        if let Some(t) = self.wheel_test.take() {
+            motors.disable();
+            framing.send(&Reply::WheelTestDone {
+                seq: t.seq(),
+                result: t.result(end),
+            });
+        }
+    }
+
+    /// Link silence during a wheel test ends it.
+    pub fn wheel_test_watchdog(&mut self, framing: &mut Framing, motors: &mut impl MotorDriver) {
+        let s = &self.session;
+        let silent_us = s.now_us.wrapping_sub(s.last_rx_us);
+        if self.wheel_test.is_some()
+            && silent_us > self.cfg.link.link_timeout_ms.saturating_mul(1000)
+        {
+            self.end_wheel_test(framing, motors, WheelTestEnd::LinkLost);
+        }
     }
 
     pub fn report_state(&mut self, framing: &mut Framing) {

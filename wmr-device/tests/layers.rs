@@ -3,12 +3,13 @@
 //! the crate documentation.
 
 /// Bottom to top.
-const LAYERS: [&str; 8] = [
+const LAYERS: [&str; 9] = [
     "framing",
     "limits",
     "reference",
     "params",
     "robot",
+    "wheel_test",
     "telemetry",
     "selection",
     "requests",

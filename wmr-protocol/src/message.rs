@@ -240,6 +240,72 @@ pub enum Request {
     /// Restart the robot (hold only): acknowledged, then the robot resets
     /// and boots with the stored record.
     Reboot,
+    // --- commissioning (issue 18, `wmr commission`) ---
+    /// Drive one wheel open-loop for a bounded time (hold only, motors
+    /// off; commissioning): acknowledged at the start, then answered by
+    /// [`Reply::WheelTestDone`] when the test ends (its time is up, any
+    /// other request but `GetStatus`/`GetParam`, link silence, a stop).
+    WheelTest(WheelTestCmd),
+}
+
+/// Longest wheel test \[ms\] ([`Request::WheelTest`]).
+pub const WHEEL_TEST_MAX_MS: u16 = 2000;
+/// Commissioning cap of a wheel test's torque: this fraction of the
+/// motor's stall torque at full duty (and never above the torque limit).
+pub const WHEEL_TEST_STALL_FRACTION: f32 = 0.2;
+
+/// A wheel test ([`Request::WheelTest`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WheelTestCmd {
+    /// The wheel: 0 right, 1 left.
+    pub wheel: u8,
+    /// Open-loop torque at standstill \[N·m\], forward positive (after
+    /// the robot's motor inversion flag), 0 < |τ| ≤ the cap.
+    pub torque_nm: f32,
+    /// Duration \[ms\] (1..=[`WHEEL_TEST_MAX_MS`]).
+    pub duration_ms: u16,
+}
+
+/// Why a wheel test ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum WheelTestEnd {
+    /// Its time was up.
+    Completed,
+    /// Another request ended it.
+    Command,
+    /// No valid frame for longer than the link timeout.
+    LinkLost,
+    /// The runtime latched a stop.
+    Stopped,
+    /// A wheel's count changed by more than the runtime's jump limit in
+    /// one tick (the loop checks jumps only while running: the test
+    /// checks them itself).
+    EncoderJump,
+}
+
+/// What a wheel test measured ([`Reply::WheelTestDone`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WheelTestResult {
+    /// The wheel driven (0 right, 1 left).
+    pub wheel: u8,
+    /// The torque asked \[N·m\].
+    pub torque_nm: f32,
+    /// The signed duty applied to the driven wheel's bridge \[counts\]
+    /// (after the motor inversion flag).
+    pub duty: i32,
+    /// Ticks the wheel was driven.
+    pub ticks: u32,
+    /// Why it ended.
+    pub end: WheelTestEnd,
+    /// Encoder count change `[right, left]` over the test, forward
+    /// positive after the encoder inversion flags.
+    pub counts: [i32; 2],
+    /// Integral of the gyro's yaw rate over the test \[rad\]
+    /// (counter-clockwise positive); `None` without a gyro sample.
+    pub gyro_yaw_rad: Option<f32>,
 }
 
 /// Largest robot record on the link and in flash \[bytes\] (robot-file's
@@ -418,6 +484,10 @@ pub enum ErrorCode {
     /// The flash write of the robot record failed; the previous record
     /// is still the stored one (protocol 4).
     StoreFailed,
+    // --- commissioning (issue 18) ---
+    /// A wheel test's torque is above the commissioning cap
+    /// ([`WHEEL_TEST_STALL_FRACTION`] of stall, or the torque limit).
+    AboveTestCap,
 }
 
 /// The robot's run state as the host sees it.
@@ -754,7 +824,8 @@ impl Reply {
             | Reply::ClockSync { seq, .. }
             | Reply::TrajectoryAck { seq, .. }
             | Reply::RobotRejected { seq, .. }
-            | Reply::RobotData { seq, .. } => Some(*seq),
+            | Reply::RobotData { seq, .. }
+            | Reply::WheelTestDone { seq, .. } => Some(*seq),
             Reply::FrameError { .. } | Reply::Telemetry(_) | Reply::Event(_) => None,
         }
     }
@@ -851,6 +922,15 @@ pub enum Reply {
         /// Up to [`ROBOT_CHUNK`] bytes (empty at or past the end).
         data: Vec<u8, ROBOT_CHUNK>,
     },
+    // --- commissioning (issue 18) ---
+    /// A wheel test ended (motors off on this tick): the second answer
+    /// to its [`Request::WheelTest`], after the ack.
+    WheelTestDone {
+        /// Sequence number of the `WheelTest` request.
+        seq: u16,
+        /// What it measured.
+        result: WheelTestResult,
+    },
 }
 
 impl ParamId {
@@ -925,6 +1005,7 @@ impl ErrorCode {
             Self::PoseQueueFull => "another pose waits for the same tick",
             Self::NoStore => "the robot has no robot store",
             Self::StoreFailed => "flash write failed (the previous record is kept)",
+            Self::AboveTestCap => "wheel-test torque above the commissioning cap",
         }
     }
 }

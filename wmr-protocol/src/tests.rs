@@ -205,8 +205,8 @@ fn every_message_round_trips_through_a_frame() {
 #[test]
 fn the_enumeration_finds_every_variant() {
     // Guards the doc test below: it must see all of them.
-    assert_eq!(variants::<Request>().len(), 21);
-    assert_eq!(variants::<Reply>().len(), 12);
+    assert_eq!(variants::<Request>().len(), 22);
+    assert_eq!(variants::<Reply>().len(), 13);
     assert_eq!(variants::<ParamId>().len(), ParamId::ALL.len());
     for (p, q) in variants::<ParamId>().into_iter().zip(ParamId::ALL) {
         assert_eq!(p, q);

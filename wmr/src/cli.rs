@@ -63,6 +63,9 @@ pub enum Command {
     /// The run metrics of a log, a trace CSV or an MCAP file (no robot
     /// needed): the numbers `record` prints.
     Metrics(MetricsArgs),
+    /// Guided first power-up: each wheel driven alone, wiring and the robot
+    /// file checked, the corrected file proposed (docs/commissioning.md).
+    Commission(crate::commission::CommissionArgs),
     /// The robot file in the robot's flash: push, pull, diff, check.
     Robot(RobotArgs),
 }
@@ -411,6 +414,7 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
             let json = serde_json::to_string(&m).map_err(|e| LinkError::Io(e.to_string()))?;
             writeln!(out, "{json}").map_err(io)?;
         }
+        Command::Commission(a) => crate::commission::commission(a, link, out)?,
         Command::Robot(a) => match &a.op {
             RobotOp::Push {
                 file,

@@ -7,6 +7,7 @@
 
 pub mod cli;
 pub mod identify;
+pub mod commission;
 pub mod link;
 pub mod record;
 pub mod robot;

@@ -2,7 +2,7 @@
 
 use super::controller_arg::ControllerArg;
 use super::scenario_args::ScenarioArgs;
-use crate::device::{open_pty, serve, SimRobot};
+use crate::device::{open_pty, serve, Miswire, SimRobot};
 use clap::Args;
 use controller_core::ControllerKind;
 use std::io::Write;
@@ -29,6 +29,34 @@ pub struct DeviceArgs {
     /// the host.
     #[command(flatten)]
     pub scenario: ScenarioArgs,
+    /// Wiring mistakes of the simulated robot, for `wmr commission`
+    /// (comma-separated): encoder-inverted-right|left, motor-inverted-right|left,
+    /// motors-swapped, encoders-swapped, counts-per-rev=N (the plant's).
+    #[arg(long, value_name = "LIST", value_parser = parse_miswire)]
+    pub miswire: Option<Miswire>,
+}
+
+/// `--miswire` items.
+pub fn parse_miswire(s: &str) -> Result<Miswire, String> {
+    let mut m = Miswire::default();
+    for item in s.split(',').map(str::trim).filter(|i| !i.is_empty()) {
+        let w = &mut m.wiring;
+        match item {
+            "encoder-inverted-right" => w.encoder_inverted[0] = true,
+            "encoder-inverted-left" => w.encoder_inverted[1] = true,
+            "motor-inverted-right" => w.motor_inverted[0] = true,
+            "motor-inverted-left" => w.motor_inverted[1] = true,
+            "motors-swapped" => w.motors_swapped = true,
+            "encoders-swapped" => w.encoders_swapped = true,
+            _ => match item.strip_prefix("counts-per-rev=").map(str::parse::<f32>) {
+                Some(Ok(c)) if c.is_finite() && (1.0..=1.0e7).contains(&c) => {
+                    m.counts_per_wheel_rev = Some(c)
+                }
+                _ => return Err(format!("--miswire: unknown or bad item '{item}'")),
+            },
+        }
+    }
+    Ok(m)
 }
 
 /// `hil-sim device --pty`.
@@ -42,7 +70,7 @@ pub fn device(a: &DeviceArgs, out: &mut dyn Write) -> Result<(), String> {
         crate::limits::check_device_for_s(t)?;
     }
     let kind: ControllerKind = a.controller.into();
-    let mut robot = SimRobot::new(&scn, kind)?;
+    let mut robot = SimRobot::miswired(&scn, kind, &a.miswire.unwrap_or_default(), |_| {})?;
     let (mut master, _slave, path) = open_pty()?;
     writeln!(out, "{path}").map_err(|e| e.to_string())?;
     out.flush().map_err(|e| e.to_string())?;

@@ -20,6 +20,7 @@ fn world(
     model: &RuntimeConfig,
     instruments: Option<Instruments>,
     dead_encoder: Option<DeadEncoder>,
+    wiring: sim_robot::world::Wiring,
 ) -> Result<World, String> {
     let err = |e: String| format!("scenario '{}': {e}", scn.name);
     let robot = scn.plant_robot().map_err(err)?;
@@ -55,7 +56,7 @@ fn world(
         faults: Faults {
             wheel_torque_scale: scn.perturbations.wheel_torque_scale,
             dead_encoder,
-            ..Faults::NONE
+            wiring,
         },
     })
     .map_err(|e| err(e.to_string()))
@@ -71,7 +72,13 @@ pub fn ideal_world(scn: &Scenario, controller: &ControllerConfig) -> Result<Worl
         rate_period_s: controller.period_s as f64,
     };
     let model = scn.runtime_config(*controller, scn.safety_limits());
-    world(scn, &model, Some(Instruments::Ideal(ideal)), None)
+    world(
+        scn,
+        &model,
+        Some(Instruments::Ideal(ideal)),
+        None,
+        sim_robot::world::Wiring::CORRECT,
+    )
 }
 
 /// The simulated hardware behind the firmware runtime of `runtime`: the
@@ -84,5 +91,46 @@ pub fn hardware_world(
     dead_encoder: Option<(usize, f64)>,
 ) -> Result<World, String> {
     let dead = dead_encoder.map(|(wheel, from_s)| DeadEncoder { wheel, from_s });
-    world(scn, runtime, None, dead)
+    world(scn, runtime, None, dead, sim_robot::world::Wiring::CORRECT)
+}
+
+/// Wiring mistakes of the robot behind the link (`hil-sim device
+/// --miswire`, `wmr commission`'s test): the plant's wiring faults and an
+/// encoder resolution other than the runtime's.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Miswire {
+    /// The wiring faults.
+    pub wiring: sim_robot::world::Wiring,
+    /// The plant's encoder counts per wheel revolution (None: the runtime's).
+    pub counts_per_wheel_rev: Option<f32>,
+}
+
+/// [`hardware_world`] with `miswire`'s mistakes.
+pub fn hardware_world_miswired(
+    scn: &Scenario,
+    runtime: &RuntimeConfig,
+    dead_encoder: Option<(usize, f64)>,
+    miswire: &Miswire,
+) -> Result<World, String> {
+    let sensors = scn.sensor_setup()?;
+    let robot = scn.plant_robot()?;
+    let mut encoder = scn.plant_encoder(&robot);
+    if let Some(c) = miswire.counts_per_wheel_rev {
+        encoder.counts_per_wheel_rev = c;
+    }
+    let hw = HardwareSensing {
+        encoder,
+        motor: scn.plant_motor(&robot),
+        motor_inverted: robot.bridge.motor_inverted,
+        gyro: sensors.gyro,
+        pose_source: sensors.pose,
+    };
+    let dead = dead_encoder.map(|(wheel, from_s)| DeadEncoder { wheel, from_s });
+    world(
+        scn,
+        runtime,
+        Some(Instruments::Hardware(hw)),
+        dead,
+        miswire.wiring,
+    )
 }
