@@ -17,19 +17,21 @@ use wmr::Link;
 const PAPER: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../robots/paper.toml");
 
 fn floor_scenario() -> Scenario {
-    Scenario {
+    let mut scn = Scenario {
         name: "commission".into(),
         duration_s: 60.0,
-        window_s: [0.0, 0.0],
         trajectory: TrajectoryKind::Line,
-        beta: 0.0,
-        eps: 0.0,
-        skid_scale: 0.0,
-        disturbance_nm: 0.0,
-        // Wheel odometry plus a z-gyro.
-        sensing: Sensing::Imu,
         ..Scenario::default()
-    }
+    };
+    let p = &mut scn.perturbations;
+    p.window_s = [0.0, 0.0];
+    p.beta = 0.0;
+    p.eps = 0.0;
+    p.skid_scale = 0.0;
+    p.disturbance_nm = 0.0;
+    // Wheel odometry plus a z-gyro.
+    scn.sensing.preset = Sensing::Imu;
+    scn
 }
 
 /// Runs `wmr commission --floor` on a simulated robot miswired by

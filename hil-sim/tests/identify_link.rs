@@ -12,17 +12,18 @@ use std::time::Duration;
 #[test]
 fn identify_run_then_fit_over_the_pty() {
     // The plant 20 % heavier than the robot's configuration.
-    let scn = Scenario {
+    let mut scn = Scenario {
         name: "identify".into(),
         initial_pose: [0.0, 0.0, 0.0],
-        beta: 0.0,
-        eps: 0.0,
-        skid_scale: 0.0,
-        disturbance_nm: 0.0,
-        mass_scale: 1.2,
-        sensing: Sensing::Mocap,
         ..Scenario::default()
     };
+    let p = &mut scn.perturbations;
+    p.beta = 0.0;
+    p.eps = 0.0;
+    p.skid_scale = 0.0;
+    p.disturbance_nm = 0.0;
+    scn.plant.mass_scale = 1.2;
+    scn.sensing.preset = Sensing::Mocap;
     let (mut master, _slave, path) = open_pty().unwrap();
     let mut robot = SimRobot::new(&scn, ControllerKind::Proposed).unwrap();
     let stop = Arc::new(AtomicBool::new(false));

@@ -183,19 +183,21 @@ fn run(scn: &Scenario, ex: &Excitation) -> Run {
 /// The identification scenario: the paper robot with the plant's mass and
 /// inertia scaled, no section-4 perturbation, hardware sensing of `sensing`.
 fn scenario(mass_scale: f64, inertia_scale: f64, sensing: Sensing, seed: u64) -> Scenario {
-    Scenario {
+    let mut scn = Scenario {
         name: "identify".into(),
         initial_pose: [0.0, 0.0, 0.0],
-        beta: 0.0,
-        eps: 0.0,
-        skid_scale: 0.0,
-        disturbance_nm: 0.0,
-        mass_scale,
-        inertia_scale,
-        sensing,
         seed,
         ..Scenario::default()
-    }
+    };
+    let p = &mut scn.perturbations;
+    p.beta = 0.0;
+    p.eps = 0.0;
+    p.skid_scale = 0.0;
+    p.disturbance_nm = 0.0;
+    scn.plant.mass_scale = mass_scale;
+    scn.plant.inertia_scale = inertia_scale;
+    scn.sensing.preset = sensing;
+    scn
 }
 
 fn prior_of(scn: &Scenario) -> Prior {
@@ -221,8 +223,8 @@ struct Truth {
 fn truth(scn: &Scenario) -> Truth {
     let p = controller_core::RobotParams::paper();
     Truth {
-        mass_kg: p.mass_kg as f64 * scn.mass_scale,
-        inertia_kgm2: p.inertia_kgm2 as f64 * scn.inertia_scale,
+        mass_kg: p.mass_kg as f64 * scn.plant.mass_scale,
+        inertia_kgm2: p.inertia_kgm2 as f64 * scn.plant.inertia_scale,
     }
 }
 

@@ -231,10 +231,8 @@ fn healthy_runs_never_trip_the_direction_check() {
                 Sensing::Mocap,
                 Sensing::Uwb,
             ] {
-                let scn = hil_sim::Scenario {
-                    sensing,
-                    ..sample_scenario(case, 1, i, i % 2 == 1)
-                };
+                let mut scn = sample_scenario(case, 1, i, i % 2 == 1);
+                scn.sensing.preset = sensing;
                 for kind in ControllerKind::ALL {
                     let out = run_hil(&scn, kind, HilOptions::default()).unwrap();
                     assert_eq!(out.stop, None, "case {case} draw {i} {sensing:?} {kind:?}");

@@ -76,17 +76,19 @@ fn ok(link: &mut Link, req: Request) {
 }
 
 fn quiet(sensing: Sensing) -> Scenario {
-    Scenario {
+    let mut scn = Scenario {
         name: "quiet".into(),
         duration_s: 10.0,
-        window_s: [0.0, 0.0],
-        beta: 0.0,
-        eps: 0.0,
-        skid_scale: 0.0,
-        disturbance_nm: 0.0,
-        sensing,
         ..Scenario::default()
-    }
+    };
+    let p = &mut scn.perturbations;
+    p.window_s = [0.0, 0.0];
+    p.beta = 0.0;
+    p.eps = 0.0;
+    p.skid_scale = 0.0;
+    p.disturbance_nm = 0.0;
+    scn.sensing.preset = sensing;
+    scn
 }
 
 /// `record --mcap` of a run writes the CSV and the MCAP; `wmr metrics`
