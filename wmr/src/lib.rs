@@ -6,8 +6,8 @@
 #![deny(missing_docs)]
 
 pub mod cli;
-pub mod identify;
 pub mod commission;
+pub mod identify;
 pub mod link;
 pub mod record;
 pub mod robot;
