@@ -35,9 +35,6 @@ use wmr_device::Device;
 /// The host-link device and runtime with the firmware's pose history.
 type Robot = Device<{ config::POSE_HISTORY_TICKS }>;
 
-/// The host link handler's configuration, with this chip's name.
-const DEVICE: wmr_device::DeviceConfig = config::device(board::CHIP_ID);
-
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     // Motor lines defined low before the clocks start (HSE start, PLL lock).
@@ -58,11 +55,16 @@ async fn main(spawner: Spawner) {
     } else {
         0 // rejected by the configuration check below
     };
-    let cfg = config::runtime_config(full_scale);
+    let robot = config::default_robot();
+    let cfg = config::runtime_config(&robot, full_scale);
     banner::banner(&board, full_scale, &cfg);
 
     let (device, task) = match (
-        Robot::with_estimator(DEVICE, cfg, config::ESTIMATOR),
+        Robot::with_estimator(
+            config::device(&robot, board::CHIP_ID),
+            cfg,
+            config::ESTIMATOR,
+        ),
         LoopTimer::from_config(&cfg)
             .ok()
             .zip(ArmingButton::new(config::BUTTON_DEBOUNCE_TICKS).ok()),
@@ -78,7 +80,7 @@ async fn main(spawner: Spawner) {
     // its newest sample; none until the chip answers).
     #[cfg(feature = "imu")]
     if let Some(p) = board.imu.take() {
-        imu::start(&spawner, p);
+        imu::start(&spawner, p, config::imu_yaw(&robot));
     }
     match board.link.take() {
         Some(p) => {
