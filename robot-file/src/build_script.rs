@@ -22,7 +22,13 @@ pub fn embed_robot_file(default_path: &Path) -> Result<Robot, String> {
         .map(PathBuf::from)
         .unwrap_or_else(|| default_path.to_path_buf());
     println!("cargo:rerun-if-changed={}", path.display());
-    let text = fs::read_to_string(&path)
+    let out = PathBuf::from(env::var_os("OUT_DIR").ok_or("OUT_DIR not set")?);
+    embed(&path, &out)
+}
+
+/// [`embed_robot_file`] for the robot file `path`, writing into `out_dir`.
+pub fn embed(path: &Path, out_dir: &Path) -> Result<Robot, String> {
+    let text = fs::read_to_string(path)
         .map_err(|e| std::format!("ROBOT_FILE {}: {e}", path.display()))?;
     let robot = Robot::from_toml_str(&text)
         .map_err(|e| std::format!("ROBOT_FILE {}: {e}", path.display()))?;
@@ -39,8 +45,7 @@ pub fn embed_robot_file(default_path: &Path) -> Result<Robot, String> {
             path.display()
         ));
     }
-    let out = PathBuf::from(env::var_os("OUT_DIR").ok_or("OUT_DIR not set")?);
-    fs::write(out.join(EMBEDDED_ROBOT_FILE_NAME), &buf[..n])
-        .map_err(|e| std::format!("{}: {e}", out.display()))?;
+    fs::write(out_dir.join(EMBEDDED_ROBOT_FILE_NAME), &buf[..n])
+        .map_err(|e| std::format!("{}: {e}", out_dir.display()))?;
     Ok(robot)
 }
