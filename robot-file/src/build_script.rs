@@ -28,8 +28,8 @@ pub fn embed_robot_file(default_path: &Path) -> Result<Robot, String> {
 
 /// [`embed_robot_file`] for the robot file `path`, writing into `out_dir`.
 pub fn embed(path: &Path, out_dir: &Path) -> Result<Robot, String> {
-    let text = fs::read_to_string(path)
-        .map_err(|e| std::format!("ROBOT_FILE {}: {e}", path.display()))?;
+    let text =
+        fs::read_to_string(path).map_err(|e| std::format!("ROBOT_FILE {}: {e}", path.display()))?;
     let robot = Robot::from_toml_str(&text)
         .map_err(|e| std::format!("ROBOT_FILE {}: {e}", path.display()))?;
     let mut buf = [0u8; MAX_ENCODED_LEN];
