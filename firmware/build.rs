@@ -1,5 +1,8 @@
-//! Puts the workspace's top-level `memory.x` on the link search path and
-//! passes the cortex-m-rt and defmt linker scripts.
+//! Puts the workspace's top-level `memory.x` on the link search path,
+//! passes the cortex-m-rt and defmt linker scripts, and compiles the robot
+//! file `ROBOT_FILE` (default `../robots/paper.toml`) into
+//! `OUT_DIR/robot.bin` for `config::DEFAULT_ROBOT_BYTES`: a robot file
+//! the validation refuses fails the build, naming the field.
 
 use std::env;
 use std::fs;
@@ -13,6 +16,12 @@ fn main() {
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed={}", memory_x.display());
     println!("cargo:rerun-if-changed=build.rs");
+    if let Err(e) =
+        robot_file::build_script::embed_robot_file(&manifest.join("../robots/paper.toml"))
+    {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
 
     println!("cargo:rustc-link-arg-bins=--nmagic");
     println!("cargo:rustc-link-arg-bins=-Tlink.x");

@@ -141,10 +141,20 @@ pub struct TickResult {
 #[inline(never)]
 pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
     let initial_pose = Pose::new(2.5, 0.0, 0.0); // the simulator's default start
-    let cfg = RuntimeConfig {
-        initial_pose,
-        ..RuntimeConfig::example(ControllerKind::Proposed)
-    };
+                                                 // The firmware's robot (ROBOT_FILE at build time, as the firmware
+                                                 // embeds it), its runtime configuration derived as the firmware
+                                                 // derives it, with PWM on the STM32F411's 96 MHz timer clock.
+    let robot = robot_file::Robot::decode(include_bytes!(concat!(env!("OUT_DIR"), "/robot.bin")))
+        .unwrap_or_else(|_| fail("robot file"));
+    let kind = ControllerKind::Proposed;
+    let cfg = robot
+        .runtime_config(
+            kind,
+            RuntimeConfig::example(kind).reference,
+            initial_pose,
+            96_000_000,
+        )
+        .unwrap_or_else(|_| fail("robot's runtime config"));
     let mut est = EstimatorConfig::EXAMPLE;
     est.gyro_saturation_radps = PRESET_GYRO.saturation_radps as f32;
     let mut control: ControlLoop<HISTORY_LEN> =

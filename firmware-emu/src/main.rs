@@ -10,7 +10,7 @@
 //!
 //! Module graph (no cycles): `main` -> every module; `board` -> `sim`,
 //! `time`, `watchdog`, `log`, `config`; `log` -> `sim`, `config`; `sim` ->
-//! `config`, `time`; `config` (the STM32 firmware's, a leaf) -> none.
+//! `time`; `config` (the STM32 firmware's, a leaf) -> none.
 #![no_std]
 #![no_main]
 
@@ -53,12 +53,13 @@ fn main() -> ! {
     // The STM32 firmware's configuration; the board's own: PWM full scale
     // (the F411's), the gyro (sim-robot's MEMS preset: its full scale),
     // and the handshake says "simulated".
-    let cfg = config::runtime_config(board::PWM_FULL_SCALE);
+    let robot = config::default_robot();
+    let cfg = config::runtime_config(&robot, board::PWM_FULL_SCALE);
     let mut estimator = config::ESTIMATOR;
     estimator.gyro_saturation_radps = sim::gyro_saturation_radps();
     let dev_cfg = DeviceConfig {
         capabilities: config::CAPABILITIES | wmr_protocol::CAP_SIMULATED,
-        ..config::device(board::CHIP_ID)
+        ..config::device(&robot, board::CHIP_ID)
     };
     let (device, timer, button) = match (
         Robot::with_estimator(dev_cfg, cfg, estimator),

@@ -28,8 +28,6 @@ use sim_robot::sensors::PRESET_GYRO;
 use sim_robot::world::{Actuation, Faults, HardwareSensing, Instruments};
 use sim_robot::{PerturbationProfile, PlantParams, SimDriver, World, WorldConfig};
 
-use crate::config;
-
 /// The simulated peripherals the board's handles reach: the world's
 /// latest readings and the bridge as the tick wrote it.
 pub struct SimHw {
@@ -60,7 +58,7 @@ static WORLD: Mutex<RefCell<Option<World>>> = Mutex::new(RefCell::new(None));
 pub fn init(cfg: &controller_core::runtime::RuntimeConfig) -> Result<(), &'static str> {
     let p0 = cfg.initial_pose;
     let world = World::new(&WorldConfig {
-        plant: PlantParams::from_robot(&config::ROBOT, 1.0, 1.0),
+        plant: PlantParams::from_robot(&cfg.controller.robot, 1.0, 1.0),
         perturbations: PerturbationProfile::NONE,
         initial_pose: [p0.x_m as f64, p0.y_m as f64, p0.theta_rad as f64],
         period_s: cfg.controller.period_s as f64,

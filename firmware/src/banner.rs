@@ -26,7 +26,7 @@ pub fn banner(
     info!(
         "loop {=u64} Hz, PWM {=u32} Hz full scale {=u16} counts, watchdog {=u32} us",
         config::CONTROL_HZ,
-        config::BRIDGE.pwm_frequency_hz,
+        config::bridge(&config::default_robot()).pwm_frequency_hz,
         full_scale,
         config::WATCHDOG_TIMEOUT_US,
     );

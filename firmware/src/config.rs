@@ -1,26 +1,22 @@
-//! Robot, motor, encoder and safety constants: the one place to set them for
-//! your robot. Units are SI and named in the field names; the types document
-//! every field (`controller_core::RobotParams`,
-//! `controller_core::runtime::{MotorParams, EncoderParams, SafetyLimits}`).
+//! The firmware's configuration: the compiled-in robot (a robot file,
+//! `robot_file::Robot`, docs/robot.md: geometry, motors, encoders, bridge,
+//! IMU mounting, limits, gains) and what is the firmware's own (loop rate,
+//! watchdog, logs, the IMU's bus, the estimator's tuning). Everything the
+//! runtime and the link need is built from a `Robot` ([`runtime_config`],
+//! [`device`]), so a robot read from flash replaces the default whole.
 //!
 //! A leaf: it names nothing of this crate (board, IMU driver, log), only
 //! library types, so `firmware-emu` compiles it unchanged (`#[path]`) and
 //! supplies its own board. What depends on the chip (its handshake name)
 //! is a parameter ([`device`]).
 
-use controller_core::controller::{DEFAULT_K_Y, DEFAULT_TORQUE_LIMIT_NM};
-use controller_core::eso::EsoParams;
 use controller_core::estimator::EstimatorConfig;
-use controller_core::fault_observer::FaultObserverGains;
-use controller_core::kinematic::{KinematicGains, DEFAULT_LARGE_ERROR_M};
-use controller_core::pacer::PacingConfig;
-use controller_core::runtime::{
-    BridgeMode, BridgeParams, EncoderParams, MotorParams, RuntimeConfig, SafetyLimits,
-    MIRRORED_LEFT,
-};
+use controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
+use controller_core::runtime::{BridgeMode, BridgeParams, RuntimeConfig};
 use controller_core::trajectory::{PaperCurve, PaperHeading, Reference};
-use controller_core::{ControllerConfig, ControllerKind, InputLimits, RobotParams};
-use wmr_device::{DeviceConfig, LinkConfig};
+use controller_core::ControllerKind;
+use robot_file::Robot;
+use wmr_device::DeviceConfig;
 use wmr_protocol::BuiltinReference;
 
 /// Control loop rate \[Hz\] (the controller's `period_s` is its inverse).
@@ -38,56 +34,40 @@ pub const BUTTON_DEBOUNCE_TICKS: u16 = 20;
 /// Which of the paper's controllers runs.
 pub const CONTROLLER: ControllerKind = ControllerKind::Proposed;
 
-/// Per-wheel torque limit \[N·m\] the controller saturates at:
-/// controller-core's default (the paper gives none, DECISIONS D14). Set it
-/// to what your motors and gearboxes can deliver.
-pub const TORQUE_LIMIT_NM: f32 = DEFAULT_TORQUE_LIMIT_NM;
+/// The compiled-in robot's binary form (`Robot::encode`): `build.rs` reads
+/// the robot file `ROBOT_FILE` (default `../robots/paper.toml`; relative
+/// paths from `firmware/`), validates it (a bad file fails the build with
+/// the field, line and reason) and writes it to `OUT_DIR`. Body, motors,
+/// encoders, bridge, IMU mounting, limits and gains all come from it
+/// (docs/robot.md); nothing here repeats a value of it.
+pub static DEFAULT_ROBOT_BYTES: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/robot.bin"));
 
-/// Kinematic-loop gains, eq. (14): Table 2's k_x = 1.2, k_th = 5 with
-/// controller-core's k_y (the printed 250 is unstable on reversals,
-/// DECISIONS D8), and the large-error bound of the lateral term (clean
-/// start from a large offset, D23; `with_large_error_bound(0.0)` = as printed).
-pub const KINEMATIC_GAINS: KinematicGains = KinematicGains {
-    k_y: DEFAULT_K_Y,
-    ..KinematicGains::paper()
+/// The compiled-in robot, decoded (and validated again) from
+/// [`DEFAULT_ROBOT_BYTES`]; the robot of the flash record overrides it at
+/// boot when one is stored. The build decoded the same bytes with the same
+/// code, so the fallback, the paper's robot, is never taken unless the
+/// image itself is corrupt.
+pub fn default_robot() -> Robot {
+    Robot::decode(DEFAULT_ROBOT_BYTES).unwrap_or_else(|_| Robot::paper())
 }
-.with_large_error_bound(DEFAULT_LARGE_ERROR_M);
 
-/// Robot body: mass, inertia, wheel radius, half track, centre-of-mass
-/// offset. Default: the paper's Table 1 (15 kg, r = 0.1 m, track 0.4 m,
-/// d = 0.05 m): measure and replace for a real robot.
-pub const ROBOT: RobotParams = RobotParams::paper();
+/// The H-bridge wiring of `robot` (its `[bridge]` section: input scheme,
+/// PWM frequency, zero-duty behaviour; pins per mode in the README's
+/// "Wiring"). `BRIDGE_MODE=pwm-dir|two-pwm|pwm-in1-in2` at build time
+/// overrides the file's mode (CI builds an image of each for stm32-emu);
+/// the board takes it as a run-time value, so every mode's code is in
+/// every image.
+pub fn bridge(robot: &Robot) -> BridgeParams {
+    let file = robot.bridge.params();
+    BridgeParams {
+        mode: bridge_mode(option_env!("BRIDGE_MODE")).unwrap_or(file.mode),
+        ..file
+    }
+}
 
-/// Motors, gearbox, supply and PWM: controller-core's example 24 V
-/// gear-motor (`MotorParams::EXAMPLE`: k = 0.05 N·m/A, R = 0.5 Ω, 12:1 at
-/// 85 %, 24 V, duty limit 0.95), the same values the simulator drives.
-/// `duty_full_scale` is replaced at start-up by the PWM timer's real
-/// resolution. Measure and replace for a real robot.
-pub const MOTOR: MotorParams = MotorParams::EXAMPLE;
-
-/// Encoders: counts per *wheel* revolution after ×4 decoding and gearbox,
-/// which counter runs backwards when driving forward, and the speed window:
-/// controller-core's example (`EncoderParams::EXAMPLE`: 500 lines × 4 × 12
-/// = 24 000 counts/rev, left mirrored, 4 ms window), the simulator's too.
-pub const ENCODER: EncoderParams = EncoderParams::EXAMPLE;
-
-/// Per wheel `[right, left]`: flip the DIR output (left motor mirrored).
-pub const MOTOR_INVERTED: [bool; 2] = MIRRORED_LEFT;
-
-/// The H-bridge wiring: input scheme, PWM frequency, zero-duty behaviour
-/// (`BridgeParams`; pins per mode in the README's "Wiring"). Default:
-/// PWM + DIR at 20 kHz, braking at zero duty. The mode can be chosen at
-/// build time with `BRIDGE_MODE=pwm-dir|two-pwm|pwm-in1-in2` (CI builds
-/// an image of each for stm32-emu); the board takes it as a run-time value,
-/// so every mode's code is in every image.
-pub const BRIDGE: BridgeParams = BridgeParams {
-    mode: bridge_mode(option_env!("BRIDGE_MODE")),
-    ..BridgeParams::EXAMPLE
-};
-
-/// `BRIDGE_MODE` at build time: unset or `pwm-dir`, `two-pwm`,
-/// `pwm-in1-in2`; anything else fails the build.
-const fn bridge_mode(name: Option<&str>) -> BridgeMode {
+/// `BRIDGE_MODE` at build time: unset (the robot file's mode) or
+/// `pwm-dir`, `two-pwm`, `pwm-in1-in2`; anything else fails the build.
+const fn bridge_mode(name: Option<&str>) -> Option<BridgeMode> {
     const fn eq(a: &[u8], b: &[u8]) -> bool {
         if a.len() != b.len() {
             return false;
@@ -102,21 +82,16 @@ const fn bridge_mode(name: Option<&str>) -> BridgeMode {
         true
     }
     match name {
-        None => BridgeMode::PwmDir,
-        Some(n) if eq(n.as_bytes(), b"pwm-dir") => BridgeMode::PwmDir,
-        Some(n) if eq(n.as_bytes(), b"two-pwm") => BridgeMode::TwoPwm,
-        Some(n) if eq(n.as_bytes(), b"pwm-in1-in2") => BridgeMode::PwmIn1In2,
+        None => None,
+        Some(n) if eq(n.as_bytes(), b"pwm-dir") => Some(BridgeMode::PwmDir),
+        Some(n) if eq(n.as_bytes(), b"two-pwm") => Some(BridgeMode::TwoPwm),
+        Some(n) if eq(n.as_bytes(), b"pwm-in1-in2") => Some(BridgeMode::PwmIn1In2),
         Some(_) => panic!("BRIDGE_MODE must be pwm-dir, two-pwm or pwm-in1-in2"),
     }
 }
 
-/// Safety thresholds (see `SafetyLimits`): jump > 400 counts/ms
-/// (2.6× the 40 rad/s no-load speed), stall at >= 2 N·m for 250 ms, a tick
-/// more than 0.5 ms behind its schedule is late and 5 late ticks in a row
-/// latch, first bad input latching, a wheel accelerating against its
-/// torque (>= 1 N·m, >= 10 rad/s²) for 80 ms latching (the direction
-/// check: a motor or encoder wired backwards).
-pub const SAFETY: SafetyLimits = SafetyLimits::EXAMPLE;
+/// Checked at build time: a bad `BRIDGE_MODE` fails here.
+const _: Option<BridgeMode> = bridge_mode(option_env!("BRIDGE_MODE"));
 
 /// Ticks of pose-estimator history: the oldest external pose (sent over the
 /// host link, `wmr pose-feed`) the runtime can still use. The history keeps
@@ -129,46 +104,23 @@ pub const POSE_HISTORY_TICKS: usize = controller_core::estimator::HISTORY_LEN;
 /// Where odometry and the estimator start: the origin facing +x.
 pub const INITIAL_POSE: controller_core::Pose = controller_core::Pose::new(0.0, 0.0, 0.0);
 
-/// The runtime configuration with `MOTOR`'s placeholder PWM full scale.
-/// Constants (this one, [`ESTIMATOR`] and [`DEVICE`]) rather than
-/// functions: the compiler then folds them into the device's
-/// construction (about 370 B less flash than building them at run time).
-const RUNTIME: RuntimeConfig = {
-    // Every field named: the sliding loop's k_s and switching gain are
-    // Table 2's for CONTROLLER (k_s = 50 proposed, 5 baselines; adaptive
-    // ρ̂ or the fixed SMC gain), the observers take controller-core's
-    // defaults (fault observer eq. 13, fal-ESO eq. 18).
-    let controller = ControllerConfig {
-        kind: CONTROLLER,
-        robot: ROBOT,
-        kinematic: KINEMATIC_GAINS,
-        fault_observer: FaultObserverGains::DEFAULT,
-        eso: EsoParams::DEFAULT,
-        sliding: ControllerConfig::paper(CONTROLLER).sliding,
-        torque_limit_nm: TORQUE_LIMIT_NM,
-        period_s: 1.0 / CONTROL_HZ as f32,
-        input_limits: InputLimits::DEFAULT,
-    };
-    RuntimeConfig {
-        controller,
-        // The host link supplies the reference (boot state hold): this one
-        // is never driven, it only completes the runtime's configuration.
-        reference: Reference::Paper(PaperCurve::paper(PaperHeading::SignedSmooth)),
-        initial_pose: INITIAL_POSE,
-        encoder: ENCODER,
-        motor: MOTOR,
-        motor_inverted: MOTOR_INVERTED,
-        safety: SAFETY,
-        // Reference governor and health machine (DECISIONS D22, D24).
-        pacing: PacingConfig::on(),
+/// The full runtime configuration of `robot` for controller
+/// [`CONTROLLER`] at [`CONTROL_HZ`]: `pwm_full_scale` is the PWM timer's
+/// counts at 100 % duty (read back from the timer). The host link supplies
+/// the reference (boot state hold): the paper curve here is never driven,
+/// it only completes the configuration. When the file leaves the
+/// controller's gains to the defaults (no `[gains.proposed]`), the
+/// large-error bound of D23 is on (clean start), as in hil-sim's scenarios
+/// (`clean_start` defaults to true, D63); gains written in the file are
+/// taken as written.
+pub fn runtime_config(robot: &Robot, pwm_full_scale: u16) -> RuntimeConfig {
+    let reference = Reference::Paper(PaperCurve::paper(PaperHeading::SignedSmooth));
+    let mut cfg = robot.runtime_config_for_pwm(CONTROLLER, reference, INITIAL_POSE, pwm_full_scale);
+    cfg.controller.period_s = 1.0 / CONTROL_HZ as f32;
+    cfg.safety = robot.safety_limits(cfg.controller.period_s);
+    if robot.gains.of(CONTROLLER).is_none() {
+        cfg.controller.kinematic.large_error_m = DEFAULT_LARGE_ERROR_M;
     }
-};
-
-/// The full runtime configuration; `pwm_full_scale` is the PWM timer's
-/// counts at 100 % duty.
-pub fn runtime_config(pwm_full_scale: u16) -> RuntimeConfig {
-    let mut cfg = RUNTIME;
-    cfg.motor.duty_full_scale = pwm_full_scale;
     cfg
 }
 
@@ -190,18 +142,25 @@ pub const ESTIMATOR: EstimatorConfig = EstimatorConfig {
     ..EstimatorConfig::EXAMPLE
 };
 
-/// How the IMU is mounted (`imu` feature): which sensor axis is the
-/// robot's vertical axis (up) and whether it points down. Default: the
-/// module flat, components up (sensor z up): a counter-clockwise turn seen
-/// from above reads positive, the controller's θ convention. Mounted upside
-/// down: `inverted: true`; mounted on its edge: the axis that is vertical.
-/// Check it by turning the robot by hand: `wmr status` / the `est` line
-/// must show the gyro's yaw rate with the sign of the wheels' one.
+/// How the IMU is mounted (`imu` feature), from the robot file's
+/// `imu.yaw_axis`: which sensor axis is the robot's vertical axis and
+/// whether it points down (a counter-clockwise turn seen from above must
+/// read positive, the controller's θ convention). Check it by turning the
+/// robot by hand: `wmr status` / the `est` line must show the gyro's yaw
+/// rate with the sign of the wheels' one.
 #[cfg(feature = "imu")]
-pub const IMU_YAW: robot_app::imu::YawMapping = robot_app::imu::YawMapping {
-    axis: robot_app::imu::Axis::Z,
-    inverted: false,
-};
+pub fn imu_yaw(robot: &Robot) -> robot_app::imu::YawMapping {
+    use robot_app::imu::Axis;
+    let (axis, sign) = robot.imu.yaw_axis.axis_and_sign();
+    robot_app::imu::YawMapping {
+        axis: match axis {
+            0 => Axis::X,
+            1 => Axis::Y,
+            _ => Axis::Z,
+        },
+        inverted: sign < 0.0,
+    }
+}
 
 /// Gyro full scale (`imu` feature): ±500 °/s = ±8.73 rad/s. A wheeled
 /// robot turns far slower while tracking (the button's circle: 0.4 rad/s);
@@ -251,25 +210,15 @@ pub const IMU_MONITOR: robot_app::imu::MonitorConfig = robot_app::imu::MonitorCo
 /// when the robot has room).
 pub const BUTTON_REFERENCE: BuiltinReference = robot_app::DEFAULT_BUTTON_REFERENCE;
 
-/// Link settings: 500 ms link-silence timeout while moving under host
-/// control, velocity-command limits, braking deceleration, telemetry off
-/// until the host asks (`LinkConfig::DEFAULT`).
-pub const LINK: LinkConfig = LinkConfig::DEFAULT;
-
 /// What this firmware can do over the host link (handshake).
 pub const CAPABILITIES: u16 =
     wmr_protocol::CAP_EXTERNAL_POSE | wmr_protocol::CAP_TRAJECTORY | wmr_protocol::CAP_VELOCITY;
 
-/// The host link handler's configuration for the board named `chip` in the
-/// handshake (the board's `CHIP_ID`, at most 16 bytes). A `const fn`: used
-/// in a constant, it folds into the device's construction.
-pub const fn device(chip: &'static str) -> DeviceConfig {
-    DeviceConfig {
-        chip,
-        capabilities: CAPABILITIES,
-        link: LINK,
-        button_reference: Some(BUTTON_REFERENCE),
-    }
+/// The host link handler's configuration of `robot` (its link timeout and
+/// command limits) for the board named `chip` in the handshake (the
+/// board's `CHIP_ID`, at most 16 bytes).
+pub fn device(robot: &Robot, chip: &'static str) -> DeviceConfig {
+    DeviceConfig::of_robot(robot, chip, CAPABILITIES, Some(BUTTON_REFERENCE))
 }
 
 /// The control task's local logs: a status line every second and the

@@ -43,7 +43,8 @@ use robot_app::imu::{
     ImuChip, ImuFault, Recovery, RecoveryPins, Verdict, PWR_MGMT_1_AWAKE_PLL_X,
 };
 
-use crate::config::{IMU_DLPF, IMU_I2C_ADDRESS, IMU_I2C_HZ, IMU_MONITOR, IMU_RANGE, IMU_YAW};
+use crate::config::{IMU_DLPF, IMU_I2C_ADDRESS, IMU_I2C_HZ, IMU_MONITOR, IMU_RANGE};
+use robot_app::imu::YawMapping;
 
 /// The newest sample, written by [`imu_task`], read by the board's gyro
 /// ([`gyro`]).
@@ -163,9 +164,10 @@ async fn write(bus: &mut Bus<'_>, bytes: &[u8]) -> Result<(), ImuFault> {
     }
 }
 
-/// Spawns the IMU task on the bus's peripherals.
-pub fn start(spawner: &Spawner, p: ImuPeripherals) {
-    match imu_task(p) {
+/// Spawns the IMU task on the bus's peripherals, reading the robot's yaw
+/// as `yaw` says (`config::imu_yaw`, from the robot file).
+pub fn start(spawner: &Spawner, p: ImuPeripherals, yaw: YawMapping) {
+    match imu_task(p, yaw) {
         Ok(t) => spawner.spawn(t),
         Err(_) => error!("gyro: IMU task not started: heading from the wheels"),
     }
@@ -313,8 +315,8 @@ async fn stream(bus: &mut Bus<'_>, monitor: &mut GyroMonitor) -> ImuFault {
 /// forever), samples, and after a loss the gyro withdrawn, the bus
 /// recovered when it may be wedged, and a new bring-up.
 #[embassy_executor::task]
-async fn imu_task(mut p: ImuPeripherals) {
-    let Ok(mut monitor) = GyroMonitor::new(IMU_MONITOR, IMU_YAW, IMU_RANGE) else {
+async fn imu_task(mut p: ImuPeripherals, yaw: YawMapping) {
+    let Ok(mut monitor) = GyroMonitor::new(IMU_MONITOR, yaw, IMU_RANGE) else {
         error!("gyro: invalid config::IMU_MONITOR: heading from the wheels");
         return;
     };
@@ -359,7 +361,7 @@ async fn imu_task(mut p: ImuPeripherals) {
                     IMU_RANGE.full_scale_dps(),
                     IMU_DLPF,
                     SAMPLE_PERIOD_US,
-                    IMU_YAW
+                    yaw
                 );
                 ever_up = true;
                 backoff.reset();

@@ -37,14 +37,12 @@ use wmr_device::Device;
 /// The host-link device and runtime with the firmware's pose history.
 type Robot = Device<{ config::POSE_HISTORY_TICKS }>;
 
-/// The host link handler's configuration, with this chip's name.
-const DEVICE: wmr_device::DeviceConfig = config::device(board::CHIP_ID);
-
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     // Motor lines defined low before the clocks start (HSE start, PLL lock).
     board::outputs_low_early();
-    let mut board = board::init(config::BRIDGE);
+    let robot = config::default_robot();
+    let mut board = board::init(config::bridge(&robot));
 
     // DWT cycle counter for the tick's execution time (RTT status lines).
     #[cfg(feature = "rtt-telemetry")]
@@ -60,11 +58,15 @@ async fn main(spawner: Spawner) {
     } else {
         0 // rejected by the configuration check below
     };
-    let cfg = config::runtime_config(full_scale);
+    let cfg = config::runtime_config(&robot, full_scale);
     banner::banner(&board, full_scale, &cfg);
 
     let (device, task) = match (
-        Robot::with_estimator(DEVICE, cfg, config::ESTIMATOR),
+        Robot::with_estimator(
+            config::device(&robot, board::CHIP_ID),
+            cfg,
+            config::ESTIMATOR,
+        ),
         LoopTimer::from_config(&cfg)
             .ok()
             .zip(ArmingButton::new(config::BUTTON_DEBOUNCE_TICKS).ok()),
@@ -80,7 +82,7 @@ async fn main(spawner: Spawner) {
     // its newest sample; none until the chip answers).
     #[cfg(feature = "imu")]
     if let Some(p) = board.imu.take() {
-        imu::start(&spawner, p);
+        imu::start(&spawner, p, config::imu_yaw(&robot));
     }
     match board.link.take() {
         Some(p) => {
@@ -107,7 +109,8 @@ async fn main(spawner: Spawner) {
     let flash = STORE.init(flash);
     let mut record = [0u8; wmr_protocol::ROBOT_BLOB_MAX];
     let mut default = [0u8; wmr_protocol::ROBOT_BLOB_MAX];
-    let n_default = robot_file::Robot::paper().encode(&mut default).unwrap_or(0);
+    let n_default = config::DEFAULT_ROBOT_BYTES.len().min(default.len());
+    default[..n_default].copy_from_slice(&config::DEFAULT_ROBOT_BYTES[..n_default]);
     let (n, source, fault) =
         robot_app::store::load_record(flash, &default[..n_default], &mut record).await;
     info!(

@@ -147,6 +147,7 @@ impl Robot {
     /// The whole runtime configuration for controller `kind`, following
     /// `reference` from `initial_pose`, with PWM from a timer clocked at
     /// `timer_clock_hz` (duty full scale from `BridgeParams::duty_full_scale`).
+    /// Validates the robot first.
     pub fn runtime_config(
         &self,
         kind: ControllerKind,
@@ -166,17 +167,32 @@ impl Robot {
                         why: "duty resolution outside 100..=65535 levels",
                     },
                 ))?;
+        Ok(self.runtime_config_for_pwm(kind, reference, initial_pose, full_scale))
+    }
+
+    /// [`Self::runtime_config`] for a PWM timer whose 100 % duty is
+    /// `duty_full_scale` counts (what a board reads back from its timer),
+    /// without validating (the robot is valid when it was read with
+    /// [`Robot::decode`] or `from_toml_str`; `ControlLoop::new` checks the
+    /// result again): the encoders, motors, bridge inversion, the safety
+    /// limits for the controller's period, pacing on.
+    pub fn runtime_config_for_pwm(
+        &self,
+        kind: ControllerKind,
+        reference: Reference,
+        initial_pose: Pose,
+        duty_full_scale: u16,
+    ) -> RuntimeConfig {
         let controller = self.controller_config(kind);
-        let cfg = RuntimeConfig {
+        RuntimeConfig {
             controller,
             reference,
             initial_pose,
             encoder: self.encoder_params(),
-            motor: self.motor_params(full_scale),
+            motor: self.motor_params(duty_full_scale),
             motor_inverted: self.bridge.motor_inverted,
             safety: self.safety_limits(controller.period_s),
             pacing: PacingConfig::on(),
-        };
-        Ok(cfg)
+        }
     }
 }

@@ -20,6 +20,8 @@
 extern crate std;
 
 mod binary;
+#[cfg(feature = "std")]
+pub mod build_script;
 mod derive;
 mod error;
 mod sections;

@@ -6,7 +6,7 @@ use controller_core::eso::EsoParams;
 use controller_core::fault_observer::FaultObserverGains;
 use controller_core::kinematic::KinematicGains;
 use controller_core::runtime::{
-    BridgeMode, BridgeParams, EncoderParams, IdleMode, MotorParams, SafetyLimits, MIRRORED_LEFT,
+    BridgeMode, BridgeParams, EncoderParams, IdleMode, MotorParams, MIRRORED_LEFT,
 };
 use controller_core::{ControllerConfig, ControllerKind, RobotParams};
 use serde::{Deserialize, Serialize};
@@ -474,7 +474,6 @@ impl Robot {
         let mut name = Name::new();
         // "paper" is 5 bytes < NAME_MAX_LEN.
         let _ = name.push_str("paper");
-        let _ = SafetyLimits::EXAMPLE;
         Self {
             name,
             format: FORMAT,

@@ -55,7 +55,7 @@ pub const FIELDS: &[&str] = &[
     "limits.max_yaw_rate_radps",
     "limits.max_accel_mps2",
     "limits.link_timeout_ms",
-    // gains.<kind>.*: the same list for each kind, see `gain_fields!`.
+    // gains.<kind>.*: GAIN_FIELDS under each kind (`field_paths`).
 ];
 
 macro_rules! gain_path {

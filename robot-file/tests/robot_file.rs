@@ -559,3 +559,26 @@ fn unequal_wheels_reach_the_runtime_as_arc_per_count() {
     }
     e.validate().unwrap();
 }
+
+#[test]
+fn build_script_embeds_a_good_file_and_names_the_field_of_a_bad_one() {
+    let dir = std::env::temp_dir().join(format!("robot-file-embed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let good = robots_dir().join("tb6612-2kg.toml");
+    let r = robot_file::build_script::embed(&good, &dir).unwrap();
+    let bytes =
+        std::fs::read(dir.join(robot_file::build_script::EMBEDDED_ROBOT_FILE_NAME)).unwrap();
+    assert_eq!(Robot::decode(&bytes).unwrap(), r);
+    let bad = dir.join("bad.toml");
+    std::fs::write(
+        &bad,
+        read("tb6612-2kg.toml").replace("torque_nm = 0.25", "torque_nm = 2.5"),
+    )
+    .unwrap();
+    let e = robot_file::build_script::embed(&bad, &dir).unwrap_err();
+    assert!(
+        e.contains("limits.torque_nm") && e.contains("bad.toml"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -127,7 +127,40 @@ pub struct DeviceConfig {
     pub button_reference: Option<BuiltinReference>,
 }
 
+impl LinkConfig {
+    /// The link settings of `robot`: its link timeout and its speed,
+    /// yaw-rate and acceleration limits (`[limits]`), the rest
+    /// [`LinkConfig::DEFAULT`]'s (braking, angular acceleration, telemetry).
+    pub fn of_robot(robot: &robot_file::Robot) -> Self {
+        let l = &robot.limits;
+        Self {
+            link_timeout_ms: l.link_timeout_ms,
+            accel_mps2: l.max_accel_mps2,
+            max_speed_mps: l.max_speed_mps,
+            max_yaw_rate_radps: l.max_yaw_rate_radps,
+            ..Self::DEFAULT
+        }
+    }
+}
+
 impl DeviceConfig {
+    /// The device configuration of `robot` ([`LinkConfig::of_robot`]) for
+    /// the board named `chip` with handshake `capabilities` and the arm
+    /// button's `button_reference`.
+    pub fn of_robot(
+        robot: &robot_file::Robot,
+        chip: &'static str,
+        capabilities: u16,
+        button_reference: Option<BuiltinReference>,
+    ) -> Self {
+        Self {
+            chip,
+            capabilities,
+            link: LinkConfig::of_robot(robot),
+            button_reference,
+        }
+    }
+
     /// Checks the link settings, the chip name and the button reference
     /// (against the robot's limits `lim`).
     pub fn validate(self, lim: &RobotLimits) -> Result<Self, DeviceConfigError> {
@@ -278,4 +311,42 @@ pub(crate) fn write<const H: usize>(
     })?;
     *link = l;
     Ok(())
+}
+
+#[cfg(test)]
+mod robot_tests {
+    extern crate std;
+    use super::*;
+    use robot_file::Robot;
+
+    /// The paper robot's `[limits]` are the link defaults: robot-file
+    /// writes them as literals, this checks they agree.
+    #[test]
+    fn paper_robot_has_the_default_link() {
+        assert_eq!(LinkConfig::of_robot(&Robot::paper()), LinkConfig::DEFAULT);
+    }
+
+    /// Each example robot's device configuration passes the device's own
+    /// checks against the limits of its runtime configuration.
+    #[test]
+    fn example_robots_give_valid_device_configs() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots");
+        for f in ["paper.toml", "tb6612-2kg.toml", "bts7960-10kg.toml"] {
+            let text = std::fs::read_to_string(dir.join(f)).unwrap();
+            let robot = Robot::from_toml_str(&text).unwrap();
+            let kind = controller_core::ControllerKind::Proposed;
+            let rt = robot
+                .runtime_config(
+                    kind,
+                    controller_core::runtime::RuntimeConfig::example(kind).reference,
+                    controller_core::Pose::default(),
+                    96_000_000,
+                )
+                .unwrap();
+            let lim = RobotLimits::of(&rt);
+            let dc = DeviceConfig::of_robot(&robot, "test", 0, None);
+            dc.validate(&lim).unwrap_or_else(|e| panic!("{f}: {e:?}"));
+            assert_eq!(dc.link.link_timeout_ms, robot.limits.link_timeout_ms);
+        }
+    }
 }

@@ -21,7 +21,7 @@ use embassy_time::{Duration, Instant, MockDriver};
 use robot_app::{AppConfig, AppEvent, Board, BoardIo, ControlTask, LinkPipes, StatusSummary};
 use sim_robot::world::{Actuation, WorldGyro, WorldPoseSource};
 use sim_robot::{SimDriver, SimEncoders, World, WorldConfig};
-use wmr_device::{Device, DeviceConfig, LinkConfig};
+use wmr_device::{Device, DeviceConfig};
 use wmr_protocol::{Decoded, FrameDecoder, Reply, Request, RunStateMsg, MAX_FRAME};
 
 /// Pose history of the devices under test.
@@ -236,19 +236,27 @@ pub struct Rig {
 
 /// The device configuration of the tests: firmware-like (hold at boot, the
 /// button drives a 0.5 m circle at 0.2 m/s from the start pose).
+/// Both from the paper's robot file (`robot_file::Robot::paper()`), as the
+/// firmware builds them from its compiled-in robot.
 pub fn runtime_config() -> RuntimeConfig {
-    let mut cfg = RuntimeConfig::example(ControllerKind::Proposed);
-    cfg.initial_pose = controller_core::Pose::new(0.0, 0.0, 0.0);
-    cfg
+    let kind = ControllerKind::Proposed;
+    robot_file::Robot::paper()
+        .runtime_config(
+            kind,
+            RuntimeConfig::example(kind).reference,
+            controller_core::Pose::new(0.0, 0.0, 0.0),
+            96_000_000,
+        )
+        .expect("the paper robot is valid")
 }
 
 pub fn device_config() -> DeviceConfig {
-    DeviceConfig {
-        chip: "mock",
-        capabilities: wmr_protocol::CAP_TRAJECTORY | wmr_protocol::CAP_VELOCITY,
-        link: LinkConfig::DEFAULT,
-        button_reference: Some(robot_app::DEFAULT_BUTTON_REFERENCE),
-    }
+    DeviceConfig::of_robot(
+        &robot_file::Robot::paper(),
+        "mock",
+        wmr_protocol::CAP_TRAJECTORY | wmr_protocol::CAP_VELOCITY,
+        Some(robot_app::DEFAULT_BUTTON_REFERENCE),
+    )
 }
 
 fn leak<T>(x: T) -> &'static mut T {
