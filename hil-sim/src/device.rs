@@ -122,7 +122,7 @@ fn boot_device(boot: &BootConfig, store: &mut FlashRecord<SimFlash>) -> Result<D
 
 /// The link's limits from the robot file's `[limits]` (timeout, speed,
 /// yaw rate, acceleration), the rest `LinkConfig::DEFAULT`'s; the paper
-/// robot's are the defaults (robot-file's `paper_limits`).
+/// robot's are the defaults (robot-file's `Limits::paper`).
 pub fn link_config(robot: &crate::scenario::Robot) -> LinkConfig {
     let l = &robot.limits;
     LinkConfig {

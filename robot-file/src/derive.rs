@@ -2,8 +2,7 @@
 //! every derived value with its formula (docs/robot.md, "Derived values").
 
 use crate::error::{Reason, RobotError};
-use crate::sections::{Limits, Robot};
-use controller_core::controller::DEFAULT_TORQUE_LIMIT_NM;
+use crate::sections::Robot;
 use controller_core::pacer::PacingConfig;
 use controller_core::runtime::{EncoderParams, MotorParams, RuntimeConfig, SafetyLimits};
 use controller_core::trajectory::Reference;
@@ -20,19 +19,6 @@ pub const JUMP_SPEED_FACTOR: f32 = 2.5;
 pub const STALL_TORQUE_FRACTION: f32 = 0.2;
 /// A wheel pushing that hard without a count for this long is stalled \[s\].
 pub const STALL_TIME_S: f32 = 0.25;
-
-/// The paper robot's limits: controller-core's torque limit (D14) and the
-/// link defaults of wmr-device (`LinkConfig::DEFAULT`: 1 m/s, 3 rad/s,
-/// 1 m/s², 500 ms; a wmr-device test checks they agree).
-pub(crate) fn paper_limits() -> Limits {
-    Limits {
-        torque_nm: DEFAULT_TORQUE_LIMIT_NM,
-        max_speed_mps: 1.0,
-        max_yaw_rate_radps: 3.0,
-        max_accel_mps2: 1.0,
-        link_timeout_ms: 500,
-    }
-}
 
 impl Robot {
     /// Mean wheel radius \[m\].

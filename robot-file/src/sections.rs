@@ -228,6 +228,21 @@ pub struct Limits {
     pub link_timeout_ms: u32,
 }
 
+impl Limits {
+    /// The paper robot's limits: controller-core's torque limit (D14) and the
+    /// link defaults of wmr-device (`LinkConfig::DEFAULT`: 1 m/s, 3 rad/s,
+    /// 1 m/s², 500 ms; a wmr-device test checks they agree).
+    pub fn paper() -> Self {
+        Self {
+            torque_nm: controller_core::controller::DEFAULT_TORQUE_LIMIT_NM,
+            max_speed_mps: 1.0,
+            max_yaw_rate_radps: 3.0,
+            max_accel_mps2: 1.0,
+            link_timeout_ms: 500,
+        }
+    }
+}
+
 /// `[gains.<kind>.kinematic]`: eq. (14)
 /// ([`controller_core::kinematic::KinematicGains`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -510,7 +525,7 @@ impl Robot {
             imu: Imu {
                 yaw_axis: YawAxis::PlusZ,
             },
-            limits: crate::derive::paper_limits(),
+            limits: Limits::paper(),
             gains: Gains::default(),
         }
     }
