@@ -252,3 +252,18 @@ mod uart {
         robot_app::pump_tx(&mut tx, &PIPES).await
     }
 }
+
+/// Starts the link task when the board has its peripherals, and logs the
+/// protocol version; logs why not otherwise (no USB clock on the HSI).
+pub fn start_if_present(spawner: &embassy_executor::Spawner, p: Option<LinkPeripherals>) {
+    match p {
+        Some(p) => {
+            start(spawner, p);
+            defmt::info!(
+                "host link: wmr-protocol {=u16}",
+                wmr_protocol::PROTOCOL_VERSION
+            );
+        }
+        None => defmt::error!("host link off (no USB clock on the HSI)"),
+    }
+}

@@ -74,3 +74,14 @@ fn telemetry(r: &controller_core::runtime::TickReport) {
         d.rho_hat[0], d.rho_hat[1], d.d_hat[0], d.d_hat[1], d.f_hat[0], d.f_hat[1]
     );
 }
+
+/// Starts the DWT cycle counter for the tick's execution time (the RTT
+/// status lines of `rtt-telemetry`); nothing without that feature.
+pub fn enable_cycle_counter() {
+    #[cfg(feature = "rtt-telemetry")]
+    {
+        let mut cp = defmt::unwrap!(cortex_m::Peripherals::take());
+        cp.DCB.enable_trace();
+        cp.DWT.enable_cycle_counter();
+    }
+}

@@ -11,7 +11,8 @@
 //!
 //! Module graph (no cycles): `main` -> every module; `board` -> `config`,
 //! `link`, `imu`, `log`; `imu` -> `config`; `banner` -> `board`, `config`;
-//! `fault` -> `board`; `config`, `link`, `log` -> none of this crate.
+//! `fault` -> `board`; `store` -> `config`; `config`, `link`, `log` -> none
+//! of this crate.
 #![no_std]
 #![no_main]
 
@@ -41,29 +42,27 @@ type Robot = Device<{ config::POSE_HISTORY_TICKS }>;
 async fn main(spawner: Spawner) {
     // Motor lines defined low before the clocks start (HSE start, PLL lock).
     board::outputs_low_early();
-    let robot = config::default_robot();
-    let mut board = board::init(config::bridge(&robot));
+    let default_robot = config::default_robot();
+    let mut board = board::init(config::bridge(&default_robot));
 
-    // DWT cycle counter for the tick's execution time (RTT status lines).
-    #[cfg(feature = "rtt-telemetry")]
-    {
-        let mut cp = unwrap!(cortex_m::Peripherals::take());
-        cp.DCB.enable_trace();
-        cp.DWT.enable_cycle_counter();
-    }
-
-    let full_scale = board.motors.full_scale();
-    let full_scale = if full_scale <= u16::MAX as u32 {
-        full_scale as u16
-    } else {
-        0 // rejected by the configuration check below
+    log::enable_cycle_counter();
+    // A full scale beyond 16 bits becomes 0: refused by the configuration check.
+    let full_scale = u16::try_from(board.motors.full_scale()).unwrap_or(0);
+    // The robot the runtime runs: the flash record's or the compiled-in one
+    // (store::boot_robot).
+    static STORE: StaticCell<robot_app::store::FlashRecord<store::StoreFlash>> = StaticCell::new();
+    let Some(flash) = board.flash.take().and_then(store::store) else {
+        never_armed()
     };
-    let cfg = config::runtime_config(&robot, full_scale);
+    let flash = STORE.init(flash);
+    let boot = store::boot_robot(flash, &default_robot).await;
+    let robot = &boot.robot;
+    let cfg = config::runtime_config(robot, full_scale);
     banner::banner(&board, full_scale, &cfg);
 
     let (device, task) = match (
         Robot::with_estimator(
-            config::device(&robot, board::CHIP_ID),
+            config::device(robot, board::CHIP_ID),
             cfg,
             config::ESTIMATOR,
         ),
@@ -82,18 +81,9 @@ async fn main(spawner: Spawner) {
     // its newest sample; none until the chip answers).
     #[cfg(feature = "imu")]
     if let Some(p) = board.imu.take() {
-        imu::start(&spawner, p, config::imu_yaw(&robot));
+        imu::start(&spawner, p, config::imu_yaw(robot));
     }
-    match board.link.take() {
-        Some(p) => {
-            link::start(&spawner, p);
-            info!(
-                "host link: wmr-protocol {=u16}",
-                wmr_protocol::PROTOCOL_VERSION
-            );
-        }
-        None => error!("host link off (no USB clock on the HSI)"),
-    }
+    link::start_if_present(&spawner, board.link.take());
     info!("state: HOLD (motors off). Load a reference with wmr and arm, or press the button (slow circle).");
     // The device (about 7 KiB) in a static of its own, the task holds a
     // reference: moved into the task by value, the future would hold it
@@ -101,25 +91,7 @@ async fn main(spawner: Spawner) {
     static ROBOT: StaticCell<Robot> = StaticCell::new();
     let device = ROBOT.init(device);
     device.board_report_mut().reset_cause = board.reset_cause;
-    // The robot record in flash (store.rs), or the compiled-in default.
-    static STORE: StaticCell<robot_app::store::FlashRecord<store::StoreFlash>> = StaticCell::new();
-    let Some(flash) = board.flash.take().and_then(store::store) else {
-        never_armed()
-    };
-    let flash = STORE.init(flash);
-    let mut record = [0u8; wmr_protocol::ROBOT_BLOB_MAX];
-    let mut default = [0u8; wmr_protocol::ROBOT_BLOB_MAX];
-    let n_default = config::DEFAULT_ROBOT_BYTES.len().min(default.len());
-    default[..n_default].copy_from_slice(&config::DEFAULT_ROBOT_BYTES[..n_default]);
-    let (n, source, fault) =
-        robot_app::store::load_record(flash, &default[..n_default], &mut record).await;
-    info!(
-        "robot record: {} (CRC-32 {=u32:08x}), fallback reason {}",
-        source,
-        wmr_device::robot::record_crc32(&record[..n]),
-        fault
-    );
-    device.attach_robot_store(robot_store::validate_robot, &record[..n], source);
+    device.attach_robot_store(robot_store::validate_robot, boot.record(), boot.source);
     spawner.spawn(unwrap!(control(board, device, task, flash).ok()));
 }
 

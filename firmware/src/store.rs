@@ -31,6 +31,7 @@ use embassy_stm32::peripherals::FLASH;
 use embassy_stm32::Peri;
 use robot_app::store::FlashRecord;
 use robot_store::RobotStore;
+use wmr_protocol::{RobotSource, ROBOT_BLOB_MAX};
 
 /// The store's flash.
 pub type StoreFlash = BlockingAsync<Bank1Region3<'static, Blocking>>;
@@ -89,5 +90,66 @@ impl WatchdogStretch {
     /// Restores the loop's setting, fed.
     pub fn end(self) {
         iwdg_set(self.pr, self.rl);
+    }
+}
+
+/// The robot a boot runs and the record the device reports.
+pub struct BootRobot {
+    /// The robot the runtime is configured from.
+    pub robot: robot_file::Robot,
+    /// Where it came from (`wmr status`).
+    pub source: RobotSource,
+    record: [u8; ROBOT_BLOB_MAX],
+    len: usize,
+}
+
+impl BootRobot {
+    /// The record in force (robot-file's binary form).
+    pub fn record(&self) -> &[u8] {
+        &self.record[..self.len]
+    }
+}
+
+/// Loads the robot record from flash, or falls back to the compiled-in
+/// robot (`config::DEFAULT_ROBOT_BYTES`), saying why over defmt. A flash
+/// robot whose `[bridge]` differs from the compiled-in one is not used: the
+/// board was started (and its motor lines wired) for the image's bridge;
+/// rebuild with that robot file as `ROBOT_FILE` instead.
+pub async fn boot_robot(
+    flash: &mut FlashRecord<StoreFlash>,
+    default_robot: &robot_file::Robot,
+) -> BootRobot {
+    let default = crate::config::DEFAULT_ROBOT_BYTES;
+    let n_default = default.len().min(ROBOT_BLOB_MAX);
+    let mut record = [0u8; ROBOT_BLOB_MAX];
+    let (n, mut source, fault) =
+        robot_app::store::load_record(flash, &default[..n_default], &mut record).await;
+    let mut len = n;
+    let bridge = crate::config::bridge(default_robot);
+    let robot = match robot_file::Robot::decode(&record[..n]) {
+        Ok(r) if crate::config::bridge(&r) == bridge => r,
+        other => {
+            if other.is_ok() {
+                defmt::error!(
+                    "robot record: its [bridge] differs from the image's; running the compiled-in robot"
+                );
+                source = RobotSource::DefaultCorrupt;
+            }
+            record[..n_default].copy_from_slice(&default[..n_default]);
+            len = n_default;
+            default_robot.clone()
+        }
+    };
+    defmt::info!(
+        "robot record: {} (CRC-32 {=u32:08x}), fallback reason {}",
+        source,
+        wmr_device::robot::record_crc32(&record[..len]),
+        fault
+    );
+    BootRobot {
+        robot,
+        source,
+        record,
+        len,
     }
 }
