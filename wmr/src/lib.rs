@@ -11,6 +11,7 @@ pub mod identify;
 pub mod link;
 pub mod record;
 pub mod robot;
+pub mod serve;
 pub mod timing;
 pub mod upload;
 pub mod watch;
