@@ -592,6 +592,11 @@ fn drive(a: &DriveArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     };
     link.command(&cmd)?;
     if status(link)?.state == RunStateMsg::Hold {
+        // Again, so that its timeout runs from just before the arm and not
+        // from before the status round trip (with a lost frame or two on a
+        // bad line, the two could outlast the command's timeout: the robot
+        // would stop at once).
+        link.command(&cmd)?;
         link.command(&Request::Arm)?;
     }
     let mut watch = Watch::new(link);

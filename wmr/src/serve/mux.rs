@@ -80,11 +80,15 @@ enum Kind {
     WheelTest,
 }
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct Pending {
     origin: Origin,
     kind: Kind,
     at: Instant,
+    /// The request, for re-sending (`None`: never re-sent).
+    req: Option<Request>,
+    last_sent: Instant,
+    resends: u32,
 }
 
 /// One thing to do.
@@ -126,6 +130,8 @@ pub struct MuxCounters {
     pub events_out: u64,
     /// `Reply::FrameError` from the robot (a frame of ours it dropped).
     pub frame_errors: u64,
+    /// Requests sent again under the same number after no answer (D96).
+    pub resent: u64,
 }
 
 /// The routing state.
@@ -268,15 +274,53 @@ impl Mux {
 
     fn send(&mut self, req: Request, origin: Origin, kind: Kind, now: Instant) -> Out {
         let seq = self.seq();
+        // Not re-sent: what the robot answers late by design (a flash
+        // write, a wheel test's result), what must not happen twice (a
+        // reboot, a wheel test), and the server's own periodic requests
+        // (the next period sends another) or the handshake (its own schedule).
+        let resend = !matches!(
+            req,
+            Request::RobotCommit | Request::Reboot | Request::WheelTest(_)
+        ) && !matches!(
+            origin,
+            Origin::Own(Own::KeepAlive | Own::Status | Own::Hello)
+        );
         self.pending.insert(
             seq,
             Pending {
                 origin,
                 kind,
                 at: now,
+                req: resend.then(|| req.clone()),
+                last_sent: now,
+                resends: 0,
             },
         );
         Out::Robot(seq, req)
+    }
+
+    /// Requests unanswered for `every` since they were last sent, at most
+    /// `max` times each, sent again under the same sequence number (the
+    /// robot answers each copy; the first answer is routed, the others
+    /// are unmatched): a lost request or answer costs `every` instead of
+    /// the client's own answer timeout (D96).
+    pub fn resends(&mut self, now: Instant, every: Duration, max: u32) -> Vec<Out> {
+        let mut outs = Vec::new();
+        for (seq, p) in self.pending.iter_mut() {
+            if let Some(req) = &p.req {
+                if p.resends < max && now.duration_since(p.last_sent) >= every {
+                    p.resends += 1;
+                    p.last_sent = now;
+                    outs.push(Out::Robot(*seq, req.clone()));
+                }
+            }
+        }
+        self.counters.resent += outs.len() as u64;
+        outs.sort_by_key(|o| match o {
+            Out::Robot(s, _) => *s,
+            Out::Client(..) => 0,
+        });
+        outs
     }
 
     /// The server's own request.
@@ -403,7 +447,7 @@ impl Mux {
         let Some(seq) = reply.seq() else {
             return (Vec::new(), None);
         };
-        let Some(p) = self.pending.get(&seq).copied() else {
+        let Some(p) = self.pending.get(&seq).cloned() else {
             self.counters.unmatched += 1;
             return (Vec::new(), None);
         };
@@ -720,6 +764,31 @@ mod tests {
         let (out, note) = m.from_robot(Reply::Ack { seq: s });
         assert!(out.is_empty());
         assert_eq!(note, Some(Note::Own(Own::KeepAlive, Reply::Ack { seq: s })));
+    }
+
+    /// An unanswered request is sent again under its number, `max` times,
+    /// not before `every`; a reboot, a flash commit and the server's
+    /// keep-alives never; an answered one no more.
+    #[test]
+    fn unanswered_requests_are_resent_under_their_number() {
+        let t0 = Instant::now();
+        let ms = Duration::from_millis;
+        let mut m = Mux::new();
+        m.add_client(1);
+        let a = robot_seq(&m.from_client(1, 4, Request::Arm, t0)[0]);
+        m.from_client(1, 5, Request::Reboot, t0);
+        m.from_client(1, 6, Request::RobotCommit, t0);
+        m.own(Own::KeepAlive, Request::GetStatus, t0);
+        assert!(m.resends(t0 + ms(10), ms(25), 3).is_empty());
+        for k in 1..=3 {
+            let o = m.resends(t0 + ms(25 * k), ms(25), 3);
+            assert_eq!(o, vec![Out::Robot(a, Request::Arm)], "{k}");
+        }
+        assert!(m.resends(t0 + ms(200), ms(25), 3).is_empty());
+        assert_eq!(m.counters.resent, 3);
+        let b = robot_seq(&m.from_client(1, 7, Request::GetStatus, t0)[0]);
+        m.from_robot(Reply::Ack { seq: b });
+        assert!(m.resends(t0 + ms(300), ms(25), 3).is_empty());
     }
 
     /// Sequence numbers skip 0 and the ones still waiting, across the wrap.

@@ -25,6 +25,13 @@ use wmr_protocol::{
 const CLIENT_BUFFER: usize = 256 * 1024;
 /// How often a lost port is re-opened.
 const REOPEN_EVERY: Duration = Duration::from_millis(250);
+/// An unanswered request is sent again after this long (D96): a pty or
+/// USB round trip is about 1 ms, a UART's at 115 200 baud with the
+/// largest frames both ways about 45 ms (then 4 x the best keep-alive
+/// round trip, if longer) ...
+const RESEND_EVERY: Duration = Duration::from_millis(25);
+/// ... at most this many times (within a client's 100 ms answer timeout).
+const RESENDS: u32 = 3;
 /// How often the handshake is re-sent while the robot does not answer.
 const HELLO_EVERY: Duration = Duration::from_millis(300);
 /// Period of the server's status requests (state, counters, reset).
@@ -35,6 +42,14 @@ const REBOOT_WINDOW: Duration = Duration::from_secs(10);
 const RESET_MARGIN_US: i32 = 10_000;
 /// The port's read timeout: the loop's pace.
 const PORT_READ: Duration = Duration::from_millis(2);
+/// Empty reads in a row that mean the port hung up.
+const HANGUP_READS: u32 = 20;
+/// Client requests received while the link is not up are held this long
+/// (a client that starts with its server gets its answer once the
+/// handshake is done, instead of a lost request) ...
+const HOLD_FOR: Duration = Duration::from_secs(1);
+/// ... at most this many.
+const HOLD_MAX: usize = 256;
 
 /// What `wmr serve` prints when it ends (one JSON object on stdout).
 #[derive(Clone, Debug, Default, Serialize)]
@@ -51,8 +66,8 @@ pub struct ServeSummary {
     pub frames_from_robot: u64,
     /// Frames from the robot dropped (bad CRC, malformed, too long): the line's faults.
     pub rx_errors: u64,
-    /// Client requests dropped while the link was down (the client's
-    /// retries then fail with "no answer").
+    /// Client requests dropped while the link was down (held for 1 s
+    /// first: the client's retries then fail with "no answer").
     pub requests_dropped_link_down: u64,
     /// Clients that connected.
     pub clients_served: u64,
@@ -136,6 +151,8 @@ struct Server<'a> {
     hello: Option<Reply>,
     clock: Option<ClockSample>,
     fatal: Option<String>,
+    held: Vec<(ClientId, u16, Request, Instant)>,
+    empty_reads: u32,
     s: ServeSummary,
     stop: &'a AtomicBool,
 }
@@ -226,6 +243,8 @@ pub fn serve_until(
         hello: None,
         clock: None,
         fatal: None,
+        held: Vec::new(),
+        empty_reads: 0,
         s: ServeSummary {
             port: port.to_string(),
             socket: shown.clone(),
@@ -484,7 +503,12 @@ impl Server<'_> {
                     let outs = self.mux.from_client(id, seq, msg, now);
                     self.dispatch(outs);
                 } else {
-                    self.s.requests_dropped_link_down += 1;
+                    self.held.retain(|h| now.duration_since(h.3) < HOLD_FOR);
+                    if self.held.len() >= HOLD_MAX {
+                        self.held.remove(0);
+                        self.s.requests_dropped_link_down += 1;
+                    }
+                    self.held.push((id, seq, msg, now));
                 }
             }
             // A client of another version: the robot's hello (so that it
@@ -584,6 +608,7 @@ impl Server<'_> {
 
     fn port_lost(&mut self, why: String) {
         self.port = None;
+        self.empty_reads = 0;
         self.decoder = FrameDecoder::new();
         self.s.port_losses += 1;
         let now = Instant::now();
@@ -606,8 +631,21 @@ impl Server<'_> {
         };
         let mut chunk = [0u8; 2048];
         match port.read(&mut chunk) {
-            Ok(n) => self.feed(&chunk[..n]),
-            Err(e) if transient(&e) => {}
+            // A tty read returns nothing only once poll said it could: the
+            // other end hung up (a pty whose simulator exited; a USB port
+            // errs instead). A few in a row, so that one spurious wake-up
+            // is not a loss.
+            Ok(0) => {
+                self.empty_reads += 1;
+                if self.empty_reads >= HANGUP_READS {
+                    self.port_lost("the other end hung up".into());
+                }
+            }
+            Ok(n) => {
+                self.empty_reads = 0;
+                self.feed(&chunk[..n])
+            }
+            Err(e) if transient(&e) => self.empty_reads = 0,
             Err(e) => self.port_lost(format!("read: {e}")),
         }
     }
@@ -775,6 +813,8 @@ impl Server<'_> {
 
     fn own_reply(&mut self, own: Own, r: Reply) {
         match (own, r) {
+            // A late answer to an earlier handshake.
+            (Own::Hello, Reply::Hello { .. }) if matches!(self.link, LinkState::Up) => {}
             (Own::Hello, h @ Reply::Hello { .. }) => {
                 let Reply::Hello {
                     version, ref chip, ..
@@ -807,6 +847,16 @@ impl Server<'_> {
                 self.own(Own::LinkTimeout, Request::GetParam(ParamId::LinkTimeoutMs));
                 self.own(Own::Status, Request::GetStatus);
                 self.last_status = Some(Instant::now());
+                // Requests that came meanwhile, if their clients still wait.
+                let now = Instant::now();
+                for (id, seq, req, at) in std::mem::take(&mut self.held) {
+                    if now.duration_since(at) < HOLD_FOR && self.clients.contains_key(&id) {
+                        let outs = self.mux.from_client(id, seq, req, now);
+                        self.dispatch(outs);
+                    } else {
+                        self.s.requests_dropped_link_down += 1;
+                    }
+                }
             }
             (Own::Hello, Reply::Nack { error, .. }) => {
                 self.fatal = Some(format!(
@@ -866,6 +916,11 @@ impl Server<'_> {
 
     fn timers(&mut self, give_up: Option<Duration>) {
         let now = Instant::now();
+        if matches!(self.link, LinkState::Up) {
+            let every = RESEND_EVERY.max(4 * Duration::from_micros(self.clock.map_or(0, |c| c.rtt_us)));
+            let outs = self.mux.resends(now, every, RESENDS);
+            self.dispatch(outs);
+        }
         if now.duration_since(self.last_expire) >= Duration::from_secs(1) {
             self.mux.expire(now);
             self.last_expire = now;

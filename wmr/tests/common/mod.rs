@@ -55,23 +55,11 @@ impl Rng {
     }
 }
 
-/// The received segment (bytes up to a zero) so far, against the
-/// original frames: how a receiver's decoder will see it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Rx {
-    /// Nothing since the last delimiter.
-    Empty,
-    /// Exactly the current original frame's first bytes, in order.
-    Prefix,
-    /// Exactly the whole original frame `j` (its delimiter was lost).
-    Complete(u64),
-    /// Anything else: the receiver drops it.
-    Junk,
-}
-
-/// What one direction of the line did, counted independently of the
-/// receiver's decoder: a received segment is intact only when it is an
-/// original frame byte for byte.
+/// What one direction of the line did. The bytes that come out are cut
+/// at their zeros into the segments a receiver sees, and each is decoded
+/// on its own (the protocol's decoder, fresh): what every receiver must
+/// count as valid frames and as frame errors, whatever chunks it reads
+/// them in and whatever it does with them afterwards.
 #[derive(Clone, Debug, Default)]
 pub struct Direction {
     /// Bytes through the line.
@@ -82,65 +70,69 @@ pub struct Direction {
     pub corrupted: u64,
     /// Original (non-empty) frames sent.
     pub frames: u64,
-    /// Frames received intact.
-    pub intact: u64,
-    /// Non-empty received segments that are no original frame (what the
-    /// receiver must count as frame errors).
+    /// Frames that came out valid.
+    pub valid: u64,
+    /// Frame errors that came out (bad CRC, malformed, too long).
     pub damaged: u64,
-    /// Sequence numbers of the telemetry frames sent, and of those lost.
+    /// Sequence numbers of the telemetry frames sent ...
     pub telemetry_sent: Vec<u32>,
-    /// Telemetry frames not received intact.
-    pub telemetry_lost: HashSet<u32>,
-    rx: Option<Rx>,
-    frame: Vec<u8>,
-    frame_index: u64,
-    /// Telemetry sequence number of original frames not yet known to be
-    /// delivered (the current one, a complete one whose delimiter was lost).
-    open: Vec<(u64, Option<u32>)>,
+    /// ... and of those that came out valid.
+    pub telemetry_delivered: HashSet<u32>,
+    sent_frame: Vec<u8>,
+    out_segment: Vec<u8>,
 }
 
 impl Direction {
-    fn rx(&self) -> Rx {
-        self.rx.unwrap_or(Rx::Empty)
+    /// Telemetry sent and not delivered.
+    pub fn telemetry_lost(&self) -> Vec<u32> {
+        self.telemetry_sent
+            .iter()
+            .copied()
+            .filter(|s| !self.telemetry_delivered.contains(s))
+            .collect()
     }
 
-    fn delivered(&mut self, j: u64) {
-        self.intact += 1;
-        self.open.retain(|(k, _)| *k != j);
-    }
-
-    fn close(&mut self, at_end: bool) {
-        match self.rx() {
-            Rx::Empty => {}
-            Rx::Prefix if at_end => self.delivered(self.frame_index),
-            Rx::Complete(j) => self.delivered(j),
-            Rx::Prefix | Rx::Junk => self.damaged += 1,
-        }
-        self.rx = Some(Rx::Empty);
-    }
-
-    /// Frames that can no longer be delivered are lost.
-    fn settle(&mut self) {
-        let keep = match self.rx() {
-            Rx::Complete(j) => Some(j),
-            _ => None,
-        };
-        let current = self.frame_index;
-        let mut lost = Vec::new();
-        self.open.retain(|(k, t)| {
-            let alive = Some(*k) == keep || *k == current;
-            if !alive {
-                if let Some(s) = t {
-                    lost.push(*s);
+    /// Decodes `segment` + delimiter as a receiver would; `to_host`: as
+    /// replies (telemetry noted), else as requests.
+    fn decode(segment: &[u8], to_host: bool) -> (u64, u64, Vec<u32>) {
+        let mut bytes = segment.to_vec();
+        bytes.push(0);
+        let (mut valid, mut errors, mut tel) = (0, 0, Vec::new());
+        let mut rest = &bytes[..];
+        if to_host {
+            let mut d = FrameDecoder::<MAX_FRAME>::new();
+            while !rest.is_empty() {
+                let (o, r) = d.feed::<Reply>(rest);
+                rest = r;
+                match o {
+                    Some(Decoded::Frame { msg, .. }) => {
+                        valid += 1;
+                        if let Reply::Telemetry(t) = msg {
+                            tel.push(t.seq);
+                        }
+                    }
+                    Some(Decoded::OtherVersion { .. }) => valid += 1,
+                    Some(Decoded::Error { .. }) => errors += 1,
+                    None => {}
                 }
             }
-            alive
-        });
-        self.telemetry_lost.extend(lost);
+        } else {
+            let mut d = FrameDecoder::<MAX_FRAME>::new();
+            while !rest.is_empty() {
+                let (o, r) = d.feed::<wmr_protocol::Request>(rest);
+                rest = r;
+                match o {
+                    Some(Decoded::Frame { .. } | Decoded::OtherVersion { .. }) => valid += 1,
+                    Some(Decoded::Error { .. }) => errors += 1,
+                    None => {}
+                }
+            }
+        }
+        (valid, errors, tel)
     }
 
     /// Passes `input` through the line (faulty or not) into `out`.
-    fn pass(&mut self, input: &[u8], faulty: bool, rng: &mut Rng, out: &mut Vec<u8>) {
+    fn pass(&mut self, input: &[u8], faulty: bool, to_host: bool, rng: &mut Rng, out: &mut Vec<u8>) {
         for &b in input {
             self.bytes += 1;
             // Each byte dropped, or one of its bits flipped, with
@@ -155,70 +147,32 @@ impl Direction {
                 Some(c) if c != b => self.corrupted += 1,
                 Some(_) => {}
             }
-            if let Some(c) = fate {
-                out.push(c);
-            }
+            // What was sent.
             if b != 0 {
-                let first = self.frame.is_empty();
-                if first {
-                    self.open.push((self.frame_index, None));
-                }
-                self.frame.push(b);
-                let rx = self.rx();
-                self.rx = Some(match fate {
-                    // Kept: the frame goes on only from its first byte, unbroken.
-                    Some(c) if c == b => match rx {
-                        Rx::Empty if first => Rx::Prefix,
-                        Rx::Prefix => Rx::Prefix,
-                        _ => Rx::Junk,
-                    },
-                    // Flipped to zero: a delimiter for the receiver.
-                    Some(0) => {
-                        self.close(false);
-                        Rx::Empty
-                    }
-                    Some(_) => Rx::Junk,
-                    None => match rx {
-                        Rx::Empty => Rx::Empty,
-                        Rx::Complete(j) => Rx::Complete(j),
-                        _ => Rx::Junk,
-                    },
-                });
-            } else {
-                // The end of an original frame.
-                if !self.frame.is_empty() {
-                    self.frames += 1;
-                    let mut bytes = std::mem::take(&mut self.frame);
-                    bytes.push(0);
-                    let mut d = FrameDecoder::<MAX_FRAME>::new();
-                    if let (
-                        Some(Decoded::Frame {
-                            msg: Reply::Telemetry(t),
-                            ..
-                        }),
-                        _,
-                    ) = d.feed::<Reply>(&bytes)
-                    {
-                        self.telemetry_sent.push(t.seq);
-                        let k = self.frame_index;
-                        if let Some(o) = self.open.iter_mut().find(|(i, _)| *i == k) {
-                            o.1 = Some(t.seq);
-                        }
+                self.sent_frame.push(b);
+            } else if !self.sent_frame.is_empty() {
+                self.frames += 1;
+                let (_, _, tel) = Self::decode(&self.sent_frame, to_host);
+                self.telemetry_sent.extend(tel);
+                self.sent_frame.clear();
+            }
+            // What came out.
+            match fate {
+                Some(0) => {
+                    out.push(0);
+                    if !self.out_segment.is_empty() {
+                        let (v, e, tel) = Self::decode(&self.out_segment, to_host);
+                        self.valid += v;
+                        self.damaged += e;
+                        self.telemetry_delivered.extend(tel);
+                        self.out_segment.clear();
                     }
                 }
-                match fate {
-                    Some(0) => self.close(true),
-                    None => {
-                        let k = self.frame_index;
-                        self.rx = Some(match self.rx() {
-                            Rx::Prefix => Rx::Complete(k),
-                            r => r,
-                        });
-                    }
-                    Some(_) => self.rx = Some(Rx::Junk),
+                Some(c) => {
+                    out.push(c);
+                    self.out_segment.push(c);
                 }
-                self.frame_index += 1;
-                self.settle();
+                None => {}
             }
         }
     }
@@ -274,7 +228,7 @@ impl Read for FaultyPort {
             .lock()
             .unwrap()
             .to_robot
-            .pass(&buf[..n], faulty, &mut self.rng_in, &mut out);
+            .pass(&buf[..n], faulty, false, &mut self.rng_in, &mut out);
         buf[..out.len()].copy_from_slice(&out);
         Ok(out.len())
     }
@@ -292,7 +246,7 @@ impl Write for FaultyPort {
             .lock()
             .unwrap()
             .to_host
-            .pass(buf, faulty, &mut self.rng_out, &mut out);
+            .pass(buf, faulty, true, &mut self.rng_out, &mut out);
         self.pending.extend_from_slice(&out);
         self.push_pending()?;
         Ok(buf.len())
