@@ -290,8 +290,14 @@ fn drive_record_and_pose_feed_at_byte_faults_lose_nothing_unaccounted() {
         (line.to_host.frames, line.to_host.valid, line.to_host.damaged, line.to_host.dropped, line.to_host.corrupted),
     );
     // The line did fault, both ways.
-    assert!(line.to_robot.dropped > 0 && line.to_robot.corrupted > 0, "{ctx}");
-    assert!(line.to_host.dropped > 0 && line.to_host.corrupted > 0, "{ctx}");
+    assert!(
+        line.to_robot.dropped > 0 && line.to_robot.corrupted > 0,
+        "{ctx}"
+    );
+    assert!(
+        line.to_host.dropped > 0 && line.to_host.corrupted > 0,
+        "{ctx}"
+    );
     let lost = line.to_host.telemetry_lost();
     assert!(!lost.is_empty(), "{ctx}");
     // No false link-loss stop.
@@ -334,7 +340,10 @@ fn drive_record_and_pose_feed_at_byte_faults_lose_nothing_unaccounted() {
         .filter(|s| (first..=last).contains(s))
         .collect();
     for s in &damaged {
-        assert!(missing.contains(s), "telemetry {s} damaged yet received? {ctx}");
+        assert!(
+            missing.contains(s),
+            "telemetry {s} damaged yet received? {ctx}"
+        );
     }
     assert!(
         (missing.len() - damaged.len()) as u32 <= c.tx_dropped,
@@ -343,7 +352,11 @@ fn drive_record_and_pose_feed_at_byte_faults_lose_nothing_unaccounted() {
         damaged.len(),
         c.tx_dropped
     );
-    assert!(seqs.len() > 300, "{} frames in ~9 s at 50 Hz\n{ctx}", seqs.len());
+    assert!(
+        seqs.len() > 300,
+        "{} frames in ~9 s at 50 Hz\n{ctx}",
+        seqs.len()
+    );
     // record: its gaps are among those.
     assert!(record.status.success(), "{ctx}");
     let rec: serde_json::Value =
@@ -468,7 +481,10 @@ fn clients_leaving_mid_request_do_not_hurt_the_others() {
     drop(link);
     let (status, summary, log) = server.stop();
     assert!(status.success(), "{summary}\n{log}");
-    assert!(summary["clients_served"].as_u64().unwrap() > 50, "{summary}");
+    assert!(
+        summary["clients_served"].as_u64().unwrap() > 50,
+        "{summary}"
+    );
     // The killed drive's robot stopped on its velocity timeout, no link loss.
     let mut sim = robot.stop();
     assert_eq!(sim.device().state(), RunStateMsg::Hold);

@@ -33,7 +33,7 @@ const RESEND_EVERY: Duration = Duration::from_millis(25);
 /// ... at most this many times (within a client's 100 ms answer timeout).
 const RESENDS: u32 = 3;
 /// How often the handshake is re-sent while the robot does not answer.
-const HELLO_EVERY: Duration = Duration::from_millis(300);
+const HELLO_EVERY: Duration = Duration::from_millis(50);
 /// Period of the server's status requests (state, counters, reset).
 const STATUS_EVERY: Duration = Duration::from_millis(250);
 /// A reset this soon after an acknowledged `Reboot` is the reboot.
@@ -917,7 +917,8 @@ impl Server<'_> {
     fn timers(&mut self, give_up: Option<Duration>) {
         let now = Instant::now();
         if matches!(self.link, LinkState::Up) {
-            let every = RESEND_EVERY.max(4 * Duration::from_micros(self.clock.map_or(0, |c| c.rtt_us)));
+            let every =
+                RESEND_EVERY.max(4 * Duration::from_micros(self.clock.map_or(0, |c| c.rtt_us)));
             let outs = self.mux.resends(now, every, RESENDS);
             self.dispatch(outs);
         }

@@ -13,6 +13,7 @@ use hil_sim::device::{open_pty, serve, SimRobot};
 use hil_sim::scenario::{Scenario, Sensing};
 use std::collections::HashSet;
 use std::io::{Read, Write};
+use std::os::unix::io::AsRawFd;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -132,7 +133,14 @@ impl Direction {
     }
 
     /// Passes `input` through the line (faulty or not) into `out`.
-    fn pass(&mut self, input: &[u8], faulty: bool, to_host: bool, rng: &mut Rng, out: &mut Vec<u8>) {
+    fn pass(
+        &mut self,
+        input: &[u8],
+        faulty: bool,
+        to_host: bool,
+        rng: &mut Rng,
+        out: &mut Vec<u8>,
+    ) {
         for &b in input {
             self.bytes += 1;
             // Each byte dropped, or one of its bits flipped, with
@@ -224,11 +232,13 @@ impl Read for FaultyPort {
         let n = self.inner.read(buf)?;
         let mut out = Vec::with_capacity(n);
         let faulty = self.faulty.load(Ordering::Relaxed);
-        self.stats
-            .lock()
-            .unwrap()
-            .to_robot
-            .pass(&buf[..n], faulty, false, &mut self.rng_in, &mut out);
+        self.stats.lock().unwrap().to_robot.pass(
+            &buf[..n],
+            faulty,
+            false,
+            &mut self.rng_in,
+            &mut out,
+        );
         buf[..out.len()].copy_from_slice(&out);
         Ok(out.len())
     }
@@ -296,6 +306,15 @@ impl Robot {
 
     fn spawn(&mut self) {
         let (master, slave, path) = open_pty().unwrap();
+        // Not inherited by the processes the tests start (a server holding
+        // the master would never see the line hang up).
+        for fd in [master.as_raw_fd(), slave.as_raw_fd()] {
+            // SAFETY: fcntl on descriptors this function owns.
+            unsafe {
+                let flags = libc::fcntl(fd, libc::F_GETFD);
+                libc::fcntl(fd, libc::F_SETFD, flags | libc::FD_CLOEXEC);
+            }
+        }
         let mut robot = SimRobot::new(&self.scn, ControllerKind::Proposed).unwrap();
         self.starts += 1;
         let mut port = FaultyPort {
@@ -461,12 +480,18 @@ impl Server {
             let _ = out.read_to_string(&mut s);
             s
         });
-        Self {
+        let s = Self {
             child: Some(child),
             socket: PathBuf::from(first),
             stderr,
             rest: Some(rest),
-        }
+        };
+        assert!(
+            s.wait_log("connected to the robot", Duration::from_secs(10)),
+            "{}",
+            s.log()
+        );
+        s
     }
 
     /// Its log so far.
