@@ -690,6 +690,16 @@ fn host_us(t0: Instant) -> u64 {
     t0.elapsed().as_micros() as u64
 }
 
+/// Telemetry frames missing between sequence numbers `last` and `seq`; a
+/// number going back is a robot that restarted its count (a reset, seen
+/// through `wmr serve`), not four billion frames lost.
+pub fn telemetry_gap(last: u32, seq: u32) -> u64 {
+    match seq.wrapping_sub(last) {
+        d if d > 0 && d <= 1 << 31 => (d - 1) as u64,
+        _ => 0,
+    }
+}
+
 /// Records telemetry; returns the summary it prints.
 pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
     if !(a.seconds.is_finite() && a.seconds > 0.0) {
@@ -770,7 +780,7 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
             Some(Reply::Telemetry(t)) => {
                 last_frame = Instant::now();
                 if let Some(s) = last_seq {
-                    dropped += t.seq.wrapping_sub(s).saturating_sub(1) as u64;
+                    dropped += telemetry_gap(s, t.seq);
                 }
                 last_seq = Some(t.seq);
                 let t_us = *first_us.get_or_insert(t.t_robot_us);
@@ -1218,6 +1228,17 @@ impl std::fmt::Display for PoseTally {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Gaps in telemetry numbers: the frames between, across the u32 wrap;
+    /// none for a repeat or a count that restarted (a robot reset).
+    #[test]
+    fn telemetry_gaps() {
+        assert_eq!(telemetry_gap(5, 6), 0);
+        assert_eq!(telemetry_gap(5, 9), 3);
+        assert_eq!(telemetry_gap(u32::MAX, 1), 1);
+        assert_eq!(telemetry_gap(5, 5), 0);
+        assert_eq!(telemetry_gap(4000, 2), 0);
+    }
 
     #[test]
     fn pose_tally_counts_refusals_by_reason() {

@@ -311,7 +311,8 @@ fn drive_record_and_pose_feed_at_byte_faults_lose_nothing_unaccounted() {
     assert!(status.success(), "the server saw nothing unexpected: {ctx}");
     // Host -> robot: the server's frames, as the line and the robot count them.
     assert_eq!(
-        summary["frames_to_robot"].as_u64().unwrap(),
+        summary["frames_to_robot"].as_u64().unwrap()
+            + summary["frames_to_robot_incomplete"].as_u64().unwrap(),
         line.to_robot.frames,
         "{ctx}"
     );
@@ -551,4 +552,33 @@ fn the_server_gives_up_on_a_lost_robot() {
     assert!(log.contains("gave up after"), "{log}");
     assert_eq!(summary["port_losses"], 1, "{summary}");
     assert!(!sock.exists());
+}
+
+/// `wmr robot push` through the server: the robot stores the file and
+/// reboots on request; the server sees the reset (its tick count went
+/// back) and takes it for the requested reboot: exit 0.
+#[test]
+fn a_requested_reboot_is_not_an_unexpected_reset() {
+    let _s = serial();
+    let mut robot = Robot::start(&quiet(), false);
+    let sock = robot.dir.path().join("s.sock");
+    let server = Server::start(&robot.port, &sock, &[]);
+    std::thread::sleep(Duration::from_millis(600));
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../robots/paper.toml");
+    let c = finish(client(&sock, &["robot", "push", file]), BOUND, "robot push");
+    assert!(c.status.success(), "{c}\n{}", server.log());
+    assert!(
+        server.wait_log("rebooted as requested", Duration::from_secs(5)),
+        "{}",
+        server.log()
+    );
+    let c = finish(client(&sock, &["status"]), BOUND, "status");
+    assert!(c.stdout.contains("robot record: flash"), "{c}");
+    let (status, summary, log) = server.stop();
+    assert!(status.success(), "{summary}\n{log}");
+    assert_eq!(
+        (summary["reboots"].as_u64(), summary["resets"].as_u64()),
+        (Some(1), Some(0))
+    );
+    assert_eq!(robot.stop().reboots(), 1);
 }

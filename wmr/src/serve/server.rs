@@ -62,6 +62,9 @@ pub struct ServeSummary {
     pub seconds: f64,
     /// Frames written to the robot (requests of clients and the server's own).
     pub frames_to_robot: u64,
+    /// Frames not written whole within the port's write timeout (the robot
+    /// not reading): lost.
+    pub frames_to_robot_incomplete: u64,
     /// Valid frames received from the robot.
     pub frames_from_robot: u64,
     /// Frames from the robot dropped (bad CRC, malformed, too long): the line's faults.
@@ -597,6 +600,10 @@ impl Server<'_> {
                 self.s.frames_to_robot += 1;
                 self.last_tx = Instant::now();
             }
+            // The robot does not read (its receive buffer full, a stalled
+            // simulator): the frame is lost, not the port (its re-send or
+            // the client's covers it; the next frame's delimiter resyncs).
+            Err(e) if transient(&e) => self.s.frames_to_robot_incomplete += 1,
             Err(e) => self.port_lost(format!("write: {e}")),
         }
     }
