@@ -582,3 +582,34 @@ fn a_requested_reboot_is_not_an_unexpected_reset() {
     );
     assert_eq!(robot.stop().reboots(), 1);
 }
+
+/// A port that does not exist: the server says so and, with
+/// --give-up-after, exits 1 (never hangs).
+#[test]
+fn a_server_on_a_missing_port_gives_up_with_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let c = wmr_cmd()
+        .args([
+            "--port",
+            "/dev/no-such-robot",
+            "serve",
+            "--give-up-after",
+            "0.5",
+            "--socket",
+        ])
+        .arg(dir.path().join("s.sock"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let c = finish(c, BOUND, "serve on a missing port");
+    assert!(!c.status.success(), "{c}");
+    assert!(
+        c.stderr
+            .contains("cannot open /dev/no-such-robot: no such port")
+            && c.stderr.contains("gave up after")
+            && c.stderr.contains("cannot be opened"),
+        "{c}"
+    );
+    assert!(!dir.path().join("s.sock").exists());
+}

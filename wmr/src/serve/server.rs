@@ -103,6 +103,9 @@ struct Client {
     stream: UnixStream,
     decoder: FrameDecoder<MAX_FRAME>,
     out: Vec<u8>,
+    /// Logged once it sent a frame (`wmr --port` probing for a server
+    /// connects and leaves at once).
+    announced: bool,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -428,14 +431,11 @@ impl Server<'_> {
                             stream,
                             decoder: FrameDecoder::new(),
                             out: Vec::new(),
+                            announced: false,
                         },
                     );
                     self.mux.add_client(id);
                     self.s.clients_served += 1;
-                    self.log(&format!(
-                        "client {id} connected ({} connected)",
-                        self.clients.len()
-                    ));
                 }
                 Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return,
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
@@ -448,15 +448,17 @@ impl Server<'_> {
     }
 
     fn drop_client(&mut self, id: ClientId) {
-        if self.clients.remove(&id).is_none() {
+        let Some(c) = self.clients.remove(&id) else {
             return;
-        }
+        };
         let outs = self.mux.remove_client(id, Instant::now());
         self.dispatch(outs);
-        self.log(&format!(
-            "client {id} disconnected ({} connected)",
-            self.clients.len()
-        ));
+        if c.announced {
+            self.log(&format!(
+                "client {id} disconnected ({} connected)",
+                self.clients.len()
+            ));
+        }
     }
 
     fn read_clients(&mut self) {
@@ -499,6 +501,11 @@ impl Server<'_> {
 
     fn client_frame(&mut self, id: ClientId, d: Decoded<Request>) {
         let now = Instant::now();
+        let n = self.clients.len();
+        if let Some(c) = self.clients.get_mut(&id).filter(|c| !c.announced) {
+            c.announced = true;
+            self.log(&format!("client {id} connected ({n} connected)"));
+        }
         match d {
             Decoded::Frame { seq, msg } => {
                 self.last_client_rx = Some(now);
@@ -973,7 +980,12 @@ impl Server<'_> {
                         }
                     }
                 }
-                self.give_up(since, give_up, &format!("port {} lost", self.port_path));
+                let what = if self.ever_up {
+                    format!("port {} lost", self.port_path)
+                } else {
+                    format!("port {} cannot be opened", self.port_path)
+                };
+                self.give_up(since, give_up, &what);
             }
             LinkState::Handshake {
                 since,
