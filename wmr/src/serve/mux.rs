@@ -6,7 +6,7 @@
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::time::{Duration, Instant};
-use wmr_protocol::{ErrorCode, ParamId, Reply, Request, TelemetrySelection, TELEMETRY_ALL};
+use wmr_protocol::{ParamId, Reply, Request, TelemetrySelection, TELEMETRY_ALL};
 
 /// A connected client (numbered from 1 in connection order).
 pub type ClientId = u64;
@@ -482,23 +482,17 @@ impl Mux {
         }
     }
 
-    /// Whether `reply` (a robot answer) would be routed to a client that
-    /// asked for telemetry (for tests).
+    /// The telemetry subscription of client `id` (tests).
     #[cfg(test)]
     fn sub(&self, id: ClientId) -> Option<TelemetrySub> {
         self.subs.get(&id).copied()
-    }
-
-    /// A refused request of a client, answered by the server (`Nack`).
-    pub fn refuse(id: ClientId, seq: u16, error: ErrorCode) -> Out {
-        Out::Client(id, Reply::Nack { seq, error })
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wmr_protocol::{Event, RunStateMsg, Telemetry};
+    use wmr_protocol::{ErrorCode, Event, RunStateMsg, Telemetry};
 
     fn robot_seq(o: &Out) -> u16 {
         match o {
