@@ -33,6 +33,9 @@
 #       model of that mode (--bridge: the armature voltage from the pins,
 #       drive/brake/coast, src/bridge.rs), tracks it within REL_TOL_RMS of
 #       hil-sim's runtime path, as (b) does for pwm-dir;
+#   (k) the stack: the power-on paint's high-water marks of the tracking
+#       run, at boot and while running (painted again when the loop
+#       starts), each within STACK_MAX_FRACTION (75 %) of the stack;
 #   (j) a small reverse command gives a small reverse voltage in every mode
 #       (issue 18's lurch): `wmr drive --v -0.05` for 2 s; the largest
 #       armature voltage of either wheel stays within REVERSE_MAX_FRACTION
@@ -45,6 +48,7 @@
 # Usage: stm32-emu/run.sh       (from anywhere; builds what it needs)
 # Env:   OUT_DIR=<dir>  RECORD_S=10  REL_TOL_RMS=0.10  MAX_DROPPED_FRAMES=10
 #        FAULT_CUT_US=20  LINK_SILENCE_S=1.5  RATE_HZ=50  REVERSE_MAX_FRACTION=0.25
+#        STACK_MAX_FRACTION=0.75
 set -euo pipefail
 cd "$(dirname "$0")"
 ROOT="$(cd .. && pwd)"
@@ -59,6 +63,7 @@ MAX_DROPPED_FRAMES="${MAX_DROPPED_FRAMES:-10}"
 FAULT_CUT_US="${FAULT_CUT_US:-20}"
 LINK_SILENCE_S="${LINK_SILENCE_S:-1.5}"
 REVERSE_MAX_FRACTION="${REVERSE_MAX_FRACTION:-0.25}"
+STACK_MAX_FRACTION="${STACK_MAX_FRACTION:-0.75}"
 OUT_DIR="${OUT_DIR:-$(mktemp -d)}"
 mkdir -p "$OUT_DIR"
 TARGET=thumbv7em-none-eabihf
@@ -226,6 +231,27 @@ cleanup
 grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fail "a reset, fault or unmodelled access during the tracking run"
 boots="$(grep -c "\] boot " "$LOG" || true)"
 [ "$boots" -eq 1 ] || fail "the image booted $boots times"
+
+step "(k) stack: the high-water marks of the tracking run (stack painted at power-on, again when the loop starts)"
+# Every word of the stack (flip-link: below .data/.bss, _stack_end.._stack_start)
+# holds a paint word at power-on; the lowest word overwritten is the deepest
+# the stack reached (boot: reset to the loop's start, main's frames; running:
+# the loop, the link and every interrupt on top, painted again at its start).
+# Fails beyond STACK_MAX_FRACTION of the stack: paths the run did not take
+# need the rest.
+stack_line="$(grep "alive (stack high-water" "$LOG" | tail -1)"
+[ -n "$stack_line" ] || fail "no stack high-water mark in the log (symbols _stack_start/_stack_end missing?)"
+read -r st_run st_boot st_size < <(sed -n 's/.*stack high-water \([0-9]*\) B running, \([0-9]*\) B at boot, of \([0-9]*\) B.*/\1 \2 \3/p' <<<"$stack_line")
+echo "stack: ${st_run} B running (the loop, the link, interrupts), ${st_boot} B at boot, of ${st_size} B"
+for what in run boot; do
+    used=$st_run
+    [ "$what" = boot ] && used=$st_boot
+    awk -v u="$used" -v s="$st_size" -v f="$STACK_MAX_FRACTION" 'BEGIN { exit !(u > 0 && u <= f * s) }' ||
+        fail "stack high-water ($what) $used B: not within $STACK_MAX_FRACTION of the $st_size B stack"
+done
+echo "OK: both within $STACK_MAX_FRACTION of the stack"
+STACK_RUN_B=$st_run
+STACK_BOOT_B=$st_boot
 
 step "(c) link silence"
 grep -q "last stop LinkSilence" <<<"$emu_st" || fail "no link-loss stop after $LINK_SILENCE_S s of silence: $emu_st"
@@ -412,7 +438,7 @@ echo "headless, robot running the button's circle: 10 s emulated, $(json instruc
 echo "paced (pty) run: ${speed_pty}x of real time over the wmr session (<= 1 by design: paced to the wall clock)"
 
 echo
-echo "RESULT rms_pos_err_m=$rms ref_rms_pos_err_m=$ref_rms rows=$rows dropped=$dropped speed_x=$speed build_emu_s=$t_emu"
+echo "RESULT rms_pos_err_m=$rms ref_rms_pos_err_m=$ref_rms rows=$rows dropped=$dropped speed_x=$speed build_emu_s=$t_emu stack_running_b=$STACK_RUN_B stack_boot_b=$STACK_BOOT_B"
 for mode in pwm-dir two-pwm pwm-in1-in2; do
     echo "RESULT bridge=$mode rms_pos_err_m=${MODE_RMS[$mode]} reverse_armature_peak_r/l=${MODE_PEAK[$mode]}"
 done

@@ -242,7 +242,13 @@ fn run() -> Result<i32, String> {
         if !a.quiet && t_s >= next_alive {
             // A line per emulated second: scripts read the emulated time.
             next_alive += 1.0;
-            m.board().event("alive".into());
+            let stack = m.stack_usage().map_or(String::new(), |u| {
+                format!(
+                    " (stack high-water {} B running, {} B at boot, of {} B)",
+                    u.used_bytes, u.boot_bytes, u.size_bytes
+                )
+            });
+            m.board().event(format!("alive{stack}"));
         }
         if let Some(at) = a.press {
             if !pressed && t_s >= at {
@@ -299,6 +305,7 @@ fn run() -> Result<i32, String> {
     }
     let _ = faulted;
     let wall = wall0.elapsed().as_secs_f64();
+    let stack = m.stack_usage();
     let d = m.board();
     let emu_s = d.now_s();
     let bridge = d.bridge().ok();
@@ -329,6 +336,16 @@ fn run() -> Result<i32, String> {
         d.stats.instructions, d.stats.slices, d.stats.sleeps
     );
     s += &format!("\"boots\":{},\"iwdg_resets\":{iwdg_resets},", d.stats.boots);
+    s += &format!(
+        "\"taken_in_it_block\":{},\"min_sp\":\"0x{:08X}\",",
+        d.stats.taken_in_it_block, d.stats.min_sp
+    );
+    if let Some(u) = stack {
+        s += &format!(
+            "\"stack_used_bytes\":{},\"stack_boot_bytes\":{},\"stack_size_bytes\":{},",
+            u.used_bytes, u.boot_bytes, u.size_bytes
+        );
+    }
     s += &format!(
         "\"csr_at_boot\":\"0x{:08X}\",\"iwdgrstf\":{},",
         d.csr_at_boot,
@@ -386,6 +403,7 @@ fn run() -> Result<i32, String> {
         Ok(()) => Ok(0),
         Err(e) => {
             eprintln!("stm32-emu: run failed at t = {emu_s:.6} s: {e}");
+            eprintln!("{}", m.board().trace_dump());
             Ok(1)
         }
     }
