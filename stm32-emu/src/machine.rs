@@ -10,6 +10,7 @@
 
 use crate::bridge::BridgeMode;
 use crate::elf::Image;
+use crate::periph::flash::{STORE_BASE, STORE_SIZE};
 use crate::periph::nvic::{exc, Nvic};
 use crate::periph::rcc::{Rcc, ResetCause};
 use crate::periph::timer::{Kind, Timer, Wave};
@@ -224,6 +225,8 @@ pub struct Board {
     /// the run loop takes the boot's stack high-water mark and paints the
     /// stack below SP again.
     repaint_stack: bool,
+    /// CPU stall a flash operation asked for, not yet applied \[ps\].
+    flash_stall_ps: u128,
 }
 
 /// Blocks kept in the failure trace.
@@ -291,7 +294,31 @@ impl Board {
             trace_n: 0,
             exc_trace: std::collections::VecDeque::new(),
             repaint_stack: false,
+            flash_stall_ps: 0,
         }
+    }
+
+    /// A program or erase just started: the CPU stalls for its duration
+    /// (every flash read waits while the array is busy); the run loop
+    /// applies it at the next block.
+    fn flash_stall(&mut self) {
+        let ps = self.flash.take_stall_ps();
+        if ps > 0 {
+            if ps >= 1_000_000_000 {
+                let ms = ps as f64 * 1e-9;
+                let n = self.flash.erases;
+                self.event(format!(
+                    "flash: sector erase {n} started, CPU stalled {ms:.1} ms (flash reads wait while BSY)"
+                ));
+            }
+            self.flash_stall_ps += ps;
+            self.stop_req = true;
+        }
+    }
+
+    /// The flash model (the store's sectors, erase and program counts).
+    pub fn flash(&mut self) -> &mut Flash {
+        &mut self.flash
     }
 
     fn exc_log(&mut self, what: String) {
@@ -617,7 +644,8 @@ impl Board {
         let off = addr & 0x3FF;
         match addr & !0x3FF {
             0x4002_3800 => self.rcc.read(off),
-            0x4002_3C00 => self.flash.read(off),
+            0x4002_3C00 => self.flash.read(off, now),
+            STORE_BASE..=0x0807_FC00 => self.flash.read_array(addr),
             0x4000_7000 => {
                 self.clock_on("PWR", 0x40, 28)?;
                 self.pwr.read(off)
@@ -729,7 +757,16 @@ impl Board {
                 }
                 Ok(())
             }
-            0x4002_3C00 => self.flash.write(off, value, mask),
+            0x4002_3C00 => {
+                self.flash.write(off, value, mask, now)?;
+                self.flash_stall();
+                Ok(())
+            }
+            STORE_BASE..=0x0807_FC00 => {
+                self.flash.write_array(addr, value, mask, now)?;
+                self.flash_stall();
+                Ok(())
+            }
             0x4000_7000 => {
                 self.clock_on("PWR", 0x40, 28)?;
                 self.pwr.write(off, value, mask)
@@ -768,7 +805,12 @@ impl Board {
             0x4000_3000 => {
                 let was = self.iwdg.running;
                 let feeds = self.iwdg.feeds;
+                let timeout = self.iwdg.timeout_ps();
                 self.iwdg.write(off, value & mask, now)?;
+                if was && self.iwdg.timeout_ps() != timeout {
+                    let t = self.iwdg.timeout_ps() as f64 * 1e-9;
+                    self.event(format!("IWDG timeout after a feed now {t:.1} ms"));
+                }
                 if self.iwdg.feeds != feeds {
                     self.stats.feeds += 1;
                 }
@@ -863,6 +905,9 @@ pub struct Machine<'a> {
     stalled_until: Option<u128>,
     /// The painted stack `[_stack_end, _stack_start)`, if the image names it.
     stack: Option<(u32, u32)>,
+    /// The current stall is a flash operation's: 1 an erase (its end is
+    /// logged as such), 2 a word program (not logged); 0 the harness's.
+    stall_is_flash: u8,
     /// The stack's high-water mark when the loop started, over all boots
     /// \[B\]; the paint is renewed below SP then, so
     /// [`Self::stack_usage`] measures the running firmware apart from its
@@ -927,13 +972,29 @@ impl<'a> Machine<'a> {
         .map_err(ue)?;
         uc.ctl_set_cpu_model(ArmCpuModel::CORTEX_M4 as i32)
             .map_err(ue)?;
-        uc.mem_map(
-            FLASH_BASE as u64,
-            chip.flash_size() as u64,
-            Prot::READ | Prot::EXEC,
+        // Sectors 0-5 hold the program (memory.x: 256 KiB); sectors 6-7,
+        // the robot store, are the flash model's (program/erase, MMIO).
+        let program = STORE_BASE - FLASH_BASE;
+        if code[program as usize..].iter().any(|&b| b != 0xFF) {
+            return Err(format!(
+                "the image has data at or above 0x{STORE_BASE:08X} (the robot store's sectors 6-7)"
+            ));
+        }
+        uc.mem_map(FLASH_BASE as u64, program as u64, Prot::READ | Prot::EXEC)
+            .map_err(ue)?;
+        uc.mem_write(FLASH_BASE as u64, &code[..program as usize])
+            .map_err(ue)?;
+        uc.mmio_map(
+            STORE_BASE as u64,
+            STORE_SIZE as u64,
+            Some(|uc: &mut Unicorn<Board>, off: u64, size: usize| -> u64 {
+                mmio_read(uc, STORE_BASE + off as u32, size)
+            }),
+            Some(|uc: &mut Unicorn<Board>, off: u64, size: usize, v: u64| {
+                mmio_write(uc, STORE_BASE + off as u32, size, v as u32)
+            }),
         )
         .map_err(ue)?;
-        uc.mem_write(FLASH_BASE as u64, &code).map_err(ue)?;
         uc.mem_map(RAM_BASE as u64, chip.ram_size() as u64, Prot::ALL)
             .map_err(ue)?;
         for (base, size) in [(0x4000_0000u64, 0x2000_0000u64), (0xE000_0000, 0x10_0000)] {
@@ -1018,6 +1079,7 @@ impl<'a> Machine<'a> {
             sleeping: false,
             stalled_until: None,
             stack,
+            stall_is_flash: 0,
             boot_stack_bytes: 0,
         };
         m.reset(ResetCause::PowerOn)?;
@@ -1096,7 +1158,8 @@ impl<'a> Machine<'a> {
             d.base_ps = now;
             d.base_cycles = d.cycles;
             d.sysclk_hz = crate::periph::rcc::HSI_HZ;
-            d.flash = Flash::default();
+            d.flash.reset();
+            d.flash_stall_ps = 0;
             d.pwr = Pwr::default();
             d.gpio = "ABCDEFGH".chars().map(Port::new).collect();
             d.tim1 = Timer::new("TIM1", Kind::Advanced, 16_000_000);
@@ -1213,6 +1276,17 @@ impl<'a> Machine<'a> {
             if std::mem::take(&mut self.uc.get_data_mut().repaint_stack) {
                 self.repaint_stack()?;
             }
+            let fs = std::mem::take(&mut self.uc.get_data_mut().flash_stall_ps);
+            if fs > 0 {
+                let now = self.uc.get_data().now_ps();
+                let until = self.stalled_until.unwrap_or(now).max(now) + fs;
+                self.stalled_until = Some(until);
+                self.stall_is_flash = match (fs >= 1_000_000_000, self.stall_is_flash) {
+                    (true, _) => 1,
+                    (false, 0) => 2,
+                    (false, k) => k,
+                };
+            }
             // Peripherals to now; the watchdog; SYSRESETREQ.
             {
                 let d = self.uc.get_data_mut();
@@ -1247,8 +1321,13 @@ impl<'a> Machine<'a> {
                     continue;
                 }
                 self.stalled_until = None;
+                let flash = std::mem::take(&mut self.stall_is_flash);
                 let d = self.board();
-                d.event("stall ends: CPU runs again".into());
+                match flash {
+                    1 => d.event("flash: erase done, CPU runs again".into()),
+                    2 => {}
+                    _ => d.event("stall ends: CPU runs again".into()),
+                }
             }
             // Exceptions.
             if let Some(e) = deliverable(&mut self.uc) {
