@@ -8,8 +8,8 @@
 //! Counted in bytes read (deterministic), not timed.
 
 use embedded_storage_async::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
-use std::cell::Cell;
 use robot_store::{validate_robot, RamFlash, RobotStore};
+use std::cell::Cell;
 
 const PAGE: usize = 128 * 1024;
 const SIZE: usize = 2 * PAGE;
@@ -28,7 +28,8 @@ impl ErrorType for Counting<'_> {
 impl ReadNorFlash for Counting<'_> {
     const READ_SIZE: usize = 1;
     async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
-        self.read_bytes.set(self.read_bytes.get() + bytes.len() as u64);
+        self.read_bytes
+            .set(self.read_bytes.get() + bytes.len() as u64);
         self.inner.read(offset, bytes).await
     }
     fn capacity(&self) -> usize {
