@@ -19,6 +19,19 @@ pub const JUMP_SPEED_FACTOR: f32 = 2.5;
 pub const STALL_TORQUE_FRACTION: f32 = 0.2;
 /// A wheel pushing that hard without a count for this long is stalled \[s\].
 pub const STALL_TIME_S: f32 = 0.25;
+/// The direction check gives a verdict from this fraction of the torque
+/// limit (D110; the paper robot's 10 N·m: 1 N·m, D74's example) ...
+pub const DIRECTION_TORQUE_FRACTION: f32 = 0.1;
+/// ... or from this multiple of the wheel's Coulomb friction, whichever is
+/// larger (the model omits friction; it shifts the measurement by the
+/// friction's acceleration: D109's midpoint must be clear of it).
+pub const DIRECTION_FRICTION_FACTOR: f32 = 1.5;
+/// The direction check's acceleration tolerance in quanta of the windowed
+/// rate estimate over a block (one count per speed window, differenced
+/// over a block): 3 quanta, 9.8 rad/s² for the paper robot's encoder
+/// (D74's example 10 rad/s²), 89 rad/s² for the 2 kg robot's 1,320 counts
+/// and 8-tick window (D110).
+pub const DIRECTION_ACCEL_QUANTA: f32 = 3.0;
 
 impl Robot {
     /// Mean wheel radius \[m\].
@@ -121,13 +134,28 @@ impl Robot {
         let jump = libm::ceilf(jump).clamp(4.0, i16::MAX as f32) as u16;
         let stall_ticks = libm::roundf(STALL_TIME_S / period_s).clamp(1.0, u16::MAX as f32) as u16;
         let overrun = libm::roundf(0.5 * period_s * 1e6).max(1.0) as u32;
+        let e = SafetyLimits::EXAMPLE;
+        let friction = self.motors.coulomb_friction_nm[0].max(self.motors.coulomb_friction_nm[1]);
         SafetyLimits {
             max_counts_per_tick: jump,
             stall_torque_nm: STALL_TORQUE_FRACTION * self.limits.torque_nm,
             stall_ticks,
             overrun_limit_us: overrun,
-            ..SafetyLimits::EXAMPLE
+            direction_torque_nm: (DIRECTION_TORQUE_FRACTION * self.limits.torque_nm)
+                .max(DIRECTION_FRICTION_FACTOR * friction),
+            direction_accel_radps2: DIRECTION_ACCEL_QUANTA * self.rate_quantum_radps(period_s)
+                / (e.direction_block_ticks as f32 * period_s),
+            ..e
         }
+    }
+
+    /// The windowed wheel-rate estimate's resolution \[rad/s\]: one count
+    /// per speed window (`encoders.speed_window_ticks` periods of `period_s`).
+    pub fn rate_quantum_radps(&self, period_s: f32) -> f32 {
+        2.0 * core::f32::consts::PI
+            / (self.encoders.counts_per_wheel_rev
+                * self.encoders.speed_window_ticks as f32
+                * period_s)
     }
 
     /// The whole runtime configuration for controller `kind`, following
