@@ -29,6 +29,7 @@ pub mod shard;
 pub mod sides;
 pub mod sim;
 pub mod sweep;
+pub mod tune;
 
 pub use metrics::Metrics;
 pub use scenario::Scenario;

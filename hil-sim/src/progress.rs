@@ -121,6 +121,18 @@ impl Progress {
         }
     }
 
+    /// Prints `line` on stderr above the bar (or as is without one);
+    /// nothing when quiet.
+    pub fn println(&self, line: &str) {
+        if self.quiet {
+            return;
+        }
+        match &self.bar {
+            Some(b) => b.println(line),
+            None => eprintln!("{line}"),
+        }
+    }
+
     /// Removes the bar (no effect on lines).
     pub fn finish(&self) {
         if let Some(b) = &self.bar {

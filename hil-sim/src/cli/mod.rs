@@ -19,6 +19,7 @@ pub mod scenario_args;
 pub mod sweep;
 #[cfg(test)]
 mod tests;
+pub mod tune;
 
 pub use controller_arg::ControllerArg;
 pub use robot_arg::RobotArgs;
@@ -59,6 +60,11 @@ pub enum Command {
     /// Model-mismatch sweep of one robot (issue 18): wheel radius, track,
     /// friction, motor constant, actuation delay; the three controllers.
     Sweep(sweep::SweepArgs),
+    /// Tunes the gains of the three controllers for a robot file over a
+    /// Monte-Carlo set drawn around it (docs/tuning.md); writes FILE.tuned.toml.
+    Tune(Box<tune::TuneArgs>),
+    /// Combines shard files of `tune --shard` into the tuned robot file.
+    TuneMerge(tune::TuneMergeArgs),
 }
 
 /// Executes a parsed command line, writing results to `out`.
@@ -72,6 +78,8 @@ pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
         Command::Device(a) => device::device(a, out),
         Command::Report(a) => report::report(a, out),
         Command::Sweep(a) => sweep::sweep(a, out),
+        Command::Tune(a) => tune::tune(a, out),
+        Command::TuneMerge(a) => tune::tune_merge(a, out),
     }
 }
 

@@ -1,0 +1,218 @@
+//! The robust cost of one set of gains over a part of the tuning set
+//! (D92): the 95th percentile of the window RMS position error (taken
+//! within each sensing preset of the set and averaged over the presets, so
+//! that the drift of a preset without position measurement does not hide
+//! the tracking of one with it), plus
+//! small penalties on torque saturation and chatter, plus a penalty per
+//! run that stopped (a safe stop of the health machine, any runtime stop,
+//! a plant that diverged) large enough that no stopping set of gains ever
+//! ranks above one that does not stop (the hard constraint).
+//!
+//! Each scenario runs through [`crate::sim::run_with`] (ideal sensing) or
+//! [`crate::hil::run_runtime`] (the firmware runtime), the simulator's one
+//! closed loop; the scenarios of one evaluation run in parallel on rayon's
+//! pool and are summed in index order, so the cost does not depend on the
+//! number of threads.
+
+use crate::hil::{run_runtime, HilOptions};
+use crate::montecarlo::summarize;
+use crate::scenario::{Scenario, Sensing};
+use controller_core::ControllerConfig;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Cost of a mean saturated fraction of 1 (saturated every step) \[m\].
+pub const SATURATION_WEIGHT_M: f64 = 0.05;
+/// Cost of a mean chatter of 1 (N·m/s)/(N·m of torque limit) \[m·s\]:
+/// 76 /s (the paper robot's proposed controller through the runtime)
+/// costs 1.5 mm.
+pub const CHATTER_WEIGHT_M_S: f64 = 2e-5;
+/// Cost of each run that stopped \[m\]: more than any window RMS a
+/// running robot reaches on the tuning set.
+pub const STOP_PENALTY_M: f64 = 100.0;
+
+/// What one evaluation found.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Evaluation {
+    /// The cost \[m\].
+    pub cost: f64,
+    /// Mean over the sensing presets of the 95th percentile of the window
+    /// RMS position error of that preset's runs \[m\].
+    pub p95_rms_win_m: f64,
+    /// Per sensing preset (in the set's order): its p95 window RMS \[m\].
+    pub per_sensing: Vec<(Sensing, f64)>,
+    /// Mean of the window RMS position error \[m\].
+    pub mean_rms_win_m: f64,
+    /// Mean saturated fraction of the steps.
+    pub mean_saturated: f64,
+    /// Mean chatter over the torque limit \[1/s\].
+    pub mean_chatter_per_s: f64,
+    /// Runs that stopped (safe stop, runtime stop or diverged).
+    pub stops: usize,
+    /// Runs evaluated.
+    pub runs: usize,
+}
+
+/// The outcome of one run that enters the cost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RunScore {
+    /// Window RMS position error \[m\] (NaN-safe: a diverged run counts
+    /// [`STOP_PENALTY_M`]).
+    pub rms_win_m: f64,
+    /// Saturated fraction.
+    pub saturated: f64,
+    /// Chatter over the torque limit \[1/s\].
+    pub chatter_per_s: f64,
+    /// The run stopped.
+    pub stopped: bool,
+    /// The run's sensing preset.
+    pub sensing: Sensing,
+}
+
+/// Runs `scn` with `cfg` and scores it.
+pub fn score(scn: &Scenario, cfg: ControllerConfig) -> RunScore {
+    let out = match scn.sensing.preset {
+        Sensing::Ideal => crate::sim::run_with(scn, cfg, 0).map(|o| (o, false)),
+        _ => run_runtime(scn, cfg, HilOptions::default(), 0).map(|o| (o.sim, o.stop.is_some())),
+    };
+    let tau = scn.torque_limit_nm().max(1e-9);
+    match out {
+        Ok((o, runtime_stop)) => {
+            let m = o.metrics;
+            let finite = m.rms_pos_err_window_m.is_finite();
+            RunScore {
+                rms_win_m: if finite {
+                    m.rms_pos_err_window_m
+                } else {
+                    STOP_PENALTY_M
+                },
+                saturated: m.saturated_fraction,
+                chatter_per_s: if m.chatter.is_finite() {
+                    m.chatter / tau
+                } else {
+                    0.0
+                },
+                stopped: runtime_stop || m.safe_stop == Some(true) || !finite,
+                sensing: scn.sensing.preset,
+            }
+        }
+        Err(_) => RunScore {
+            rms_win_m: STOP_PENALTY_M,
+            saturated: 1.0,
+            chatter_per_s: 0.0,
+            stopped: true,
+            sensing: scn.sensing.preset,
+        },
+    }
+}
+
+/// The cost of a list of run scores (in scenario order).
+pub fn aggregate(scores: &[RunScore]) -> Evaluation {
+    let n = scores.len().max(1) as f64;
+    let rms: Vec<f64> = scores.iter().map(|s| s.rms_win_m).collect();
+    let mut presets: Vec<Sensing> = Vec::new();
+    for s in scores {
+        if !presets.contains(&s.sensing) {
+            presets.push(s.sensing);
+        }
+    }
+    let per_sensing: Vec<(Sensing, f64)> = presets
+        .iter()
+        .map(|&p| {
+            let v: Vec<f64> = scores
+                .iter()
+                .filter(|s| s.sensing == p)
+                .map(|s| s.rms_win_m)
+                .collect();
+            (p, summarize(&v).map_or(STOP_PENALTY_M, |s| s.p95))
+        })
+        .collect();
+    let p95 = if per_sensing.is_empty() {
+        STOP_PENALTY_M
+    } else {
+        per_sensing.iter().map(|x| x.1).sum::<f64>() / per_sensing.len() as f64
+    };
+    let mean_rms = rms.iter().sum::<f64>() / n;
+    let sat = scores.iter().map(|s| s.saturated).sum::<f64>() / n;
+    let chat = scores.iter().map(|s| s.chatter_per_s).sum::<f64>() / n;
+    let stops = scores.iter().filter(|s| s.stopped).count();
+    Evaluation {
+        cost: p95
+            + SATURATION_WEIGHT_M * sat
+            + CHATTER_WEIGHT_M_S * chat
+            + STOP_PENALTY_M * stops as f64,
+        p95_rms_win_m: p95,
+        per_sensing,
+        mean_rms_win_m: mean_rms,
+        mean_saturated: sat,
+        mean_chatter_per_s: chat,
+        stops,
+        runs: scores.len(),
+    }
+}
+
+/// Evaluates the gains `make(scenario's own configuration)` on every
+/// scenario of `scenarios` in parallel; `tick` once per finished run.
+pub fn evaluate(
+    scenarios: &[Scenario],
+    kind: controller_core::ControllerKind,
+    make: &(dyn Fn(&ControllerConfig) -> ControllerConfig + Sync),
+    tick: &(dyn Fn() + Sync),
+) -> Evaluation {
+    let scores: Vec<RunScore> = scenarios
+        .par_iter()
+        .map(|scn| {
+            let s = score(scn, make(&scn.controller_config(kind)));
+            tick();
+            s
+        })
+        .collect();
+    aggregate(&scores)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(rms: f64, stopped: bool) -> RunScore {
+        RunScore {
+            rms_win_m: rms,
+            saturated: 0.1,
+            chatter_per_s: 10.0,
+            stopped,
+            sensing: Sensing::Mocap,
+        }
+    }
+
+    #[test]
+    fn a_stop_outweighs_any_running_error() {
+        let ok: Vec<RunScore> = (0..20).map(|i| run(1.0 + i as f64, false)).collect();
+        let mut one_stop: Vec<RunScore> = (0..20).map(|_| run(0.001, false)).collect();
+        one_stop[3].stopped = true;
+        assert!(aggregate(&one_stop).cost > aggregate(&ok).cost);
+        assert_eq!(aggregate(&one_stop).stops, 1);
+    }
+
+    #[test]
+    fn p95_and_penalties_add_up() {
+        let s: Vec<RunScore> = (1..=20).map(|i| run(f64::from(i), false)).collect();
+        let e = aggregate(&s);
+        assert_eq!(e.p95_rms_win_m, 19.0);
+        let want = 19.0 + SATURATION_WEIGHT_M * 0.1 + CHATTER_WEIGHT_M_S * 10.0;
+        assert!((e.cost - want).abs() < 1e-12);
+    }
+
+    #[test]
+    fn p95_is_taken_per_preset_and_averaged() {
+        // 20 mocap runs 1..20 mm and 20 imu runs 1..20 m: (19 mm + 19 m)/2.
+        let mut s: Vec<RunScore> = (1..=20).map(|i| run(1e-3 * f64::from(i), false)).collect();
+        s.extend((1..=20).map(|i| RunScore {
+            sensing: Sensing::Imu,
+            ..run(f64::from(i), false)
+        }));
+        let e = aggregate(&s);
+        assert!((e.p95_rms_win_m - (0.019 + 19.0) / 2.0).abs() < 1e-12);
+        assert_eq!(e.per_sensing.len(), 2);
+        assert_eq!(e.per_sensing[0], (Sensing::Mocap, 0.019));
+    }
+}

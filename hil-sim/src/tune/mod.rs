@@ -1,0 +1,511 @@
+//! `hil-sim tune`: gains for a robot chosen by minimising a robust cost
+//! over a Monte-Carlo set drawn around it (issue 19, docs/tuning.md).
+//!
+//! In layers: [`space`] (which gains, their bounds, the unit box),
+//! [`set`] (the training and validation scenarios), [`cost`] (one
+//! evaluation: the scenarios through the simulator's closed loop, the
+//! robust cost), [`optimise`] (CMA-ES, Nelder-Mead, particle swarm), and
+//! here the job: each controller tuned from the robot file's gains with
+//! the same budget, restarts, shards and their merge, the tuned robot
+//! file.
+//!
+//! Sharding (D94): a job of R restarts (independent optimisations: restart
+//! 0 from the robot file's gains, restart r > 0 from a point drawn from
+//! (seed, r)) splits into N shards like `montecarlo`'s, each running the
+//! contiguous block of restarts `[⌊I·R/N⌋, ⌊(I+1)·R/N⌋)` with exactly the
+//! seeds the unsharded job gives them; `tune-merge` takes the best restart
+//! of each controller by training cost (the validation set stays out of
+//! every choice) and writes the same robot file one process would.
+
+pub mod cost;
+pub mod optimise;
+pub mod set;
+pub mod space;
+
+use crate::montecarlo::run_seed;
+use crate::rng::Rng;
+use crate::scenario::{Robot, Scenario};
+use crate::shard::Shard;
+use controller_core::ControllerKind;
+use cost::{evaluate, Evaluation};
+use optimise::{minimise, Optimizer};
+use serde::{Deserialize, Serialize};
+use set::{Part, TuneSet};
+use std::ops::Range;
+use std::path::Path;
+
+/// Format name of a tuning shard file.
+pub const TUNE_SHARD_FORMAT: &str = "hil-sim tune shard";
+/// Version of the tuning shard format.
+pub const TUNE_SHARD_VERSION: u32 = 1;
+/// Most cost evaluations per controller and restart (`--evaluations`).
+pub const MAX_EVALUATIONS: usize = 100_000;
+/// Most restarts of one job.
+pub const MAX_RESTARTS: u64 = 10_000;
+
+/// Everything that defines a tuning job (every shard must agree on it).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TuneJob {
+    /// The scenarios.
+    pub set: TuneSet,
+    /// The optimiser.
+    pub optimizer: Optimizer,
+    /// Cost evaluations per controller and restart (the budget).
+    pub evaluations: usize,
+    /// Restarts per controller.
+    pub restarts: u64,
+    /// Controllers tuned (names), in the paper's order.
+    #[serde(with = "kinds")]
+    pub controllers: Vec<ControllerKind>,
+}
+
+mod kinds {
+    use controller_core::ControllerKind;
+    use serde::{de::Error, Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(k: &[ControllerKind], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(k.iter().map(|k| k.name()))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<ControllerKind>, D::Error> {
+        Vec::<String>::deserialize(d)?
+            .iter()
+            .map(|n| super::kind_named(n).map_err(D::Error::custom))
+            .collect()
+    }
+}
+
+/// The controller named `name` (`smc`, `asmc`, `proposed`).
+pub fn kind_named(name: &str) -> Result<ControllerKind, String> {
+    ControllerKind::ALL
+        .into_iter()
+        .find(|k| k.name() == name)
+        .ok_or_else(|| format!("unknown controller '{name}' (smc, asmc, proposed)"))
+}
+
+impl TuneJob {
+    /// Refuses a job no shard could run.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.evaluations == 0 || self.evaluations > MAX_EVALUATIONS {
+            return Err(format!(
+                "--evaluations must be in 1..={MAX_EVALUATIONS}, got {}",
+                self.evaluations
+            ));
+        }
+        if self.restarts == 0 || self.restarts > MAX_RESTARTS {
+            return Err(format!(
+                "--restarts must be in 1..={MAX_RESTARTS}, got {}",
+                self.restarts
+            ));
+        }
+        if self.controllers.is_empty() {
+            return Err("no controller to tune".into());
+        }
+        self.set.validate()
+    }
+
+    /// Evaluations the optimiser really spends per controller and restart
+    /// (whole generations for CMA-ES and the swarm).
+    pub fn evaluations_used(&self, dims: usize) -> usize {
+        match self.optimizer {
+            Optimizer::NelderMead => self.evaluations.max(dims + 1),
+            _ => (self.evaluations / optimise::POPULATION).max(1) * optimise::POPULATION,
+        }
+    }
+
+    /// Simulations a shard running `restarts` runs at most (the optimiser,
+    /// the best point on both parts, the start gains on both parts when it
+    /// holds restart 0).
+    pub fn simulations(&self, restarts: &Range<u64>) -> u64 {
+        let (t, v) = (self.set.training as u64, self.set.validation as u64);
+        let per: u64 = self
+            .controllers
+            .iter()
+            .map(|&k| (self.evaluations_used(space::dims(k).len()) as u64 + 1) * t + v)
+            .sum();
+        let start = if restarts.contains(&0) {
+            self.controllers.len() as u64 * (t + v)
+        } else {
+            0
+        };
+        per * (restarts.end - restarts.start) + start
+    }
+}
+
+/// One controller's gains evaluated on both parts.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Scored {
+    /// The gains (the robot file's `[gains.<kind>]`).
+    pub gains: robot_file::GainSet,
+    /// On the training part.
+    pub training: Evaluation,
+    /// On the validation part.
+    pub validation: Evaluation,
+}
+
+/// The result of one restart for one controller.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RestartResult {
+    /// Controller name.
+    pub controller: String,
+    /// Restart index.
+    pub restart: u64,
+    /// Unit-box coordinates of the best point.
+    pub x: Vec<f64>,
+    /// Its gains and costs.
+    pub tuned: Scored,
+    /// Evaluations spent.
+    pub evaluations: usize,
+    /// Best training cost after each generation: (evaluations, cost).
+    pub history: Vec<(usize, f64)>,
+}
+
+/// What a shard (or a whole job) wrote.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TuneShardFile {
+    /// [`TUNE_SHARD_FORMAT`].
+    pub format: String,
+    /// [`TUNE_SHARD_VERSION`].
+    pub version: u32,
+    /// The hil-sim that ran it.
+    pub hil_sim_version: String,
+    /// The job.
+    pub job: TuneJob,
+    /// Which shard (index, count).
+    pub shard: (u64, u64),
+    /// Its restarts.
+    pub restarts: Range<u64>,
+    /// The robot file's gains per controller (names), when this shard
+    /// holds restart 0.
+    pub start: Option<Vec<(String, Scored)>>,
+    /// One result per restart × controller.
+    pub results: Vec<RestartResult>,
+    /// Simulations run.
+    pub simulations: u64,
+    /// Wall-clock time \[s\].
+    pub elapsed_s: f64,
+    /// Worker threads.
+    pub threads: usize,
+}
+
+/// Salt of a controller's optimiser seeds (so the three controllers do
+/// not share a random stream).
+fn kind_salt(k: ControllerKind) -> u64 {
+    match k {
+        ControllerKind::Smc => 0x0073_6d63,
+        ControllerKind::Asmc => 0x6173_6d63,
+        ControllerKind::Proposed => 0x7072_6f70,
+    }
+}
+
+/// Scores `kind` with the unit-box point `x` (None: the robot file's own
+/// gains) on `train` and `val`.
+fn score_gains(
+    kind: ControllerKind,
+    x: Option<&[f64]>,
+    train: &[Scenario],
+    val: &[Scenario],
+    tick: &(dyn Fn() + Sync),
+) -> Scored {
+    let make = |c: &controller_core::ControllerConfig| match x {
+        Some(x) => space::decode(c, x),
+        None => *c,
+    };
+    Scored {
+        gains: robot_file::GainSet::of(&make(&train[0].controller_config(kind))),
+        training: evaluate(train, kind, &make, tick),
+        validation: evaluate(val, kind, &make, tick),
+    }
+}
+
+/// Runs the restarts `restarts` of `job` for each of its controllers;
+/// `tick` once per simulation, `note` with a line of progress.
+pub fn run_shard(
+    job: &TuneJob,
+    shard: Shard,
+    tick: &(dyn Fn() + Sync),
+    note: &(dyn Fn(&str) + Sync),
+) -> Result<TuneShardFile, String> {
+    job.validate()?;
+    let restarts = shard.runs(job.restarts);
+    let t0 = std::time::Instant::now();
+    let train = job.set.scenarios(Part::Training);
+    let val = job.set.scenarios(Part::Validation);
+    let start = restarts.contains(&0).then(|| {
+        job.controllers
+            .iter()
+            .map(|&k| {
+                (
+                    k.name().to_string(),
+                    score_gains(k, None, &train, &val, tick),
+                )
+            })
+            .collect::<Vec<_>>()
+    });
+    let mut results = Vec::new();
+    for r in restarts.clone() {
+        for &kind in &job.controllers {
+            let base = train[0].controller_config(kind);
+            let dims = space::dims(kind).len();
+            let x0 = if r == 0 {
+                space::encode(&base)
+            } else {
+                let mut g = Rng::new(run_seed(job.set.seed ^ kind_salt(kind) ^ 0x7374_6172, r));
+                (0..dims).map(|_| g.uniform()).collect()
+            };
+            let f = |u: &[f64]| evaluate(&train, kind, &|c| space::decode(c, u), tick).cost;
+            let seed = run_seed(job.set.seed ^ kind_salt(kind), r);
+            let opt = minimise(job.optimizer, &f, &x0, job.evaluations, seed, &|e, c| {
+                note(&format!(
+                    "{} restart {r}: {e} evaluations, best training cost {c:.4} m",
+                    kind.name()
+                ))
+            })?;
+            let tuned = score_gains(kind, Some(&opt.x), &train, &val, tick);
+            note(&format!(
+                "{} restart {r}: training {:.4} m, validation {:.4} m",
+                kind.name(),
+                tuned.training.cost,
+                tuned.validation.cost
+            ));
+            results.push(RestartResult {
+                controller: kind.name().to_string(),
+                restart: r,
+                x: opt.x,
+                tuned,
+                evaluations: opt.evaluations,
+                history: opt.history,
+            });
+        }
+    }
+    Ok(TuneShardFile {
+        format: TUNE_SHARD_FORMAT.into(),
+        version: TUNE_SHARD_VERSION,
+        hil_sim_version: env!("CARGO_PKG_VERSION").into(),
+        job: job.clone(),
+        shard: (shard.index, shard.count),
+        simulations: job.simulations(&restarts),
+        restarts,
+        start,
+        results,
+        elapsed_s: t0.elapsed().as_secs_f64(),
+        threads: rayon::current_num_threads(),
+    })
+}
+
+/// The outcome of a whole job: per controller the start and the best
+/// restart.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TuneOutcome {
+    /// The job.
+    pub job: TuneJob,
+    /// Per controller: (name, start gains, best restart).
+    pub controllers: Vec<(String, Scored, RestartResult)>,
+    /// Simulations over all shards.
+    pub simulations: u64,
+    /// Summed shard time \[s\].
+    pub elapsed_s: f64,
+}
+
+/// Combines shard files of one job: same job, same build, every restart
+/// exactly once; the best restart per controller by training cost (ties:
+/// the lower restart).
+pub fn merge(files: &[TuneShardFile]) -> Result<TuneOutcome, String> {
+    let first = files.first().ok_or("no tuning shard file")?;
+    for f in files {
+        if f.format != TUNE_SHARD_FORMAT || f.version != TUNE_SHARD_VERSION {
+            return Err(format!(
+                "not a tuning shard of version {TUNE_SHARD_VERSION}: {} {}",
+                f.format, f.version
+            ));
+        }
+        if f.job != first.job || f.hil_sim_version != first.hil_sim_version {
+            return Err(format!(
+                "shards of different tuning jobs or builds (shard {}/{} vs {}/{})",
+                f.shard.0, f.shard.1, first.shard.0, first.shard.1
+            ));
+        }
+    }
+    let mut seen = vec![false; first.job.restarts as usize];
+    for f in files {
+        for r in f.restarts.clone() {
+            let s = seen.get_mut(r as usize).ok_or(format!(
+                "restart {r} outside the job's {}",
+                first.job.restarts
+            ))?;
+            if *s {
+                return Err(format!("restart {r} is in two shard files"));
+            }
+            *s = true;
+        }
+    }
+    if let Some(r) = seen.iter().position(|s| !s) {
+        return Err(format!(
+            "restart {r} of 0..{} is in no file: add the shard that holds it",
+            first.job.restarts
+        ));
+    }
+    let start = files
+        .iter()
+        .find_map(|f| f.start.clone())
+        .ok_or("no shard holds restart 0 (the start gains)")?;
+    let mut controllers = Vec::new();
+    for k in &first.job.controllers {
+        let name = k.name();
+        let best = files
+            .iter()
+            .flat_map(|f| &f.results)
+            .filter(|r| r.controller == name)
+            .min_by(|a, b| {
+                a.tuned
+                    .training
+                    .cost
+                    .total_cmp(&b.tuned.training.cost)
+                    .then(a.restart.cmp(&b.restart))
+            })
+            .ok_or(format!("no result for {name}"))?;
+        let s = start
+            .iter()
+            .find(|(n, _)| n == name)
+            .ok_or(format!("no start gains for {name}"))?;
+        controllers.push((name.to_string(), s.1.clone(), best.clone()));
+    }
+    Ok(TuneOutcome {
+        job: first.job.clone(),
+        controllers,
+        simulations: files.iter().map(|f| f.simulations).sum(),
+        elapsed_s: files.iter().map(|f| f.elapsed_s).sum(),
+    })
+}
+
+impl TuneOutcome {
+    /// The robot with every tuned controller's gains in its own
+    /// `[gains.<kind>]` section, validated as a robot file and checked
+    /// against the binary record's size.
+    pub fn tuned_robot(&self) -> Result<Robot, String> {
+        let mut robot = self.job.set.robot.clone();
+        for (name, _, best) in &self.controllers {
+            let g = Some(best.tuned.gains);
+            match kind_named(name)? {
+                ControllerKind::Smc => robot.gains.smc = g,
+                ControllerKind::Asmc => robot.gains.asmc = g,
+                ControllerKind::Proposed => robot.gains.proposed = g,
+            }
+        }
+        let back = Robot::from_toml_str(&robot.to_toml_string())
+            .map_err(|e| format!("the tuned robot file is invalid: {e}"))?;
+        let mut buf = [0u8; robot_file::MAX_ENCODED_LEN];
+        back.encode(&mut buf)
+            .map_err(|e| format!("the tuned robot does not fit the binary record: {e:?}"))?;
+        Ok(back)
+    }
+
+    /// The table: per controller the start gains' and the tuned gains'
+    /// costs on the training and the validation part, then per sensing
+    /// preset the validation p95 window RMS (start → tuned), the tuned
+    /// gains' validation saturation, chatter, and stops (training /
+    /// validation).
+    pub fn table(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = String::new();
+        let presets = &self.job.set.sensing;
+        let _ = write!(
+            s,
+            "{:<10} {:>9} {:>9} {:>9} {:>9}",
+            "controller", "start_tr", "start_va", "tuned_tr", "tuned_va"
+        );
+        for p in presets {
+            let _ = write!(s, " {:>17}", format!("p95_va {}", p.name()));
+        }
+        let _ = writeln!(s, " {:>6} {:>7} {:>6}", "sat", "chatter", "stops");
+        let _ = write!(
+            s,
+            "{:<10} {:>9} {:>9} {:>9} {:>9}",
+            "", "[m]", "[m]", "[m]", "[m]"
+        );
+        for _ in presets {
+            let _ = write!(s, " {:>17}", "start->tuned [m]");
+        }
+        let _ = writeln!(s, " {:>6} {:>7} {:>6}", "[%]", "[1/s]", "tr/va");
+        for (name, st, best) in &self.controllers {
+            let t = &best.tuned;
+            let _ = write!(
+                s,
+                "{:<10} {:>9.4} {:>9.4} {:>9.4} {:>9.4}",
+                name, st.training.cost, st.validation.cost, t.training.cost, t.validation.cost
+            );
+            for p in presets {
+                let of = |e: &Evaluation| {
+                    e.per_sensing
+                        .iter()
+                        .find(|x| x.0 == *p)
+                        .map_or(f64::NAN, |x| x.1)
+                };
+                let _ = write!(
+                    s,
+                    " {:>17}",
+                    format!("{:.4}->{:.4}", of(&st.validation), of(&t.validation))
+                );
+            }
+            let _ = writeln!(
+                s,
+                " {:>6.2} {:>7.1} {:>3}/{}",
+                100.0 * t.validation.mean_saturated,
+                t.validation.mean_chatter_per_s,
+                t.training.stops,
+                t.validation.stops,
+            );
+        }
+        s
+    }
+
+    /// The robot file's text with a header: the command, the job, the
+    /// costs (D94).
+    pub fn robot_file_text(&self, command: &str) -> Result<String, String> {
+        let robot = self.tuned_robot()?;
+        let j = &self.job;
+        let mut h = String::new();
+        h.push_str(&format!(
+            "# {}: gains tuned by `hil-sim tune` (docs/tuning.md).\n# Command:\n#   {command}\n",
+            robot.name
+        ));
+        h.push_str(&format!(
+            "# Set: {} training + {} validation scenarios (disjoint seeds), base seed {}, sensing {}, {} s, torque scale min {}; optimiser {}, {} evaluations x {} restart(s) per controller; {} simulations.\n",
+            j.set.training,
+            j.set.validation,
+            j.set.seed,
+            j.set.sensing.iter().map(|s| s.name()).collect::<Vec<_>>().join(","),
+            j.set.duration_s,
+            j.set.torque_scale_min,
+            j.optimizer.name(),
+            j.evaluations,
+            j.restarts,
+            self.simulations,
+        ));
+        h.push_str(
+            "# Cost [m] = p95 window RMS + saturation and chatter penalties + 100 per stop:\n",
+        );
+        for line in self.table().lines() {
+            h.push_str("#   ");
+            h.push_str(line);
+            h.push('\n');
+        }
+        h.push('\n');
+        Ok(h + &robot.to_toml_string())
+    }
+}
+
+/// Writes `text` to `path` through `path.partial` (no half-written file).
+pub fn write_atomic(path: &Path, text: &str) -> Result<(), String> {
+    let tmp = path.with_extension("partial");
+    std::fs::write(&tmp, text).map_err(|e| format!("cannot write {}: {e}", tmp.display()))?;
+    std::fs::rename(&tmp, path).map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+/// Reads a tuning shard file.
+pub fn read_shard_file(path: &Path) -> Result<TuneShardFile, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    serde_json::from_str(&text)
+        .map_err(|e| format!("{}: not a tuning shard file: {e}", path.display()))
+}

@@ -1,0 +1,222 @@
+//! The Monte-Carlo set a tuning job evaluates gains on: scenarios drawn
+//! around the robot (D91), a training part the optimiser sees and a
+//! validation part on disjoint seeds that only reports.
+//!
+//! Scenario `i` of a part is built from its seed alone
+//! ([`TuneSet::scenario`]), so any shard or thread builds the same one:
+//! - the reference: the paper's curve from the paper's start (3.35 m off)
+//!   when the robot's `limits.max_speed_mps` is at least
+//!   [`PAPER_CURVE_MIN_SPEED_MPS`], else the mismatch sweep's 2 m circle at
+//!   0.5 m/s from 0.1 m outside it ([`crate::sweep::base_scenario`]);
+//! - the paper's Case 2 perturbations in the window 10-35 s: slip
+//!   β ∈ (0, 0.2) rad/s, actuator fault ε ∈ (0.125, 0.25), lateral skid
+//!   scale ∈ (0.025, 0.1) (the default 0.05 in the middle), a torque
+//!   disturbance of (0.05, 0.15)× the robot's torque limit (the paper's
+//!   1 N·m is 0.1× its 10 N·m);
+//! - parameter uncertainty: the plant's mass ×(0.8, 1.2) and yaw inertia
+//!   ×(0.6, 1.6) (log-uniform) against the controller's model, and, with
+//!   `torque_scale_min` < 1, the torque limit ×(torque_scale_min, 1)
+//!   (a weak battery or a derated bridge);
+//! - the sensing preset: the set's presets in turn (i mod n).
+
+use crate::montecarlo::run_seed;
+use crate::rng::Rng;
+use crate::scenario::{PerturbationPart, Robot, Scenario, Sensing, BETA_RANGE, EPS_RANGE};
+use serde::{Deserialize, Serialize};
+
+/// A robot whose speed limit is at least this runs the tuning set on the
+/// paper's curve (the paper robot's 1.0 m/s); slower ones on the circle.
+pub const PAPER_CURVE_MIN_SPEED_MPS: f32 = 1.0;
+/// Range of the plant's mass scale.
+pub const MASS_SCALE: (f64, f64) = (0.8, 1.2);
+/// Range of the plant's yaw-inertia scale (log-uniform).
+pub const INERTIA_SCALE: (f64, f64) = (0.6, 1.6);
+/// Range of the lateral skid scale (paper: 1; the simulator's default 0.05).
+pub const SKID_SCALE: (f64, f64) = (0.025, 0.1);
+/// Range of the disturbance amplitude as a fraction of the torque limit.
+pub const DISTURBANCE_FRACTION: (f64, f64) = (0.05, 0.15);
+/// Run-index offset of the validation part: its seeds are
+/// `run_seed(seed, VALIDATION_OFFSET + i)`, never a training index.
+pub const VALIDATION_OFFSET: u64 = 1 << 40;
+
+/// Which part of the set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Part {
+    /// What the optimiser minimises.
+    Training,
+    /// Disjoint seeds, reported beside the training cost.
+    Validation,
+}
+
+/// The Monte-Carlo set of a tuning job (stored in its shard files).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TuneSet {
+    /// The robot being tuned (its model is the controllers').
+    pub robot: Robot,
+    /// Sensing presets, used in turn.
+    pub sensing: Vec<Sensing>,
+    /// Base seed.
+    pub seed: u64,
+    /// Training scenarios.
+    pub training: usize,
+    /// Validation scenarios.
+    pub validation: usize,
+    /// Smallest torque-limit scale drawn (1 = the robot's limit always).
+    pub torque_scale_min: f64,
+    /// Run length \[s\].
+    pub duration_s: f64,
+}
+
+impl TuneSet {
+    /// Refuses sets no scenario could be built from (no sensing preset,
+    /// no scenario, a scale outside (0, 1]); checks the first scenario.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.sensing.is_empty() {
+            return Err("tuning set: at least one sensing preset".into());
+        }
+        if self.training == 0 || self.validation == 0 {
+            return Err("tuning set: --train and --validate must be at least 1".into());
+        }
+        if !(self.torque_scale_min > 0.0 && self.torque_scale_min <= 1.0) {
+            return Err(format!(
+                "tuning set: --torque-scale-min must be in (0, 1], got {}",
+                self.torque_scale_min
+            ));
+        }
+        let s = self.scenario(Part::Training, 0);
+        s.validate()?;
+        crate::limits::check_scenario(&s)
+    }
+
+    /// Seed of scenario `i` of `part`.
+    pub fn seed_of(&self, part: Part, i: u64) -> u64 {
+        match part {
+            Part::Training => run_seed(self.seed, i),
+            Part::Validation => run_seed(self.seed, VALIDATION_OFFSET + i),
+        }
+    }
+
+    /// Number of scenarios of `part`.
+    pub fn len(&self, part: Part) -> usize {
+        match part {
+            Part::Training => self.training,
+            Part::Validation => self.validation,
+        }
+    }
+
+    /// True when the reference is the paper's curve (else the circle).
+    pub fn paper_curve(&self) -> bool {
+        self.robot.limits.max_speed_mps >= PAPER_CURVE_MIN_SPEED_MPS
+    }
+
+    /// Scenario `i` of `part` (module doc).
+    pub fn scenario(&self, part: Part, i: u64) -> Scenario {
+        let seed = self.seed_of(part, i);
+        let tau = f64::from(self.robot.limits.torque_nm);
+        let mut s = if self.paper_curve() {
+            Scenario::paper_case(2, seed, None, None).with_robots(Some(&self.robot), None)
+        } else {
+            crate::sweep::base_scenario(&self.robot, seed, self.duration_s)
+        };
+        s.name = format!(
+            "tune-{}-{}{i}",
+            self.robot.name,
+            match part {
+                Part::Training => "t",
+                Part::Validation => "v",
+            }
+        );
+        s.duration_s = self.duration_s;
+        s.seed = seed;
+        // Independent of the generator paper_case draws from.
+        let mut r = Rng::new(seed ^ 0x7475_6e65);
+        let mut within = |(lo, hi): (f64, f64)| lo + (hi - lo) * r.uniform();
+        s.perturbations = PerturbationPart {
+            window_s: [10.0, 35.0],
+            beta: within(BETA_RANGE),
+            eps: within(EPS_RANGE),
+            skid_scale: within(SKID_SCALE),
+            disturbance_nm: tau * within(DISTURBANCE_FRACTION),
+            ..PerturbationPart::none()
+        };
+        s.plant.mass_scale = within(MASS_SCALE);
+        s.plant.inertia_scale = within((INERTIA_SCALE.0.ln(), INERTIA_SCALE.1.ln())).exp();
+        let scale = within((self.torque_scale_min, 1.0));
+        s.plant.torque_limit_nm = (self.torque_scale_min < 1.0).then_some(tau * scale);
+        s.sensing.preset = self.sensing[i as usize % self.sensing.len()];
+        s
+    }
+
+    /// Every scenario of `part`, in index order.
+    pub fn scenarios(&self, part: Part) -> Vec<Scenario> {
+        (0..self.len(part) as u64)
+            .map(|i| self.scenario(part, i))
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn set(robot: Robot) -> TuneSet {
+        TuneSet {
+            robot,
+            sensing: vec![Sensing::Mocap, Sensing::Imu],
+            seed: 1,
+            training: 50,
+            validation: 50,
+            torque_scale_min: 0.5,
+            duration_s: 40.0,
+        }
+    }
+
+    #[test]
+    fn validation_seeds_are_disjoint_from_training_seeds() {
+        let s = set(Robot::paper());
+        let train: std::collections::BTreeSet<u64> =
+            (0..1000).map(|i| s.seed_of(Part::Training, i)).collect();
+        assert_eq!(train.len(), 1000);
+        for i in 0..1000 {
+            assert!(!train.contains(&s.seed_of(Part::Validation, i)));
+        }
+    }
+
+    #[test]
+    fn draws_stay_in_their_ranges_and_presets_alternate() {
+        let s = set(Robot::paper());
+        s.validate().unwrap();
+        for i in 0..50 {
+            let c = s.scenario(Part::Validation, i);
+            let p = &c.perturbations;
+            assert!(p.beta > 0.0 && p.beta < 0.2);
+            assert!(p.eps >= 0.125 && p.eps < 0.25);
+            assert!((0.025..0.1).contains(&p.skid_scale));
+            assert!((0.5..1.5).contains(&p.disturbance_nm));
+            assert!((0.8..1.2).contains(&c.plant.mass_scale));
+            assert!((0.6..1.6).contains(&c.plant.inertia_scale));
+            let t = c.plant.torque_limit_nm.unwrap();
+            assert!((5.0..=10.0).contains(&t));
+            let want = [Sensing::Mocap, Sensing::Imu][i as usize % 2];
+            assert_eq!(c.sensing.preset, want);
+            assert_eq!(c, s.scenario(Part::Validation, i));
+            c.validate().unwrap();
+        }
+    }
+
+    #[test]
+    fn slow_robots_track_the_circle() {
+        let text = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robots/tb6612-2kg.toml"
+        ))
+        .unwrap();
+        let s = set(Robot::from_toml_str(&text).unwrap());
+        assert!(!s.paper_curve());
+        let c = s.scenario(Part::Training, 0);
+        assert_eq!(c.trajectory, crate::scenario::TrajectoryKind::Circle);
+        assert!(set(Robot::paper()).paper_curve());
+        c.validate().unwrap();
+    }
+}
