@@ -733,6 +733,7 @@ impl Bridge {
             &cov,
             p.header.stamp.to_ns(),
             arrival,
+            self.last_log_frame.map(|f| f.sample.pose[2]),
         ) {
             Ok(r) => r,
             Err(r) => {

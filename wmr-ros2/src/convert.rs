@@ -116,7 +116,7 @@ pub fn std_dev_of_g(
             s[0][0], s[1][1], s[2][2]
         )));
     }
-    let yaw_known = s[2][2] < 1e6;
+    let yaw_known = s[2][2] < UNKNOWN_VARIANCE;
     let (sn, cs) = theta_rad.sin_cos();
     let d = geometry.com_offset_m;
     let j = [[1.0, 0.0, -d * sn], [0.0, 1.0, d * cs], [0.0, 0.0, 1.0]];
@@ -152,11 +152,17 @@ pub fn std_dev_of_g(
     Ok([sx as f32, sy as f32, st as f32])
 }
 
+/// A yaw variance this large is REP-105's "unknown": the pose carries a
+/// position only \[rad²\].
+pub const UNKNOWN_VARIANCE: f64 = 1e6;
+
 /// The `ExternalPose` request of a localiser's pose of `base_link` with
 /// its covariance, taken at ROS time `stamp_ns` (Unix ns; 0 = not stamped:
 /// stamped on arrival), arrived at host time `arrival_us` (µs since the
 /// clock's t0): G's pose, G's standard deviations and the stamp in robot
-/// time through the link's clock sync.
+/// time through the link's clock sync. A position-only pose (yaw variance
+/// ≥ [`UNKNOWN_VARIANCE`]) has no heading to put G d ahead along: the
+/// robot's own heading estimate `heading_rad` is used (when known).
 pub fn external_pose_request(
     geometry: &Geometry,
     clock: &PoseClock,
@@ -164,8 +170,14 @@ pub fn external_pose_request(
     cov: &[f64; 36],
     stamp_ns: u64,
     arrival_us: u64,
+    heading_rad: Option<f64>,
 ) -> Result<Request, Refusal> {
-    let b = planar(pose)?;
+    let mut b = planar(pose)?;
+    if cov[35] >= UNKNOWN_VARIANCE {
+        if let Some(h) = heading_rad.filter(|h| h.is_finite()) {
+            b[2] = h;
+        }
+    }
     let std_dev = std_dev_of_g(geometry, cov, b[2])?;
     let capture = if stamp_ns == 0 {
         Capture::Arrival
@@ -456,8 +468,16 @@ mod tests {
         cov[35] = 1e-2;
         let arrival_us = 2_000_000; // host µs since t0
         let stamp_ns = unix_t0_ns + (arrival_us - 80_000) * 1000;
-        let r = external_pose_request(&g, &clock, &pose(1.0, 2.0, 0.0), &cov, stamp_ns, arrival_us)
-            .unwrap();
+        let r = external_pose_request(
+            &g,
+            &clock,
+            &pose(1.0, 2.0, 0.0),
+            &cov,
+            stamp_ns,
+            arrival_us,
+            Some(1.0),
+        )
+        .unwrap();
         let Request::ExternalPose {
             t_robot_us,
             pose: p,
@@ -469,5 +489,29 @@ mod tests {
         assert_eq!(t_robot_us, (arrival_us - 80_000 + 4_000_000) as u32);
         assert!((p.x_m - 1.05).abs() < 1e-6 && (p.y_m - 2.0).abs() < 1e-6);
         assert!((std_dev[2] - 0.1).abs() < 1e-6);
+        // Position only: G is d ahead along the robot's own heading, not
+        // along the message's meaningless orientation.
+        cov[35] = UNKNOWN_VARIANCE;
+        let r = external_pose_request(
+            &g,
+            &clock,
+            &pose(1.0, 2.0, 0.0),
+            &cov,
+            0,
+            arrival_us,
+            Some(std::f64::consts::FRAC_PI_2),
+        )
+        .unwrap();
+        let Request::ExternalPose {
+            pose: p, std_dev, ..
+        } = r
+        else {
+            panic!()
+        };
+        assert!(
+            (p.x_m - 1.0).abs() < 1e-6 && (p.y_m - 2.05).abs() < 1e-6,
+            "{p:?}"
+        );
+        assert_eq!(std_dev[2], 0.0);
     }
 }

@@ -10,6 +10,7 @@ use ros2_client::{
 use serde::Serialize;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 use wmr_ros2::bridge::{self, Bridge, Config, Fatal, Outcome};
 use wmr_ros2::msg::{
@@ -85,9 +86,25 @@ struct Args {
     /// Also log what is bridged to this MCAP file (the `wmr record --mcap` format).
     #[arg(long)]
     mcap: Option<PathBuf>,
-    /// Run this long, then disarm and exit 0 [s] (default: until the link fails).
+    /// Run this long, then disarm and exit 0 [s] (default: until SIGINT/SIGTERM, which also disarm and exit 0, or a link failure, exit 1).
     #[arg(long)]
     for_s: Option<f64>,
+}
+
+/// Set by SIGINT or SIGTERM: the bridge ends on purpose.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_: libc::c_int) {
+    STOP.store(true, Ordering::Relaxed);
+}
+
+fn catch_signals() {
+    let h = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+    // SAFETY: the handler only stores to an atomic (async-signal-safe).
+    unsafe {
+        libc::signal(libc::SIGINT, h);
+        libc::signal(libc::SIGTERM, h);
+    }
 }
 
 fn leak(s: &str) -> &'static str {
@@ -244,10 +261,12 @@ fn run(a: &Args) -> Result<(), String> {
         limits.max_yaw_rate_radps,
         if a.enable { "enabled" } else { "disabled until the arm service" }
     );
+    catch_signals();
     let started = Instant::now();
     let r: Result<(), Fatal> = (|| loop {
-        if a.for_s
-            .is_some_and(|s| started.elapsed().as_secs_f64() >= s)
+        if STOP.load(Ordering::Relaxed)
+            || a.for_s
+                .is_some_and(|s| started.elapsed().as_secs_f64() >= s)
         {
             return Ok(());
         }
