@@ -526,6 +526,7 @@ def main(mcap_path):
         fail(f"the path was tracked {dev:.4f} m from it (tolerance {TRACK_TOL_M} m)")
     if end_err > END_TOL_M:
         fail(f"the run ended {end_err:.4f} m from the path's end (tolerance {END_TOL_M} m)")
+    ros.path_run = (ns(run[0].header.stamp), ns(run[-1].header.stamp), dev, end_err)
     if vmax > limits["max_speed_mps"] * limits["path_limit_fraction"] * 1.1:
         fail(f"the path ran at {vmax:.3f} m/s, beyond {limits['path_limit_fraction']} of the limit {limits['max_speed_mps']}")
 
@@ -604,6 +605,18 @@ def check_against_log(ros, d, mcap_path):
             track[m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec] = m
     if not track:
         fail(f"{mcap_path}: no /wmr/tracking")
+    # the path: tracked as accurately as the robot itself reports (its
+    # reference vs its estimate of G, pos_err_m), plus the geometry between
+    # the base path and G's (d^2/R = 4 mm on the 0.6 m arc) and 5 mm
+    t0, t1, dev, end_err = ros.path_run
+    errs = [m.pos_err_m for t, m in track.items() if t0 <= t <= t1 and m.state == 1]
+    if len(errs) < 50:
+        fail(f"only {len(errs)} running frames of the path in the log")
+    own = max(errs)
+    allowed = own + d * d / 0.6 + 0.005
+    log(f"path: /odom within {dev * 1000:.1f} mm of the path; the robot's own tracking error up to {own * 1000:.1f} mm (allowed {allowed * 1000:.1f} mm)")
+    if dev > allowed:
+        fail(f"the path was tracked {dev * 1000:.1f} mm from it, beyond the robot's own tracking error {own * 1000:.1f} mm + {(allowed - own) * 1000:.1f} mm")
     odom = ros.odom_all
     matched = 0
     worst = 0.0

@@ -15,7 +15,10 @@ fail() { echo "ros2 interop: FAIL: $*" >&2; exit 1; }
 
 if [ -z "${WMR_ROS2_IN_NETNS:-}" ]; then
     command -v unshare >/dev/null || fail "unshare (util-linux) not found"
-    command -v ip >/dev/null || fail "ip (iproute2) not found"
+    if ! command -v ip >/dev/null; then
+        apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq iproute2 ||
+            fail "apt-get install iproute2 (the namespace's loopback needs ip)"
+    fi
     VENV="${ROS2_CHECK_VENV:-$ROOT/target/ros2-check-venv}"
     want="$CYCLONEDDS_VERSION $MCAP_VERSION $ROSBAGS_VERSION"
     if ! "$VENV/bin/python" -c "import cyclonedds, mcap, rosbags" 2>/dev/null ||
