@@ -15,7 +15,8 @@ Steps (each fails loudly, exit 1 with the reason):
     /odom's twist and the motion of its poses match v and w;
  5. a silent cmd_vel publisher: the robot is at rest within its command
     timeout plus its braking bound (both read from /diagnostics), and
-    /diagnostics reports the VelocityTimeout stop;
+    /diagnostics reports the VelocityTimeout stop; a command stamped 2 s
+    ago (delayed) is refused and does not restart it;
  6. a nav_msgs/Path without times (a line and an arc, from the current
     pose) is profiled, uploaded and tracked: /odom stays within TRACK_TOL_M
     of the path and ends within END_TOL_M of its end, at speeds within the
@@ -346,10 +347,10 @@ class Ros:
             self.spin(0.02)
         fail(f"service /wmr/{service}: no response within {timeout} s")
 
-    def send_twist(self, v, w):
+    def send_twist(self, v, w, age_s=0.0):
         self.cmd_vel.write(
             TwistStamped(
-                header=Header(stamp=stamp_now(), frame_id="base_link"),
+                header=Header(stamp=stamp_now(-age_s), frame_id="base_link"),
                 twist=Twist(linear=Vector3(v, 0.0, 0.0), angular=Vector3(0.0, 0.0, w)),
             )
         )
@@ -465,17 +466,26 @@ def main(mcap_path):
 
     # 5. silent publisher: at rest within the timeout plus the braking bound
     brake = max(v_cmd / limits["brake_decel_mps2"], w_cmd / limits["ang_accel_radps2"])
-    bound = cmd_timeout_s + brake + 0.05  # + a telemetry period and the clock sync's error
+    # + two telemetry periods (the hold is seen on the next frame) and 0.1 s
+    # for the last command's way from this process to the robot (DDS, the
+    # bridge's loop, the link) on a loaded 2-core machine
+    rate_hz = float(bridge.get("rate_hz", "50"))
+    bound = cmd_timeout_s + brake + 2.0 / rate_hz + 0.1
     def stopped_diag():
+        """The /diagnostics of the robot's last transition to hold after the
+        last command (a later run would show as a state other than hold)."""
+        after = []
         for _, d in ros.diag:
             if ns(d.header.stamp) <= last_cmd * 1e9:
                 continue
             for st in d.status:
-                vals = {kv.key: kv.value for kv in st.values}
-                if st.name == "wmr: robot" and vals.get("state") == "Hold":
-                    return d, vals
-        return None
+                if st.name == "wmr: robot":
+                    after.append((d, {kv.key: kv.value for kv in st.values}))
+        last_other = max((i for i, (_, v) in enumerate(after) if v["state"] != "Hold"), default=-1)
+        holds = after[last_other + 1:]
+        return holds[0] if holds else None
     ros.wait_for("/diagnostics: hold after the last cmd_vel", lambda: stopped_diag() is not None, bound + 5.0)
+    ros.spin(1.0)  # a late command would have restarted it by now
     d_stop, vals = stopped_diag()
     t_stop = ns(d_stop.header.stamp) * 1e-9 - last_cmd
     if vals["last_stop"] != "VelocityTimeout":
@@ -492,7 +502,20 @@ def main(mcap_path):
     yaw_rate = abs(wrap(p_after[2] - p_stop[2])) / 0.5
     if drift > 5e-3 or yaw_rate > 0.1:
         fail(f"the robot still moves after its stop: base_link {drift * 1000:.1f} mm in 0.5 s, yaw {yaw_rate:.3f} rad/s")
-    log(f"silent cmd_vel: hold (VelocityTimeout) {t_stop:.3f} s after the last command (bound {bound:.3f} s: timeout {cmd_timeout_s} s + braking {brake:.3f} s + 0.05 s); after it base_link drifts {drift * 1000:.1f} mm in 0.5 s, yaw coasts at {yaw_rate:.3f} rad/s")
+    log(f"silent cmd_vel: hold (VelocityTimeout) {t_stop:.3f} s after the last command (bound {bound:.3f} s: timeout {cmd_timeout_s} s + braking {brake:.3f} s + 2 frames + 0.1 s delivery); after it base_link drifts {drift * 1000:.1f} mm in 0.5 s, yaw coasts at {yaw_rate:.3f} rad/s")
+
+    # a command delayed beyond the timeout (stamped 2 s ago) does not restart it
+    stale0 = int(ros.fresh_values()[1]["cmd_vel_stale"])
+    p0 = ros.pose()
+    for _ in range(5):
+        ros.send_twist(0.3, 0.0, age_s=2.0)
+        ros.spin(0.05)
+    ros.spin(0.3)
+    robot, bridge = ros.fresh_values()
+    moved = math.hypot(ros.pose()[0] - p0[0], ros.pose()[1] - p0[1])
+    if int(bridge["cmd_vel_stale"]) - stale0 < 5 or robot["state"] != "Hold" or moved > 0.01:
+        fail(f"stale cmd_vel: {int(bridge['cmd_vel_stale']) - stale0} of 5 refused as stale, state {robot['state']}, moved {moved * 1000:.1f} mm")
+    log("cmd_vel stamped 2 s ago: refused as stale, the robot stays at rest")
 
     # 6. a path without times, from the current pose: 0.8 m straight, a quarter arc of radius 0.6 m
     x0, y0, th0 = ros.pose()

@@ -53,7 +53,7 @@ until [ -s "$OUT/dev.out" ]; do
     sleep 0.1
 done
 PTY="$(head -1 "$OUT/dev.out")"
-"$ROOT/target/release/wmr-ros2" --port "$PTY" --service-mapping cyclone --mcap "$OUT/bridge.mcap" \
+"$ROOT/target/release/wmr-ros2" --port "$PTY" --service-mapping cyclone --cmd-timeout-ms 500 --mcap "$OUT/bridge.mcap" \
     --for-s 110 2>"$OUT/bridge.err" &
 BRIDGE_PID=$!
 sleep 0.5

@@ -141,6 +141,8 @@ pub struct Stats {
     pub cmd_vel: u64,
     /// Forwarded to the robot and acknowledged.
     pub cmd_vel_forwarded: u64,
+    /// Refused as stale (stamped longer ago than the command timeout).
+    pub cmd_vel_stale: u64,
     /// Scaled down to the robot's limits (curvature kept).
     pub cmd_vel_scaled: u64,
     /// Not forwarded or refused (see `last_refusal`).
@@ -220,6 +222,13 @@ fn status(link: &mut Link) -> Result<wmr_protocol::StatusMsg, Fatal> {
         Reply::Status { status, .. } => Ok(status),
         r => Err(Fatal::Link(LinkError::Unexpected(format!("{r:?}")))),
     }
+}
+
+/// A command stamped at `stamp_ns` is stale at `now_ns` when older than
+/// the command timeout (a stamp in the future is not: clocks differ a
+/// little between hosts).
+pub fn stale(stamp_ns: u64, now_ns: u64, cmd_timeout_ms: u16) -> bool {
+    now_ns.saturating_sub(stamp_ns) > cmd_timeout_ms as u64 * 1_000_000
 }
 
 fn nack_reason(e: &LinkError) -> Option<ErrorCode> {
@@ -337,6 +346,11 @@ impl Bridge {
         }
         let b = self.best_sync();
         self.clock = PoseClock::from_sync(b, self.unix_t0_ns, self.period_s);
+        // Stamps follow the robot's clock as it drifts against the host's
+        // (50 ppm is 0.18 s an hour): the map is re-anchored at the best
+        // recent sync (recent: within the clock's half range of 35 min,
+        // so its wrap count starts right).
+        self.time_map = TimeMap::new(b.robot_us as u32, self.unix_t0_ns + b.host_mid_us * 1000);
         self.last_sync = Instant::now();
         Ok(())
     }
@@ -454,7 +468,9 @@ impl Bridge {
         kv("cmd_vel_forwarded", s.cmd_vel_forwarded.to_string());
         kv("cmd_vel_scaled", s.cmd_vel_scaled.to_string());
         kv("cmd_vel_refused", s.cmd_vel_refused.to_string());
+        kv("cmd_vel_stale", s.cmd_vel_stale.to_string());
         kv("cmd_timeout_ms", self.cfg.cmd_timeout_ms.to_string());
+        kv("rate_hz", self.cfg.rate_hz.to_string());
         kv("max_speed_mps", self.limits.max_speed_mps.to_string());
         kv(
             "max_yaw_rate_radps",
@@ -523,10 +539,24 @@ impl Bridge {
         }
     }
 
-    /// A `cmd_vel` (a `Twist`, or a `TwistStamped`'s twist).
-    pub fn cmd_vel(&mut self, tw: &Twist) -> Outcome {
+    /// A `cmd_vel`: a `Twist` (`stamp_ns` `None`), or a `TwistStamped`'s
+    /// twist and stamp (Unix ns; 0 = not stamped). A stamped command older
+    /// than the command timeout is refused: a command delayed on its way
+    /// (a starved host, a DDS backlog) must not restart a robot that has
+    /// already stopped because it was late.
+    pub fn cmd_vel(&mut self, tw: &Twist, stamp_ns: Option<u64>) -> Outcome {
         self.stats.cmd_vel += 1;
-        let r = self.cmd_vel_inner(tw);
+        let r = match stamp_ns.filter(|s| *s != 0) {
+            Some(s) if stale(s, ros_mcap::unix_now_ns(), self.cfg.cmd_timeout_ms) => {
+                self.stats.cmd_vel_stale += 1;
+                Ok(self.refuse(Refusal::WrongState(format!(
+                    "stale: stamped {:.0} ms ago, beyond the command timeout of {} ms",
+                    ros_mcap::unix_now_ns().saturating_sub(s) as f64 * 1e-6,
+                    self.cfg.cmd_timeout_ms
+                ))))
+            }
+            _ => self.cmd_vel_inner(tw),
+        };
         match &r {
             Ok(Ok(_)) => self.stats.cmd_vel_forwarded += 1,
             Ok(Err(_)) => self.stats.cmd_vel_refused += 1,
@@ -861,5 +891,29 @@ impl Bridge {
             selection: TELEMETRY_ALL,
             rate_hz: 0,
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_commands_are_those_older_than_the_timeout() {
+        let now = 1_764_632_000_000_000_000u64;
+        assert!(!stale(now - 299_000_000, now, 300));
+        assert!(stale(now - 301_000_000, now, 300));
+        // From the future (another host's clock ahead): not stale.
+        assert!(!stale(now + 50_000_000, now, 300));
+    }
+
+    #[test]
+    fn settings_are_checked() {
+        assert!(Config::new(50, 300, 0.05, 0.8, false).is_ok());
+        assert!(Config::new(0, 300, 0.05, 0.8, false).is_err());
+        assert!(Config::new(50, 0, 0.05, 0.8, false).is_err());
+        assert!(Config::new(50, 6000, 0.05, 0.8, false).is_err());
+        assert!(Config::new(50, 300, 0.05, 0.0, false).is_err());
+        assert!(Config::new(50, 300, 0.05, f64::NAN, false).is_err());
     }
 }

@@ -263,6 +263,7 @@ fn run(a: &Args) -> Result<(), String> {
     );
     catch_signals();
     let started = Instant::now();
+    let mut last_note: Option<(String, Instant)> = None;
     let r: Result<(), Fatal> = (|| loop {
         if STOP.load(Ordering::Relaxed)
             || a.for_s
@@ -280,11 +281,15 @@ fn run(a: &Args) -> Result<(), String> {
         let mut notes = Vec::new();
         loop {
             let tw = match &cmd_vel {
-                CmdVelSub::Stamped(s) => s.take().ok().flatten().map(|(m, _)| m.twist),
-                CmdVelSub::Plain(s) => s.take().ok().flatten().map(|(m, _)| m),
+                CmdVelSub::Stamped(s) => s
+                    .take()
+                    .ok()
+                    .flatten()
+                    .map(|(m, _)| (m.twist, Some(m.header.stamp.to_ns()))),
+                CmdVelSub::Plain(s) => s.take().ok().flatten().map(|(m, _)| (m, None)),
             };
-            let Some(tw) = tw else { break };
-            notes.extend(report("cmd_vel", b.cmd_vel(&tw))?);
+            let Some((tw, stamp)) = tw else { break };
+            notes.extend(report("cmd_vel", b.cmd_vel(&tw, stamp))?);
         }
         while let Ok(Some((p, _))) = path_sub.take() {
             notes.extend(report("path", b.path(&p))?);
@@ -320,7 +325,14 @@ fn run(a: &Args) -> Result<(), String> {
             }
         }
         for n in notes {
-            eprintln!("wmr-ros2: refused {n}");
+            // The same refusal again (a publisher at 20 Hz): once every 5 s.
+            if last_note
+                .as_ref()
+                .is_none_or(|(m, t)| *m != n || t.elapsed() >= Duration::from_secs(5))
+            {
+                eprintln!("wmr-ros2: refused {n}");
+                last_note = Some((n, Instant::now()));
+            }
         }
     })();
     if let Some(l) = log {
