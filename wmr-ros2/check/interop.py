@@ -171,6 +171,15 @@ class DiagnosticArray(IdlStruct, typename="diagnostic_msgs::msg::dds_::Diagnosti
 
 
 @dataclass
+class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
+    header: Header
+    name: sequence[str]
+    position: sequence[float64]
+    velocity: sequence[float64]
+    effort: sequence[float64]
+
+
+@dataclass
 class TwistStamped(IdlStruct, typename="geometry_msgs::msg::dds_::TwistStamped_"):
     header: Header
     twist: Twist
@@ -254,9 +263,10 @@ class Ros:
         self.odom = []  # every Odometry received, in order
         self.tf = []
         self.diag = []  # (arrival, DiagnosticArray)
+        self.joints = []
         self.guid = list(os.urandom(8))
         self.seq = 0
-        for name, ty in (("odom", Odometry), ("tf", TFMessage), ("diagnostics", DiagnosticArray)):
+        for name, ty in (("odom", Odometry), ("tf", TFMessage), ("diagnostics", DiagnosticArray), ("joint_states", JointState)):
             self.readers[name] = DataReader(self.dp, Topic(self.dp, f"rt/{name}", ty), qos=RELIABLE)
         self.cmd_vel = DataWriter(self.dp, Topic(self.dp, "rt/cmd_vel", TwistStamped), qos=RELIABLE)
         self.path = DataWriter(self.dp, Topic(self.dp, "rt/wmr/path", Path), qos=RELIABLE)
@@ -283,6 +293,8 @@ class Ros:
                 self.odom.append(m)
             for m in self.readers["tf"].take(N=1000):
                 self.tf.append(m)
+            for m in self.readers["joint_states"].take(N=1000):
+                self.joints.append(m)
             for m in self.readers["diagnostics"].take(N=100):
                 self.diag.append((time.time(), m))
             if time.monotonic() >= end:
@@ -433,6 +445,28 @@ def main(mcap_path):
     ros.wait_for("/odom at the /initialpose pose", at_want, 3.0)
     log(f"/initialpose {want}: /odom reports {ros.pose()}")
 
+    # 7 (run here, before any motion: the simulated robot coasts after a stop).
+    # localiser poses, 80 ms old, offset 8 cm in x from /odom: fused
+    x, y, th = ros.pose()
+    target = (x + 0.08, y, th)
+    robot, _ = ros.fresh_values()
+    fused0 = int(robot["external_poses"])
+    for _ in range(30):
+        ros.localiser.write(ros.pose_msg(*target, (0.03 ** 2, 0.03 ** 2, 0, 0, 0, 1e6), stamp_now(-0.08), frame="map"))
+        ros.spin(0.1)
+    ros.spin(0.5)
+    p = ros.pose()
+    robot, bridge = ros.fresh_values()
+    fused = int(robot["external_poses"]) - fused0
+    log(f"localiser: {bridge['localiser_poses']}; robot fused {fused}; /odom x {x:.4f} -> {p[0]:.4f} (poses at {target[0]:.4f}: {(p[0] - x) / 0.08:.0%} of the way)")
+    if fused < 20:
+        fail(f"the robot fused {fused} of 30 localiser poses")
+    # the estimator weighs 30 fixes of sigma 3 cm against its odometry: it
+    # moves most of the way (not all: its own estimate keeps a weight)
+    frac = (p[0] - x) / 0.08
+    if not 0.75 <= frac <= 1.1 or abs(p[1] - target[1]) > 0.01:
+        fail(f"/odom {p} did not move to the localiser's pose {target} ({frac:.0%} of the 8 cm)")
+
     # 4. arm, then drive
     if not ros.call("arm").success:
         fail("the arm service failed")
@@ -492,17 +526,21 @@ def main(mcap_path):
         fail(f"the robot stopped with {vals['last_stop']}, not VelocityTimeout")
     if t_stop > bound:
         fail(f"the robot came to rest {t_stop:.3f} s after the last cmd_vel, beyond its bound {bound:.3f} s (timeout {cmd_timeout_s} s + braking {brake:.3f} s)")
-    # motors off (hold). The simulated plant has no friction with the
-    # motors off, so a residual yaw rate left at the cut coasts on (about
-    # 0.07 rad/s here, docs/ros2.md); the axle must not drive on.
+    # motors off from the hold on: zero torque on every /joint_states after it
+    t_hold = ns(d_stop.header.stamp)
+    after = [j for j in ros.joints if ns(j.header.stamp) >= t_hold]
+    if len(after) < 10:
+        fail(f"only {len(after)} /joint_states after the hold")
+    if any(abs(e) > 1e-9 for j in after for e in j.effort):
+        fail("torque on the wheels after the hold: " + str(next(j.effort for j in after if any(abs(e) > 1e-9 for e in j.effort))))
+    # The simulated plant has no friction with the motors off: what motion is
+    # left at the cut coasts on (docs/ros2.md, known limits): reported.
     p_stop = ros.pose()
     ros.spin(0.5)
     p_after = ros.pose()
     drift = math.hypot(p_after[0] - p_stop[0], p_after[1] - p_stop[1])
     yaw_rate = abs(wrap(p_after[2] - p_stop[2])) / 0.5
-    if drift > 5e-3 or yaw_rate > 0.1:
-        fail(f"the robot still moves after its stop: base_link {drift * 1000:.1f} mm in 0.5 s, yaw {yaw_rate:.3f} rad/s")
-    log(f"silent cmd_vel: hold (VelocityTimeout) {t_stop:.3f} s after the last command (bound {bound:.3f} s: timeout {cmd_timeout_s} s + braking {brake:.3f} s + 2 frames + 0.1 s delivery); after it base_link drifts {drift * 1000:.1f} mm in 0.5 s, yaw coasts at {yaw_rate:.3f} rad/s")
+    log(f"silent cmd_vel: hold (VelocityTimeout) {t_stop:.3f} s after the last command (bound {bound:.3f} s: timeout {cmd_timeout_s} s + braking {brake:.3f} s + 2 frames + 0.1 s delivery); motors off ({len(after)} /joint_states with zero torque); the simulated plant coasts on at {drift / 0.5 * 1000:.0f} mm/s, {yaw_rate:.3f} rad/s")
 
     # a command delayed beyond the timeout (stamped 2 s ago) does not restart it
     stale0 = int(ros.fresh_values()[1]["cmd_vel_stale"])
@@ -512,10 +550,11 @@ def main(mcap_path):
         ros.spin(0.05)
     ros.spin(0.3)
     robot, bridge = ros.fresh_values()
-    moved = math.hypot(ros.pose()[0] - p0[0], ros.pose()[1] - p0[1])
-    if int(bridge["cmd_vel_stale"]) - stale0 < 5 or robot["state"] != "Hold" or moved > 0.01:
-        fail(f"stale cmd_vel: {int(bridge['cmd_vel_stale']) - stale0} of 5 refused as stale, state {robot['state']}, moved {moved * 1000:.1f} mm")
-    log("cmd_vel stamped 2 s ago: refused as stale, the robot stays at rest")
+    if int(bridge["cmd_vel_stale"]) - stale0 < 5 or robot["state"] != "Hold":
+        fail(f"stale cmd_vel: {int(bridge['cmd_vel_stale']) - stale0} of 5 refused as stale, state {robot['state']}")
+    if any(abs(e) > 1e-9 for j in ros.joints if ns(j.header.stamp) >= t_hold for e in j.effort):
+        fail("stale cmd_vel: torque on the wheels")
+    log("cmd_vel stamped 2 s ago: refused as stale, the robot stays in hold, motors off")
 
     # 6. a path without times, from the current pose: 0.8 m straight, a quarter arc of radius 0.6 m
     x0, y0, th0 = ros.pose()
@@ -553,24 +592,6 @@ def main(mcap_path):
     if vmax > limits["max_speed_mps"] * limits["path_limit_fraction"] * 1.1:
         fail(f"the path ran at {vmax:.3f} m/s, beyond {limits['path_limit_fraction']} of the limit {limits['max_speed_mps']}")
 
-    # 7. localiser poses, 80 ms old, offset 8 cm in x from /odom: fused
-    x, y, th = ros.pose()
-    target = (x + 0.08, y, th)
-    robot, _ = ros.fresh_values()
-    fused0 = int(robot["external_poses"])
-    for _ in range(30):
-        ros.localiser.write(ros.pose_msg(*target, (0.03 ** 2, 0.03 ** 2, 0, 0, 0, 1e6), stamp_now(-0.08), frame="map"))
-        ros.spin(0.1)
-    ros.spin(0.5)
-    p = ros.pose()
-    robot, bridge = ros.fresh_values()
-    fused = int(robot["external_poses"]) - fused0
-    log(f"localiser: {bridge['localiser_poses']}; robot fused {fused}; /odom x {x:.4f} -> {p[0]:.4f} (poses at {target[0]:.4f})")
-    if fused < 20:
-        fail(f"the robot fused {fused} of 30 localiser poses")
-    if abs(p[0] - target[0]) > 0.01 or abs(p[1] - target[1]) > 0.01:
-        fail(f"/odom {p} did not move to the localiser's pose {target}")
-
     # 8. emergency stop, then clear
     if not ros.call("emergency_stop").success:
         fail("the emergency_stop service failed")
@@ -581,12 +602,12 @@ def main(mcap_path):
         ros.send_twist(0.3, 0.0)
         ros.spin(0.05)
     ros.spin(0.3)
-    moved = math.hypot(ros.pose()[0] - p0[0], ros.pose()[1] - p0[1])
     robot, bridge = ros.fresh_values()
     refused = int(bridge["cmd_vel_refused"]) - refused0
-    # 0.8 s at 0.3 m/s would be 24 cm; the coasting drift is a few mm/s
-    if moved > 0.02 or refused < 9 or robot["state"] != "Stopped":
-        fail(f"cmd_vel in a latched stop: moved {moved * 1000:.1f} mm, {refused} of 10 refused, state {robot['state']}")
+    t_estop = min(ns(d.header.stamp) for _, d in ros.diag if any(st.name == "wmr: robot" and {kv.key: kv.value for kv in st.values}.get("state") == "Stopped" for st in d.status))
+    torque = [e for j in ros.joints if ns(j.header.stamp) >= t_estop for e in j.effort]
+    if refused < 9 or robot["state"] != "Stopped" or any(abs(e) > 1e-9 for e in torque):
+        fail(f"cmd_vel in a latched stop: {refused} of 10 refused, state {robot['state']}, max torque {max(map(abs, torque), default=0)}")
     if ros.call("arm").success:
         fail("the arm service succeeded in a latched stop")
     if not ros.call("clear_stop").success:
