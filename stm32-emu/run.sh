@@ -33,6 +33,20 @@
 #       model of that mode (--bridge: the armature voltage from the pins,
 #       drive/brake/coast, src/bridge.rs), tracks it within REL_TOL_RMS of
 #       hil-sim's runtime path, as (b) does for pwm-dir;
+#   (k) the stack: the power-on paint's high-water marks of the tracking
+#       run, at boot and while running (painted again when the loop
+#       starts), each within STACK_MAX_FRACTION (75 %) of the stack;
+#   (l) the example robots (robots/paper, tb6612-2kg, bts7960-10kg), each
+#       pushed over the link to the image of its bridge mode with the
+#       harness's robot that file's (--robot), boot from flash and track
+#       the square for ROBOT_RECORD_S (4 s) within REL_TOL_ROBOT (5 %) of
+#       hil-sim's runtime path for that robot (device --robot FILE);
+#   (m) a robot pushed in hold while a sector erase stalls the CPU for
+#       the datasheet's maximum (2 s): the store aged until the next save
+#       erases (--flash-aged), the push succeeds and reads back, the
+#       watchdog (stretched to 8.2 s) does not fire, no overrun or stop
+#       latches, the link answers; the write time and the robot clock's
+#       loss printed;
 #   (j) a small reverse command gives a small reverse voltage in every mode
 #       (issue 18's lurch): `wmr drive --v -0.05` for 2 s; the largest
 #       armature voltage of either wheel stays within REVERSE_MAX_FRACTION
@@ -45,6 +59,7 @@
 # Usage: stm32-emu/run.sh       (from anywhere; builds what it needs)
 # Env:   OUT_DIR=<dir>  RECORD_S=10  REL_TOL_RMS=0.10  MAX_DROPPED_FRAMES=10
 #        FAULT_CUT_US=20  LINK_SILENCE_S=1.5  RATE_HZ=50  REVERSE_MAX_FRACTION=0.25
+#        STACK_MAX_FRACTION=0.75  ROBOT_RECORD_S=4  REL_TOL_ROBOT=0.05
 set -euo pipefail
 cd "$(dirname "$0")"
 ROOT="$(cd .. && pwd)"
@@ -59,6 +74,10 @@ MAX_DROPPED_FRAMES="${MAX_DROPPED_FRAMES:-10}"
 FAULT_CUT_US="${FAULT_CUT_US:-20}"
 LINK_SILENCE_S="${LINK_SILENCE_S:-1.5}"
 REVERSE_MAX_FRACTION="${REVERSE_MAX_FRACTION:-0.25}"
+STACK_MAX_FRACTION="${STACK_MAX_FRACTION:-0.75}"
+# Check (l): seconds of the square per example robot, and the tolerance.
+ROBOT_RECORD_S="${ROBOT_RECORD_S:-4}"
+REL_TOL_ROBOT="${REL_TOL_ROBOT:-0.05}"
 OUT_DIR="${OUT_DIR:-$(mktemp -d)}"
 mkdir -p "$OUT_DIR"
 TARGET=thumbv7em-none-eabihf
@@ -227,6 +246,27 @@ grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fa
 boots="$(grep -c "\] boot " "$LOG" || true)"
 [ "$boots" -eq 1 ] || fail "the image booted $boots times"
 
+step "(k) stack: the high-water marks of the tracking run (stack painted at power-on, again when the loop starts)"
+# Every word of the stack (flip-link: below .data/.bss, _stack_end.._stack_start)
+# holds a paint word at power-on; the lowest word overwritten is the deepest
+# the stack reached (boot: reset to the loop's start, main's frames; running:
+# the loop, the link and every interrupt on top, painted again at its start).
+# Fails beyond STACK_MAX_FRACTION of the stack: paths the run did not take
+# need the rest.
+stack_line="$(grep "alive (stack high-water" "$LOG" | tail -1)"
+[ -n "$stack_line" ] || fail "no stack high-water mark in the log (symbols _stack_start/_stack_end missing?)"
+read -r st_run st_boot st_size < <(sed -n 's/.*stack high-water \([0-9]*\) B running, \([0-9]*\) B at boot, of \([0-9]*\) B.*/\1 \2 \3/p' <<<"$stack_line")
+echo "stack: ${st_run} B running (the loop, the link, interrupts), ${st_boot} B at boot, of ${st_size} B"
+for what in run boot; do
+    used=$st_run
+    [ "$what" = boot ] && used=$st_boot
+    awk -v u="$used" -v s="$st_size" -v f="$STACK_MAX_FRACTION" 'BEGIN { exit !(u > 0 && u <= f * s) }' ||
+        fail "stack high-water ($what) $used B: not within $STACK_MAX_FRACTION of the $st_size B stack"
+done
+echo "OK: both within $STACK_MAX_FRACTION of the stack"
+STACK_RUN_B=$st_run
+STACK_BOOT_B=$st_boot
+
 step "(c) link silence"
 grep -q "last stop LinkSilence" <<<"$emu_st" || fail "no link-loss stop after $LINK_SILENCE_S s of silence: $emu_st"
 grep -q "state Running" <<<"$emu_st" && fail "still running after the host went silent"
@@ -235,17 +275,22 @@ tail_motor="$(grep -E "motors (off|driven)" "$LOG" | tail -1)"
 grep -q "motors off" <<<"$tail_motor" || fail "the motors are still driven after the link-loss stop"
 echo "OK: the firmware stopped the robot on link silence, motors off"
 
+# Starts `hil-sim device --pty` with args "$@"; sets EPID, PORT.
+start_hilsim() {
+    rm -f "$OUT_DIR/hilsim.out"
+    "$HILSIM" device --pty "$@" >"$OUT_DIR/hilsim.out" 2>"$OUT_DIR/hilsim.err" </dev/null &
+    EPID=$!
+    local t_end=$((SECONDS + 10))
+    until [ -s "$OUT_DIR/hilsim.out" ]; do
+        kill -0 "$EPID" 2>/dev/null || fail "hil-sim device exited: $(cat "$OUT_DIR/hilsim.err")"
+        [ "$SECONDS" -lt "$t_end" ] || fail "hil-sim device named no pty within 10 s"
+        sleep 0.1
+    done
+    PORT="$(head -1 "$OUT_DIR/hilsim.out")"
+}
+
 step "reference: hil-sim's runtime path behind the link, the same wmr commands"
-rm -f "$OUT_DIR/hilsim.out"
-"$HILSIM" device --pty --scenario reference.toml >"$OUT_DIR/hilsim.out" 2>"$OUT_DIR/hilsim.err" </dev/null &
-EPID=$!
-t_end=$((SECONDS + 10))
-until [ -s "$OUT_DIR/hilsim.out" ]; do
-    kill -0 "$EPID" 2>/dev/null || fail "hil-sim device exited: $(cat "$OUT_DIR/hilsim.err")"
-    [ "$SECONDS" -lt "$t_end" ] || fail "hil-sim device named no pty within 10 s"
-    sleep 0.1
-done
-PORT="$(head -1 "$OUT_DIR/hilsim.out")"
+start_hilsim --scenario reference.toml
 drive sim "$OUT_DIR/hilsim_square.csv"
 cleanup
 ref_rec="$rec"
@@ -382,6 +427,90 @@ if small_reverse "$peak_r" "$peak_l"; then
 fi
 echo "OK: control: the naive two-PWM mapping lurches (armature peaks right $peak_r, left $peak_l of the supply): the check rejects it"
 
+step "(l) the example robots, each pushed over the link (wmr robot push), track the square within $REL_TOL_ROBOT of hil-sim's runtime path for that robot"
+# The image of the robot's bridge mode (its compiled-in robot is the
+# paper's with that mode: a pushed robot with another [bridge] would be
+# refused at boot, firmware/src/store.rs), the harness's robot that robot
+# file's (--robot: body, friction, motors, encoders, bridge wiring), the
+# record pushed, read back and booted from flash; then the square for
+# ROBOT_RECORD_S s against `hil-sim device --robot FILE` with the same wmr
+# commands (stm32-emu/reference-robot.toml: the file's encoders and motors).
+declare -A ROBOT_MODE=([paper]=pwm-dir [tb6612-2kg]=pwm-in1-in2 [bts7960-10kg]=two-pwm)
+declare -A ROBOT_RMS
+for r in paper tb6612-2kg bts7960-10kg; do
+    file="$ROOT/robots/$r.toml"
+    start_emu --elf "${MODE_ELF[${ROBOT_MODE[$r]}]}" --robot "$file"
+    wait_for_log "IWDG started" 20
+    PORT="$PTY"
+    out="$(wmr robot push "$file" 2>&1)" || fail "$r: wmr robot push: $out"
+    echo "$out"
+    grep -q "runs \"$r\" from flash" <<<"$out" || fail "$r: the board did not boot the pushed robot from flash: $out"
+    wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "$r: wmr upload"
+    r_emu="$(wmr record --seconds "$ROBOT_RECORD_S" --rate "$RATE_HZ" --out "$OUT_DIR/robot_$r.csv" --arm --quiet)" ||
+        fail "$r: wmr record on the emulated board"
+    cleanup
+    grep -E "^\[stm32-emu.*(exception [0-9]+ entered|unmodelled|IWDG expired)" "$LOG" && fail "$r: a fault, unmodelled access or watchdog reset"
+    [ "$(grep -c "\] boot " "$LOG")" -eq 2 ] || fail "$r: expected exactly the push's reboot"
+    start_hilsim --scenario reference-robot.toml --robot "$file"
+    wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "$r: wmr upload (hil-sim)"
+    r_ref="$(wmr record --seconds "$ROBOT_RECORD_S" --rate "$RATE_HZ" --out "$OUT_DIR/robot_${r}_hilsim.csv" --arm --quiet)" ||
+        fail "$r: wmr record on hil-sim's device"
+    cleanup
+    a_rms="$(json rms_pos_err_m "$r_emu")"
+    b_rms="$(json rms_pos_err_m "$r_ref")"
+    [ -n "$a_rms" ] && [ -n "$b_rms" ] || fail "$r: no metrics in wmr record's summaries"
+    within_rel "$a_rms" "$b_rms" "$REL_TOL_ROBOT" ||
+        fail "$r: RMS $a_rms m on the emulated board, $b_rms m on hil-sim's runtime path: beyond $REL_TOL_ROBOT"
+    ROBOT_RMS[$r]="$a_rms/$b_rms"
+    echo "OK: $r (${ROBOT_MODE[$r]}): RMS $a_rms m emulated, $b_rms m hil-sim, over $ROBOT_RECORD_S s"
+done
+
+step "(m) a robot pushed in hold while a sector erase stalls the CPU (datasheet max: 2 s for 128 KB at x32)"
+# The store's sectors as the firmware's store code leaves them when the
+# next save must erase (--flash-aged: the record saved page after page),
+# the erase timed at the datasheet's maximum (--flash-timing max: 2 s; the
+# CPU stalls, every flash read waits, interrupts included). Measured: the
+# watchdog (stretched for the write, D78) does not fire, the loop's
+# schedule accounting afterwards (no overrun, no latch), the link (the
+# commit's answer arrives, the next request is answered), and how much
+# robot time (embassy's clock on 16-bit TIM5) the stall loses.
+start_emu --elf "$ELF446" --flash-aged --flash-timing max
+wait_for_log "IWDG started" 20
+PORT="$PTY"
+st0="$(wmr status)" || fail "(m) wmr status before the push"
+w0=$(date +%s.%N)
+r0="$(sed -n 's/.* time \([0-9.]*\) s,.*/\1/p' <<<"$st0" | head -1)"
+t_push0=$SECONDS
+out="$(wmr robot push --no-reboot "$ROOT/robots/paper.toml" 2>&1)" || fail "(m) wmr robot push during the erase: $out"
+echo "$out"
+grep -q "read back equal" <<<"$out" || fail "(m) the record was not read back equal: $out"
+st="$(wmr status)" || fail "(m) the link did not recover after the erase: no answer to wmr status"
+w1=$(date +%s.%N)
+echo "$st"
+cleanup
+r1="$(sed -n 's/.* time \([0-9.]*\) s,.*/\1/p' <<<"$st" | head -1)"
+grep -E "IWDG timeout after a feed now|flash: (sector erase|erase done)" "$LOG"
+grep -q "flash: sector erase 1 started, CPU stalled 2000.0 ms" "$LOG" || fail "(m) the push did not erase a sector (the aged store should need one)"
+grep -q "IWDG expired" "$LOG" && fail "(m) the watchdog fired during the write"
+grep -q "state Hold" <<<"$st" || fail "(m) not in hold after the write: $st"
+grep -q "last stop none" <<<"$st" || fail "(m) a stop latched across the write: $st"
+overruns="$(sed -n 's/.*overruns: \([0-9]*\),.*/\1/p' <<<"$st")"
+maxloop="$(sed -n 's/.*max_loop_time_us: \([0-9]*\),.*/\1/p' <<<"$st")"
+rxerr="$(sed -n 's/.*port rx errors \([0-9]*\).*/\1/p' <<<"$st")"
+[ "$overruns" = 0 ] || fail "(m) $overruns loop overruns counted across the write (LoopTimer::resync should forgive it)"
+stretch_t="$(grep "IWDG timeout after a feed now 8192.0 ms" "$LOG" | head -1 | sed -n 's/^\[stm32-emu t= *\([0-9.]*\) s\].*/\1/p')"
+restore_t="$(grep "IWDG timeout after a feed now 50.0 ms" "$LOG" | head -1 | sed -n 's/^\[stm32-emu t= *\([0-9.]*\) s\].*/\1/p')"
+erase_t="$(grep "flash: sector erase 1 started" "$LOG" | sed -n 's/^\[stm32-emu t= *\([0-9.]*\) s\].*/\1/p')"
+[ -n "$stretch_t" ] && [ -n "$restore_t" ] || fail "(m) the watchdog was not stretched and restored around the write"
+write_ms="$(awk -v a="$stretch_t" -v b="$restore_t" 'BEGIN { printf "%.0f", (b - a) * 1000 }')"
+before_ms="$(awk -v a="$stretch_t" -v b="$erase_t" 'BEGIN { printf "%.0f", (b - a) * 1000 }')"
+lost_ms="$(awk -v w0="$w0" -v w1="$w1" -v r0="$r0" -v r1="$r1" 'BEGIN { printf "%.0f", ((w1 - w0) - (r1 - r0)) * 1000 }')"
+WRITE_MS=$write_ms
+echo "OK: write ${write_ms} ms with the watchdog at 8192 ms (margin $((8192 - write_ms)) ms; ${before_ms} ms of store work before the 2000 ms erase), no reset;"
+echo "    after it: state Hold, last stop none, overruns $overruns, max loop time ${maxloop} us, port rx errors ${rxerr:-?};"
+echo "    link: the commit answered (wmr robot push took $((SECONDS - t_push0)) s wall), wmr status answered at once;"
+echo "    robot clock: ${lost_ms} ms behind the wall clock over the push (embassy's TIM5 wraps every 65.5 ms unserviced during the stall)"
+
 step "(h) telemetry beyond the line rate (wmr's default 100 Hz) over USART2: the link stays up"
 # One frame is about 160 B: 100 Hz is 16 kB/s against the 11.5 kB/s that
 # 115 200 baud carries. The excess must be dropped and counted on the robot
@@ -412,9 +541,13 @@ echo "headless, robot running the button's circle: 10 s emulated, $(json instruc
 echo "paced (pty) run: ${speed_pty}x of real time over the wmr session (<= 1 by design: paced to the wall clock)"
 
 echo
-echo "RESULT rms_pos_err_m=$rms ref_rms_pos_err_m=$ref_rms rows=$rows dropped=$dropped speed_x=$speed build_emu_s=$t_emu"
+echo "RESULT rms_pos_err_m=$rms ref_rms_pos_err_m=$ref_rms rows=$rows dropped=$dropped speed_x=$speed build_emu_s=$t_emu stack_running_b=$STACK_RUN_B stack_boot_b=$STACK_BOOT_B"
 for mode in pwm-dir two-pwm pwm-in1-in2; do
     echo "RESULT bridge=$mode rms_pos_err_m=${MODE_RMS[$mode]} reverse_armature_peak_r/l=${MODE_PEAK[$mode]}"
 done
+for r in paper tb6612-2kg bts7960-10kg; do
+    echo "RESULT robot=$r emulated/hil-sim_rms_pos_err_m=${ROBOT_RMS[$r]} record_s=$ROBOT_RECORD_S"
+done
+echo "RESULT erase_stall_ms=2000 write_ms=$WRITE_MS watchdog_ms=8192 overruns=$overruns robot_clock_lost_ms=$lost_ms"
 echo "RESULT bridge=naive-two-pwm reverse_armature_peak_r/l=$peak_r/$peak_l (control)"
 echo "stm32-emu: all checks passed in $((SECONDS - T_START)) s (logs: $OUT_DIR)"

@@ -58,7 +58,10 @@ fn main() -> ! {
     let mut estimator = config::ESTIMATOR;
     estimator.gyro_saturation_radps = sim::gyro_saturation_radps();
     let dev_cfg = DeviceConfig {
-        capabilities: config::CAPABILITIES | wmr_protocol::CAP_SIMULATED,
+        // No robot store here (no flash model): not the firmware's
+        // CAP_ROBOT_STORE, so `wmr robot push` says so.
+        capabilities: (config::CAPABILITIES & !wmr_protocol::CAP_ROBOT_STORE)
+            | wmr_protocol::CAP_SIMULATED,
         ..config::device(&robot, board::CHIP_ID)
     };
     let (device, timer, button) = match (

@@ -210,9 +210,14 @@ pub const IMU_MONITOR: robot_app::imu::MonitorConfig = robot_app::imu::MonitorCo
 /// when the robot has room).
 pub const BUTTON_REFERENCE: BuiltinReference = robot_app::DEFAULT_BUTTON_REFERENCE;
 
-/// What this firmware can do over the host link (handshake).
-pub const CAPABILITIES: u16 =
-    wmr_protocol::CAP_EXTERNAL_POSE | wmr_protocol::CAP_TRAJECTORY | wmr_protocol::CAP_VELOCITY;
+/// What this firmware can do over the host link (handshake). The robot
+/// store is always there (main.rs never arms without it): without
+/// `CAP_ROBOT_STORE` `wmr robot push/pull` refused every board (found by
+/// stm32-emu's push check).
+pub const CAPABILITIES: u16 = wmr_protocol::CAP_EXTERNAL_POSE
+    | wmr_protocol::CAP_TRAJECTORY
+    | wmr_protocol::CAP_VELOCITY
+    | wmr_protocol::CAP_ROBOT_STORE;
 
 /// The host link handler's configuration of `robot` (its link timeout and
 /// command limits) for the board named `chip` in the handshake (the

@@ -8,7 +8,6 @@
 
 use crate::closed_loop::{run_loop, trace_every, SimOutput};
 use crate::scenario::{Scenario, Sensing};
-use controller_core::runtime::StopReason;
 use controller_core::{ControllerConfig, ControllerKind};
 
 pub use crate::closed_loop::SensingReport;
@@ -19,8 +18,6 @@ pub use crate::sides::runtime::{sensing_estimator_config, HilOptions, RuntimeSid
 pub struct HilOutput {
     /// Trace and metrics, as for [`crate::run`].
     pub sim: SimOutput,
-    /// The first safe stop the runtime latched, if any: (step, reason).
-    pub stop: Option<(usize, StopReason)>,
     /// The estimator's status and the pose source's counters at the end.
     pub sensing: SensingReport,
 }
@@ -50,11 +47,7 @@ pub fn run_runtime(
         pose_source: world.pose_stats(),
     };
     sim.sensing = Some(sensing);
-    Ok(HilOutput {
-        sim,
-        stop: side.stop,
-        sensing,
-    })
+    Ok(HilOutput { sim, sensing })
 }
 
 /// Runs `scn` (a firmware sensing preset) with `kind` at the scenario's gains through

@@ -51,6 +51,7 @@ pub fn plot_trace(
         trace,
         metrics,
         rejected_steps: 0,
+        stop: None,
         sensing: None,
     };
     crate::plot::write_case_plots(dir, prefix, prefix, &scn, std::slice::from_ref(&run))

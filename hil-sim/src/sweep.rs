@@ -220,7 +220,7 @@ pub fn run_sweep(
                 rms_after5_m: mean(|m| m.rms_pos_err_after5_m),
                 stops: o
                     .iter()
-                    .filter(|r| r.metrics.safe_stop == Some(true))
+                    .filter(|r| r.stop.is_some() || r.metrics.safe_stop == Some(true))
                     .count(),
             }
         })

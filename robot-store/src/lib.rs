@@ -41,7 +41,10 @@ pub use wmr_protocol::{RobotFault, RobotSource, RobotValidator, ROBOT_BLOB_MAX};
 
 use core::ops::Range;
 use embedded_storage_async::nor_flash::NorFlash;
-use sequential_storage::cache::{Cache, Uncached};
+use sequential_storage::cache::key_pointers::ArrayKeyPointers;
+use sequential_storage::cache::page_pointers::ArrayPagePointers;
+use sequential_storage::cache::page_states::ArrayPageStates;
+use sequential_storage::cache::Cache;
 use sequential_storage::map::{MapConfig, MapStorage};
 
 /// The map key of the robot record.
@@ -104,14 +107,27 @@ pub enum StoreError {
 }
 
 /// The flash range is not usable as a store (not page-aligned, fewer than
-/// two pages, pages too small for a record).
+/// two or more than [`MAX_PAGES`] pages, pages too small for a record).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RangeError;
 
+/// Most pages a store may span (the cache's size; the firmware uses 2).
+pub const MAX_PAGES: usize = 8;
+
+/// sequential-storage's cache of page states, page pointers and the one
+/// key's location. Uncached, the save that fills a page and moves to the
+/// next (once per page-full of records: about 936 saves of a 140 B record
+/// in a 128 KiB page) searched the page for the newest item of each item
+/// it migrated, quadratic in the items: 1.07 s of a 3 GHz host, more than
+/// the stretched 8.2 s watchdog on the 168 MHz chip, so that save never
+/// finished (stm32-emu's check (m) found it; D105).
+type StoreCache =
+    Cache<ArrayPageStates<MAX_PAGES>, ArrayPagePointers<MAX_PAGES>, ArrayKeyPointers<u8, 1>, u8>;
+
 /// The robot record over flash `F` in `range`.
 pub struct RobotStore<F: NorFlash> {
-    map: MapStorage<u8, F, Cache<Uncached, Uncached, Uncached, u8>>,
+    map: MapStorage<u8, F, StoreCache>,
     buf: Aligned,
 }
 
@@ -123,9 +139,20 @@ impl<F: NorFlash> RobotStore<F> {
         if F::ERASE_SIZE < BUF_LEN + 64 {
             return Err(RangeError);
         }
+        if ((range.end.saturating_sub(range.start)) as usize) / F::ERASE_SIZE > MAX_PAGES {
+            return Err(RangeError);
+        }
         let cfg = MapConfig::<F>::try_new(range).map_err(|_| RangeError)?;
         Ok(Self {
-            map: MapStorage::new(flash, cfg, Cache::new_uncached()),
+            map: MapStorage::new(
+                flash,
+                cfg,
+                Cache::new(
+                    ArrayPageStates::new(),
+                    ArrayPagePointers::new(),
+                    ArrayKeyPointers::new(),
+                ),
+            ),
             buf: Aligned([0; BUF_LEN]),
         })
     }

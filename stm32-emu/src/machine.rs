@@ -10,6 +10,7 @@
 
 use crate::bridge::BridgeMode;
 use crate::elf::Image;
+use crate::periph::flash::{STORE_BASE, STORE_SIZE};
 use crate::periph::nvic::{exc, Nvic};
 use crate::periph::rcc::{Rcc, ResetCause};
 use crate::periph::timer::{Kind, Timer, Wave};
@@ -109,6 +110,12 @@ pub struct Stats {
     pub sleeps: u64,
     /// Watchdog feeds over all boots.
     pub feeds: u64,
+    /// Exceptions taken between two instructions of an IT block (EPSR.IT
+    /// nonzero at entry: stacked, cleared for the handler; D104).
+    pub taken_in_it_block: u64,
+    /// Lowest SP at an exception entry (after the frame) \[address\]:
+    /// the deepest the main stack was seen.
+    pub min_sp: u32,
 }
 
 /// Fault injection.
@@ -208,7 +215,24 @@ pub struct Board {
     pub usb_reached: Option<f64>,
     /// Address of the last unmodelled access (for the F411 USB stop).
     pub unmodelled_addr: Option<u32>,
+    /// The start addresses of the last [`TRACE_BLOCKS`] translation blocks
+    /// executed (a ring; [`Self::trace_dump`] after a failure).
+    trace: Vec<u32>,
+    trace_n: usize,
+    /// The last [`TRACE_EXCEPTIONS`] exception entries and returns.
+    exc_trace: std::collections::VecDeque<String>,
+    /// The loop has just started (the watchdog's first start this boot):
+    /// the run loop takes the boot's stack high-water mark and paints the
+    /// stack below SP again.
+    repaint_stack: bool,
+    /// CPU stall a flash operation asked for, not yet applied \[ps\].
+    flash_stall_ps: u128,
 }
+
+/// Blocks kept in the failure trace.
+pub const TRACE_BLOCKS: usize = 64;
+/// Exception entries/returns kept in the failure trace.
+pub const TRACE_EXCEPTIONS: usize = 24;
 
 fn bad(uc: &mut Unicorn<Board>, msg: String) {
     let d = uc.get_data_mut();
@@ -266,7 +290,63 @@ impl Board {
             peak_from_s: 0.0,
             usb_reached: None,
             unmodelled_addr: None,
+            trace: vec![0; TRACE_BLOCKS],
+            trace_n: 0,
+            exc_trace: std::collections::VecDeque::new(),
+            repaint_stack: false,
+            flash_stall_ps: 0,
         }
+    }
+
+    /// A program or erase just started: the CPU stalls for its duration
+    /// (every flash read waits while the array is busy); the run loop
+    /// applies it at the next block.
+    fn flash_stall(&mut self) {
+        let ps = self.flash.take_stall_ps();
+        if ps > 0 {
+            if ps >= 1_000_000_000 {
+                let ms = ps as f64 * 1e-9;
+                let n = self.flash.erases;
+                self.event(format!(
+                    "flash: sector erase {n} started, CPU stalled {ms:.1} ms (flash reads wait while BSY)"
+                ));
+            }
+            self.flash_stall_ps += ps;
+            self.stop_req = true;
+        }
+    }
+
+    /// The flash model (the store's sectors, erase and program counts).
+    pub fn flash(&mut self) -> &mut Flash {
+        &mut self.flash
+    }
+
+    fn exc_log(&mut self, what: String) {
+        if self.exc_trace.len() == TRACE_EXCEPTIONS {
+            self.exc_trace.pop_front();
+        }
+        let t = self.now_s();
+        self.exc_trace.push_back(format!("t={t:.6} {what}"));
+    }
+
+    /// The last blocks executed (oldest first) and the last exception
+    /// entries and returns: what led to a failure.
+    pub fn trace_dump(&self) -> String {
+        let n = self.trace_n.min(TRACE_BLOCKS);
+        let mut s = format!("last {n} blocks (oldest first):");
+        for k in 0..n {
+            let i = (self.trace_n - n + k) % TRACE_BLOCKS;
+            if k % 8 == 0 {
+                s += "\n   ";
+            }
+            s += &format!(" {:08X}", self.trace[i]);
+        }
+        s += &format!("\nlast {} exception entries/returns:", self.exc_trace.len());
+        for e in &self.exc_trace {
+            s += "\n    ";
+            s += e;
+        }
+        s
     }
 
     /// Emulated time \[ps\].
@@ -564,7 +644,8 @@ impl Board {
         let off = addr & 0x3FF;
         match addr & !0x3FF {
             0x4002_3800 => self.rcc.read(off),
-            0x4002_3C00 => self.flash.read(off),
+            0x4002_3C00 => self.flash.read(off, now),
+            STORE_BASE..=0x0807_FC00 => self.flash.read_array(addr),
             0x4000_7000 => {
                 self.clock_on("PWR", 0x40, 28)?;
                 self.pwr.read(off)
@@ -676,7 +757,16 @@ impl Board {
                 }
                 Ok(())
             }
-            0x4002_3C00 => self.flash.write(off, value, mask),
+            0x4002_3C00 => {
+                self.flash.write(off, value, mask, now)?;
+                self.flash_stall();
+                Ok(())
+            }
+            STORE_BASE..=0x0807_FC00 => {
+                self.flash.write_array(addr, value, mask, now)?;
+                self.flash_stall();
+                Ok(())
+            }
             0x4000_7000 => {
                 self.clock_on("PWR", 0x40, 28)?;
                 self.pwr.write(off, value, mask)
@@ -715,13 +805,20 @@ impl Board {
             0x4000_3000 => {
                 let was = self.iwdg.running;
                 let feeds = self.iwdg.feeds;
+                let timeout = self.iwdg.timeout_ps();
                 self.iwdg.write(off, value & mask, now)?;
+                if was && self.iwdg.timeout_ps() != timeout {
+                    let t = self.iwdg.timeout_ps() as f64 * 1e-9;
+                    self.event(format!("IWDG timeout after a feed now {t:.1} ms"));
+                }
                 if self.iwdg.feeds != feeds {
                     self.stats.feeds += 1;
                 }
                 if !was && self.iwdg.running {
                     self.wiring_check()?;
                     self.loop_started = true;
+                    self.repaint_stack = true;
+                    self.stop_req = true;
                     let t = self.iwdg.timeout_ps() as f64 * 1e-9;
                     self.event(format!("IWDG started (timeout after a feed {t:.1} ms)"));
                 }
@@ -806,6 +903,31 @@ pub struct Machine<'a> {
     sleeping: bool,
     /// The CPU is held (the harness's stall) until this time \[ps\].
     stalled_until: Option<u128>,
+    /// The painted stack `[_stack_end, _stack_start)`, if the image names it.
+    stack: Option<(u32, u32)>,
+    /// The current stall is a flash operation's: 1 an erase (its end is
+    /// logged as such), 2 a word program (not logged); 0 the harness's.
+    stall_is_flash: u8,
+    /// The stack's high-water mark when the loop started, over all boots
+    /// \[B\]; the paint is renewed below SP then, so
+    /// [`Self::stack_usage`] measures the running firmware apart from its
+    /// boot.
+    boot_stack_bytes: u32,
+}
+
+/// The word the stack is painted with at power-on.
+pub const STACK_PAINT: u32 = 0xA5C3_5A3C;
+
+/// The main stack's size and high-water mark (`Machine::stack_usage`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StackUsage {
+    /// `_stack_start - _stack_end` \[B\].
+    pub size_bytes: u32,
+    /// Deepest use seen since the loop started (the boot's use is
+    /// `boot_bytes`) \[B\]; before the loop starts, since power-on.
+    pub used_bytes: u32,
+    /// Deepest use from reset to the loop's start, over all boots \[B\].
+    pub boot_bytes: u32,
 }
 
 /// Thumb instructions in `[addr, addr + size)` of the flash image.
@@ -850,13 +972,29 @@ impl<'a> Machine<'a> {
         .map_err(ue)?;
         uc.ctl_set_cpu_model(ArmCpuModel::CORTEX_M4 as i32)
             .map_err(ue)?;
-        uc.mem_map(
-            FLASH_BASE as u64,
-            chip.flash_size() as u64,
-            Prot::READ | Prot::EXEC,
+        // Sectors 0-5 hold the program (memory.x: 256 KiB); sectors 6-7,
+        // the robot store, are the flash model's (program/erase, MMIO).
+        let program = STORE_BASE - FLASH_BASE;
+        if code[program as usize..].iter().any(|&b| b != 0xFF) {
+            return Err(format!(
+                "the image has data at or above 0x{STORE_BASE:08X} (the robot store's sectors 6-7)"
+            ));
+        }
+        uc.mem_map(FLASH_BASE as u64, program as u64, Prot::READ | Prot::EXEC)
+            .map_err(ue)?;
+        uc.mem_write(FLASH_BASE as u64, &code[..program as usize])
+            .map_err(ue)?;
+        uc.mmio_map(
+            STORE_BASE as u64,
+            STORE_SIZE as u64,
+            Some(|uc: &mut Unicorn<Board>, off: u64, size: usize| -> u64 {
+                mmio_read(uc, STORE_BASE + off as u32, size)
+            }),
+            Some(|uc: &mut Unicorn<Board>, off: u64, size: usize, v: u64| {
+                mmio_write(uc, STORE_BASE + off as u32, size, v as u32)
+            }),
         )
         .map_err(ue)?;
-        uc.mem_write(FLASH_BASE as u64, &code).map_err(ue)?;
         uc.mem_map(RAM_BASE as u64, chip.ram_size() as u64, Prot::ALL)
             .map_err(ue)?;
         for (base, size) in [(0x4000_0000u64, 0x2000_0000u64), (0xE000_0000, 0x10_0000)] {
@@ -879,6 +1017,8 @@ impl<'a> Machine<'a> {
         uc.add_block_hook(1, 0, |uc, addr, size| {
             let d = uc.get_data_mut();
             let n = count_insns(&d.code, addr, size);
+            d.trace[d.trace_n % TRACE_BLOCKS] = addr as u32;
+            d.trace_n += 1;
             d.cycles += n;
             d.stats.instructions += n;
             let mut stop = d.stop_req || d.cycles >= d.deadline;
@@ -916,14 +1056,74 @@ impl<'a> Machine<'a> {
             false
         })
         .map_err(ue)?;
+        let stack = match (image.symbol("_stack_end"), image.symbol("_stack_start")) {
+            (Some(lo), Some(hi))
+                if RAM_BASE <= lo && lo < hi && hi <= RAM_BASE + chip.ram_size() =>
+            {
+                // Painted once at power-on (SRAM keeps its contents over a
+                // reset, as on the chip): cortex-m-rt initialises .data and
+                // .bss only, so every word still holding the paint was never
+                // written by the stack.
+                let paint: Vec<u8> = (lo..hi)
+                    .step_by(4)
+                    .flat_map(|_| STACK_PAINT.to_le_bytes())
+                    .collect();
+                uc.mem_write(lo as u64, &paint).map_err(ue)?;
+                Some((lo, hi))
+            }
+            _ => None,
+        };
         let mut m = Self {
             uc,
             image,
             sleeping: false,
             stalled_until: None,
+            stack,
+            stall_is_flash: 0,
+            boot_stack_bytes: 0,
         };
         m.reset(ResetCause::PowerOn)?;
         Ok(m)
+    }
+
+    /// The stack's size and its high-water mark \[B\]: from the top
+    /// (`_stack_start`) down to the lowest word no longer holding the
+    /// power-on paint (flip-link puts the stack below .data/.bss, growing
+    /// down towards `_stack_end` at the bottom of SRAM). `None` without
+    /// the symbols.
+    pub fn stack_usage(&self) -> Option<StackUsage> {
+        let (lo, hi) = self.stack?;
+        let mut buf = vec![0u8; (hi - lo) as usize];
+        self.uc.mem_read(lo as u64, &mut buf).ok()?;
+        let untouched = buf
+            .chunks_exact(4)
+            .take_while(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]) == STACK_PAINT)
+            .count() as u32;
+        Some(StackUsage {
+            size_bytes: hi - lo,
+            used_bytes: hi - lo - 4 * untouched,
+            boot_bytes: self.boot_stack_bytes,
+        })
+    }
+
+    /// At the loop's start: keeps the boot's high-water mark and paints
+    /// the stack from its bottom to 256 B below SP again.
+    fn repaint_stack(&mut self) -> Result<(), String> {
+        let Some((lo, _)) = self.stack else {
+            return Ok(());
+        };
+        if let Some(u) = self.stack_usage() {
+            self.boot_stack_bytes = self.boot_stack_bytes.max(u.used_bytes);
+        }
+        let sp = rd(&self.uc, RegisterARM::SP) & !3;
+        let top = sp.saturating_sub(256).max(lo);
+        let paint: Vec<u8> = (lo..top)
+            .step_by(4)
+            .flat_map(|_| STACK_PAINT.to_le_bytes())
+            .collect();
+        self.uc
+            .mem_write(lo as u64, &paint)
+            .map_err(|e| format!("stack paint: {e:?}"))
     }
 
     /// The image's symbol `name`.
@@ -958,7 +1158,8 @@ impl<'a> Machine<'a> {
             d.base_ps = now;
             d.base_cycles = d.cycles;
             d.sysclk_hz = crate::periph::rcc::HSI_HZ;
-            d.flash = Flash::default();
+            d.flash.reset();
+            d.flash_stall_ps = 0;
             d.pwr = Pwr::default();
             d.gpio = "ABCDEFGH".chars().map(Port::new).collect();
             d.tim1 = Timer::new("TIM1", Kind::Advanced, 16_000_000);
@@ -1072,6 +1273,20 @@ impl<'a> Machine<'a> {
                     return Err(e);
                 }
             }
+            if std::mem::take(&mut self.uc.get_data_mut().repaint_stack) {
+                self.repaint_stack()?;
+            }
+            let fs = std::mem::take(&mut self.uc.get_data_mut().flash_stall_ps);
+            if fs > 0 {
+                let now = self.uc.get_data().now_ps();
+                let until = self.stalled_until.unwrap_or(now).max(now) + fs;
+                self.stalled_until = Some(until);
+                self.stall_is_flash = match (fs >= 1_000_000_000, self.stall_is_flash) {
+                    (true, _) => 1,
+                    (false, 0) => 2,
+                    (false, k) => k,
+                };
+            }
             // Peripherals to now; the watchdog; SYSRESETREQ.
             {
                 let d = self.uc.get_data_mut();
@@ -1106,8 +1321,13 @@ impl<'a> Machine<'a> {
                     continue;
                 }
                 self.stalled_until = None;
+                let flash = std::mem::take(&mut self.stall_is_flash);
                 let d = self.board();
-                d.event("stall ends: CPU runs again".into());
+                match flash {
+                    1 => d.event("flash: erase done, CPU runs again".into()),
+                    2 => {}
+                    _ => d.event("stall ends: CPU runs again".into()),
+                }
             }
             // Exceptions.
             if let Some(e) = deliverable(&mut self.uc) {
@@ -1281,6 +1501,16 @@ fn enter_exception(uc: &mut Unicorn<Board>, e: usize) -> Result<(), String> {
     fp[16] = uc.reg_read(RegisterARM::FPSCR).unwrap_or(0);
     let vtor = {
         let d = uc.get_data_mut();
+        if xpsr & 0x0600_FC00 != 0 {
+            d.stats.taken_in_it_block += 1;
+        }
+        if d.stats.min_sp == 0 || frame_sp < d.stats.min_sp {
+            d.stats.min_sp = frame_sp;
+        }
+        d.exc_log(format!(
+            "enter {e} from IPSR {ipsr}: SP 0x{sp:08X} -> frame 0x{frame_sp:08X}, return PC 0x{pc:08X}, LR 0x{:08X}, xPSR 0x{xpsr:08X}",
+            words[5]
+        ));
         d.fp_stack.push(fp);
         d.nvic.activate(e);
         d.event_reg = true;
@@ -1296,12 +1526,20 @@ fn enter_exception(uc: &mut Unicorn<Board>, e: usize) -> Result<(), String> {
         .map_err(ue)?;
     let handler = u32::from_le_bytes(v);
     uc.reg_write(RegisterARM::SP, frame_sp as u64).map_err(ue)?;
+    // ExceptionTaken (B1.5.6) clears EPSR.IT: the interrupted code may be
+    // inside an IT block (Unicorn stops at any translation block's start,
+    // and an IT block split over a 1 KiB page is two blocks); its IT state
+    // is in the stacked xPSR and comes back on the return. Left set, the
+    // handler's first instructions would run as the block's remaining
+    // conditional slots (D104).
+    uc.reg_write(RegisterARM::EPSR, 1 << 24).map_err(ue)?;
     uc.reg_write(
         RegisterARM::LR,
         if ipsr == 0 { 0xFFFF_FFF9 } else { 0xFFFF_FFF1 },
     )
     .map_err(ue)?;
     uc.reg_write(RegisterARM::IPSR, e as u64).map_err(ue)?;
+    rebuild_hflags(uc).map_err(ue)?;
     uc.reg_write(RegisterARM::PC, (handler | 1) as u64)
         .map_err(ue)?;
     if matches!(
@@ -1314,6 +1552,17 @@ fn enter_exception(uc: &mut Unicorn<Board>, e: usize) -> Result<(), String> {
         ));
     }
     Ok(())
+}
+
+/// QEMU caches the mode-dependent translation flags (`hflags`: Handler
+/// mode among them, which decides whether a branch to EXC_RETURN is an
+/// exception return) and rebuilds them only where its own code changes
+/// the mode; an IPSR write through Unicorn does not. Writing APSR.NZCV
+/// (its own value: nothing changes) makes Unicorn rebuild them, so the
+/// blocks translated next see the mode the harness just set.
+fn rebuild_hflags(uc: &mut Unicorn<Board>) -> Result<(), uc_error> {
+    let nzcv = uc.reg_read(RegisterARM::XPSR)? & 0xF000_0000;
+    uc.reg_write(RegisterARM::APSR_NZCV, nzcv)
 }
 
 /// EXC_RETURN arrives as QEMU's EXCP_EXCEPTION_EXIT (8); UDF as EXCP_UDEF (1).
@@ -1354,6 +1603,10 @@ fn exception_return(uc: &mut Unicorn<Board>) -> Result<(), String> {
     let xpsr = w[7];
     let new_sp = sp + 32 + if xpsr & (1 << 9) != 0 { 4 } else { 0 };
     let ipsr = xpsr & 0x1FF;
+    uc.get_data_mut().exc_log(format!(
+        "return from {cur} (0x{exc_return:08X}): frame 0x{sp:08X} -> SP 0x{new_sp:08X}, PC 0x{:08X}, LR 0x{:08X}, xPSR 0x{xpsr:08X}",
+        w[6], w[5]
+    ));
     if (exc_return & 0xF == 0x9) != (ipsr == 0) {
         return Err(format!(
             "EXC_RETURN 0x{exc_return:08X} with stacked IPSR {ipsr}: inconsistent frame"
@@ -1370,9 +1623,11 @@ fn exception_return(uc: &mut Unicorn<Board>) -> Result<(), String> {
     ] {
         uc.reg_write(r, v as u64).map_err(ue)?;
     }
-    uc.reg_write(RegisterARM::XPSR, (xpsr & !(1 << 9)) as u64)
+    // NZCVQ, GE (XPSR alone leaves GE out), IT and T from the frame.
+    uc.reg_write(RegisterARM::XPSR_NZCVQG, (xpsr & !(1 << 9)) as u64)
         .map_err(ue)?;
     uc.reg_write(RegisterARM::IPSR, ipsr as u64).map_err(ue)?;
+    rebuild_hflags(uc).map_err(ue)?;
     let fp = uc.get_data_mut().fp_stack.pop();
     if let Some(fp) = fp {
         for (i, r) in FP_REGS.iter().enumerate() {
@@ -1500,6 +1755,81 @@ mod tests {
         b.wiring_check().unwrap();
         b.bridge_mode = BridgeMode::PwmDir;
         assert!(b.wiring_check().unwrap_err().contains("PB13"));
+    }
+
+    /// An exception taken between two instructions of an IT block (the
+    /// block split over a 1 KiB translation page: Unicorn stops at the
+    /// page's boundary like at any block start) enters its handler with
+    /// EPSR.IT cleared (ARMv7-M B1.5.6: ExceptionTaken sets IT to 0) and
+    /// returns to the rest of the block with the IT state it stacked.
+    /// Without the clearing the handler's first instruction runs as the
+    /// IT block's next slot: here a false one, so it is skipped (a skipped
+    /// `push` in a real handler returns through a stack word: the CI
+    /// crash "invalid instruction at PC 0x2001B190", PC in the stack).
+    #[test]
+    fn exception_inside_an_it_block_clears_it_in_the_handler() {
+        let mut code = vec![0xFFu8; 0x600];
+        let mut put = |at: usize, hw: &[u16]| {
+            for (k, h) in hw.iter().enumerate() {
+                code[at + 2 * k..at + 2 * k + 2].copy_from_slice(&h.to_le_bytes());
+            }
+        };
+        // Vectors: SP, Reset at 0x3F6, SysTick (15) at 0x500.
+        put(0, &[0x1000, 0x2000, 0x03F7, 0x0800]);
+        put(15 * 4, &[0x0501, 0x0800]);
+        put(
+            0x3F6,
+            &[
+                0x4280, // cmp r0, r0 (Z = 1)
+                0xBF00, // nop
+                0xBF00, // nop
+                0xBF0C, // ite eq
+                0x4612, // (then, eq: taken) mov r2, r2; the page ends here
+                0x2377, // 0x400 (else, ne: skipped) mov r3, #0x77
+                0xE7FE, // b .
+            ],
+        );
+        put(
+            0x500,
+            &[
+                0xF04F, 0x0455, // mov.w r4, #0x55 (r4: not in the frame)
+                0x4770, // bx lr (EXC_RETURN)
+            ],
+        );
+        let image = Image {
+            segments: vec![(FLASH_BASE, code)],
+            symbols: vec![],
+        };
+        let mut m = Machine::new(ChipKind::F446re, image).unwrap();
+        // Until the first block (5 instructions) has run: the run stops at
+        // the next block's start, 0x400, inside the IT block.
+        let cycle_ps = PS_PER_S / crate::periph::rcc::HSI_HZ as u128;
+        m.run_until(6 * cycle_ps, PS_PER_S / 1000, &mut |_| Ok(()))
+            .unwrap();
+        assert_eq!(
+            m.uc.reg_read(RegisterARM::PC).unwrap(),
+            0x0800_0400,
+            "the run did not stop inside the IT block"
+        );
+        assert_ne!(
+            m.uc.reg_read(RegisterARM::XPSR).unwrap() & 0x0600_FC00,
+            0,
+            "no IT state at the stop"
+        );
+        m.board().nvic.set_pending(exc::SYSTICK);
+        m.run_until(100 * cycle_ps, PS_PER_S / 1000, &mut |_| Ok(()))
+            .unwrap();
+        assert_eq!(m.board().stats.taken.get(&exc::SYSTICK), Some(&1));
+        assert_eq!(
+            m.uc.reg_read(RegisterARM::R4).unwrap(),
+            0x55,
+            "the handler's first instruction ran as the IT block's (false) else slot"
+        );
+        assert_eq!(
+            m.uc.reg_read(RegisterARM::R3).unwrap(),
+            0,
+            "the IT block's else slot ran after the return: its IT state was lost"
+        );
     }
 
     /// Thumb-2 lengths: 0b11101/0b11110/0b11111 prefixes are 32-bit.

@@ -7,11 +7,20 @@
 //!           [--chip f446re|f411ce] [--pty] [--realtime] [--seconds S]
 //!           [--press AT_S] [--stall AT_S:MS] [--fault hardfault@AT_S|busfault@AT_S]
 //!           [--bridge pwm-dir|two-pwm|pwm-in1-in2] [--peak-from S]
-//!           [--summary FILE] [--quiet]
+//!           [--robot FILE] [--flash-timing typ|max] [--summary FILE] [--quiet]
 //! ```
 //! `--bridge` says how the harness's H-bridges are wired (the image's
 //! `BRIDGE_MODE`, default pwm-dir); the largest armature voltage per wheel
 //! from `--peak-from` on is logged (`armature peak`) and in the summary.
+//! `--robot FILE` makes the simulated robot that robot file's (body,
+//! friction, motors, encoders, motor directions; the bridge wiring its
+//! `[bridge]` mode unless `--bridge` says otherwise); without it the
+//! firmware's compiled-in paper robot. `--flash-timing` takes the
+//! datasheet's typical (default) or maximum program/erase times
+//! (`periph::flash`); `--flash-aged` starts with the robot store's sectors
+//! as the firmware's store code leaves them when the next save must erase
+//! a sector (the `--robot` file's record, or the paper robot's, saved until
+//! then).
 //! With `--pty` the first line on stdout is the pty's path (as `hil-sim
 //! device --pty` prints it) and the run goes on until killed or `--seconds`.
 //! The summary (JSON, one line) goes to `--summary` or stdout at the end.
@@ -32,14 +41,18 @@ struct Args {
     fault: Option<(Fault, f64)>,
     summary: Option<String>,
     quiet: bool,
-    bridge: stm32_emu::bridge::BridgeMode,
+    bridge: Option<stm32_emu::bridge::BridgeMode>,
     peak_from: f64,
+    robot: Option<robot_file::Robot>,
+    flash_timing: stm32_emu::periph::flash::FlashTiming,
+    flash_aged: bool,
 }
 
 fn usage() -> String {
     "usage: stm32-emu --elf FILE [--chip f446re|f411ce] [--pty] [--realtime] [--seconds S] \
      [--press AT_S] [--stall AT_S:MS] [--fault hardfault@AT_S|busfault@AT_S] \
-     [--bridge pwm-dir|two-pwm|pwm-in1-in2] [--peak-from S] [--summary FILE] [--quiet]"
+     [--bridge pwm-dir|two-pwm|pwm-in1-in2] [--peak-from S] [--robot FILE] \
+     [--flash-timing typ|max] [--flash-aged] [--summary FILE] [--quiet]"
         .into()
 }
 
@@ -65,8 +78,11 @@ fn parse_args() -> Result<Args, String> {
         fault: None,
         summary: None,
         quiet: false,
-        bridge: stm32_emu::bridge::BridgeMode::PwmDir,
+        bridge: None,
         peak_from: 0.0,
+        robot: None,
+        flash_timing: stm32_emu::periph::flash::FlashTiming::TYPICAL,
+        flash_aged: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
@@ -108,9 +124,26 @@ fn parse_args() -> Result<Args, String> {
                 a.fault = Some((f, num(t, "--fault time")?));
             }
             "--summary" => a.summary = Some(val()?),
+            "--robot" => {
+                let f = val()?;
+                let text = std::fs::read_to_string(&f).map_err(|e| format!("--robot {f}: {e}"))?;
+                a.robot = Some(
+                    robot_file::Robot::from_toml_str(&text)
+                        .map_err(|e| format!("--robot {f}: {e}"))?,
+                );
+            }
+            "--flash-aged" => a.flash_aged = true,
+            "--flash-timing" => {
+                use stm32_emu::periph::flash::FlashTiming;
+                a.flash_timing = match val()?.as_str() {
+                    "typ" => FlashTiming::TYPICAL,
+                    "max" => FlashTiming::MAX,
+                    t => return Err(format!("--flash-timing {t}: expected typ or max")),
+                }
+            }
             "--bridge" => {
                 use stm32_emu::bridge::BridgeMode as B;
-                a.bridge = match val()?.as_str() {
+                a.bridge = Some(match val()?.as_str() {
                     "pwm-dir" => B::PwmDir,
                     "two-pwm" => B::TwoPwm,
                     "pwm-in1-in2" => B::PwmIn1In2,
@@ -119,7 +152,7 @@ fn parse_args() -> Result<Args, String> {
                             "--bridge {b}: expected pwm-dir, two-pwm or pwm-in1-in2"
                         ))
                     }
-                }
+                })
             }
             "--peak-from" => a.peak_from = num(&val()?, "--peak-from")?,
             "-h" | "--help" => return Err(usage()),
@@ -153,12 +186,35 @@ fn run() -> Result<i32, String> {
     let image = stm32_emu::elf::Image::parse(&bytes).map_err(|e| format!("{}: {e}", a.elf))?;
     let mut m = Machine::new(a.chip, image)?;
     m.board().verbose = !a.quiet;
-    m.board().bridge_mode = a.bridge;
+    // The harness's bridges are wired as --bridge says, else as the
+    // robot file's [bridge], else PWM + DIR.
+    m.board().bridge_mode = a
+        .bridge
+        .or(a.robot.as_ref().map(|r| r.bridge.params().mode))
+        .unwrap_or(stm32_emu::bridge::BridgeMode::PwmDir);
+    if let Some(r) = &a.robot {
+        m.board().robot = stm32_emu::robot::Robot::of_file(r)?;
+    }
+    m.board().flash().timing = a.flash_timing;
     m.board().peak_from_s = a.peak_from;
     if !a.quiet {
         for e in &m.board().events {
             eprintln!("[stm32-emu t={:10.6} s] {}", e.t_s, e.what);
         }
+    }
+
+    if a.flash_aged {
+        let robot = a.robot.clone().unwrap_or_else(robot_file::Robot::paper);
+        let mut blob = [0u8; robot_file::MAX_ENCODED_LEN];
+        let n = robot
+            .encode(&mut blob)
+            .map_err(|e| format!("--flash-aged: {e:?}"))?;
+        let (bytes, saves) = stm32_emu::periph::flash::aged_store(&blob[..n])?;
+        m.board().flash().store = bytes;
+        m.board().event(format!(
+            "flash: store aged by {saves} saves of \"{}\" (the next save erases a sector)",
+            robot.name
+        ));
     }
 
     // The host link: a pty pair, the slave kept open (hosts come and go).
@@ -242,7 +298,13 @@ fn run() -> Result<i32, String> {
         if !a.quiet && t_s >= next_alive {
             // A line per emulated second: scripts read the emulated time.
             next_alive += 1.0;
-            m.board().event("alive".into());
+            let stack = m.stack_usage().map_or(String::new(), |u| {
+                format!(
+                    " (stack high-water {} B running, {} B at boot, of {} B)",
+                    u.used_bytes, u.boot_bytes, u.size_bytes
+                )
+            });
+            m.board().event(format!("alive{stack}"));
         }
         if let Some(at) = a.press {
             if !pressed && t_s >= at {
@@ -299,6 +361,7 @@ fn run() -> Result<i32, String> {
     }
     let _ = faulted;
     let wall = wall0.elapsed().as_secs_f64();
+    let stack = m.stack_usage();
     let d = m.board();
     let emu_s = d.now_s();
     let bridge = d.bridge().ok();
@@ -329,6 +392,16 @@ fn run() -> Result<i32, String> {
         d.stats.instructions, d.stats.slices, d.stats.sleeps
     );
     s += &format!("\"boots\":{},\"iwdg_resets\":{iwdg_resets},", d.stats.boots);
+    s += &format!(
+        "\"taken_in_it_block\":{},\"min_sp\":\"0x{:08X}\",",
+        d.stats.taken_in_it_block, d.stats.min_sp
+    );
+    if let Some(u) = stack {
+        s += &format!(
+            "\"stack_used_bytes\":{},\"stack_boot_bytes\":{},\"stack_size_bytes\":{},",
+            u.used_bytes, u.boot_bytes, u.size_bytes
+        );
+    }
     s += &format!(
         "\"csr_at_boot\":\"0x{:08X}\",\"iwdgrstf\":{},",
         d.csr_at_boot,
@@ -386,6 +459,7 @@ fn run() -> Result<i32, String> {
         Ok(()) => Ok(0),
         Err(e) => {
             eprintln!("stm32-emu: run failed at t = {emu_s:.6} s: {e}");
+            eprintln!("{}", m.board().trace_dump());
             Ok(1)
         }
     }

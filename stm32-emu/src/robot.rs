@@ -2,10 +2,11 @@
 //! one plant, RK4), its DC-motor drive and its 16-bit encoders, advanced in
 //! emulated time on a fixed grid of [`STEP_PS`], with the H-bridge inputs
 //! (PWM duty from TIM1's outputs, DIR and ENABLE pin levels) held over each
-//! step. The robot is the firmware's (firmware/src/config.rs): the paper's
-//! body (Table 1), controller-core's example motors and 24 000-count
-//! encoders, the left motor and encoder mirrored. It does not reset when
-//! the chip does.
+//! step. By default the robot is the firmware's compiled-in one
+//! (firmware/src/config.rs): the paper's body (Table 1), controller-core's
+//! example motors and 24 000-count encoders, the left motor and encoder
+//! mirrored; [`Robot::of_file`] makes it a robot file's (`--robot FILE`).
+//! It does not reset when the chip does.
 
 pub use controller_core::runtime::BridgeMode;
 use controller_core::runtime::{
@@ -100,6 +101,41 @@ impl Robot {
             still: Perturbation::default(),
             steps: 0,
         }
+    }
+
+    /// The robot of a robot file (docs/robot.md) at rest at the origin:
+    /// sim-robot's plant with the file's body, per-wheel radii and
+    /// friction, its motors, encoders (counting the true wheel angle) and
+    /// motor directions, as `sim_robot::WorldConfig::of_robot` builds
+    /// hil-sim's plant from the same file.
+    pub fn of_file(robot: &robot_file::Robot) -> Result<Self, String> {
+        robot.validate().map_err(|e| format!("robot file: {e}"))?;
+        let b = &robot.body;
+        let m = &robot.motors;
+        let plant = PlantParams {
+            mass_kg: b.mass_kg as f64,
+            inertia_kgm2: b.inertia_kgm2 as f64,
+            wheel_inertia_kgm2: b.wheel_inertia_kgm2 as f64,
+            wheel_radius_m: [b.wheel_radius_m[0] as f64, b.wheel_radius_m[1] as f64],
+            half_track_m: 0.5 * b.track_m as f64,
+            com_offset_m: b.com_offset_m as f64,
+            friction: core::array::from_fn(|i| sim_robot::plant::WheelFriction {
+                viscous_nms_per_rad: m.viscous_friction_nms_per_rad[i] as f64,
+                coulomb_nm: m.coulomb_friction_nm[i] as f64,
+            }),
+            actuator: sim_robot::plant::ActuatorDynamics::NONE,
+        };
+        let enc = EncoderParams {
+            radius_scale: [1.0; 2],
+            ..robot.encoder_params()
+        };
+        Ok(Self {
+            plant: Plant::new(plant),
+            encoders: SimEncoders::new(&enc),
+            motor: robot.motor_params(ARMATURE_FULL_SCALE),
+            inverted: robot.bridge.motor_inverted,
+            ..Self::new()
+        })
     }
 
     /// Advances to `now_ps` with `bridge` held; an error when the state

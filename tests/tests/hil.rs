@@ -22,7 +22,7 @@ fn quantised_loop_tracks_case1() {
     };
     for kind in ControllerKind::ALL {
         let hil = run_hil(&scn, kind, HilOptions::default()).unwrap();
-        assert_eq!(hil.stop, None, "{kind:?}");
+        assert_eq!(hil.sim.stop, None, "{kind:?}");
         let ideal = run(&ideal_scn, kind).unwrap().metrics;
         let m = &hil.sim.metrics;
         assert!(m.rms_pos_err_window_m < 0.1, "{kind:?}: {m:?}");
@@ -58,8 +58,8 @@ fn odometry_cannot_see_the_actuator_fault() {
         s
     };
     let odo = run_hil(&odo_scn, ControllerKind::Proposed, HilOptions::default()).unwrap();
-    assert_eq!(ext.stop, None);
-    assert_eq!(odo.stop, None);
+    assert_eq!(ext.sim.stop, None);
+    assert_eq!(odo.sim.stop, None);
     let (e, o) = (
         ext.sim.metrics.rms_pos_err_window_m,
         odo.sim.metrics.rms_pos_err_window_m,
@@ -103,7 +103,7 @@ fn dead_encoder_latches_a_safe_stop() {
         ..HilOptions::default()
     };
     let out = run_hil(&scn, ControllerKind::Proposed, opts).unwrap();
-    let (step, reason) = out.stop.expect("the supervisor must stop");
+    let (step, reason) = out.sim.stop.expect("the supervisor must stop");
     let t_stop = step as f64 * scn.control_period_s;
     assert!(
         matches!(

@@ -235,7 +235,10 @@ fn healthy_runs_never_trip_the_direction_check() {
                 scn.sensing.preset = sensing;
                 for kind in ControllerKind::ALL {
                     let out = run_hil(&scn, kind, HilOptions::default()).unwrap();
-                    assert_eq!(out.stop, None, "case {case} draw {i} {sensing:?} {kind:?}");
+                    assert_eq!(
+                        out.sim.stop, None,
+                        "case {case} draw {i} {sensing:?} {kind:?}"
+                    );
                     runs += 1;
                 }
             }

@@ -82,7 +82,7 @@ fn mocap_proposed_near_ideal_and_half_of_baselines() {
             scn.name,
             prop / ideal
         );
-        assert!(o.iter().all(|r| r.stop.is_none()), "{}", scn.name);
+        assert!(o.iter().all(|r| r.sim.stop.is_none()), "{}", scn.name);
         assert!(prop <= 1.3 * ideal, "{}: {prop} vs ideal {ideal}", scn.name);
         assert!(
             prop <= 0.5 * smc && prop <= 0.5 * asmc,
@@ -116,7 +116,7 @@ fn uwb_and_imu_proposed_not_worse_than_baselines() {
                 scn.name,
                 sensing.name()
             );
-            assert!(o.iter().all(|r| r.stop.is_none()), "{}", scn.name);
+            assert!(o.iter().all(|r| r.sim.stop.is_none()), "{}", scn.name);
             assert!(
                 prop <= smc.min(asmc),
                 "{} {}: {prop} vs {smc}, {asmc}",
@@ -152,7 +152,7 @@ fn pose_outage_no_stop_and_recovery_within_1s() {
         outage.sensing.pose.pose_outage_s = Some(Window([20.0, 22.0]));
         let o = hil_all(&[reference, outage], &kinds);
         let (r, a) = (&o[0][0], &o[1][0]);
-        assert_eq!(a.stop, None, "{}", base.name);
+        assert_eq!(a.sim.stop, None, "{}", base.name);
         let during = max_err(a, 20.0, 22.0);
         let during_ref = max_err(r, 20.0, 22.0);
         let band = r.sim.metrics.max_pos_err_window_m;
@@ -216,6 +216,6 @@ fn outliers_rejected_and_counted() {
         assert_eq!(est.resets, 0);
         assert_eq!(est.accepted + est.rejected.total(), src.delivered);
         assert!((win(d) / win(c) - 1.0).abs() <= 0.10, "{}", base.name);
-        assert_eq!(d.stop, None);
+        assert_eq!(d.sim.stop, None);
     }
 }

@@ -21,6 +21,10 @@ pub struct Cli {
     /// Serial port or pseudo-terminal of the robot.
     #[arg(long, global = true, env = "WMR_PORT", value_name = "PATH")]
     pub port: Option<String>,
+    /// Talk to the robot through the `wmr serve` listening on this socket
+    /// [default: the server of --port when one runs, else --port itself].
+    #[arg(long, global = true, env = "WMR_SERVE", value_name = "SOCKET")]
+    pub serve: Option<PathBuf>,
     /// How long to wait for each answer before sending the request again [ms]
     /// [default: a fifth of the robot's link_timeout_ms, 100 ms for its 500].
     #[arg(long, global = true, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
@@ -68,6 +72,9 @@ pub enum Command {
     Commission(crate::commission::CommissionArgs),
     /// The robot file in the robot's flash: push, pull, diff, check.
     Robot(RobotArgs),
+    /// Own the link to --port and serve every other command (and any
+    /// number of clients) over a local socket (`wmr --serve SOCKET CMD`).
+    Serve(crate::serve::ServeArgs),
 }
 
 /// `watch` options.
@@ -268,20 +275,10 @@ pub struct RecordSummary {
 }
 
 fn link_of(cli: &Cli) -> Result<Link, LinkError> {
-    let port = cli
-        .port
-        .as_deref()
-        .ok_or_else(|| LinkError::Io("no port: give --port PATH (or set WMR_PORT)".into()))?;
-    let mut link = Link::open_timed(port, cli.timeout_ms.map(Duration::from_millis))?;
-    link.hello()?;
-    // Every host-side time derives from the robot's link timeout.
-    if let Ok(Reply::Param { value, .. }) = link.command(&Request::GetParam(ParamId::LinkTimeoutMs))
-    {
-        if value.is_finite() && value >= 1.0 {
-            link.set_link_timeout_ms(value as u32);
-        }
-    }
-    Ok(link)
+    // Through a server when one is named or serves --port; every host-side
+    // time derives from the robot's link timeout.
+    let ep = crate::serve::Endpoint::resolve(cli.port.as_deref(), cli.serve.as_deref())?;
+    crate::serve::open_link(&ep, cli.timeout_ms.map(Duration::from_millis))
 }
 
 /// Runs a parsed command line on a fresh link to `--port`.
@@ -302,6 +299,13 @@ pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
     }) = &cli.command
     {
         return crate::robot::check(file, out).map_err(|e| e.to_string());
+    }
+    if let Command::Serve(a) = &cli.command {
+        let port = cli
+            .port
+            .as_deref()
+            .ok_or("wmr serve needs --port PATH (or WMR_PORT): the robot's port")?;
+        return crate::serve::serve(port, a, out);
     }
     let mut link = link_of(cli).map_err(|e| e.to_string())?;
     run(&cli.command, &mut link, out).map_err(|e| e.to_string())
@@ -425,6 +429,11 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
             RobotOp::Diff { file } => crate::robot::diff(link, file, out)?,
             RobotOp::Check { file } => crate::robot::check(file, out)?,
         },
+        Command::Serve(_) => {
+            return Err(LinkError::Io(
+                "wmr serve owns a port: it does not run on a link".into(),
+            ))
+        }
     }
     Ok(())
 }
@@ -583,6 +592,11 @@ fn drive(a: &DriveArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     };
     link.command(&cmd)?;
     if status(link)?.state == RunStateMsg::Hold {
+        // Again, so that its timeout runs from just before the arm and not
+        // from before the status round trip (with a lost frame or two on a
+        // bad line, the two could outlast the command's timeout: the robot
+        // would stop at once).
+        link.command(&cmd)?;
         link.command(&Request::Arm)?;
     }
     let mut watch = Watch::new(link);
@@ -676,6 +690,16 @@ fn host_us(t0: Instant) -> u64 {
     t0.elapsed().as_micros() as u64
 }
 
+/// Telemetry frames missing between sequence numbers `last` and `seq`; a
+/// number going back is a robot that restarted its count (a reset, seen
+/// through `wmr serve`), not four billion frames lost.
+pub fn telemetry_gap(last: u32, seq: u32) -> u64 {
+    match seq.wrapping_sub(last) {
+        d if d > 0 && d <= 1 << 31 => (d - 1) as u64,
+        _ => 0,
+    }
+}
+
 /// Records telemetry; returns the summary it prints.
 pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
     if !(a.seconds.is_finite() && a.seconds > 0.0) {
@@ -756,7 +780,7 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
             Some(Reply::Telemetry(t)) => {
                 last_frame = Instant::now();
                 if let Some(s) = last_seq {
-                    dropped += t.seq.wrapping_sub(s).saturating_sub(1) as u64;
+                    dropped += telemetry_gap(s, t.seq);
                 }
                 last_seq = Some(t.seq);
                 let t_us = *first_us.get_or_insert(t.t_robot_us);
@@ -872,6 +896,10 @@ fn watch_live(a: &WatchArgs, link: &mut Link, out: &mut dyn Write) -> Result<(),
     let mut last_frame = Instant::now();
     let mut first_us: Option<u32> = None;
     let mut status = crate::watch::LiveStatus::default();
+    // Through `wmr serve` telemetry comes at the highest rate any client
+    // asked for: one line per 1/rate of robot time (half a tick's slack).
+    let line_us = 1_000_000 / a.rate as u32;
+    let mut last_line_us: Option<u32> = None;
     loop {
         if last_ping.elapsed() >= keep_alive {
             link.send(&Request::ClockSync {
@@ -883,7 +911,10 @@ fn watch_live(a: &WatchArgs, link: &mut Link, out: &mut dyn Write) -> Result<(),
             Some(Reply::Telemetry(t)) => {
                 last_frame = Instant::now();
                 let first = *first_us.get_or_insert(t.t_robot_us);
-                writeln!(out, "{}", status.line(&t)).map_err(io)?;
+                if last_line_us.is_none_or(|l| t.t_robot_us.wrapping_sub(l) + 500 >= line_us) {
+                    writeln!(out, "{}", status.line(&t)).map_err(io)?;
+                    last_line_us = Some(t.t_robot_us);
+                }
                 if a.seconds
                     .is_some_and(|s| t.t_robot_us.wrapping_sub(first) as f64 * 1e-6 >= s)
                 {
@@ -1197,6 +1228,17 @@ impl std::fmt::Display for PoseTally {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Gaps in telemetry numbers: the frames between, across the u32 wrap;
+    /// none for a repeat or a count that restarted (a robot reset).
+    #[test]
+    fn telemetry_gaps() {
+        assert_eq!(telemetry_gap(5, 6), 0);
+        assert_eq!(telemetry_gap(5, 9), 3);
+        assert_eq!(telemetry_gap(u32::MAX, 1), 1);
+        assert_eq!(telemetry_gap(5, 5), 0);
+        assert_eq!(telemetry_gap(4000, 2), 0);
+    }
 
     #[test]
     fn pose_tally_counts_refusals_by_reason() {

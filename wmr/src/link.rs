@@ -34,6 +34,8 @@ pub enum LinkError {
     Io(String),
     /// The robot stopped when the host did not expect it (what and when).
     UnexpectedStop(String),
+    /// No `wmr serve` at this socket (the socket, why).
+    NoServer(String, String),
 }
 
 impl std::fmt::Display for LinkError {
@@ -50,6 +52,7 @@ impl std::fmt::Display for LinkError {
             Self::Unexpected(what) => write!(f, "unexpected answer: {what}"),
             Self::Io(e) => write!(f, "link error: {e}"),
             Self::UnexpectedStop(s) => write!(f, "the robot stopped unexpectedly: {s}"),
+            Self::NoServer(p, e) => write!(f, "cannot connect to wmr serve at {p}: {e}"),
         }
     }
 }
@@ -118,6 +121,24 @@ impl Link {
         // Stale bytes from before we opened (telemetry to nobody) go.
         let _ = port.clear(serialport::ClearBuffer::Input);
         Ok(Self::from_port_timed(Box::new(port), timeout))
+    }
+
+    /// A link through the `wmr serve` listening on `socket` (see
+    /// [`crate::serve`]) with a fixed answer timeout: the same link as
+    /// [`Link::open`]'s, the server routing its requests and answers among
+    /// its other clients.
+    pub fn connect(socket: &std::path::Path, timeout: Duration) -> Result<Self, LinkError> {
+        Self::connect_timed(socket, Some(timeout))
+    }
+
+    /// [`Link::connect`] with the answer timeout derived from the link
+    /// timeout unless `timeout` is given (as [`Link::open_timed`]).
+    pub fn connect_timed(
+        socket: &std::path::Path,
+        timeout: Option<Duration>,
+    ) -> Result<Self, LinkError> {
+        let stream = crate::serve::connect(socket)?;
+        Ok(Self::from_port_timed(Box::new(stream), timeout))
     }
 
     /// A link over any byte stream with a fixed answer timeout (see

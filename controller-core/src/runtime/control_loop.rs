@@ -66,7 +66,6 @@ impl<const H: usize> ControlLoop<H> {
         estimator: EstimatorConfig,
     ) -> Result<Self, RuntimeConfigError> {
         let controller = Controller::new(cfg.controller)?;
-        let prediction = Prediction::new(controller.model());
         cfg.reference.validate()?;
         if !cfg.initial_pose.is_finite() {
             return Err(RuntimeConfigError::NonFiniteInitialPose);
@@ -74,6 +73,12 @@ impl<const H: usize> ControlLoop<H> {
         let motor = MotorModel::new(cfg.motor)?;
         let counts = WheelCounts::new(cfg.encoder)?;
         cfg.safety.validate()?;
+        let prediction = Prediction::new(
+            controller.model(),
+            &motor,
+            &cfg.safety,
+            cfg.controller.period_s,
+        );
         let pacer = Pacer::new(cfg.pacing, &cfg.controller)?;
         let estimator = PoseEstimator::with_history(
             estimator,
@@ -246,7 +251,7 @@ impl<const H: usize> ControlLoop<H> {
         // The pacer's saturation and health thresholds follow the gains and limit.
         let pacer = Pacer::new(self.cfg.pacing, &controller).map_err(invalid)?;
         safety.validate().map_err(ReconfigureError::Invalid)?;
-        self.prediction = Prediction::new(new.model());
+        self.prediction = Prediction::new(new.model(), &self.motor, &safety, controller.period_s);
         self.controller = new;
         self.pace = pacer.initial_state();
         self.pacer = pacer;
@@ -336,14 +341,12 @@ impl<const H: usize> ControlLoop<H> {
                 .supervise_step(&step.diag)
                 .or(self.check_stall(&sample))
                 .or(self.direction.update(
-                    &self.cfg.safety,
                     &self.prediction,
                     self.status.run_ticks,
                     [eta.v_mps, eta.omega_radps],
                     self.last_torque_nm,
                     self.status.duty_saturated,
                     sample.rate_radps,
-                    self.cfg.controller.period_s,
                 ));
             if stop.is_none() {
                 torque = step.torque_nm;

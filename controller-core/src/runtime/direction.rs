@@ -4,15 +4,36 @@
 //! the speed loop into positive feedback. Latches
 //! [`StopReason::DirectionMismatch`](super::StopReason::DirectionMismatch).
 //!
-//! The expected acceleration is the model's, not the torque's sign alone:
-//! through the body the wheels are coupled (eq. 7: η̇ = Mη + Nτ, N = M1⁻¹B1
-//! with both wheels' torques in each row), so a wheel driven lightly
-//! backwards while the other wheel drives hard forward accelerates
+//! A wheel wired backwards (its motor or its encoder) behaves as if the
+//! voltage applied to it had the opposite sign: with wheel torque
+//! τ = b_V·V − b·φ̇ (b_V = η_g·N·k/R per volt, b = η_g·N²·k²/R the
+//! back-EMF damping), the commanded torque τ_c = b_V·V − b·φ̇ becomes
+//! −b_V·V − b·φ̇ = −τ_c − 2·b·φ̇ (an inverted encoder gives the same in the
+//! measured frame). So the check decides, per block, which of the two
+//! hypotheses the measured acceleration is nearer: *correct* (eq. 7 at the
+//! mean commanded torques, as the controller's model predicts) or
+//! *inverted* (the same with this wheel's torque replaced by −τ_c − 2·b·φ̇).
+//! The midpoint between them is the prediction minus W_ii·τ_V, where
+//! τ_V = τ_c + b·φ̇ is the torque the applied voltage alone would give at
+//! standstill (W_ii the wheel's own entry of eq. 7's map from torques to
+//! wheel accelerations, positive).
+//!
+//! Why the voltage and not the commanded torque (D109): a motor constant
+//! that differs from the model's by a factor (1 + ε) makes the real torque
+//! (1 + ε)·τ_V − (1 + ε)²·b·φ̇, which for a fast wheel of a strongly geared
+//! robot differs from τ_c by several N·m (the 10 kg BTS7960 example:
+//! b = 1.15 N·m per rad/s, so ε = 0.2 at 12 rad/s is 2.9 N·m): a check on
+//! the commanded torque's prediction false-trips at cruise, while the
+//! midpoint test flips only when (1 + ε)·τ_V < ε·(2 + ε)·b·φ̇, i.e. under
+//! regenerative braking harder than 1.0·b·φ̇ (beyond the torque limit at
+//! speed for that robot).
+//!
+//! Through the body the wheels are coupled (eq. 7: η̇ = Mη + Nτ,
+//! N = M1⁻¹B1 with both wheels' torques in each row), so a wheel driven
+//! lightly backwards while the other wheel drives hard forward accelerates
 //! *forwards* (the paper's Case 1 starts that way: τ = \[10, −2.5\] N·m,
-//! the left wheel speeding up forward at 20 rad/s²). Per block the mean
-//! torques give the predicted wheel accelerations φ̈ = (v̇ ± h·ω̇)/r from
-//! eq. (7) at the measured η; the check compares their signs with the
-//! measured ones.
+//! the left wheel speeding up forward at 20 rad/s²): both hypotheses use
+//! eq. (7) with both wheels' mean torques and the measured η.
 //!
 //! The measured acceleration is the change of the windowed wheel-rate estimate over
 //! a *block* of `direction_block_ticks` ticks divided by the block's true
@@ -23,13 +44,17 @@
 //! the torques applied during the block (the torque written at a tick acts
 //! until the next one). A block is a mismatch for a wheel when
 //!
-//! * |mean torque| ≥ `direction_torque_nm` (above the wheel's friction,
-//!   which the model leaves out),
-//! * |predicted acceleration| ≥ `direction_accel_radps2` (a clear
-//!   prediction, not one the model's errors could flip), and
-//! * the rate changed against the prediction by at least
-//!   `direction_accel_radps2` × the block's duration (above the estimate's
-//!   quantisation and what friction alone gives),
+//! * the measured rate change is against the correct hypothesis's
+//!   prediction, with |prediction| ≥ `direction_accel_radps2` and
+//!   |change| ≥ `direction_accel_radps2` × the block's duration (a clear
+//!   prediction, a change above the estimate's quantisation; a wheel that
+//!   does not turn is a stall, the stall check's),
+//! * |τ_V| ≥ `direction_torque_nm` (the hypotheses are apart by
+//!   2·W_ii·|τ_V|, and friction, which the model leaves out, shifts the
+//!   measurement by W_ii times the friction torque: the tolerance is above
+//!   the wheel's friction), and
+//! * the measured rate change is on the inverted side of the midpoint by at
+//!   least `direction_accel_radps2` × the block's duration,
 //!
 //! and `direction_blocks` mismatching blocks in a row latch: longer than
 //! the ESO's and the sliding loop's transients after a disturbance step or
@@ -41,40 +66,73 @@
 
 use super::config::SafetyLimits;
 use super::hardware::Wheel;
+use super::motor::MotorModel;
 use super::state::StopReason;
 use crate::model::ReducedModel;
 
-/// Eq. (7) mapped to wheel accelerations, derived once from the model:
-/// φ̈_i = W_i0·τ_R + W_i1·τ_L + c_ω²·ω² ∓ c_ωv·ω·v (− right, + left).
+/// Eq. (7) mapped to wheel-rate changes over a block, derived once from
+/// the model, the motor, the limits and the control period (rebuilt on
+/// reconfigure): φ̈_i = W_i0·τ_R + W_i1·τ_L + c_ω²·ω² ∓ c_ωv·ω·v
+/// (− right, + left), each term multiplied out to what it gives over a
+/// block, so a verdict is a few multiply-adds (bench-m4's tick budget).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct Prediction {
-    /// W = S·N with S = \[\[1/r, h/r\], \[1/r, −h/r\]\] \[rad/s² per N·m\].
-    w: [[f32; 2]; 2],
-    /// Coriolis coefficient of ω² \[rad/s² per (rad/s)²\].
-    c_w2: f32,
-    /// Coriolis coefficient of ω·v \[rad/s² per rad/s·m/s\].
-    c_wv: f32,
+    /// W·T (W = S·N with S = \[\[1/r, h/r\], \[1/r, −h/r\]\], T the control
+    /// period): the rate change per N·m applied for one tick
+    /// \[rad/s per N·m·tick\]; times a block's torque sum, its predicted change.
+    w_tick: [[f32; 2]; 2],
+    /// Coriolis coefficients of ω² and ω·v times the block's duration
+    /// \[rad/s per (rad/s)², per rad/s·m/s\].
+    c_w2_block: f32,
+    c_wv_block: f32,
+    /// 1 / ticks per block (a torque sum to its mean).
+    inv_block_ticks: f32,
+    /// Back-EMF damping at the wheel b = η_g·N²·k²/R \[N·m per rad/s\]
+    /// (the motor model's).
+    damping_nms_per_rad: f32,
+    /// `direction_accel_radps2` × the block's duration \[rad/s\].
+    tol_change_radps: f32,
+    /// `direction_torque_nm` \[N·m\].
+    tol_torque_nm: f32,
+    /// W_ii × the block's duration: a wheel's own share of the prediction
+    /// per N·m of mean torque \[rad/s per N·m\].
+    own_block: [f32; 2],
+    /// Ticks per block and blocks in a row that latch (the limits').
+    block_ticks: u32,
+    blocks: u16,
 }
 
 impl Prediction {
-    /// From the controller's reduced model.
-    pub(crate) fn new(model: &ReducedModel) -> Self {
+    /// From the controller's reduced model, the runtime's motor model,
+    /// the (validated) safety limits and the control period `period_s`.
+    pub(crate) fn new(
+        model: &ReducedModel,
+        motor: &MotorModel,
+        limits: &SafetyLimits,
+        period_s: f32,
+    ) -> Self {
         let (h, inv_r) = (model.params.half_track_m, 1.0 / model.params.wheel_radius_m);
         let n = model.n;
-        let w = [
-            [
-                (n[0][0] + h * n[1][0]) * inv_r,
-                (n[0][1] + h * n[1][1]) * inv_r,
-            ],
-            [
-                (n[0][0] - h * n[1][0]) * inv_r,
-                (n[0][1] - h * n[1][1]) * inv_r,
-            ],
+        let block_s = limits.direction_block_ticks as f32 * period_s;
+        let t = period_s * inv_r;
+        let w_tick = [
+            [(n[0][0] + h * n[1][0]) * t, (n[0][1] + h * n[1][1]) * t],
+            [(n[0][0] - h * n[1][0]) * t, (n[0][1] - h * n[1][1]) * t],
         ];
         Self {
-            w,
-            c_w2: model.n1_coeff / model.m1_diag[0] * inv_r,
-            c_wv: h * model.n1_coeff / model.m1_diag[1] * inv_r,
+            w_tick,
+            c_w2_block: model.n1_coeff / model.m1_diag[0] * inv_r * block_s,
+            c_wv_block: h * model.n1_coeff / model.m1_diag[1] * inv_r * block_s,
+            inv_block_ticks: 1.0 / limits.direction_block_ticks as f32,
+            damping_nms_per_rad: motor.back_emf_damping_nms_per_rad(),
+            tol_change_radps: limits.direction_accel_radps2 * block_s,
+            tol_torque_nm: limits.direction_torque_nm,
+            own_block: [
+                w_tick[0][0] * limits.direction_block_ticks as f32,
+                w_tick[1][1] * limits.direction_block_ticks as f32,
+            ],
+            block_ticks: limits.direction_block_ticks as u32,
+            blocks: limits.direction_blocks,
         }
     }
 }
@@ -88,6 +146,8 @@ pub(crate) struct DirectionCheck {
     torque_sum_nm: [f32; 2],
     /// Wheel rates at the start of the block \[rad/s\].
     rate_start_radps: [f32; 2],
+    /// The ended block's start rates \[rad/s\] (with its change, its mean rate).
+    ended_start_radps: [f32; 2],
     /// The duty-saturation counter (`Status::duty_saturated`) at the
     /// block's start: a block in which it moved gives no verdict.
     saturated_at_start: u32,
@@ -117,36 +177,28 @@ impl DirectionCheck {
     /// one (`Status::run_ticks`), `applied_nm` the torque that acted
     /// during the elapsed tick (written at the previous one),
     /// `saturated_count` the duty-saturation counter so far, `rate_radps`
-    /// the wheel rates measured now, `period_s` the control period (the
-    /// block time is ticks × period: a late tick only shifts the tolerance
-    /// slightly, and sustained lateness latches `LoopOverrun` anyway),
-    /// `eta` the measured \[v, ω\] (eq. 7's Coriolis term). Returns the
-    /// stop when a wheel has mismatched `direction_blocks` blocks in a
-    /// row. `direction_block_ticks` >= 3 (validated).
-    #[allow(clippy::too_many_arguments)]
+    /// the wheel rates measured now (the block time is ticks × period: a
+    /// late tick only shifts the tolerance slightly, and sustained
+    /// lateness latches `LoopOverrun` anyway), `eta` the measured
+    /// \[v, ω\] (eq. 7's Coriolis term). Returns the stop when a wheel has
+    /// mismatched `direction_blocks` blocks in a row.
+    /// `direction_block_ticks` >= 3 (validated).
     #[inline]
     pub(crate) fn update(
         &mut self,
-        limits: &SafetyLimits,
         prediction: &Prediction,
         run_ticks: u32,
         eta: [f32; 2],
         applied_nm: [f32; 2],
         saturated_count: u32,
         rate_radps: [f32; 2],
-        period_s: f32,
     ) -> Option<StopReason> {
         self.torque_sum_nm[0] += applied_nm[0];
         self.torque_sum_nm[1] += applied_nm[1];
-        let n = limits.direction_block_ticks as u32;
-        match run_ticks % n {
+        match run_ticks % prediction.block_ticks {
             0 if run_ticks > 0 => self.end_block(saturated_count, rate_radps),
-            1 if self.ended_valid => {
-                return self.judge(limits, prediction, eta, Wheel::Right, n, period_s)
-            }
-            2 if self.ended_valid => {
-                return self.judge(limits, prediction, eta, Wheel::Left, n, period_s)
-            }
+            1 if self.ended_valid => return self.judge(prediction, eta, Wheel::Right),
+            2 if self.ended_valid => return self.judge(prediction, eta, Wheel::Left),
             _ => {}
         }
         None
@@ -164,6 +216,7 @@ impl DirectionCheck {
                 rate_radps[0] - self.rate_start_radps[0],
                 rate_radps[1] - self.rate_start_radps[1],
             ];
+            self.ended_start_radps = self.rate_start_radps;
         } else {
             self.strikes = [0; 2];
         }
@@ -172,39 +225,42 @@ impl DirectionCheck {
         self.saturated_at_start = saturated_count;
     }
 
-    /// One wheel's verdict on the ended block of `n` ticks: eq. (7) at its
-    /// mean torques and the measured η against its rate change.
+    /// One wheel's verdict on the ended block: eq. (7) at its mean
+    /// torques and the measured η, against the inverted-wiring hypothesis
+    /// (module docs), from its rate change; all in rate change over the
+    /// block \[rad/s\].
     #[inline(never)]
-    fn judge(
-        &mut self,
-        limits: &SafetyLimits,
-        prediction: &Prediction,
-        eta: [f32; 2],
-        wheel: Wheel,
-        n: u32,
-        period_s: f32,
-    ) -> Option<StopReason> {
+    fn judge(&mut self, p: &Prediction, eta: [f32; 2], wheel: Wheel) -> Option<StopReason> {
         let i = wheel.index();
-        let n = n as f32;
-        let inv_n = 1.0 / n;
-        let w = &prediction.w[i];
-        let coriolis = prediction.c_w2 * eta[1] * eta[1];
-        let cross = prediction.c_wv * eta[1] * eta[0];
+        let w = &p.w_tick[i];
+        let coriolis = p.c_w2_block * eta[1] * eta[1];
+        let cross = p.c_wv_block * eta[1] * eta[0];
         let sum = &self.ended_torque_sum_nm;
-        let predicted = (w[0] * sum[0] + w[1] * sum[1]) * inv_n
+        let predicted = w[0] * sum[0]
+            + w[1] * sum[1]
             + if i == 0 {
                 coriolis - cross
             } else {
                 coriolis + cross
             };
         let change = self.ended_change_radps[i];
-        let against = predicted * change < 0.0
-            && (sum[i] * inv_n).abs() >= limits.direction_torque_nm
-            && predicted.abs() >= limits.direction_accel_radps2
-            && change.abs() >= limits.direction_accel_radps2 * n * period_s;
+        let tol = p.tol_change_radps;
+        // Against the correct hypothesis's prediction, clearly (a wheel that
+        // does not move is a stall, `check_stall`'s) ...
+        if predicted * change >= 0.0 || predicted.abs() < tol || change.abs() < tol {
+            self.strikes[i] = 0;
+            return None;
+        }
+        // ... and nearer the inverted hypothesis than the correct one:
+        // τ_V = τ_c + b·φ̇ at the block's mean rate (the voltage's torque),
+        // the midpoint the prediction minus W_ii·τ_V over the block.
+        let mean_rate = self.ended_start_radps[i] + 0.5 * change;
+        let tau_v = sum[i] * p.inv_block_ticks + p.damping_nms_per_rad * mean_rate;
+        let beyond = change - predicted + p.own_block[i] * tau_v;
+        let against = beyond * tau_v < 0.0 && tau_v.abs() >= p.tol_torque_nm && beyond.abs() >= tol;
         let k = &mut self.strikes[i];
         *k = if against { k.saturating_add(1) } else { 0 };
-        (*k >= limits.direction_blocks).then_some(StopReason::DirectionMismatch { wheel })
+        (*k >= p.blocks).then_some(StopReason::DirectionMismatch { wheel })
     }
 }
 
@@ -212,12 +268,34 @@ impl DirectionCheck {
 mod tests {
     use super::*;
 
+    const PERIOD_S: f32 = 1e-3;
+
+    /// The model's wheel accelerations per N·m \[rad/s² per N·m\].
+    fn accel_map(m: &Prediction) -> [[f32; 2]; 2] {
+        m.w_tick.map(|row| row.map(|x| x / PERIOD_S))
+    }
+
     fn model() -> Prediction {
-        Prediction::new(&ReducedModel::new(&crate::RobotParams::paper()).unwrap())
+        Prediction::new(
+            &ReducedModel::new(&crate::RobotParams::paper()).unwrap(),
+            &MotorModel::new(super::super::motor::MotorParams::EXAMPLE).unwrap(),
+            &SafetyLimits::EXAMPLE,
+            PERIOD_S,
+        )
+    }
+
+    /// The model without back-EMF damping (b = 0: the voltage's torque is
+    /// the commanded torque), for the scripted-acceleration tests below,
+    /// whose rates grow without a motor law.
+    fn undamped() -> Prediction {
+        Prediction {
+            damping_nms_per_rad: 0.0,
+            ..model()
+        }
     }
 
     /// `ticks` ticks of constant torques and measured accelerations, the
-    /// rates going on from `rate`.
+    /// rates going on from `rate` (the undamped model).
     fn run(
         check: &mut DirectionCheck,
         tick: &mut u32,
@@ -226,14 +304,13 @@ mod tests {
         accel: [f32; 2],
         ticks: u32,
     ) -> Option<StopReason> {
-        let l = SafetyLimits::EXAMPLE;
-        let m = model();
+        let m = undamped();
         let mut stop = None;
         for _ in 0..ticks {
             for i in 0..2 {
                 rate[i] += accel[i] * 1e-3;
             }
-            stop = stop.or(check.update(&l, &m, *tick, [0.0; 2], torque, 0, *rate, 1e-3));
+            stop = stop.or(check.update(&m, *tick, [0.0; 2], torque, 0, *rate));
             *tick += 1;
         }
         stop
@@ -275,11 +352,16 @@ mod tests {
         let long = 20 * (l.direction_block_ticks * l.direction_blocks) as u32;
         let small_torque = 0.9 * l.direction_torque_nm;
         let small_accel = 0.9 * l.direction_accel_radps2;
+        // A turn on the spot: each wheel's midpoint between the hypotheses
+        // is its prediction minus its own torque's share (W_ii·τ_i).
+        let w = accel_map(&undamped());
+        let spin = [5.0f32, -5.0];
+        let midpoint = |i: usize| w[i][0] * spin[0] + w[i][1] * spin[1] - w[i][i] * spin[i];
         for (torque, accel) in [
             // Below the torque tolerance.
             ([small_torque, small_torque], [-100.0, -100.0]),
-            // Below the measured-acceleration tolerance.
-            ([5.0, -5.0], [-small_accel, small_accel]),
+            // On the inverted side of the midpoint, within the tolerance.
+            (spin, [midpoint(0) - small_accel, midpoint(1) + small_accel]),
             // Consistent (a turn on the spot).
             ([5.0, -5.0], [50.0, -50.0]),
             // The coupling through the body (Case 1's start): the left
@@ -325,8 +407,91 @@ mod tests {
         for k in 0..(20 * l.direction_block_ticks * l.direction_blocks) as u32 {
             rate[0] -= 0.05;
             // The duty-saturation counter moves in every block.
-            let stop = c.update(&l, &model(), k, [0.0; 2], [5.0, 5.0], k, rate, 1e-3);
+            let stop = c.update(&model(), k, [0.0; 2], [5.0, 5.0], k, rate);
             assert_eq!(stop, None);
+        }
+    }
+
+    /// Drives the check with a DC-motor plant on the model's own coupling:
+    /// commanded torques `tau_c` at each tick, the real wheel torques from
+    /// the applied voltage's torque τ_V = τ_c + b·φ̇ through a motor whose
+    /// constant is (1 + ε) times the model's, wheel `inverted` (if any)
+    /// wired backwards (its voltage's sign flipped). Accelerations from the
+    /// prediction's torque map (straight driving, η = 0 in the Coriolis
+    /// terms). Returns the first stop and the tick.
+    fn motor_plant(
+        eps: f32,
+        inverted: Option<usize>,
+        rate0: [f32; 2],
+        tau_c: impl Fn(u32, [f32; 2]) -> [f32; 2],
+        ticks: u32,
+    ) -> Option<(u32, StopReason)> {
+        let m = model();
+        let w = accel_map(&m);
+        let b = m.damping_nms_per_rad;
+        let mut c = DirectionCheck::start(rate0, 0);
+        let mut rate = rate0;
+        for k in 0..ticks {
+            let tc = tau_c(k, rate);
+            let mut real = [0.0f32; 2];
+            for i in 0..2 {
+                let mut tau_v = tc[i] + b * rate[i];
+                if inverted == Some(i) {
+                    tau_v = -tau_v;
+                }
+                real[i] = (1.0 + eps) * tau_v - (1.0 + eps) * (1.0 + eps) * b * rate[i];
+            }
+            for i in 0..2 {
+                rate[i] += (w[i][0] * real[0] + w[i][1] * real[1]) * PERIOD_S;
+            }
+            if let Some(stop) = c.update(&m, k, [0.0; 2], tc, 0, rate) {
+                return Some((k, stop));
+            }
+        }
+        None
+    }
+
+    /// A wheel-speed P loop (as the dynamic loop acts at the wheels): the
+    /// torque that drives the wheel rates to `ref_radps`, within ±8 N·m.
+    fn speed_loop(ref_radps: f32, rate: [f32; 2]) -> [f32; 2] {
+        let p = |r: f32| (2.0 * (ref_radps - r)).clamp(-8.0, 8.0);
+        [p(rate[0]), p(rate[1])]
+    }
+
+    /// A motor constant 30 % off the model's, the wheels speeding up and
+    /// slowing down between 4 and 10 rad/s (0.4-1 m/s at r = 0.1 m, where
+    /// the back-EMF torque b·φ̇ is 2.4-6.1 N·m for the example motor and
+    /// the real torque differs from the commanded one by
+    /// ε·τ_c − ε·(1 + ε)·b·φ̇, up to 2.6 N·m): never a stop. With one
+    /// motor wired backwards the same loop latches within the window,
+    /// naming that wheel.
+    #[test]
+    fn motor_constant_mismatch_is_not_a_wiring_fault() {
+        let l = SafetyLimits::EXAMPLE;
+        let window = (l.direction_block_ticks * l.direction_blocks) as u32;
+        let b = model().damping_nms_per_rad;
+        assert!(b * 10.0 > 6.0, "b = {b}");
+        let steps =
+            |k: u32, rate: [f32; 2]| speed_loop(if (k / 400) % 2 == 0 { 10.0 } else { 4.0 }, rate);
+        for eps in [-0.3f32, -0.2, 0.2, 0.3] {
+            assert_eq!(
+                motor_plant(eps, None, [4.0; 2], steps, 8000),
+                None,
+                "ε = {eps}"
+            );
+        }
+        // A miswired right motor at standstill, the loop asking for 5 rad/s.
+        let start = |_: u32, rate: [f32; 2]| speed_loop(5.0, rate);
+        for eps in [-0.2f32, 0.0, 0.2] {
+            let (k, stop) = motor_plant(eps, Some(0), [0.0; 2], start, 10 * window)
+                .unwrap_or_else(|| panic!("ε = {eps}: no stop"));
+            assert_eq!(
+                stop,
+                StopReason::DirectionMismatch {
+                    wheel: Wheel::Right
+                }
+            );
+            assert!(k <= window + 2, "ε = {eps}: latched at tick {k}");
         }
     }
 }

@@ -169,6 +169,12 @@ impl MotorModel {
         self.max_duty
     }
 
+    /// Back-EMF damping at the wheel b = η_g·N²·k²/R \[N·m per rad/s\]: at a
+    /// fixed voltage the wheel torque falls by b per rad/s of wheel rate.
+    pub fn back_emf_damping_nms_per_rad(&self) -> f32 {
+        self.torque_per_amp * self.emf_per_wheel_rate / self.params.winding_resistance_ohm
+    }
+
     /// Mean armature voltage \[V\] that produces `torque_nm` at the wheel
     /// while the wheel turns at `wheel_rate_radps`.
     pub fn voltage_for_torque(&self, torque_nm: f32, wheel_rate_radps: f32) -> f32 {

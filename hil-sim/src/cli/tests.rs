@@ -343,6 +343,53 @@ fn compare_with_the_paper_robot_file_equals_no_flag() {
     assert_ne!(none, text(&["--robot", small.to_str().unwrap()]));
 }
 
+/// Issue 18's acceptance: each example robot (robots/*.toml) runs in
+/// `compare --robot FILE`: both cases of the three controllers, every
+/// metric in metrics.json finite, the torque within the file's limit
+/// (the controller saturates there: its `tau_max` can be no larger).
+#[test]
+fn compare_runs_each_example_robot() {
+    for file in ["paper.toml", "tb6612-2kg.toml", "bts7960-10kg.toml"] {
+        let path = robots_dir().join(file);
+        let robot =
+            robot_file::Robot::from_toml_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let args = [
+            "compare",
+            "--out",
+            dir.path().to_str().unwrap(),
+            "--no-plots",
+            "--robot",
+            path.to_str().unwrap(),
+        ];
+        let text = run_to_string(&args).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join("metrics.json")).unwrap(),
+        )
+        .unwrap();
+        let runs = json.as_array().unwrap_or_else(|| panic!("{file}: {json}"));
+        assert_eq!(runs.len(), 6, "{file}: {text}");
+        for m in runs {
+            for k in [
+                "rms_pos_err_m",
+                "final_pos_err_m",
+                "torque_rms_nm",
+                "max_abs_torque_nm",
+            ] {
+                let v = m[k].as_f64().unwrap_or(f64::NAN);
+                assert!(v.is_finite() && v >= 0.0, "{file}: {k} = {v}");
+            }
+            let tau_max = m["max_abs_torque_nm"].as_f64().unwrap();
+            assert!(m["controller"].is_string(), "{file}: {m}");
+            assert!(
+                tau_max <= robot.limits.torque_nm as f64 * (1.0 + 1e-6),
+                "{file}: torque {tau_max} above the file's limit {}",
+                robot.limits.torque_nm
+            );
+        }
+    }
+}
+
 /// A bad robot file is an error naming the file and the field, never a
 /// panic, for every command that takes one.
 #[test]

@@ -6,6 +6,7 @@
 //! ([`crate::hil::RuntimeSide`]).
 
 use controller_core::pacer::PaceReport;
+use controller_core::runtime::StopReason;
 use controller_core::{ControllerKind, Diagnostics, RefSample};
 use sim_robot::world::{Actuation, Reading};
 use sim_robot::World;
@@ -35,6 +36,11 @@ pub trait ControlSide {
     fn step(&mut self, step: usize, reading: &Reading, world: &mut World) -> ControlOutput;
     /// Steps the controller rejected or the runtime stopped on.
     fn rejected_steps(&self) -> u32;
+    /// The first stop the runtime latched: (step, reason). None for a
+    /// side without a runtime (the ideal side never stops).
+    fn stop(&self) -> Option<(usize, StopReason)> {
+        None
+    }
 }
 
 impl<C: ControlSide> ControlSide for &mut C {
@@ -46,5 +52,8 @@ impl<C: ControlSide> ControlSide for &mut C {
     }
     fn rejected_steps(&self) -> u32 {
         (**self).rejected_steps()
+    }
+    fn stop(&self) -> Option<(usize, StopReason)> {
+        (**self).stop()
     }
 }

@@ -19,6 +19,7 @@ pub use control_side::{ControlOutput, ControlSide};
 use crate::metrics::{Metrics, MetricsAcc};
 use crate::scenario::Scenario;
 use controller_core::estimator::EstimatorStatus;
+use controller_core::runtime::StopReason;
 use controller_core::ControllerKind;
 use sim_robot::sensors::PoseSourceStats;
 use sim_robot::World;
@@ -44,6 +45,9 @@ pub struct SimOutput {
     pub metrics: Metrics,
     /// Steps the controller rejected (bad input).
     pub rejected_steps: u32,
+    /// The first stop the firmware runtime latched: (step, reason); None
+    /// without one (and always with ideal sensing, which has no runtime).
+    pub stop: Option<(usize, StopReason)>,
     /// Firmware sensing: the estimator's status and the pose source's
     /// counters at the end (None with ideal sensing).
     pub sensing: Option<SensingReport>,
@@ -159,6 +163,7 @@ pub fn run_loop(
         trace,
         metrics: acc.finish(scn.duration_s, dt),
         rejected_steps: side.rejected_steps(),
+        stop: side.stop(),
         sensing: None,
     })
 }

@@ -54,7 +54,7 @@ pub struct RuntimeSide {
     /// simulated clock advances exactly one period per step.
     timer: LoopTimer,
     /// First safe stop latched, with the step it happened at.
-    pub stop: Option<(usize, StopReason)>,
+    stop: Option<(usize, StopReason)>,
 }
 
 impl RuntimeSide {
@@ -106,5 +106,9 @@ impl ControlSide for RuntimeSide {
 
     fn rejected_steps(&self) -> u32 {
         self.control.status().input_faults + self.control.status().stops
+    }
+
+    fn stop(&self) -> Option<(usize, StopReason)> {
+        self.stop
     }
 }
