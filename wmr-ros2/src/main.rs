@@ -44,9 +44,12 @@ enum Mapping {
 #[derive(Debug, Parser)]
 #[command(name = "wmr-ros2", version)]
 struct Args {
-    /// The robot's serial port or pty (`hil-sim device --pty` prints one).
+    /// The robot's serial port or pty (`hil-sim device --pty` prints one); through its `wmr serve` when one listens on the port's default socket.
     #[arg(long, env = "WMR_PORT")]
-    port: String,
+    port: Option<String>,
+    /// A `wmr serve` socket to connect through (docs/serve.md).
+    #[arg(long, env = "WMR_SERVE")]
+    serve: Option<PathBuf>,
     /// Telemetry (/odom, /tf, /joint_states) rate [Hz].
     #[arg(long, default_value_t = bridge::DEFAULT_RATE_HZ)]
     rate_hz: u16,
@@ -194,7 +197,15 @@ fn run(a: &Args) -> Result<(), String> {
             return Err(format!("--for-s {s}: must be > 0"));
         }
     }
-    let link = wmr::Link::open_timed(&a.port, None).map_err(|e| e.to_string())?;
+    // The port itself, or the `wmr serve` that owns it (docs/serve.md):
+    // the same `Link` either way.
+    let endpoint = wmr::serve::Endpoint::resolve(a.port.as_deref(), a.serve.as_deref())
+        .map_err(|e| e.to_string())?;
+    let link = wmr::serve::open_link(&endpoint, None).map_err(|e| e.to_string())?;
+    let via = match &endpoint {
+        wmr::serve::Endpoint::Port(p) => p.clone(),
+        wmr::serve::Endpoint::Server(s) => format!("wmr serve at {}", s.display()),
+    };
     let mut b = Bridge::connect(link, cfg).map_err(|e| e.to_string())?;
     let mut log = match &a.mcap {
         None => None,
@@ -251,8 +262,7 @@ fn run(a: &Args) -> Result<(), String> {
     }
     let limits = b.limits();
     eprintln!(
-        "wmr-ros2: bridging {} on DDS domain {}: robot r {:.4} m, h {:.4} m, d {:.4} m; limits {:.2} m/s, {:.2} rad/s; motion {}",
-        a.port,
+        "wmr-ros2: bridging {via} on DDS domain {}: robot r {:.4} m, h {:.4} m, d {:.4} m; limits {:.2} m/s, {:.2} rad/s; motion {}",
         a.domain_id,
         b.geometry().wheel_radius_m,
         b.geometry().half_track_m,
