@@ -35,15 +35,19 @@
 //! metrics come from either file.
 #![deny(missing_docs)]
 
+mod frames;
 pub mod msg;
 mod reader;
 mod telemetry;
 mod writer;
 
+pub use frames::{
+    counter_values, diagnostic_status, health_name, DiagFrame, LogFrame, RosFrames, RosMessages,
+};
 pub use reader::sample_of_tracking;
 pub use reader::{is_mcap, read_log, read_messages, read_trace, LoggedMessage};
 pub use telemetry::sample_of_telemetry;
-pub use writer::{counter_values, DiagFrame, LogFrame, LogStats, McapLog};
+pub use writer::{LogStats, McapLog};
 
 pub use track_log::TraceSample;
 

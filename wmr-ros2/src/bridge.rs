@@ -1,0 +1,919 @@
+//! The bridge's core, without DDS: the robot's link on one side, ROS 2
+//! messages (as plain structs) on the other. `main.rs` only moves messages
+//! between this and ros2-client.
+//!
+//! **Motion is enabled, not implied.** `cmd_vel` and paths move the robot
+//! only after the arm service (or `--enable`): a stale publisher on the
+//! network does not start a robot that was just connected. Disarm and
+//! emergency stop disable it again. Once enabled, a `cmd_vel` while the
+//! robot holds selects velocity mode and arms it, so that after a
+//! `VelocityTimeout` stop (a silent publisher) the next command drives
+//! again, as Nav2 expects.
+//!
+//! **Timeouts.** Each `cmd_vel` is forwarded as one velocity command with
+//! the bridge's `cmd_timeout_ms` (the robot's own timeout: the bridge
+//! never refreshes a command itself), so a silent publisher makes the
+//! *robot* brake to a stop `cmd_timeout_ms` after the last command,
+//! whatever the bridge does. The bridge keeps the link alive with clock
+//! syncs every keep-alive period (a fifth of the robot's link timeout),
+//! which also keep the robot-time offset fresh for stamping poses.
+
+use crate::convert::{
+    external_pose_request, g_of_axle, planar, pose_msg, velocity_command, Limits, Refusal,
+};
+use crate::msg::{Path, PoseWithCovarianceStamped};
+use crate::profile;
+use ros_mcap::msg::{DiagnosticStatus, KeyValue, Twist};
+use ros_mcap::{Geometry, LogFrame, RosFrames, RosMessages, TimeMap};
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+use wmr::cli::{clock_sync, ClockSample, PoseClock, PoseTally};
+use wmr::{Link, LinkError};
+use wmr_protocol::{
+    ErrorCode, Event, ModeMsg, ParamId, Reply, Request, RunStateMsg, StopCode, Telemetry,
+    TELEMETRY_ALL,
+};
+
+/// The bridge's settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Config {
+    /// Telemetry (and so `/odom`, `/tf`, `/joint_states`) rate \[Hz\].
+    pub rate_hz: u16,
+    /// Timeout of each forwarded `cmd_vel` on the robot \[ms\] (1..=5000).
+    pub cmd_timeout_ms: u16,
+    /// d, G ahead of the axle \[m\] (the link's handshake does not carry it).
+    pub com_offset_m: f64,
+    /// Fraction of the robot's speed and acceleration limits a path's
+    /// profile uses, in (0, 1] (the rest is the controller's margin).
+    pub path_limit_fraction: f64,
+    /// Motion enabled from the start (no arm service call needed).
+    pub enable: bool,
+}
+
+/// Default `cmd_timeout_ms`: `wmr drive`'s, three missed commands of a
+/// 10 Hz publisher.
+pub const DEFAULT_CMD_TIMEOUT_MS: u16 = 300;
+/// Default telemetry rate \[Hz\] (Nav2's controllers run at 20 Hz).
+pub const DEFAULT_RATE_HZ: u16 = 50;
+/// Default [`Config::path_limit_fraction`].
+pub const DEFAULT_PATH_LIMIT_FRACTION: f64 = 0.8;
+/// No telemetry frame for this long: the link is dead.
+pub const TELEMETRY_SILENCE: Duration = Duration::from_secs(2);
+/// Clock-sync samples kept; the shortest round trip among them sets the
+/// offset.
+const SYNC_WINDOW: usize = 16;
+/// Wait before re-sending a segment the robot's full buffer refused.
+const SEGMENT_RETRY: Duration = Duration::from_millis(50);
+
+impl Config {
+    /// Checked settings.
+    pub fn new(
+        rate_hz: u16,
+        cmd_timeout_ms: u16,
+        com_offset_m: f64,
+        path_limit_fraction: f64,
+        enable: bool,
+    ) -> Result<Self, String> {
+        if !(1..=1000).contains(&rate_hz) {
+            return Err(format!("rate {rate_hz} Hz is not in 1..=1000 Hz"));
+        }
+        if !(1..=5000).contains(&cmd_timeout_ms) {
+            return Err(format!(
+                "cmd_vel timeout {cmd_timeout_ms} ms is not in 1..=5000 ms (the robot's range)"
+            ));
+        }
+        if !(path_limit_fraction.is_finite()
+            && path_limit_fraction > 0.0
+            && path_limit_fraction <= 1.0)
+        {
+            return Err(format!(
+                "path limit fraction {path_limit_fraction} is not in (0, 1]"
+            ));
+        }
+        Ok(Self {
+            rate_hz,
+            cmd_timeout_ms,
+            com_offset_m,
+            path_limit_fraction,
+            enable,
+        })
+    }
+}
+
+/// Why the bridge cannot go on.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Fatal {
+    /// The link failed.
+    Link(LinkError),
+    /// No telemetry for [`TELEMETRY_SILENCE`].
+    Silence,
+    /// The robot's constants are not a robot.
+    Robot(String),
+}
+
+impl std::fmt::Display for Fatal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Link(e) => write!(f, "{e}"),
+            Self::Silence => write!(
+                f,
+                "no telemetry from the robot for {} s",
+                TELEMETRY_SILENCE.as_secs()
+            ),
+            Self::Robot(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl From<LinkError> for Fatal {
+    fn from(e: LinkError) -> Self {
+        Self::Link(e)
+    }
+}
+
+/// What a message or a service call did.
+pub type Outcome = Result<Result<String, Refusal>, Fatal>;
+
+/// Counters of what came in from ROS and what went out to the robot.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Stats {
+    /// `cmd_vel` messages received.
+    pub cmd_vel: u64,
+    /// Forwarded to the robot and acknowledged.
+    pub cmd_vel_forwarded: u64,
+    /// Refused as stale (stamped longer ago than the command timeout).
+    pub cmd_vel_stale: u64,
+    /// Scaled down to the robot's limits (curvature kept).
+    pub cmd_vel_scaled: u64,
+    /// Not forwarded or refused (see `last_refusal`).
+    pub cmd_vel_refused: u64,
+    /// Paths received.
+    pub paths: u64,
+    /// Paths uploaded (all segments acknowledged).
+    pub paths_uploaded: u64,
+    /// Paths refused.
+    pub paths_refused: u64,
+    /// Initial poses set.
+    pub initial_poses: u64,
+    /// Initial poses refused.
+    pub initial_poses_refused: u64,
+    /// Localiser poses not sent (bad message) — those the robot refused
+    /// are in the pose tally.
+    pub poses_invalid: u64,
+    /// Telemetry frames received.
+    pub frames: u64,
+    /// Telemetry frames lost (gaps in their sequence numbers).
+    pub frames_dropped: u64,
+    /// Link-lost events from the robot.
+    pub link_lost_events: u64,
+    /// The last refusal, for `/diagnostics`.
+    pub last_refusal: String,
+}
+
+/// A path being uploaded (and streamed while it runs).
+#[derive(Clone, Debug)]
+struct UploadState {
+    segs: Vec<Request>,
+    next: usize,
+    points: usize,
+    armed: bool,
+    retry_at: Option<Instant>,
+}
+
+/// The bridge.
+pub struct Bridge {
+    link: Link,
+    cfg: Config,
+    geometry: Geometry,
+    limits: Limits,
+    frames: RosFrames,
+    t0: Instant,
+    unix_t0_ns: u64,
+    syncs: VecDeque<ClockSample>,
+    clock: PoseClock,
+    time_map: TimeMap,
+    period_s: f32,
+    brake_decel_mps2: f64,
+    last_sync: Instant,
+    last_frame: Instant,
+    last_seq: Option<u32>,
+    state: RunStateMsg,
+    mode: ModeMsg,
+    last_stop: Option<StopCode>,
+    enabled: bool,
+    upload: Option<UploadState>,
+    queued_path: Option<Vec<wmr_protocol::Waypoint>>,
+    last_log_frame: Option<LogFrame>,
+    /// What came in and went out.
+    pub stats: Stats,
+    /// Localiser poses sent and refused by reason.
+    pub poses: PoseTally,
+}
+
+fn param(link: &mut Link, id: ParamId) -> Result<f32, Fatal> {
+    match link.command(&Request::GetParam(id))? {
+        Reply::Param { value, .. } => Ok(value),
+        r => Err(Fatal::Link(LinkError::Unexpected(format!("{r:?}")))),
+    }
+}
+
+fn status(link: &mut Link) -> Result<wmr_protocol::StatusMsg, Fatal> {
+    match link.command(&Request::GetStatus)? {
+        Reply::Status { status, .. } => Ok(status),
+        r => Err(Fatal::Link(LinkError::Unexpected(format!("{r:?}")))),
+    }
+}
+
+/// A command stamped at `stamp_ns` is stale at `now_ns` when older than
+/// the command timeout (a stamp in the future is not: clocks differ a
+/// little between hosts).
+pub fn stale(stamp_ns: u64, now_ns: u64, cmd_timeout_ms: u16) -> bool {
+    now_ns.saturating_sub(stamp_ns) > cmd_timeout_ms as u64 * 1_000_000
+}
+
+fn nack_reason(e: &LinkError) -> Option<ErrorCode> {
+    match e {
+        LinkError::Nack(_, c) => Some(*c),
+        _ => None,
+    }
+}
+
+impl Bridge {
+    /// Connects over `link` (after its handshake or not): reads the robot's
+    /// constants and limits, syncs the clocks, turns telemetry on.
+    pub fn connect(mut link: Link, cfg: Config) -> Result<Self, Fatal> {
+        let hello = link.hello()?;
+        let lt = param(&mut link, ParamId::LinkTimeoutMs)?;
+        if lt.is_finite() && lt >= 1.0 {
+            link.set_link_timeout_ms(lt as u32);
+        }
+        let geometry = Geometry::new(
+            hello.robot.wheel_radius_m as f64,
+            hello.robot.half_track_m as f64,
+            cfg.com_offset_m,
+        )
+        .map_err(|e| Fatal::Robot(e.to_string()))?;
+        let limits = Limits::new(
+            param(&mut link, ParamId::MaxSpeedMps)? as f64,
+            param(&mut link, ParamId::MaxYawRateRadps)? as f64,
+            param(&mut link, ParamId::AccelMps2)? as f64,
+            param(&mut link, ParamId::AngAccelRadps2)? as f64,
+        )
+        .map_err(Fatal::Robot)?;
+        let brake_decel_mps2 = param(&mut link, ParamId::BrakeDecelMps2)? as f64;
+        let t0 = Instant::now();
+        let unix_t0_ns = ros_mcap::unix_now_ns();
+        let sync = clock_sync(&mut link, t0, 5)?;
+        let st = status(&mut link)?;
+        link.command(&Request::SetTelemetry {
+            selection: TELEMETRY_ALL,
+            rate_hz: cfg.rate_hz,
+        })?;
+        let period_s = hello.robot.control_period_s;
+        let enabled = cfg.enable;
+        Ok(Self {
+            clock: PoseClock::from_sync(sync, unix_t0_ns, period_s),
+            time_map: TimeMap::new(sync.robot_us as u32, unix_t0_ns + sync.host_mid_us * 1000),
+            syncs: VecDeque::from([sync]),
+            link,
+            cfg,
+            geometry,
+            limits,
+            frames: RosFrames::new(geometry),
+            t0,
+            unix_t0_ns,
+            period_s,
+            brake_decel_mps2,
+            last_sync: Instant::now(),
+            last_frame: Instant::now(),
+            last_seq: None,
+            state: st.state,
+            mode: st.mode,
+            last_stop: st.last_stop,
+            enabled,
+            upload: None,
+            queued_path: None,
+            last_log_frame: None,
+            stats: Stats::default(),
+            poses: PoseTally::default(),
+        })
+    }
+
+    /// The robot's geometry (d from the settings).
+    pub fn geometry(&self) -> Geometry {
+        self.geometry
+    }
+
+    /// The robot's limits read at connection.
+    pub fn limits(&self) -> Limits {
+        self.limits
+    }
+
+    /// The run state last seen.
+    pub fn state(&self) -> RunStateMsg {
+        self.state
+    }
+
+    /// The link (tests).
+    pub fn link_mut(&mut self) -> &mut Link {
+        &mut self.link
+    }
+
+    /// Host time since the bridge's t0 \[µs\].
+    pub fn host_us(&self) -> u64 {
+        self.t0.elapsed().as_micros() as u64
+    }
+
+    /// Robot − host clock offset \[µs\] and the round trip it was measured with.
+    pub fn clock_offset(&self) -> (i64, u64) {
+        let b = self.best_sync();
+        (b.offset_us(), b.rtt_us)
+    }
+
+    fn best_sync(&self) -> ClockSample {
+        *self
+            .syncs
+            .iter()
+            .min_by_key(|s| s.rtt_us)
+            .expect("at least one sync")
+    }
+
+    fn resync(&mut self) -> Result<(), Fatal> {
+        let s = clock_sync(&mut self.link, self.t0, 1)?;
+        self.syncs.push_back(s);
+        while self.syncs.len() > SYNC_WINDOW {
+            self.syncs.pop_front();
+        }
+        let b = self.best_sync();
+        self.clock = PoseClock::from_sync(b, self.unix_t0_ns, self.period_s);
+        // Stamps follow the robot's clock as it drifts against the host's
+        // (50 ppm is 0.18 s an hour): the map is re-anchored at the best
+        // recent sync (recent: within the clock's half range of 35 min,
+        // so its wrap count starts right).
+        self.time_map = TimeMap::new(b.robot_us as u32, self.unix_t0_ns + b.host_mid_us * 1000);
+        self.last_sync = Instant::now();
+        Ok(())
+    }
+
+    fn refuse(&mut self, r: Refusal) -> Result<String, Refusal> {
+        self.stats.last_refusal = r.to_string();
+        Err(r)
+    }
+
+    /// Reads the link for up to `wait`: keeps it alive, streams pending
+    /// path segments, and returns the messages of each telemetry frame
+    /// (with the bridge's own status on `/diagnostics`).
+    pub fn poll(&mut self, wait: Duration) -> Result<Vec<RosMessages>, Fatal> {
+        if self.last_sync.elapsed() >= self.link.timing().keep_alive {
+            self.resync()?;
+        }
+        self.stream_segments()?;
+        let mut out = Vec::new();
+        let mut w = wait;
+        for _ in 0..64 {
+            match self.link.next_stream(w)? {
+                None => break,
+                Some(Reply::Telemetry(t)) => {
+                    if let Some(m) = self.telemetry(&t) {
+                        out.push(m);
+                    }
+                }
+                Some(Reply::Event(e)) => self.event(e),
+                Some(_) => {}
+            }
+            w = Duration::ZERO;
+        }
+        if self.last_frame.elapsed() > TELEMETRY_SILENCE {
+            return Err(Fatal::Silence);
+        }
+        if self.state == RunStateMsg::Hold && self.upload.as_ref().is_none_or(|u| u.armed) {
+            if let Some(pts) = self.queued_path.take() {
+                if let Err(r) = self.start_upload(pts)? {
+                    self.stats.paths_refused += 1;
+                    self.stats.last_refusal = format!("queued path: {r}");
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    fn event(&mut self, e: Event) {
+        match e {
+            Event::StateChanged { state, cause } => {
+                self.state = state;
+                if cause.is_some() {
+                    self.last_stop = cause;
+                }
+                if state != RunStateMsg::Running {
+                    if let Some(u) = &self.upload {
+                        if u.armed {
+                            self.upload = None;
+                        }
+                    }
+                }
+            }
+            Event::LinkLost => self.stats.link_lost_events += 1,
+        }
+    }
+
+    /// The messages of one telemetry frame (`None` without the tracking
+    /// group); also the frame as the MCAP log writes it.
+    fn telemetry(&mut self, t: &Telemetry) -> Option<RosMessages> {
+        self.last_frame = Instant::now();
+        self.stats.frames += 1;
+        if let Some(s) = self.last_seq {
+            self.stats.frames_dropped += t.seq.wrapping_sub(s).saturating_sub(1) as u64;
+        }
+        self.last_seq = Some(t.seq);
+        if t.state != self.state {
+            self.state = t.state;
+            if t.state != RunStateMsg::Running {
+                if let Some(u) = &self.upload {
+                    if u.armed {
+                        self.upload = None;
+                    }
+                }
+            }
+        }
+        let stamp = self.time_map.host_ns(t.t_robot_us);
+        let f = LogFrame::of_telemetry(t, stamp, self.last_stop)?;
+        self.last_log_frame = Some(f);
+        let mut m = self.frames.messages(&f);
+        if let Some(d) = &mut m.diagnostics {
+            d.status.push(self.bridge_status());
+        }
+        Some(m)
+    }
+
+    /// The frame of the last telemetry with the tracking group (for an
+    /// MCAP log of what was bridged).
+    pub fn last_log_frame(&self) -> Option<LogFrame> {
+        self.last_log_frame
+    }
+
+    /// The bridge's own `/diagnostics` status.
+    pub fn bridge_status(&self) -> DiagnosticStatus {
+        let s = &self.stats;
+        let (off, rtt) = self.clock_offset();
+        let mut values = Vec::new();
+        let mut kv = |k: &str, v: String| {
+            values.push(KeyValue {
+                key: k.into(),
+                value: v,
+            })
+        };
+        kv("motion_enabled", self.enabled.to_string());
+        kv("mode", format!("{:?}", self.mode));
+        kv("cmd_vel_received", s.cmd_vel.to_string());
+        kv("cmd_vel_forwarded", s.cmd_vel_forwarded.to_string());
+        kv("cmd_vel_scaled", s.cmd_vel_scaled.to_string());
+        kv("cmd_vel_refused", s.cmd_vel_refused.to_string());
+        kv("cmd_vel_stale", s.cmd_vel_stale.to_string());
+        kv("cmd_timeout_ms", self.cfg.cmd_timeout_ms.to_string());
+        kv("rate_hz", self.cfg.rate_hz.to_string());
+        kv("max_speed_mps", self.limits.max_speed_mps.to_string());
+        kv(
+            "max_yaw_rate_radps",
+            self.limits.max_yaw_rate_radps.to_string(),
+        );
+        kv("accel_mps2", self.limits.accel_mps2.to_string());
+        kv("ang_accel_radps2", self.limits.ang_accel_radps2.to_string());
+        kv("brake_decel_mps2", self.brake_decel_mps2.to_string());
+        kv("com_offset_m", self.geometry.com_offset_m.to_string());
+        kv(
+            "path_limit_fraction",
+            self.cfg.path_limit_fraction.to_string(),
+        );
+        kv("paths_received", s.paths.to_string());
+        kv("paths_uploaded", s.paths_uploaded.to_string());
+        kv("paths_refused", s.paths_refused.to_string());
+        kv(
+            "path_upload",
+            match &self.upload {
+                None => "none".into(),
+                Some(u) => format!(
+                    "{} of {} segments sent ({} waypoints), {}",
+                    u.next,
+                    u.segs.len(),
+                    u.points,
+                    if u.armed { "running" } else { "loaded" }
+                ),
+            },
+        );
+        kv("path_queued", self.queued_path.is_some().to_string());
+        kv("initial_poses", s.initial_poses.to_string());
+        kv("initial_poses_refused", s.initial_poses_refused.to_string());
+        kv("localiser_poses", self.poses.to_string().replace('\n', ";"));
+        kv("localiser_poses_invalid", s.poses_invalid.to_string());
+        kv("telemetry_frames", s.frames.to_string());
+        kv("telemetry_frames_dropped", s.frames_dropped.to_string());
+        kv("link_lost_events", s.link_lost_events.to_string());
+        kv("clock_offset_us", off.to_string());
+        kv("clock_sync_rtt_us", rtt.to_string());
+        kv(
+            "link_timeout_ms",
+            self.link.timing().link_timeout.as_millis().to_string(),
+        );
+        kv("last_refusal", s.last_refusal.clone());
+        let level = if s.frames_dropped > 0 || s.link_lost_events > 0 {
+            DiagnosticStatus::WARN
+        } else {
+            DiagnosticStatus::OK
+        };
+        DiagnosticStatus {
+            level,
+            name: "wmr: ros2 bridge".into(),
+            message: format!(
+                "motion {}, {} cmd_vel forwarded, {} refused; {}",
+                if self.enabled { "enabled" } else { "disabled" },
+                s.cmd_vel_forwarded,
+                s.cmd_vel_refused,
+                if s.last_refusal.is_empty() {
+                    "no refusal".to_string()
+                } else {
+                    format!("last refusal: {}", s.last_refusal)
+                }
+            ),
+            hardware_id: "wmr".into(),
+            values,
+        }
+    }
+
+    /// A `cmd_vel`: a `Twist` (`stamp_ns` `None`), or a `TwistStamped`'s
+    /// twist and stamp (Unix ns; 0 = not stamped). A stamped command older
+    /// than the command timeout is refused: a command delayed on its way
+    /// (a starved host, a DDS backlog) must not restart a robot that has
+    /// already stopped because it was late.
+    pub fn cmd_vel(&mut self, tw: &Twist, stamp_ns: Option<u64>) -> Outcome {
+        self.stats.cmd_vel += 1;
+        let r = match stamp_ns.filter(|s| *s != 0) {
+            Some(s) if stale(s, ros_mcap::unix_now_ns(), self.cfg.cmd_timeout_ms) => {
+                self.stats.cmd_vel_stale += 1;
+                Ok(self.refuse(Refusal::WrongState(format!(
+                    "stale: stamped {:.0} ms ago, beyond the command timeout of {} ms",
+                    ros_mcap::unix_now_ns().saturating_sub(s) as f64 * 1e-6,
+                    self.cfg.cmd_timeout_ms
+                ))))
+            }
+            _ => self.cmd_vel_inner(tw),
+        };
+        match &r {
+            Ok(Ok(_)) => self.stats.cmd_vel_forwarded += 1,
+            Ok(Err(_)) => self.stats.cmd_vel_refused += 1,
+            Err(_) => {}
+        }
+        r
+    }
+
+    fn cmd_vel_inner(&mut self, tw: &Twist) -> Outcome {
+        let (req, scaled) = match velocity_command(
+            [tw.linear.x, tw.linear.y, tw.linear.z],
+            [tw.angular.x, tw.angular.y, tw.angular.z],
+            &self.limits,
+            self.cfg.cmd_timeout_ms,
+        ) {
+            Ok(r) => r,
+            Err(r) => return Ok(self.refuse(r)),
+        };
+        if !self.enabled {
+            return Ok(self.refuse(Refusal::NotEnabled));
+        }
+        match self.state {
+            RunStateMsg::Stopped => {
+                return Ok(self.refuse(Refusal::WrongState(format!(
+                    "a stop is latched ({}): call clear_stop",
+                    self.last_stop
+                        .map_or_else(|| "cause unknown".into(), |c| format!("{c:?}"))
+                ))))
+            }
+            RunStateMsg::Stopping => {
+                return Ok(self.refuse(Refusal::WrongState(
+                    "the robot is braking to a stop: commands resume once it holds".into(),
+                )))
+            }
+            RunStateMsg::Running if self.mode != ModeMsg::Velocity => {
+                return Ok(self.refuse(Refusal::WrongState(format!(
+                    "the robot is tracking a {:?} reference: cmd_vel applies once it ends (or disarm)",
+                    self.mode
+                ))))
+            }
+            _ => {}
+        }
+        if scaled {
+            self.stats.cmd_vel_scaled += 1;
+        }
+        match self.link.command(&req) {
+            Ok(_) => {}
+            Err(e) => {
+                return match nack_reason(&e) {
+                    Some(c) => Ok(self.refuse(Refusal::Robot(c.reason().into()))),
+                    None => Err(e.into()),
+                }
+            }
+        }
+        if self.state == RunStateMsg::Hold {
+            self.mode = ModeMsg::Velocity;
+            self.upload = None;
+            match self.link.command(&Request::Arm) {
+                Ok(_) => self.state = RunStateMsg::Running,
+                Err(e) => {
+                    return match nack_reason(&e) {
+                        Some(c) => Ok(self.refuse(Refusal::Robot(format!("arm: {}", c.reason())))),
+                        None => Err(e.into()),
+                    }
+                }
+            }
+            return Ok(Ok("velocity mode selected and armed".into()));
+        }
+        Ok(Ok("forwarded".into()))
+    }
+
+    /// A `nav_msgs/Path`: profiled (or timed), uploaded at once when the
+    /// robot holds (else queued until it does; a newer path replaces a
+    /// queued one), armed when motion is enabled.
+    pub fn path(&mut self, p: &Path) -> Outcome {
+        self.stats.paths += 1;
+        let lim = self.limits.scaled(self.cfg.path_limit_fraction);
+        let pts = match profile::waypoints(p, &self.geometry, &lim) {
+            Ok(w) => w,
+            Err(r) => {
+                self.stats.paths_refused += 1;
+                return Ok(self.refuse(r));
+            }
+        };
+        match self.state {
+            RunStateMsg::Stopped => {
+                self.stats.paths_refused += 1;
+                Ok(self.refuse(Refusal::WrongState(
+                    "a stop is latched: call clear_stop, then send the path again".into(),
+                )))
+            }
+            RunStateMsg::Hold if self.upload.as_ref().is_none_or(|u| !u.armed) => {
+                let r = self.start_upload(pts)?;
+                if r.is_err() {
+                    self.stats.paths_refused += 1;
+                }
+                Ok(r)
+            }
+            _ => {
+                self.queued_path = Some(pts);
+                Ok(Ok(
+                    "queued: uploaded when the robot holds (the current run ends or a disarm)"
+                        .into(),
+                ))
+            }
+        }
+    }
+
+    fn start_upload(
+        &mut self,
+        pts: Vec<wmr_protocol::Waypoint>,
+    ) -> Result<Result<String, Refusal>, Fatal> {
+        let n = pts.len();
+        if let Err(e) = self.link.command(&Request::TrajectoryBegin {
+            total_points: n as u32,
+        }) {
+            return match nack_reason(&e) {
+                Some(c) => Ok(self.refuse(Refusal::Robot(c.reason().into()))),
+                None => Err(e.into()),
+            };
+        }
+        self.mode = ModeMsg::Trajectory;
+        self.upload = Some(UploadState {
+            segs: wmr::upload::segments(&pts),
+            next: 0,
+            points: n,
+            armed: false,
+            retry_at: None,
+        });
+        self.stream_segments()?;
+        if self.enabled {
+            self.arm_upload()
+        } else {
+            Ok(Ok(format!(
+                "{n} waypoints loaded; call the arm service to run them"
+            )))
+        }
+    }
+
+    fn arm_upload(&mut self) -> Result<Result<String, Refusal>, Fatal> {
+        match self.link.command(&Request::Arm) {
+            Ok(_) => {
+                self.state = RunStateMsg::Running;
+                if let Some(u) = &mut self.upload {
+                    u.armed = true;
+                    if u.next == u.segs.len() {
+                        self.stats.paths_uploaded += 1;
+                    }
+                }
+                Ok(Ok("path uploaded and armed".into()))
+            }
+            Err(e) => match nack_reason(&e) {
+                Some(c) => Ok(self.refuse(Refusal::Robot(format!("arm: {}", c.reason())))),
+                None => Err(e.into()),
+            },
+        }
+    }
+
+    /// Sends the pending segments until the robot's buffer is full.
+    fn stream_segments(&mut self) -> Result<(), Fatal> {
+        let Some(u) = &mut self.upload else {
+            return Ok(());
+        };
+        if u.retry_at.is_some_and(|t| Instant::now() < t) {
+            return Ok(());
+        }
+        u.retry_at = None;
+        while u.next < u.segs.len() {
+            match self.link.request(&u.segs[u.next])? {
+                Reply::TrajectoryAck { .. } => {
+                    u.next += 1;
+                    if u.next == u.segs.len() && u.armed {
+                        self.stats.paths_uploaded += 1;
+                    }
+                }
+                Reply::Nack {
+                    error: ErrorCode::BufferFull,
+                    ..
+                } => {
+                    u.retry_at = Some(Instant::now() + SEGMENT_RETRY);
+                    break;
+                }
+                Reply::Nack { error, .. } => {
+                    self.upload = None;
+                    self.stats.paths_refused += 1;
+                    self.stats.last_refusal = format!("path segment refused: {}", error.reason());
+                    return Ok(());
+                }
+                r => return Err(Fatal::Link(LinkError::Unexpected(format!("{r:?}")))),
+            }
+        }
+        Ok(())
+    }
+
+    /// A localiser's pose (the base_link's pose with covariance), arrived
+    /// now: sent as an external pose of G stamped in robot time.
+    pub fn localiser_pose(&mut self, p: &PoseWithCovarianceStamped) -> Outcome {
+        let arrival = self.host_us();
+        let cov = p.covariance();
+        let req = match external_pose_request(
+            &self.geometry,
+            &self.clock,
+            &p.pose.pose,
+            &cov,
+            p.header.stamp.to_ns(),
+            arrival,
+            self.last_log_frame.map(|f| f.sample.pose[2]),
+        ) {
+            Ok(r) => r,
+            Err(r) => {
+                self.stats.poses_invalid += 1;
+                return Ok(self.refuse(r));
+            }
+        };
+        match self.link.command(&req) {
+            Ok(_) => {
+                self.poses.accepted();
+                Ok(Ok("fused".into()))
+            }
+            Err(e) => match nack_reason(&e) {
+                Some(c) => {
+                    self.poses.refused(c);
+                    Ok(self.refuse(Refusal::Robot(c.reason().into())))
+                }
+                None => Err(e.into()),
+            },
+        }
+    }
+
+    /// `/initialpose`: re-anchors the estimate at the pose of G of the
+    /// given base_link pose (the robot holds; its covariance is not used:
+    /// `SetPose` carries none).
+    pub fn initial_pose(&mut self, p: &PoseWithCovarianceStamped) -> Outcome {
+        let b = match planar(&p.pose.pose) {
+            Ok(b) => b,
+            Err(r) => {
+                self.stats.initial_poses_refused += 1;
+                return Ok(self.refuse(r));
+            }
+        };
+        let g = g_of_axle(&self.geometry, b);
+        match self.link.command(&Request::SetPose(pose_msg(g))) {
+            Ok(_) => {
+                self.stats.initial_poses += 1;
+                Ok(Ok("pose set".into()))
+            }
+            Err(e) => match nack_reason(&e) {
+                Some(c) => {
+                    self.stats.initial_poses_refused += 1;
+                    Ok(self.refuse(Refusal::Robot(c.reason().into())))
+                }
+                None => Err(e.into()),
+            },
+        }
+    }
+
+    fn simple(&mut self, req: Request, done: &str) -> Outcome {
+        match self.link.command(&req) {
+            Ok(_) => Ok(Ok(done.into())),
+            Err(e) => match nack_reason(&e) {
+                Some(c) => Ok(self.refuse(Refusal::Robot(c.reason().into()))),
+                None => Err(e.into()),
+            },
+        }
+    }
+
+    /// The arm service: enables motion; a loaded path starts at once.
+    pub fn arm(&mut self) -> Outcome {
+        if self.state == RunStateMsg::Stopped {
+            return Ok(self.refuse(Refusal::WrongState(
+                "a stop is latched: call clear_stop first".into(),
+            )));
+        }
+        self.enabled = true;
+        if self.state == RunStateMsg::Hold && self.upload.as_ref().is_some_and(|u| !u.armed) {
+            return self.arm_upload();
+        }
+        Ok(Ok(
+            "motion enabled: the robot arms on the next cmd_vel or path".into(),
+        ))
+    }
+
+    /// The disarm service: disables motion, drops a queued path, disarms.
+    pub fn disarm(&mut self) -> Outcome {
+        self.enabled = false;
+        self.queued_path = None;
+        if matches!(self.state, RunStateMsg::Running | RunStateMsg::Stopping) {
+            let r = self.simple(Request::Disarm, "disarmed; motion disabled")?;
+            if r.is_ok() {
+                self.state = RunStateMsg::Hold;
+                self.upload = None;
+            }
+            return Ok(r);
+        }
+        self.upload = None;
+        Ok(Ok("motion disabled (the robot was not running)".into()))
+    }
+
+    /// The emergency-stop service: latches a stop at once (any state),
+    /// disables motion.
+    pub fn emergency_stop(&mut self) -> Outcome {
+        self.enabled = false;
+        self.queued_path = None;
+        self.upload = None;
+        let r = self.simple(
+            Request::EmergencyStop,
+            "emergency stop latched; motion disabled (clear_stop, then arm)",
+        )?;
+        if r.is_ok() {
+            self.state = RunStateMsg::Stopped;
+            self.last_stop = Some(StopCode::Commanded);
+        }
+        Ok(r)
+    }
+
+    /// The clear-stop service: clears a latched stop (back to hold).
+    pub fn clear_stop(&mut self) -> Outcome {
+        let r = self.simple(Request::ClearStop, "stop cleared: hold")?;
+        if r.is_ok() {
+            self.state = RunStateMsg::Hold;
+        }
+        Ok(r)
+    }
+
+    /// Stops telemetry and disarms a robot the bridge drives (when the
+    /// bridge ends on purpose).
+    pub fn shutdown(&mut self) {
+        if matches!(self.state, RunStateMsg::Running) {
+            let _ = self.link.command(&Request::Disarm);
+        }
+        let _ = self.link.command(&Request::SetTelemetry {
+            selection: TELEMETRY_ALL,
+            rate_hz: 0,
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stale_commands_are_those_older_than_the_timeout() {
+        let now = 1_764_632_000_000_000_000u64;
+        assert!(!stale(now - 299_000_000, now, 300));
+        assert!(stale(now - 301_000_000, now, 300));
+        // From the future (another host's clock ahead): not stale.
+        assert!(!stale(now + 50_000_000, now, 300));
+    }
+
+    #[test]
+    fn settings_are_checked() {
+        assert!(Config::new(50, 300, 0.05, 0.8, false).is_ok());
+        assert!(Config::new(0, 300, 0.05, 0.8, false).is_err());
+        assert!(Config::new(50, 0, 0.05, 0.8, false).is_err());
+        assert!(Config::new(50, 6000, 0.05, 0.8, false).is_err());
+        assert!(Config::new(50, 300, 0.05, 0.0, false).is_err());
+        assert!(Config::new(50, 300, 0.05, f64::NAN, false).is_err());
+    }
+}

@@ -1,0 +1,24 @@
+//! # wmr-ros2
+//!
+//! A ROS 2 bridge for the trajectory-tracking robot on a pure-Rust ROS 2
+//! client (`ros2-client` over RustDDS: no ROS installation), talking to
+//! the robot through wmr's checked link ([`wmr::Link`]). See
+//! `docs/ros2.md` for the topics, services, QoS, frames and how G is
+//! handled; this library is the mapping, testable without DDS:
+//!
+//! - [`convert`]: base_link ↔ G, covariances, velocity commands, stamps;
+//! - [`profile`]: a `nav_msgs/Path` into timed waypoints within the limits;
+//! - [`bridge`]: the link side (keep-alive, clock sync, state, uploads,
+//!   services), producing the messages ros-mcap builds for the MCAP logs
+//!   ([`ros_mcap::RosFrames`]), so the logs and the live topics agree;
+//! - [`topics`]: every topic and service with its type and QoS;
+//! - [`msg`]: the message types the bridge subscribes to.
+#![deny(missing_docs)]
+
+pub mod bridge;
+pub mod convert;
+pub mod msg;
+pub mod profile;
+pub mod topics;
+
+pub use bridge::{Bridge, Config, Fatal};

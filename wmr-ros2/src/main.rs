@@ -1,0 +1,382 @@
+//! `wmr-ros2`: the ROS 2 bridge's binary (docs/ros2.md). The wiring only:
+//! DDS entities from [`wmr_ros2::topics`], messages moved between them
+//! and [`wmr_ros2::Bridge`].
+
+use clap::{Parser, ValueEnum};
+use ros2_client::{
+    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Server,
+    ServiceMapping, ServiceTypeName, Subscription,
+};
+use serde::Serialize;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+use wmr_ros2::bridge::{self, Bridge, Config, Fatal, Outcome};
+use wmr_ros2::msg::{
+    Path, PoseWithCovarianceStamped, TriggerRequest, TriggerResponse, TwistStamped,
+};
+use wmr_ros2::topics::{self, TopicSpec};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum CmdVelType {
+    /// geometry_msgs/TwistStamped (Jazzy's Nav2 default).
+    Stamped,
+    /// geometry_msgs/Twist (before Jazzy, teleop_twist_keyboard's default).
+    Twist,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Mapping {
+    /// RPC over DDS "enhanced" (rmw_fastrtps, ROS 2's default RMW).
+    Enhanced,
+    /// rmw_cyclonedds's request header.
+    Cyclone,
+    /// RPC over DDS "basic".
+    Basic,
+}
+
+/// ROS 2 bridge for the trajectory-tracking robot (docs/ros2.md): /odom,
+/// /tf, /joint_states, /diagnostics, /wmr/tracking out; cmd_vel, a path,
+/// localiser poses and /initialpose in; arm, disarm, emergency stop and
+/// clear stop as std_srvs/Trigger services. Exits non-zero when the link
+/// fails (the robot brakes to a stop after its link timeout).
+#[derive(Debug, Parser)]
+#[command(name = "wmr-ros2", version)]
+struct Args {
+    /// The robot's serial port or pty (`hil-sim device --pty` prints one); through its `wmr serve` when one listens on the port's default socket.
+    #[arg(long, env = "WMR_PORT")]
+    port: Option<String>,
+    /// A `wmr serve` socket to connect through (docs/serve.md).
+    #[arg(long, env = "WMR_SERVE")]
+    serve: Option<PathBuf>,
+    /// Telemetry (/odom, /tf, /joint_states) rate [Hz].
+    #[arg(long, default_value_t = bridge::DEFAULT_RATE_HZ)]
+    rate_hz: u16,
+    /// Timeout of each cmd_vel on the robot [ms]: a silent publisher stops the robot this long after its last command (then it brakes).
+    #[arg(long, default_value_t = bridge::DEFAULT_CMD_TIMEOUT_MS)]
+    cmd_timeout_ms: u16,
+    /// cmd_vel message type.
+    #[arg(long, value_enum, default_value_t = CmdVelType::Stamped)]
+    cmd_vel_type: CmdVelType,
+    /// cmd_vel topic.
+    #[arg(long, default_value = topics::DEFAULT_CMD_VEL)]
+    cmd_vel_topic: String,
+    /// Topic of the paths to follow (nav_msgs/Path).
+    #[arg(long, default_value = topics::DEFAULT_PATH)]
+    path_topic: String,
+    /// Topic of a localiser's poses (geometry_msgs/PoseWithCovarianceStamped), fused by the robot's estimator at their stamps.
+    #[arg(long, default_value = topics::DEFAULT_LOCALISER)]
+    localiser_topic: String,
+    /// d, G ahead of the axle midpoint [m] (the link does not carry it) [default: the paper robot's].
+    #[arg(long)]
+    com_offset_m: Option<f64>,
+    /// Fraction of the robot's speed and acceleration limits a path's profile uses.
+    #[arg(long, default_value_t = bridge::DEFAULT_PATH_LIMIT_FRACTION)]
+    path_limit_fraction: f64,
+    /// Enable motion at start (else call the arm service first).
+    #[arg(long)]
+    enable: bool,
+    /// Service mapping of the ROS 2 middleware the clients use.
+    #[arg(long, value_enum, default_value_t = Mapping::Enhanced)]
+    service_mapping: Mapping,
+    /// Node name.
+    #[arg(long, default_value = "wmr_bridge")]
+    node_name: String,
+    /// DDS domain (ROS_DOMAIN_ID).
+    #[arg(long, env = "ROS_DOMAIN_ID", default_value_t = 0)]
+    domain_id: u16,
+    /// Also log what is bridged to this MCAP file (the `wmr record --mcap` format).
+    #[arg(long)]
+    mcap: Option<PathBuf>,
+    /// Run this long, then disarm and exit 0 [s] (default: until SIGINT/SIGTERM, which also disarm and exit 0, or a link failure, exit 1).
+    #[arg(long)]
+    for_s: Option<f64>,
+}
+
+/// Set by SIGINT or SIGTERM: the bridge ends on purpose.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_: libc::c_int) {
+    STOP.store(true, Ordering::Relaxed);
+}
+
+fn catch_signals() {
+    let h = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+    // SAFETY: the handler only stores to an atomic (async-signal-safe).
+    unsafe {
+        libc::signal(libc::SIGINT, h);
+        libc::signal(libc::SIGTERM, h);
+    }
+}
+
+fn leak(s: &str) -> &'static str {
+    Box::leak(s.to_string().into_boxed_str())
+}
+
+fn name_of(full: &str) -> Result<Name, String> {
+    Name::parse(full).map_err(|e| format!("topic name {full:?}: {e:?}"))
+}
+
+fn publisher<T: Serialize>(node: &mut Node, t: &TopicSpec) -> Result<Publisher<T>, String> {
+    let topic = node
+        .create_topic(
+            &name_of(t.name)?,
+            MessageTypeName::new(t.package, t.type_name),
+            &t.qos(),
+        )
+        .map_err(|e| format!("topic {}: {e:?}", t.name))?;
+    node.create_publisher(&topic, None)
+        .map_err(|e| format!("publisher {}: {e:?}", t.name))
+}
+
+fn subscription<T: 'static>(node: &mut Node, t: &TopicSpec) -> Result<Subscription<T>, String> {
+    let topic = node
+        .create_topic(
+            &name_of(t.name)?,
+            MessageTypeName::new(t.package, t.type_name),
+            &t.qos(),
+        )
+        .map_err(|e| format!("topic {}: {e:?}", t.name))?;
+    node.create_subscription(&topic, None)
+        .map_err(|e| format!("subscription {}: {e:?}", t.name))
+}
+
+struct Pubs {
+    odom: Publisher<ros_mcap::msg::Odometry>,
+    tf: Publisher<ros_mcap::msg::TfMessage>,
+    joints: Publisher<ros_mcap::msg::JointState>,
+    diag: Publisher<ros_mcap::msg::DiagnosticArray>,
+    tracking: Publisher<ros_mcap::msg::Tracking>,
+    /// Publications the DDS layer refused (a full send window).
+    dropped: u64,
+}
+
+impl Pubs {
+    fn publish(&mut self, m: ros_mcap::RosMessages) {
+        let mut ok = true;
+        ok &= self.odom.publish(m.odom).is_ok();
+        ok &= self.tf.publish(m.tf).is_ok();
+        ok &= self.joints.publish(m.joints).is_ok();
+        ok &= self.tracking.publish(m.tracking).is_ok();
+        if let Some(d) = m.diagnostics {
+            ok &= self.diag.publish(d).is_ok();
+        }
+        if !ok {
+            self.dropped += 1;
+        }
+    }
+}
+
+enum CmdVelSub {
+    Stamped(Subscription<TwistStamped>),
+    Plain(Subscription<ros_mcap::msg::Twist>),
+}
+
+fn report(what: &str, r: Outcome) -> Result<Option<String>, Fatal> {
+    match r? {
+        Ok(_) => Ok(None),
+        Err(refusal) => {
+            let m = format!("{what}: {refusal}");
+            Ok(Some(m))
+        }
+    }
+}
+
+fn run(a: &Args) -> Result<(), String> {
+    let cfg = Config::new(
+        a.rate_hz,
+        a.cmd_timeout_ms,
+        a.com_offset_m
+            .unwrap_or_else(ros_mcap::default_com_offset_m),
+        a.path_limit_fraction,
+        a.enable,
+    )?;
+    if let Some(s) = a.for_s {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(format!("--for-s {s}: must be > 0"));
+        }
+    }
+    // The port itself, or the `wmr serve` that owns it (docs/serve.md):
+    // the same `Link` either way.
+    let endpoint = wmr::serve::Endpoint::resolve(a.port.as_deref(), a.serve.as_deref())
+        .map_err(|e| e.to_string())?;
+    let link = wmr::serve::open_link(&endpoint, None).map_err(|e| e.to_string())?;
+    let via = match &endpoint {
+        wmr::serve::Endpoint::Port(p) => p.clone(),
+        wmr::serve::Endpoint::Server(s) => format!("wmr serve at {}", s.display()),
+    };
+    let mut b = Bridge::connect(link, cfg).map_err(|e| e.to_string())?;
+    let mut log = match &a.mcap {
+        None => None,
+        Some(p) => Some(
+            ros_mcap::McapLog::create(p, b.geometry(), "wmr-ros2")
+                .map_err(|e| format!("{}: {e}", p.display()))?,
+        ),
+    };
+    let ctx = Context::with_options(ContextOptions::new().domain_id(a.domain_id))
+        .map_err(|e| format!("DDS participant: {e:?}"))?;
+    let mut node = ctx
+        .new_node(
+            NodeName::new("/", &a.node_name).map_err(|e| format!("node name: {e:?}"))?,
+            NodeOptions::new().enable_rosout(false),
+        )
+        .map_err(|e| format!("node: {e:?}"))?;
+    let mut pubs = Pubs {
+        odom: publisher(&mut node, &topics::ODOM)?,
+        tf: publisher(&mut node, &topics::TF)?,
+        joints: publisher(&mut node, &topics::JOINT_STATES)?,
+        diag: publisher(&mut node, &topics::DIAGNOSTICS)?,
+        tracking: publisher(&mut node, &topics::TRACKING)?,
+        dropped: 0,
+    };
+    let stamped = a.cmd_vel_type == CmdVelType::Stamped;
+    let cv = topics::cmd_vel(leak(&a.cmd_vel_topic), stamped);
+    let cmd_vel = if stamped {
+        CmdVelSub::Stamped(subscription(&mut node, &cv)?)
+    } else {
+        CmdVelSub::Plain(subscription(&mut node, &cv)?)
+    };
+    let path_sub: Subscription<Path> = subscription(&mut node, &topics::path(leak(&a.path_topic)))?;
+    let loc_sub: Subscription<PoseWithCovarianceStamped> =
+        subscription(&mut node, &topics::localiser(leak(&a.localiser_topic)))?;
+    let init_sub: Subscription<PoseWithCovarianceStamped> =
+        subscription(&mut node, &topics::INITIAL_POSE)?;
+    let mapping = match a.service_mapping {
+        Mapping::Enhanced => ServiceMapping::Enhanced,
+        Mapping::Cyclone => ServiceMapping::Cyclone,
+        Mapping::Basic => ServiceMapping::Basic,
+    };
+    let mut servers: Vec<Server<TriggerRequest, TriggerResponse>> = Vec::new();
+    for s in topics::SERVICES {
+        servers.push(
+            node.create_server(
+                mapping,
+                &name_of(s)?,
+                &ServiceTypeName::new("std_srvs", "Trigger"),
+                topics::service_qos(),
+                topics::service_qos(),
+            )
+            .map_err(|e| format!("service {s}: {e:?}"))?,
+        );
+    }
+    let limits = b.limits();
+    eprintln!(
+        "wmr-ros2: bridging {via} on DDS domain {}: robot r {:.4} m, h {:.4} m, d {:.4} m; limits {:.2} m/s, {:.2} rad/s; motion {}",
+        a.domain_id,
+        b.geometry().wheel_radius_m,
+        b.geometry().half_track_m,
+        b.geometry().com_offset_m,
+        limits.max_speed_mps,
+        limits.max_yaw_rate_radps,
+        if a.enable { "enabled" } else { "disabled until the arm service" }
+    );
+    catch_signals();
+    let started = Instant::now();
+    let mut last_note: Option<(String, Instant)> = None;
+    let r: Result<(), Fatal> = (|| loop {
+        if STOP.load(Ordering::Relaxed)
+            || a.for_s
+                .is_some_and(|s| started.elapsed().as_secs_f64() >= s)
+        {
+            return Ok(());
+        }
+        for m in b.poll(Duration::from_millis(5))? {
+            if let (Some(l), Some(f)) = (&mut log, b.last_log_frame()) {
+                l.write(&f)
+                    .map_err(|e| Fatal::Robot(format!("MCAP log: {e}")))?;
+            }
+            pubs.publish(m);
+        }
+        let mut notes = Vec::new();
+        loop {
+            let tw = match &cmd_vel {
+                CmdVelSub::Stamped(s) => s
+                    .take()
+                    .ok()
+                    .flatten()
+                    .map(|(m, _)| (m.twist, Some(m.header.stamp.to_ns()))),
+                CmdVelSub::Plain(s) => s.take().ok().flatten().map(|(m, _)| (m, None)),
+            };
+            let Some((tw, stamp)) = tw else { break };
+            notes.extend(report("cmd_vel", b.cmd_vel(&tw, stamp))?);
+        }
+        while let Ok(Some((p, _))) = path_sub.take() {
+            notes.extend(report("path", b.path(&p))?);
+        }
+        while let Ok(Some((p, _))) = loc_sub.take() {
+            notes.extend(report("localiser pose", b.localiser_pose(&p))?);
+        }
+        while let Ok(Some((p, _))) = init_sub.take() {
+            notes.extend(report("initialpose", b.initial_pose(&p))?);
+        }
+        for (k, srv) in servers.iter().enumerate() {
+            while let Ok(Some((id, _req))) = srv.receive_request() {
+                let out = match k {
+                    0 => b.arm()?,
+                    1 => b.disarm()?,
+                    2 => b.emergency_stop()?,
+                    _ => b.clear_stop()?,
+                };
+                let resp = match out {
+                    Ok(m) => TriggerResponse {
+                        success: true,
+                        message: m,
+                    },
+                    Err(r) => TriggerResponse {
+                        success: false,
+                        message: r.to_string(),
+                    },
+                };
+                eprintln!("wmr-ros2: {}: {}", topics::SERVICES[k], resp.message);
+                if srv.send_response(id, resp).is_err() {
+                    notes.push(format!("{}: response not sent", topics::SERVICES[k]));
+                }
+            }
+        }
+        for n in notes {
+            // The same refusal again (a publisher at 20 Hz): once every 5 s.
+            if last_note
+                .as_ref()
+                .is_none_or(|(m, t)| *m != n || t.elapsed() >= Duration::from_secs(5))
+            {
+                eprintln!("wmr-ros2: refused {n}");
+                last_note = Some((n, Instant::now()));
+            }
+        }
+    })();
+    if let Some(l) = log {
+        l.finish().map_err(|e| format!("MCAP log: {e}"))?;
+    }
+    match r {
+        Ok(()) => {
+            b.shutdown();
+            eprintln!(
+                "wmr-ros2: done after {:.1} s: {} frames ({} dropped), {} cmd_vel ({} forwarded, {} refused), {} paths ({} uploaded), {}, {} publications dropped",
+                started.elapsed().as_secs_f64(),
+                b.stats.frames,
+                b.stats.frames_dropped,
+                b.stats.cmd_vel,
+                b.stats.cmd_vel_forwarded,
+                b.stats.cmd_vel_refused,
+                b.stats.paths,
+                b.stats.paths_uploaded,
+                b.poses,
+                pubs.dropped
+            );
+            Ok(())
+        }
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+fn main() -> ExitCode {
+    let a = Args::parse();
+    match run(&a) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("wmr-ros2: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
