@@ -72,9 +72,13 @@ pub struct RunScore {
 /// Runs `scn` with `cfg` and scores it.
 pub fn score(scn: &Scenario, cfg: ControllerConfig) -> RunScore {
     let out = match scn.sensing.preset {
-        Sensing::Ideal => crate::sim::run_with(scn, cfg, 0).map(|o| (o, false)),
-        _ => run_runtime(scn, cfg, HilOptions::default(), 0).map(|o| (o.sim, o.stop.is_some())),
-    };
+        Sensing::Ideal => crate::sim::run_with(scn, cfg, 0),
+        _ => run_runtime(scn, cfg, HilOptions::default(), 0).map(|o| o.sim),
+    }
+    .map(|o| {
+        let runtime_stop = o.stop.is_some();
+        (o, runtime_stop)
+    });
     let tau = scn.torque_limit_nm().max(1e-9);
     match out {
         Ok((o, runtime_stop)) => {
