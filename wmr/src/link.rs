@@ -123,24 +123,6 @@ impl Link {
         Ok(Self::from_port_timed(Box::new(port), timeout))
     }
 
-    /// A link through the `wmr serve` listening on `socket` (see
-    /// [`crate::serve`]) with a fixed answer timeout: the same link as
-    /// [`Link::open`]'s, the server routing its requests and answers among
-    /// its other clients.
-    pub fn connect(socket: &std::path::Path, timeout: Duration) -> Result<Self, LinkError> {
-        Self::connect_timed(socket, Some(timeout))
-    }
-
-    /// [`Link::connect`] with the answer timeout derived from the link
-    /// timeout unless `timeout` is given (as [`Link::open_timed`]).
-    pub fn connect_timed(
-        socket: &std::path::Path,
-        timeout: Option<Duration>,
-    ) -> Result<Self, LinkError> {
-        let stream = crate::serve::connect(socket)?;
-        Ok(Self::from_port_timed(Box::new(stream), timeout))
-    }
-
     /// A link over any byte stream with a fixed answer timeout (see
     /// [`Link::from_port_timed`]).
     pub fn from_port(port: Box<dyn Port>, timeout: Duration) -> Self {

@@ -142,6 +142,28 @@ impl Write for ServerStream {
     }
 }
 
+// The client side of `Link` lives here, beside the socket it connects
+// to, so that `link` does not depend on `serve`.
+impl Link {
+    /// A link through the `wmr serve` listening on `socket` (see
+    /// this module) with a fixed answer timeout: the same link as
+    /// [`Link::open`]'s, the server routing its requests and answers among
+    /// its other clients.
+    pub fn connect(socket: &std::path::Path, timeout: Duration) -> Result<Self, LinkError> {
+        Self::connect_timed(socket, Some(timeout))
+    }
+
+    /// [`Link::connect`] with the answer timeout derived from the link
+    /// timeout unless `timeout` is given (as [`Link::open_timed`]).
+    pub fn connect_timed(
+        socket: &std::path::Path,
+        timeout: Option<Duration>,
+    ) -> Result<Self, LinkError> {
+        let stream = connect(socket)?;
+        Ok(Self::from_port_timed(Box::new(stream), timeout))
+    }
+}
+
 /// Connects to the server listening on `socket`; reads wait at most 5 ms
 /// (as a port's do, for [`Link`]).
 pub fn connect(socket: &Path) -> Result<ServerStream, LinkError> {
