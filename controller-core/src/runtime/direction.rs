@@ -464,7 +464,9 @@ mod tests {
     /// the real torque differs from the commanded one by
     /// ε·τ_c − ε·(1 + ε)·b·φ̇, up to 2.6 N·m): never a stop. With one
     /// motor wired backwards the same loop latches within the window,
-    /// naming that wheel.
+    /// naming that wheel. (D74's torque-based check passes this open P
+    /// loop too: what tells the two apart is the closed loop of the 10 kg
+    /// robot, hil-sim/tests/mismatch_sweep.rs, k_motor +20 %.)
     #[test]
     fn motor_constant_mismatch_is_not_a_wiring_fault() {
         let l = SafetyLimits::EXAMPLE;
