@@ -394,38 +394,46 @@ for mode in two-pwm pwm-in1-in2; do
     echo "OK: $mode tracks the square: RMS $m_rms m (hil-sim $ref_rms m, pwm-dir $rms m)"
 done
 
-# reverse_peaks ELF MODE: `wmr drive --v -0.05` for 2 s; sets peak_r,
-# peak_l (the largest armature voltage fraction of each wheel, signed).
+# reverse_peaks ELF MODE: `wmr drive --v -0.05` for 2 s; sets peak_r and
+# peak_l (each wheel's most reverse armature voltage, a signed fraction of
+# the supply: right reverse is negative, the mirrored left's positive) and
+# big_r, big_l (each wheel's largest magnitude of either sign). The
+# emulator logs a wheel's peak each time its magnitude grows, so the last
+# line can be the controlled stop's braking voltage (forward, the robot was
+# reversing), which is correct: the reverse peak is the drive's.
 reverse_peaks() {
     start_emu --elf "$1" --bridge "$2"
     wait_for_log "IWDG started" 20
     PORT="$PTY"
     wmr drive --v -0.05 --w 0 --for 2 >"$OUT_DIR/drive_$2.out" 2>&1 || true
     cleanup
-    peak_r="$(sed -n 's/.*armature peak right: \([-+0-9.]*\) .*/\1/p' "$LOG" | tail -1)"
-    peak_l="$(sed -n 's/.*armature peak left: \([-+0-9.]*\) .*/\1/p' "$LOG" | tail -1)"
-    peak_r="${peak_r:-0}"
-    peak_l="${peak_l:-0}"
+    local vals
+    vals="$(awk '
+        /armature peak right: / { v = $0; sub(/.*armature peak right: /, "", v); v += 0
+            if (v < rmin) rmin = v; a = v < 0 ? -v : v; if (a > rbig) rbig = a }
+        /armature peak left: / { v = $0; sub(/.*armature peak left: /, "", v); v += 0
+            if (v > lmax) lmax = v; a = v < 0 ? -v : v; if (a > lbig) lbig = a }
+        END { printf "%.4f %.4f %.4f %.4f\n", rmin, lmax, rbig, lbig }' rmin=0 lmax=0 rbig=0 lbig=0 "$LOG")"
+    read -r peak_r peak_l big_r big_l <<<"$vals"
 }
 small_reverse() {
-    awk -v r="$1" -v l="$2" -v m="$REVERSE_MAX_FRACTION" 'BEGIN {
-        ar = r < 0 ? -r : r; al = l < 0 ? -l : l
-        exit !(r < 0 && ar <= m && al <= m && (r != 0 || l != 0)) }'
+    awk -v r="$1" -v l="$2" -v br="$3" -v bl="$4" -v m="$REVERSE_MAX_FRACTION" 'BEGIN {
+        exit !(r < 0 && l > 0 && br <= m && bl <= m) }'
 }
 step "(j) a small reverse command gives a small reverse voltage in every mode (wmr drive --v -0.05 for 2 s)"
 declare -A MODE_PEAK
 for mode in pwm-dir two-pwm pwm-in1-in2; do
     reverse_peaks "${MODE_ELF[$mode]}" "$mode"
     MODE_PEAK[$mode]="$peak_r/$peak_l"
-    small_reverse "$peak_r" "$peak_l" ||
-        fail "$mode: a small reverse command gave armature peaks right $peak_r, left $peak_l of the supply (want right < 0, both within $REVERSE_MAX_FRACTION): $(tail -2 "$OUT_DIR/drive_$mode.out")"
-    echo "OK: $mode: armature peaks right $peak_r, left $peak_l of the supply (right reverse, left mirrored)"
+    small_reverse "$peak_r" "$peak_l" "$big_r" "$big_l" ||
+        fail "$mode: a small reverse command gave reverse armature peaks right $peak_r, left $peak_l, largest magnitudes $big_r / $big_l of the supply (want right < 0, left > 0, both within $REVERSE_MAX_FRACTION): $(tail -2 "$OUT_DIR/drive_$mode.out")"
+    echo "OK: $mode: reverse armature peaks right $peak_r, left $peak_l of the supply (right reverse, left mirrored), largest magnitudes $big_r / $big_l (the stop's braking included)"
 done
 reverse_peaks "${MODE_ELF[naive]}" two-pwm
-if small_reverse "$peak_r" "$peak_l"; then
-    fail "control: the naive two-PWM mapping passed the reverse check (peaks $peak_r / $peak_l): the check cannot see the lurch"
+if small_reverse "$peak_r" "$peak_l" "$big_r" "$big_l"; then
+    fail "control: the naive two-PWM mapping passed the reverse check (largest magnitudes $big_r / $big_l): the check cannot see the lurch"
 fi
-echo "OK: control: the naive two-PWM mapping lurches (armature peaks right $peak_r, left $peak_l of the supply): the check rejects it"
+echo "OK: control: the naive two-PWM mapping lurches (largest armature magnitudes right $big_r, left $big_l of the supply): the check rejects it"
 
 step "(l) the example robots, each pushed over the link (wmr robot push), track the square within $REL_TOL_ROBOT of hil-sim's runtime path for that robot"
 # The image of the robot's bridge mode (its compiled-in robot is the
