@@ -98,7 +98,7 @@ async fn main(spawner: Spawner) {
     link::start_if_present(&spawner, board.link.take());
     info!("state: HOLD (motors off). Load a reference with wmr and arm, or press the button (slow circle).");
     device.board_report_mut().reset_cause = board.reset_cause;
-    device.attach_robot_store(store::validate_for_board, boot.record(), boot.source);
+    device.attach_robot_store(robot_store::validate_robot, boot.record(), boot.source);
     spawner.spawn(unwrap!(control(board, device, task, flash).ok()));
 }
 

@@ -69,29 +69,22 @@ pub const TIM1_CLOCK_HZ: u32 = 96_000_000;
 #[cfg(feature = "stm32f446re")]
 pub const TIM1_CLOCK_HZ: u32 = 168_000_000;
 
-/// PWM frequencies this board's TIM1 produces \[Hz\]: at least 100 and
-/// at most 65 535 counts per period at [`TIM1_CLOCK_HZ`] with PSC = 0
-/// (`BridgeParams::duty_full_scale`), within robot-file's
-/// `BridgeParams::PWM_FREQUENCY_RANGE_HZ` (1-100 kHz): 1,465-100,000 Hz on
-/// the F411, 2,564-100,000 Hz on the F446. The store refuses a robot
-/// outside it (`store::validate_for_board`), so [`HBridge::new`]'s own
-/// refusal is never reached with a record from flash.
-pub const PWM_FREQUENCY_RANGE_HZ: (u32, u32) = {
-    let (lo, hi) = BridgeParams::PWM_FREQUENCY_RANGE_HZ;
-    // Smallest f with clock / f <= 65 535, largest with clock / f >= 100.
-    let timer_lo = TIM1_CLOCK_HZ / 65_536 + 1;
-    let timer_hi = TIM1_CLOCK_HZ / 100;
-    (
-        if timer_lo > lo { timer_lo } else { lo },
-        if timer_hi < hi { timer_hi } else { hi },
-    )
-};
-// The bounds are tight: each fits the timer, one step beyond does not.
+// Every robot record robot-file accepts runs on this TIM1: its
+// validation checks `bridge.pwm_frequency_hz` against each of
+// `SUPPORTED_TIMER_CLOCKS_HZ` (100..=65,535 duty levels), so a stored
+// robot's [bridge] never reaches HBridge::new's refusal (D115).
 const _: () = {
-    let (lo, hi) = PWM_FREQUENCY_RANGE_HZ;
-    assert!(TIM1_CLOCK_HZ / lo <= 65_535 && TIM1_CLOCK_HZ / hi >= 100);
-    assert!(lo == BridgeParams::PWM_FREQUENCY_RANGE_HZ.0 || TIM1_CLOCK_HZ / (lo - 1) > 65_535);
-    assert!(hi == BridgeParams::PWM_FREQUENCY_RANGE_HZ.1 || TIM1_CLOCK_HZ / (hi + 1) < 100);
+    let clocks = robot_file::SUPPORTED_TIMER_CLOCKS_HZ;
+    let mut i = 0;
+    let mut found = false;
+    while i < clocks.len() {
+        found |= clocks[i] == TIM1_CLOCK_HZ;
+        i += 1;
+    }
+    assert!(
+        found,
+        "TIM1_CLOCK_HZ is not one of robot_file::SUPPORTED_TIMER_CLOCKS_HZ"
+    );
 };
 
 // GPIOB lines (bit numbers).

@@ -32,7 +32,7 @@ use embassy_stm32::Peri;
 use robot_app::store::FlashRecord;
 use robot_store::RobotStore;
 use static_cell::StaticCell;
-use wmr_protocol::{RobotFault, RobotFaultKind, RobotSource, ROBOT_BLOB_MAX};
+use wmr_protocol::{RobotSource, ROBOT_BLOB_MAX};
 
 /// The store's flash.
 pub type StoreFlash = BlockingAsync<Bank1Region3<'static, Blocking>>;
@@ -49,7 +49,7 @@ pub fn store(flash: Peri<'static, FLASH>) -> Option<FlashRecord<StoreFlash>> {
     let store = RobotStore::new(BlockingAsync::new(region), STORE_RANGE).ok()?;
     Some(FlashRecord {
         store,
-        validate: validate_for_board,
+        validate: robot_store::validate_robot,
     })
 }
 
@@ -112,49 +112,15 @@ impl BootRobot {
     }
 }
 
-/// This board's robot records: robot-file's validation
-/// ([`robot_store::validate_robot`]: header, CRC-32, every field) and what
-/// only the board knows, a `[bridge]` PWM frequency that TIM1 can produce
-/// ([`crate::motors::PWM_FREQUENCY_RANGE_HZ`]: 2,564-100,000 Hz on the
-/// F446, 1,465-100,000 Hz on the F411, inside robot-file's 1-100 kHz).
-/// The device checks an upload with it (a push is refused naming
-/// `bridge.pwm_frequency_hz`) and the boot checks the stored record with
-/// it (a record the board cannot run falls back to the compiled-in robot,
-/// [`boot_robot`]), so the motor outputs always start with parameters the
-/// timer takes.
-pub fn validate_for_board(record: &[u8]) -> Result<(), RobotFault> {
-    let robot = robot_file::Robot::decode(record).map_err(|e| robot_store::decode_fault(&e))?;
-    match bridge_fault(&robot) {
-        Some(f) => Err(f),
-        None => Ok(()),
-    }
-}
-
-/// Why this board cannot start the motor outputs with `robot`'s `[bridge]`,
-/// if it cannot.
-fn bridge_fault(robot: &robot_file::Robot) -> Option<RobotFault> {
-    let (lo, hi) = crate::motors::PWM_FREQUENCY_RANGE_HZ;
-    let f = robot.bridge.pwm_frequency_hz;
-    let timer_ok = robot
-        .bridge
-        .params()
-        .duty_full_scale(crate::motors::TIM1_CLOCK_HZ)
-        .is_some();
-    (!timer_ok || !(lo..=hi).contains(&f)).then(|| {
-        RobotFault::new(
-            RobotFaultKind::OutOfRange,
-            "bridge.pwm_frequency_hz",
-            Some([lo as f32, hi as f32]),
-        )
-    })
-}
-
 /// Loads the robot record from flash into a static, or falls back to the
 /// compiled-in robot (`config::DEFAULT_ROBOT_BYTES`) when the record is
-/// missing, corrupt or one this board cannot run ([`validate_for_board`]),
-/// saying which and why over defmt (`wmr status` shows the source). Runs
-/// before `board::init` starts the motor outputs, which take the returned
-/// robot's `[bridge]`: a stored robot of any bridge mode runs at once.
+/// missing, corrupt or invalid (robot-file's decode: header, CRC-32, every
+/// field, the `[bridge]` included), saying which and why over defmt
+/// (`wmr status` shows the source). Runs before `board::init` starts the
+/// motor outputs, which take the returned robot's `[bridge]`: a stored
+/// robot of any bridge mode runs at once. Any record robot-file accepts
+/// runs on this board's TIM1 (its PWM frequency is checked against every
+/// supported timer clock, motors.rs).
 /// The record (256 B) and the decoded robot (about 1 KiB) live in statics,
 /// not on `main`'s stack. Call once (a second call panics: StaticCell).
 pub async fn boot_robot(flash: &mut FlashRecord<StoreFlash>) -> &'static BootRobot {
@@ -174,7 +140,7 @@ pub async fn boot_robot(flash: &mut FlashRecord<StoreFlash>) -> &'static BootRob
     );
     BOOT.init_with(|| BootRobot {
         // Either record decodes (the flash record passed the same decode in
-        // validate_for_board, build.rs decoded the compiled-in one).
+        // load_record's validation, build.rs decoded the compiled-in one).
         robot: robot_file::Robot::decode(record).unwrap_or_else(|_| crate::config::default_robot()),
         source,
         record,
