@@ -444,7 +444,7 @@ if small_reverse "$peak_r" "$peak_l" "$big_r" "$big_l"; then
 fi
 echo "OK: control: the naive two-PWM mapping lurches (largest armature magnitudes right $big_r, left $big_l of the supply): the check rejects it"
 
-step "(l) the example robots, each pushed over the link (wmr robot push) to an image of another bridge mode, run their stored [bridge] and track the square within $REL_TOL_ROBOT of hil-sim's runtime path for that robot"
+step "(l) the example robots, each pushed over the link (wmr robot push; paper and tb6612-2kg to an image of another bridge mode), run their stored [bridge] and track the square within $REL_TOL_ROBOT of hil-sim's runtime path for that robot"
 # paper and tb6612-2kg go to an image whose compiled-in robot (the paper's
 # with the image's BRIDGE_MODE) has another bridge mode: the firmware reads
 # the record before board::init starts the motor outputs and starts them

@@ -278,8 +278,7 @@ pub fn stored_store(blob: &[u8], validate: robot_store::RobotValidator) -> Resul
         .map_err(|_| "robot store: range refused".to_string())?;
     embassy_futures::block_on(store.save(validate, blob))
         .map_err(|e| format!("robot store: save failed: {e:?}"))?;
-    drop(store);
-    Ok(ram.bytes_mut().to_vec())
+    Ok(store.into_flash().bytes_mut().to_vec())
 }
 
 #[cfg(test)]
