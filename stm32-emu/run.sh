@@ -37,12 +37,15 @@
 #       run, at boot and while running (painted again when the loop
 #       starts), each within STACK_MAX_FRACTION (75 %) of the stack;
 #   (l) the example robots (robots/paper, tb6612-2kg, bts7960-10kg), each
-#       pushed over the link to an image (paper -> the pwm-in1-in2 image,
-#       tb6612-2kg -> pwm-dir: compiled-in modes other than the robot's;
-#       bts7960-10kg -> two-pwm) with the harness's robot and bridge wiring
-#       that file's (--robot), boot from flash with the stored [bridge] and
-#       track the square for ROBOT_RECORD_S (4 s) within REL_TOL_ROBOT (5 %)
-#       of hil-sim's runtime path for that robot (device --robot FILE);
+#       pushed over the link to an image whose compiled-in bridge mode is
+#       another (paper -> the two-pwm image, tb6612-2kg -> pwm-dir,
+#       bts7960-10kg -> pwm-in1-in2) with the harness's robot and bridge
+#       wiring that file's (--robot), boot from flash with the stored
+#       [bridge] and track the square for ROBOT_RECORD_S (4 s) within
+#       REL_TOL_ROBOT (5 %) of hil-sim's runtime path for that robot
+#       (device --robot FILE); before the push the bridge stays disabled
+#       (the harness fails the run if a pin map of another mode than its
+#       wiring's is ever enabled);
 #   (n) a stored record with an invalid [bridge] falls back safely: the
 #       store crafted to hold bts7960-10kg with bridge.pwm_frequency_hz =
 #       2000 Hz (below the F446 TIM1's 2,564 Hz at 65,535 counts) and a
@@ -444,27 +447,26 @@ if small_reverse "$peak_r" "$peak_l" "$big_r" "$big_l"; then
 fi
 echo "OK: control: the naive two-PWM mapping lurches (largest armature magnitudes right $big_r, left $big_l of the supply): the check rejects it"
 
-step "(l) the example robots, each pushed over the link (wmr robot push; paper and tb6612-2kg to an image of another bridge mode), run their stored [bridge] and track the square within $REL_TOL_ROBOT of hil-sim's runtime path for that robot"
-# paper and tb6612-2kg go to an image whose compiled-in robot (the paper's
-# with the image's BRIDGE_MODE) has another bridge mode: the firmware reads
-# the record before board::init starts the motor outputs and starts them
-# in the stored [bridge] (firmware/src/store.rs, D115), so one image runs
-# any mode. The harness's robot and its H-bridge wiring are the robot
-# file's (--robot: body, friction, motors, encoders, the [bridge] mode): a
-# board still driving the image's mode would not track. bts7960-10kg stays
-# on the two-pwm image: the harness checks the pin map against its wiring
-# when the loop starts, and before the push a two-PWM wiring (PB13/PB0 on
-# TIM1 CH1N/CH2N) differs from any other image's GPIO lines, and a
-# two-PWM image's from any other wiring (D117). The record pushed, read
+step "(l) the example robots, each pushed over the link (wmr robot push) to an image of another bridge mode, run their stored [bridge] and track the square within $REL_TOL_ROBOT of hil-sim's runtime path for that robot"
+# Each robot goes to an image whose compiled-in robot (the paper's with the
+# image's BRIDGE_MODE) has another bridge mode: the firmware reads the
+# record before board::init starts the motor outputs and starts them in
+# the stored [bridge] (firmware/src/store.rs, D115), so one image runs any
+# mode. The harness's robot and its H-bridge wiring are the robot file's
+# (--robot: body, friction, motors, encoders, the [bridge] mode): a board
+# still driving the image's mode would not track. Before the push the
+# image's pin map is its compiled-in mode's; the harness accepts another
+# mode's complete pin map only while the bridge stays disabled (machine.rs
+# wiring_check, D117; its "board wiring" line is printed). The record pushed, read
 # back and booted from flash; then the square for ROBOT_RECORD_S s against
 # `hil-sim device --robot FILE` with the same wmr commands
 # (stm32-emu/reference-robot.toml: the file's encoders and motors).
 declare -A ROBOT_MODE=([paper]=pwm-dir [tb6612-2kg]=pwm-in1-in2 [bts7960-10kg]=two-pwm)
-declare -A IMAGE_MODE=([paper]=pwm-in1-in2 [tb6612-2kg]=pwm-dir [bts7960-10kg]=two-pwm)
+declare -A IMAGE_MODE=([paper]=two-pwm [tb6612-2kg]=pwm-dir [bts7960-10kg]=pwm-in1-in2)
 declare -A ROBOT_RMS
 for r in paper tb6612-2kg bts7960-10kg; do
     file="$ROOT/robots/$r.toml"
-    [ "$r" = bts7960-10kg ] || [ "${IMAGE_MODE[$r]}" != "${ROBOT_MODE[$r]}" ] || fail "(l) $r: the image's mode must differ from the robot's"
+    [ "${IMAGE_MODE[$r]}" != "${ROBOT_MODE[$r]}" ] || fail "(l) $r: the image's mode must differ from the robot's"
     grep -q "^mode = \"${ROBOT_MODE[$r]}\"" "$file" || fail "(l) $r: robots/$r.toml's [bridge] mode is not ${ROBOT_MODE[$r]}"
     start_emu --elf "${MODE_ELF[${IMAGE_MODE[$r]}]}" --robot "$file"
     wait_for_log "IWDG started" 20
@@ -478,6 +480,7 @@ for r in paper tb6612-2kg bts7960-10kg; do
     cleanup
     grep -E "^\[stm32-emu.*(exception [0-9]+ entered|unmodelled|IWDG expired)" "$LOG" && fail "$r: a fault, unmodelled access or watchdog reset"
     [ "$(grep -c "\] boot " "$LOG")" -eq 2 ] || fail "$r: expected exactly the push's reboot"
+    grep "board wiring" "$LOG" || true
     start_hilsim --scenario reference-robot.toml --robot "$file"
     wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "$r: wmr upload (hil-sim)"
     r_ref="$(wmr record --seconds "$ROBOT_RECORD_S" --rate "$RATE_HZ" --out "$OUT_DIR/robot_${r}_hilsim.csv" --arm --quiet)" ||
