@@ -208,8 +208,8 @@ pub struct Board {
     /// robot before a robot of the wired mode is pushed): its bridge must
     /// stay disabled until the next reset (`wiring_check`).
     pub foreign_pin_map: Option<BridgeMode>,
-    /// How the harness's H-bridges are wired to the pins (the image's
-    /// `BRIDGE_MODE`; firmware/src/motors.rs).
+    /// How the harness's H-bridges are wired to the pins (the mode of the
+    /// robot the image runs, stored or compiled in; firmware/src/motors.rs).
     pub bridge_mode: BridgeMode,
     /// Largest |armature voltage fraction| per wheel while driven since
     /// [`Self::peak_from_s`], and when (logged on every new peak).

@@ -11,8 +11,10 @@
 //!           [--flash-aged | --flash-robot FILE [--flash-pwm-hz N]]
 //!           [--summary FILE] [--quiet]
 //! ```
-//! `--bridge` says how the harness's H-bridges are wired (the image's
-//! `BRIDGE_MODE`, default pwm-dir); the largest armature voltage per wheel
+//! `--bridge` says how the harness's H-bridges are wired (the `[bridge]`
+//! mode of the robot the image runs: the stored robot's, else the
+//! compiled-in one's, `BRIDGE_MODE`; default `--robot`'s mode, else
+//! pwm-dir); the largest armature voltage per wheel
 //! from `--peak-from` on is logged (`armature peak`) and in the summary.
 //! `--robot FILE` makes the simulated robot that robot file's (body,
 //! friction, motors, encoders, motor directions; the bridge wiring its
