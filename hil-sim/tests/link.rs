@@ -6,12 +6,11 @@
 //! them flaky.
 
 use controller_core::ControllerKind;
-use hil_sim::device::{open_pty, serve, SimRobot};
+use hil_sim::device::{open_pty, PtyRobot, SimRobot};
 use hil_sim::scenario::{PerturbationPart, Scenario, Sensing, TrajectoryKind};
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use wmr::Link;
 use wmr_protocol::*;
@@ -20,51 +19,26 @@ use wmr_protocol::*;
 /// time next to its host, and several at once on a 2-core machine would
 /// starve the robots' clocks (what the timing assertions measure).
 fn serial() -> std::sync::MutexGuard<'static, ()> {
-    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+    PtyRobot::serial()
 }
 
-/// The simulated robot served on a pty in a thread.
-struct Robot {
-    path: String,
-    stop: Arc<AtomicBool>,
-    handle: Option<JoinHandle<SimRobot>>,
-    _slave: serialport::TTYPort,
-}
+/// The simulated robot served on a pty in a thread (the shared rig).
+struct Robot(PtyRobot);
 
 impl Robot {
     fn start(scn: &Scenario, speed: f64) -> Self {
-        let (mut master, slave, path) = open_pty().unwrap();
-        let mut robot = SimRobot::new(scn, ControllerKind::Proposed).unwrap();
-        let stop = Arc::new(AtomicBool::new(false));
-        let s = stop.clone();
-        let handle = std::thread::spawn(move || {
-            serve(&mut robot, &mut master, speed, &s).unwrap();
-            robot
-        });
-        Self {
-            path,
-            stop,
-            handle: Some(handle),
-            _slave: slave,
-        }
+        let robot = SimRobot::new(scn, ControllerKind::Proposed).unwrap();
+        Self(PtyRobot::start(robot, speed).unwrap())
     }
 
     fn link(&self) -> Link {
-        let mut l = Link::open(&self.path, Duration::from_millis(1000)).unwrap();
+        let mut l = Link::open(&self.0.path, Duration::from_millis(1000)).unwrap();
         l.hello().unwrap();
         l
     }
 
-    fn finish(mut self) -> SimRobot {
-        self.stop.store(true, Ordering::Relaxed);
-        self.handle.take().unwrap().join().unwrap()
-    }
-}
-
-impl Drop for Robot {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
+    fn finish(self) -> SimRobot {
+        self.0.finish().unwrap()
     }
 }
 
@@ -209,7 +183,7 @@ fn version_mismatch_both_ways() {
 
     // A host of the next version talking to our robot.
     let robot = Robot::start(&nominal(TrajectoryKind::Paper, 1.0), 1.0);
-    let mut port = serialport::new(&robot.path, 115_200)
+    let mut port = serialport::new(&robot.0.path, 115_200)
         .timeout(Duration::from_millis(5))
         .open_native()
         .unwrap();
@@ -514,7 +488,7 @@ fn estop_reaches_zero_torque_within_two_ticks() {
     );
     ok(&mut link, Request::Arm);
     drop(link);
-    let mut port = serialport::new(&robot.path, 115_200)
+    let mut port = serialport::new(&robot.0.path, 115_200)
         .timeout(Duration::from_millis(5))
         .open_native()
         .unwrap();
