@@ -56,6 +56,19 @@ fn nominal(trajectory: TrajectoryKind, duration_s: f64) -> Scenario {
     .with_sensing(Sensing::Mocap)
 }
 
+/// A robot armed on the built-in circle from its start (2, 0, π/2),
+/// telemetry `selection` at `rate_hz`: the robot and its link.
+fn armed_on_circle(selection: TelemetrySelection, rate_hz: u16) -> (Robot, Link) {
+    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
+    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
+    let robot = Robot::start(&scn, 1.0);
+    let mut link = robot.link();
+    ok(&mut link, builtin("circle"));
+    ok(&mut link, Request::SetTelemetry { selection, rate_hz });
+    ok(&mut link, Request::Arm);
+    (robot, link)
+}
+
 fn ok(link: &mut Link, req: Request) {
     link.command(&req)
         .unwrap_or_else(|e| panic!("{req:?}: {e}"));
@@ -368,19 +381,7 @@ fn recorded_run_matches_the_simulation(scn: &Scenario, shape: &str) -> serde_jso
 #[test]
 fn link_silence_while_running_stops_within_the_timeout() {
     let _serial = serial();
-    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
-    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
-    let robot = Robot::start(&scn, 1.0);
-    let mut link = robot.link();
-    ok(&mut link, builtin("circle"));
-    ok(
-        &mut link,
-        Request::SetTelemetry {
-            selection: TELEMETRY_TRACKING,
-            rate_hz: 1000,
-        },
-    );
-    ok(&mut link, Request::Arm);
+    let (robot, mut link) = armed_on_circle(TELEMETRY_TRACKING, 1000);
     // From here on the host only listens.
     let frames = telemetry_until(&mut link, Duration::from_secs(20), |t| {
         t.state == RunStateMsg::Hold && t.t_ref_s > 0.0
@@ -474,19 +475,7 @@ fn drive_without_refresh_stops_after_its_timeout() {
 #[test]
 fn estop_reaches_zero_torque_within_two_ticks() {
     let _serial = serial();
-    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
-    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
-    let robot = Robot::start(&scn, 1.0);
-    let mut link = robot.link();
-    ok(&mut link, builtin("circle"));
-    ok(
-        &mut link,
-        Request::SetTelemetry {
-            selection: TELEMETRY_TRACKING,
-            rate_hz: 1000,
-        },
-    );
-    ok(&mut link, Request::Arm);
+    let (robot, link) = armed_on_circle(TELEMETRY_TRACKING, 1000);
     drop(link);
     let mut port = serialport::new(&robot.0.path, 115_200)
         .timeout(Duration::from_millis(5))
@@ -557,19 +546,7 @@ fn estop_reaches_zero_torque_within_two_ticks() {
 #[test]
 fn garbage_and_corrupted_frames_never_disturb_the_loop() {
     let _serial = serial();
-    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
-    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
-    let robot = Robot::start(&scn, 1.0);
-    let mut link = robot.link();
-    ok(&mut link, builtin("circle"));
-    ok(
-        &mut link,
-        Request::SetTelemetry {
-            selection: TELEMETRY_TRACKING | TELEMETRY_COUNTERS,
-            rate_hz: 100,
-        },
-    );
-    ok(&mut link, Request::Arm);
+    let (robot, mut link) = armed_on_circle(TELEMETRY_TRACKING | TELEMETRY_COUNTERS, 100);
     // The link holds the port exclusively: the garbage goes through it.
     let mut rng = 0x1234_5678u32;
     let mut next = || {
