@@ -139,22 +139,24 @@ echo "machine: $(uname -m), $(nproc) cores, load $(cut -d' ' -f1 /proc/loadavg);
 
 step "build: the release images (as firmware/ci.sh builds them; skipped when present), stm32-emu, wmr, hil-sim"
 t0=$SECONDS
+# Built in ci.sh's one build directory (only the firmware crate rebuilds
+# after ci.sh) and copied out, as ci.sh does.
+fw_build() {
+    (cd "$ROOT/firmware" && nice cargo build --release --locked --no-default-features \
+        --features "$1" --target "$TARGET" --target-dir target/ci-build)
+}
+FW_BUILT="$ROOT/firmware/target/ci-build/$TARGET/release/firmware"
 for chip in stm32f446re stm32f411ce; do
     elf="$ROOT/firmware/target/ci-$chip/$TARGET/release/firmware"
     if [ ! -f "$elf" ]; then
         command -v flip-link >/dev/null 2>&1 || cargo install flip-link --locked
-        (cd "$ROOT/firmware" && nice cargo build --release --locked --no-default-features \
-            --features "$chip" --target "$TARGET" --target-dir "target/ci-$chip")
+        fw_build "$chip"
+        mkdir -p "$(dirname "$elf")"
+        cp "$FW_BUILT" "$elf"
     fi
 done
 # One F446 image per bridge mode (BRIDGE_MODE, firmware/src/config.rs) and
-# the naive two-PWM control, built in ci.sh's F446 directory (only the
-# firmware crate rebuilds) and copied out; the default image is rebuilt
-# last, so the directory holds ci.sh's image again.
-fw_build() {
-    (cd "$ROOT/firmware" && nice cargo build --release --locked --no-default-features \
-        --features "$1" --target "$TARGET" --target-dir target/ci-stm32f446re)
-}
+# the naive two-PWM control, copied out; ci.sh's default image stays.
 declare -A MODE_ELF
 for mode in two-pwm pwm-in1-in2 naive; do
     if [ "$mode" = naive ]; then
@@ -163,15 +165,16 @@ for mode in two-pwm pwm-in1-in2 naive; do
         BRIDGE_MODE="$mode" fw_build stm32f446re
     fi
     MODE_ELF[$mode]="$OUT_DIR/firmware-$mode"
-    cp "$ELF446" "${MODE_ELF[$mode]}"
+    cp "$FW_BUILT" "${MODE_ELF[$mode]}"
 done
-fw_build stm32f446re
 MODE_ELF[pwm-dir]="$ELF446"
 t_fw=$((SECONDS - t0))
 t0=$SECONDS
 nice cargo build --release --locked
 t_emu=$((SECONDS - t0))
-(cd "$ROOT" && nice cargo build --release --locked -p wmr -p hil-sim)
+# wmr and hil-sim as the README's test command builds them (its features;
+# `cargo build -p wmr -p hil-sim` would compile the stack again: D124).
+(cd "$ROOT" && nice cargo test --release --locked --workspace --no-run --quiet)
 echo "build times: images ${t_fw} s, stm32-emu (with Unicorn's C) ${t_emu} s"
 
 # Starts the emulator with args "$@" and USART2 on a pty; sets EPID, PTY.
