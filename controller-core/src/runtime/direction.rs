@@ -142,46 +142,40 @@ impl Prediction {
 /// a tick inside a block only adds two torques.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct DirectionCheck {
-    /// Σ of the applied torques over the block \[N·m\] `[right, left]`.
+    /// Σ of the delivered torques over the block \[N·m\] `[right, left]`.
     torque_sum_nm: [f32; 2],
     /// Wheel rates at the start of the block \[rad/s\].
     rate_start_radps: [f32; 2],
     /// The ended block's start rates \[rad/s\] (with its change, its mean rate).
     ended_start_radps: [f32; 2],
-    /// The duty-saturation counter (`Status::duty_saturated`) at the
-    /// block's start: a block in which it moved gives no verdict.
-    saturated_at_start: u32,
     /// The ended block awaiting its verdicts (the right wheel's one tick
     /// after its end, the left wheel's two ticks after: no tick does more
     /// than one wheel's arithmetic): torque sums and rate changes.
     ended_torque_sum_nm: [f32; 2],
     ended_change_radps: [f32; 2],
-    /// The ended block gets verdicts (its duty did not saturate).
-    ended_valid: bool,
     /// Consecutive mismatching blocks per wheel.
     strikes: [u16; 2],
 }
 
 impl DirectionCheck {
     /// A check whose first block starts now, at arming: wheel rates
-    /// `rate_radps`, duty-saturation counter `saturated_count`.
-    pub(crate) fn start(rate_radps: [f32; 2], saturated_count: u32) -> Self {
+    /// `rate_radps`.
+    pub(crate) fn start(rate_radps: [f32; 2]) -> Self {
         Self {
             rate_start_radps: rate_radps,
-            saturated_at_start: saturated_count,
             ..Self::default()
         }
     }
 
     /// One running tick: `run_ticks` the steps since arming before this
-    /// one (`Status::run_ticks`), `applied_nm` the torque that acted
-    /// during the elapsed tick (written at the previous one),
-    /// `saturated_count` the duty-saturation counter so far, `rate_radps`
-    /// the wheel rates measured now (the block time is ticks × period: a
-    /// late tick only shifts the tolerance slightly, and sustained
-    /// lateness latches `LoopOverrun` anyway), `eta` the measured
-    /// \[v, ω\] (eq. 7's Coriolis term). Returns the stop when a wheel has
-    /// mismatched `direction_blocks` blocks in a row.
+    /// one (`Status::run_ticks`), `delivered_nm` the torque that acted
+    /// during the elapsed tick (written at the previous one: the commanded
+    /// torque, or where the duty clamped, the clamped duty's torque by the
+    /// motor model), `rate_radps` the wheel rates measured now (the block
+    /// time is ticks × period: a late tick only shifts the tolerance
+    /// slightly, and sustained lateness latches `LoopOverrun` anyway),
+    /// `eta` the measured \[v, ω\] (eq. 7's Coriolis term). Returns the
+    /// stop when a wheel has mismatched `direction_blocks` blocks in a row.
     /// `direction_block_ticks` >= 3 (validated).
     #[inline]
     pub(crate) fn update(
@@ -189,46 +183,40 @@ impl DirectionCheck {
         prediction: &Prediction,
         run_ticks: u32,
         eta: [f32; 2],
-        applied_nm: [f32; 2],
-        saturated_count: u32,
+        delivered_nm: [f32; 2],
         rate_radps: [f32; 2],
     ) -> Option<StopReason> {
-        self.torque_sum_nm[0] += applied_nm[0];
-        self.torque_sum_nm[1] += applied_nm[1];
+        self.torque_sum_nm[0] += delivered_nm[0];
+        self.torque_sum_nm[1] += delivered_nm[1];
         match run_ticks % prediction.block_ticks {
-            0 if run_ticks > 0 => self.end_block(saturated_count, rate_radps),
-            1 if self.ended_valid => return self.judge(prediction, eta, Wheel::Right),
-            2 if self.ended_valid => return self.judge(prediction, eta, Wheel::Left),
+            0 if run_ticks > 0 => self.end_block(rate_radps),
+            // (Before the first block's end the ended block is all zero:
+            // no clear prediction, no verdict.)
+            1 => return self.judge(prediction, eta, Wheel::Right),
+            2 => return self.judge(prediction, eta, Wheel::Left),
             _ => {}
         }
         None
     }
 
     /// The block's end: its sums and rate changes kept for the verdicts,
-    /// the next block started (a block in which the duty saturated gives
-    /// none and clears the counts).
+    /// the next block started.
     #[inline(never)]
-    fn end_block(&mut self, saturated_count: u32, rate_radps: [f32; 2]) {
-        self.ended_valid = saturated_count == self.saturated_at_start;
-        if self.ended_valid {
-            self.ended_torque_sum_nm = self.torque_sum_nm;
-            self.ended_change_radps = [
-                rate_radps[0] - self.rate_start_radps[0],
-                rate_radps[1] - self.rate_start_radps[1],
-            ];
-            self.ended_start_radps = self.rate_start_radps;
-        } else {
-            self.strikes = [0; 2];
-        }
+    fn end_block(&mut self, rate_radps: [f32; 2]) {
+        self.ended_torque_sum_nm = self.torque_sum_nm;
+        self.ended_change_radps = [
+            rate_radps[0] - self.rate_start_radps[0],
+            rate_radps[1] - self.rate_start_radps[1],
+        ];
+        self.ended_start_radps = self.rate_start_radps;
         self.torque_sum_nm = [0.0; 2];
         self.rate_start_radps = rate_radps;
-        self.saturated_at_start = saturated_count;
     }
 
     /// One wheel's verdict on the ended block: eq. (7) at its mean
-    /// torques and the measured η, against the inverted-wiring hypothesis
-    /// (module docs), from its rate change; all in rate change over the
-    /// block \[rad/s\].
+    /// delivered torques and the measured η, against the inverted-wiring
+    /// hypothesis (module docs), from its rate change; all in rate change
+    /// over the block \[rad/s\].
     #[inline(never)]
     fn judge(&mut self, p: &Prediction, eta: [f32; 2], wheel: Wheel) -> Option<StopReason> {
         let i = wheel.index();
@@ -245,19 +233,27 @@ impl DirectionCheck {
             };
         let change = self.ended_change_radps[i];
         let tol = p.tol_change_radps;
-        // Against the correct hypothesis's prediction, clearly (a wheel that
-        // does not move is a stall, `check_stall`'s) ...
-        if predicted * change >= 0.0 || predicted.abs() < tol || change.abs() < tol {
-            self.strikes[i] = 0;
-            return None;
-        }
-        // ... and nearer the inverted hypothesis than the correct one:
-        // τ_V = τ_c + b·φ̇ at the block's mean rate (the voltage's torque),
-        // the midpoint the prediction minus W_ii·τ_V over the block.
+        // τ_V = τ_c + b·φ̇ at the block's mean rate (the voltage's torque).
         let mean_rate = self.ended_start_radps[i] + 0.5 * change;
         let tau_v = sum[i] * p.inv_block_ticks + p.damping_nms_per_rad * mean_rate;
+        // A clear prediction, and either a clear change against it (the
+        // runaway's acceleration) or no clear change while the wheel turns
+        // against its voltage at a clear rate (the runaway's equilibrium at
+        // the torque limit, φ̇ = −τ_c / 2b); a wheel that does not turn is a
+        // stall, `check_stall`'s ...
+        let clear = predicted.abs() >= tol
+            && if change.abs() >= tol {
+                predicted * change < 0.0
+            } else {
+                mean_rate * tau_v < 0.0 && mean_rate.abs() >= tol
+            };
+        // ... and nearer the inverted hypothesis than the correct one: the
+        // midpoint is the prediction minus W_ii·τ_V over the block.
         let beyond = change - predicted + p.own_block[i] * tau_v;
-        let against = beyond * tau_v < 0.0 && tau_v.abs() >= p.tol_torque_nm && beyond.abs() >= tol;
+        let against = clear
+            && beyond * tau_v < 0.0
+            && tau_v.abs() >= p.tol_torque_nm
+            && beyond.abs() >= tol;
         let k = &mut self.strikes[i];
         *k = if against { k.saturating_add(1) } else { 0 };
         (*k >= p.blocks).then_some(StopReason::DirectionMismatch { wheel })
@@ -310,7 +306,7 @@ mod tests {
             for i in 0..2 {
                 rate[i] += accel[i] * 1e-3;
             }
-            stop = stop.or(check.update(&m, *tick, [0.0; 2], torque, 0, *rate));
+            stop = stop.or(check.update(&m, *tick, [0.0; 2], torque, *rate));
             *tick += 1;
         }
         stop
@@ -324,7 +320,7 @@ mod tests {
     fn opposite_acceleration_latches_after_the_window() {
         let l = SafetyLimits::EXAMPLE;
         let window = (l.direction_block_ticks * l.direction_blocks) as u32;
-        let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2], 0), 0u32, [0.0f32; 2]);
+        let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2]), 0u32, [0.0f32; 2]);
         // Both wheels +5 N·m (straight ahead: both predicted forward),
         // the left measured −50 rad/s² (an inverted encoder).
         assert_eq!(
@@ -369,14 +365,14 @@ mod tests {
             // predicts the left wheel speeding up forwards, as measured.
             ([10.0, -2.5], [60.0, 20.0]),
         ] {
-            let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2], 0), 0u32, [0.0f32; 2]);
+            let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2]), 0u32, [0.0f32; 2]);
             assert_eq!(
                 run(&mut c, &mut t, &mut r, torque, accel, long),
                 None,
                 "{torque:?} {accel:?}"
             );
         }
-        let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2], 0), 0u32, [0.0f32; 2]);
+        let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2]), 0u32, [0.0f32; 2]);
         let block = l.direction_block_ticks as u32;
         for _ in 0..20 {
             assert_eq!(
@@ -397,21 +393,6 @@ mod tests {
         }
     }
 
-    /// A saturated duty in a block makes it no mismatch (the supply could
-    /// not deliver the torque).
-    #[test]
-    fn saturated_blocks_do_not_count() {
-        let l = SafetyLimits::EXAMPLE;
-        let mut c = DirectionCheck::start([0.0; 2], 0);
-        let mut rate = [0.0f32; 2];
-        for k in 0..(20 * l.direction_block_ticks * l.direction_blocks) as u32 {
-            rate[0] -= 0.05;
-            // The duty-saturation counter moves in every block.
-            let stop = c.update(&model(), k, [0.0; 2], [5.0, 5.0], k, rate);
-            assert_eq!(stop, None);
-        }
-    }
-
     /// Drives the check with a DC-motor plant on the model's own coupling:
     /// commanded torques `tau_c` at each tick, the real wheel torques from
     /// the applied voltage's torque τ_V = τ_c + b·φ̇ through a motor whose
@@ -429,7 +410,7 @@ mod tests {
         let m = model();
         let w = accel_map(&m);
         let b = m.damping_nms_per_rad;
-        let mut c = DirectionCheck::start(rate0, 0);
+        let mut c = DirectionCheck::start(rate0);
         let mut rate = rate0;
         for k in 0..ticks {
             let tc = tau_c(k, rate);
@@ -444,7 +425,7 @@ mod tests {
             for i in 0..2 {
                 rate[i] += (w[i][0] * real[0] + w[i][1] * real[1]) * PERIOD_S;
             }
-            if let Some(stop) = c.update(&m, k, [0.0; 2], tc, 0, rate) {
+            if let Some(stop) = c.update(&m, k, [0.0; 2], tc, rate) {
                 return Some((k, stop));
             }
         }
