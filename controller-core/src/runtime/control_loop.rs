@@ -74,7 +74,7 @@ impl<const H: usize> ControlLoop<H> {
         }
         let motor = MotorModel::new(cfg.motor)?;
         let counts = WheelCounts::new(cfg.encoder)?;
-        cfg.safety.validate()?;
+        validate_direction(&cfg.safety, &controller, &cfg.encoder)?;
         let prediction = Prediction::new(
             controller.model(),
             &motor,
@@ -249,7 +249,7 @@ impl<const H: usize> ControlLoop<H> {
         let new = Controller::new(controller).map_err(invalid)?;
         // The pacer's saturation and health thresholds follow the gains and limit.
         let pacer = Pacer::new(self.cfg.pacing, &controller).map_err(invalid)?;
-        safety.validate().map_err(ReconfigureError::Invalid)?;
+        validate_direction(&safety, &new, &self.cfg.encoder).map_err(ReconfigureError::Invalid)?;
         self.prediction = Prediction::new(new.model(), &self.motor, &safety, controller.period_s);
         self.controller = new;
         self.pace = pacer.initial_state();
@@ -551,6 +551,21 @@ impl<const H: usize> ControlLoop<H> {
             cmd
         })
     }
+}
+
+/// [`SafetyLimits::validate_direction`] for the controller's model, torque
+/// limit and period and the encoders' rate-estimate quantum (the coarser
+/// wheel's count over one speed window).
+fn validate_direction(
+    safety: &SafetyLimits,
+    controller: &Controller,
+    encoder: &super::encoder::EncoderParams,
+) -> Result<SafetyLimits, RuntimeConfigError> {
+    let c = controller.config();
+    let w = controller.model().wheel_accel_map();
+    let [q0, q1] = encoder.rad_per_count();
+    let quantum = q0.max(q1) / (encoder.speed_window_ticks as f32 * c.period_s);
+    safety.validate_direction(c.torque_limit_nm, w[0][0].min(w[1][1]), quantum, c.period_s)
 }
 
 #[cfg(test)]

@@ -112,13 +112,8 @@ impl Prediction {
         period_s: f32,
     ) -> Self {
         let (h, inv_r) = (model.params.half_track_m, 1.0 / model.params.wheel_radius_m);
-        let n = model.n;
         let block_s = limits.direction_block_ticks as f32 * period_s;
-        let t = period_s * inv_r;
-        let w_tick = [
-            [(n[0][0] + h * n[1][0]) * t, (n[0][1] + h * n[1][1]) * t],
-            [(n[0][0] - h * n[1][0]) * t, (n[0][1] - h * n[1][1]) * t],
-        ];
+        let w_tick = model.wheel_accel_map().map(|row| row.map(|x| x * period_s));
         Self {
             w_tick,
             c_w2_block: model.n1_coeff / model.m1_diag[0] * inv_r * block_s,
