@@ -402,6 +402,30 @@ mod tests {
         tau_c: impl Fn(u32, [f32; 2]) -> [f32; 2],
         ticks: u32,
     ) -> Option<(u32, StopReason)> {
+        supply_plant(eps, inverted, rate0, tau_c, ticks, f32::INFINITY, Feed::Delivered)
+    }
+
+    /// What the check is fed (the runtime feeds the delivered torque).
+    #[derive(Clone, Copy, PartialEq)]
+    enum Feed {
+        Delivered,
+        Commanded,
+    }
+
+    /// [`motor_plant`] with the duty clamped: the voltage's torque
+    /// b_V·V limited to ±`tau_v_max` (the supply at the duty limit; the
+    /// runtime's `duty_for` clamps the same way), so the torque delivered
+    /// is clamp(τ_c + b·φ̇) − b·φ̇ by the model. `feed` says which torque
+    /// the check gets.
+    fn supply_plant(
+        eps: f32,
+        inverted: Option<usize>,
+        rate0: [f32; 2],
+        tau_c: impl Fn(u32, [f32; 2]) -> [f32; 2],
+        ticks: u32,
+        tau_v_max: f32,
+        feed: Feed,
+    ) -> Option<(u32, StopReason)> {
         let m = model();
         let w = accel_map(&m);
         let b = m.damping_nms_per_rad;
@@ -410,8 +434,10 @@ mod tests {
         for k in 0..ticks {
             let tc = tau_c(k, rate);
             let mut real = [0.0f32; 2];
+            let mut delivered = tc;
             for i in 0..2 {
-                let mut tau_v = tc[i] + b * rate[i];
+                let mut tau_v = (tc[i] + b * rate[i]).clamp(-tau_v_max, tau_v_max);
+                delivered[i] = tau_v - b * rate[i];
                 if inverted == Some(i) {
                     tau_v = -tau_v;
                 }
@@ -420,11 +446,80 @@ mod tests {
             for i in 0..2 {
                 rate[i] += (w[i][0] * real[0] + w[i][1] * real[1]) * PERIOD_S;
             }
-            if let Some(stop) = c.update(&m, k, [0.0; 2], tc, rate) {
+            let fed = match feed {
+                Feed::Delivered => delivered,
+                Feed::Commanded => tc,
+            };
+            if let Some(stop) = c.update(&m, k, [0.0; 2], fed, rate) {
                 return Some((k, stop));
             }
         }
         None
+    }
+
+    /// A miswired wheel whose duty saturates at every tick latches within
+    /// the window, naming the wheel: saturated blocks are judged (before
+    /// D111 every block in which the duty saturated was dropped, so this
+    /// never latched). The supply gives at most 3 N·m of voltage torque, the
+    /// loop asks for 8 N·m, so τ_V = 8 + b·φ̇ stays above 3 while the
+    /// runaway wheel is slower than −8.2 rad/s, and its equilibrium under
+    /// the clamp is −3/b = −4.9 rad/s: saturated throughout. Also with the
+    /// motor constant ±20 % off.
+    #[test]
+    fn a_saturated_miswired_wheel_latches() {
+        let l = SafetyLimits::EXAMPLE;
+        let window = (l.direction_block_ticks * l.direction_blocks) as u32;
+        let start = |_: u32, rate: [f32; 2]| speed_loop(5.0, rate);
+        for eps in [-0.2f32, 0.0, 0.2] {
+            for wheel in [0usize, 1] {
+                let (k, stop) = supply_plant(
+                    eps,
+                    Some(wheel),
+                    [0.0; 2],
+                    start,
+                    10 * window,
+                    3.0,
+                    Feed::Delivered,
+                )
+                .unwrap_or_else(|| panic!("ε = {eps}, wheel {wheel}: no stop"));
+                assert_eq!(
+                    stop,
+                    StopReason::DirectionMismatch {
+                        wheel: Wheel::BOTH[wheel]
+                    }
+                );
+                // One block more than the window: a 20 % weaker motor's
+                // first block is below the acceleration tolerance.
+                let bound = window + l.direction_block_ticks as u32 + 2;
+                assert!(k <= bound, "ε = {eps}: latched at tick {k}");
+            }
+        }
+    }
+
+    /// Correctly wired wheels at 30 rad/s (b·φ̇ = 18.4 N·m of back-EMF)
+    /// under +8 N·m commanded, on a supply that gives only 6 N·m of voltage
+    /// torque (a sagging battery): the duty saturates at every tick and the
+    /// wheels *decelerate* under a positive command (delivered
+    /// 6 − 18.4 = −12.4 N·m at first). Judged on the delivered torque, 2 s
+    /// never latch; judged on the commanded torque the same run latches
+    /// (the hypotheses' midpoint alone does not cover it: the two wheels'
+    /// coupling W_ij·(τ_c − τ_delivered) outweighs W_ii·τ_V when the
+    /// shortfall exceeds 1.6 τ_V), so the delivered torque is what keeps it
+    /// from false-tripping.
+    #[test]
+    fn a_saturated_correct_wheel_decelerating_does_not_latch() {
+        let push = |_: u32, _: [f32; 2]| [8.0f32, 8.0];
+        for eps in [-0.2f32, 0.0, 0.2] {
+            assert_eq!(
+                supply_plant(eps, None, [30.0; 2], push, 2000, 6.0, Feed::Delivered),
+                None,
+                "ε = {eps}"
+            );
+        }
+        assert!(
+            supply_plant(0.0, None, [30.0; 2], push, 2000, 6.0, Feed::Commanded).is_some(),
+            "negative control: the commanded torque false-trips"
+        );
     }
 
     /// A wheel-speed P loop (as the dynamic loop acts at the wheels): the
