@@ -106,8 +106,14 @@ impl ReducedModel {
         let (h, inv_r) = (self.params.half_track_m, 1.0 / self.params.wheel_radius_m);
         let n = &self.n;
         [
-            [(n[0][0] + h * n[1][0]) * inv_r, (n[0][1] + h * n[1][1]) * inv_r],
-            [(n[0][0] - h * n[1][0]) * inv_r, (n[0][1] - h * n[1][1]) * inv_r],
+            [
+                (n[0][0] + h * n[1][0]) * inv_r,
+                (n[0][1] + h * n[1][1]) * inv_r,
+            ],
+            [
+                (n[0][0] - h * n[1][0]) * inv_r,
+                (n[0][1] - h * n[1][1]) * inv_r,
+            ],
         ]
     }
 

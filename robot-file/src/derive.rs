@@ -186,7 +186,10 @@ impl Robot {
             }
             Err(_) => min,
         };
-        (ticks as u16, DIRECTION_ACCEL_QUANTA * q / (ticks * period_s))
+        (
+            ticks as u16,
+            DIRECTION_ACCEL_QUANTA * q / (ticks * period_s),
+        )
     }
 
     /// The windowed wheel-rate estimate's resolution \[rad/s\]: one count

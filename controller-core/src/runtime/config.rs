@@ -130,15 +130,17 @@ impl SafetyLimits {
         period_s: f32,
     ) -> Result<Self, RuntimeConfigError> {
         use RuntimeConfigError as E;
+        // The fields are finite and positive (`validate`); the robot's
+        // values come from validated configurations.
         let s = self.validate()?;
-        if !(s.direction_torque_nm <= 0.5 * torque_limit_nm) {
+        if s.direction_torque_nm > 0.5 * torque_limit_nm {
             return Err(E::DirectionTorqueOutOfRange);
         }
         let block_s = s.direction_block_ticks as f32 * period_s;
-        if !(s.direction_accel_radps2 * block_s >= 2.0 * rate_quantum_radps) {
+        if s.direction_accel_radps2 * block_s < 2.0 * rate_quantum_radps {
             return Err(E::DirectionAccelBelowQuantisation);
         }
-        if !(s.direction_accel_radps2 <= 0.5 * wheel_accel_radps2_per_nm * torque_limit_nm) {
+        if s.direction_accel_radps2 > 0.5 * wheel_accel_radps2_per_nm * torque_limit_nm {
             return Err(E::DirectionAccelUnreachable);
         }
         Ok(s)

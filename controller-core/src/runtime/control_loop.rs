@@ -364,11 +364,11 @@ impl<const H: usize> ControlLoop<H> {
             None => self.pacer.status(&self.pace),
         };
         if out.is_some() && stop.is_none() {
-            let mut delivered = torque;
-            duty = self.duty_for(&mut delivered, &sample);
+            // The delivered torque (`duty_for` replaces a clamped wheel's).
+            self.last_torque_nm = torque;
+            duty = self.duty_for(torque, &sample);
             motors.set(duty);
             enabled = true;
-            self.last_torque_nm = delivered;
             self.status.run_ticks = self.status.run_ticks.saturating_add(1);
         } else {
             torque = [0.0; 2];
@@ -533,16 +533,16 @@ impl<const H: usize> ControlLoop<H> {
 
     /// Step 5: torque to duty and direction at each wheel's measured rate
     /// (the motor model's inverse), flipped for mirrored motors. Where the
-    /// duty clamps, `torque_nm` becomes the torque the clamped duty
+    /// duty clamps, `last_torque_nm` becomes the torque the clamped duty
     /// delivers at that rate by the same model (b_V·V_supply·duty − b·φ̇):
     /// what the stall and direction checks judge the wheel on (D111).
-    fn duty_for(&mut self, torque_nm: &mut [f32; 2], sample: &CountSample) -> [DutyCommand; 2] {
+    fn duty_for(&mut self, torque_nm: [f32; 2], sample: &CountSample) -> [DutyCommand; 2] {
         core::array::from_fn(|i| {
             let rate = sample.rate_radps[i];
             let req = self.motor.duty_for_torque(torque_nm[i], rate);
             if req.saturated {
                 self.status.duty_saturated = self.status.duty_saturated.saturating_add(1);
-                torque_nm[i] = self.motor.torque_for_duty(req.command, rate);
+                self.last_torque_nm[i] = self.motor.torque_for_duty(req.command, rate);
             }
             let mut cmd = req.command;
             if self.cfg.motor_inverted[i] && cmd.duty > 0 {

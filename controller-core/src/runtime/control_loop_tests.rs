@@ -467,7 +467,10 @@ fn direction_thresholds_are_physical() {
     let high = 0.5 * by_hand * limit;
     assert_eq!(with(&|s| s.direction_accel_radps2 = 0.99 * high), None);
     let unreachable = Some(E::DirectionAccelUnreachable);
-    assert_eq!(with(&|s| s.direction_accel_radps2 = 1.01 * high), unreachable);
+    assert_eq!(
+        with(&|s| s.direction_accel_radps2 = 1.01 * high),
+        unreachable
+    );
     // The blocks.
     let block = Some(E::InvalidDirectionBlock);
     assert_eq!(with(&|s| s.direction_block_ticks = 2), block);

@@ -41,14 +41,24 @@
 //! one count per speed window (0.065 rad/s with the example encoder and its
 //! 4 ms window), so a per-tick difference would be ±65 rad/s² of noise,
 //! while over a 20 ms block it is ±3.3 rad/s². The torque is the mean of
-//! the torques applied during the block (the torque written at a tick acts
-//! until the next one). A block is a mismatch for a wheel when
+//! the torques *delivered* during the block (the torque written at a tick
+//! acts until the next one): the commanded torque, or, at a tick whose duty
+//! clamped at the duty limit, the torque the clamped duty gives by the
+//! runtime's motor model, b_V·V_supply·duty − b·φ̇ (`ControlLoop::duty_for`,
+//! D111). A block is a mismatch for a wheel when
 //!
-//! * the measured rate change is against the correct hypothesis's
-//!   prediction, with |prediction| ≥ `direction_accel_radps2` and
-//!   |change| ≥ `direction_accel_radps2` × the block's duration (a clear
-//!   prediction, a change above the estimate's quantisation; a wheel that
-//!   does not turn is a stall, the stall check's),
+//! * the prediction is clear, |prediction| ≥ `direction_accel_radps2` × the
+//!   block's duration, and either
+//!   - the measured rate change is against it by at least that much (the
+//!     runaway's acceleration), or
+//!   - the change is smaller than that while the wheel turns against its
+//!     voltage's torque (φ̇·τ_V < 0) at |φ̇| ≥ the same number in rad/s
+//!     (D111: the runaway's *equilibrium*: at the torque limit a wheel
+//!     wired backwards settles within a block or two at φ̇ = −τ_c/(2b),
+//!     where it no longer accelerates; a correctly wired wheel turning
+//!     against a voltage that large without accelerating needs an
+//!     unmodelled force beyond `direction_torque_nm`; a wheel that does not
+//!     turn is a stall, the stall check's),
 //! * |τ_V| ≥ `direction_torque_nm` (the hypotheses are apart by
 //!   2·W_ii·|τ_V|, and friction, which the model leaves out, shifts the
 //!   measurement by W_ii times the friction torque: the tolerance is above
@@ -60,9 +70,40 @@
 //! the ESO's and the sliding loop's transients after a disturbance step or
 //! arming (a few ms to a few tens of ms), short enough that a wrongly wired
 //! wheel is stopped while its speed is still small. Any other block (a
-//! consistent one, one below the tolerances, or one where the duty
-//! saturated: the supply then delivers less than the commanded torque, so
-//! a decelerating wheel is legitimate) restarts the count.
+//! consistent one, one below the tolerances) restarts the count.
+//!
+//! **Saturation (D111).** Two limits cut what a wheel gets. The
+//! controller's torque limit clamps the *command*: the check sees the
+//! clamped command, which the bridge delivers, so nothing is special about
+//! it (a runaway drives the command to the limit, and the equilibrium case
+//! above is what catches it there). The duty limit clamps
+//! the *voltage*: the bridge then delivers less than the command (at speed
+//! the back-EMF can make the delivered torque of the opposite sign, a
+//! correctly wired wheel decelerating under a positive command), so the
+//! check is fed the clamped duty's torque instead; a saturated block is
+//! judged like any other (before D111 a block in which either wheel's duty
+//! clamped gave no verdict). The delivered torque is the model's: a supply
+//! that sags below `motor.supply_voltage_v` delivers less still, which the
+//! midpoint's margin (W_ii·τ_V) absorbs as it absorbs a motor-constant
+//! error (D109).
+//!
+//! **Thresholds (D112).** `SafetyLimits::validate_direction` refuses
+//! thresholds that can never fire or that false-trip: `direction_torque_nm`
+//! above half the torque limit (the equilibrium's τ_V is τ_c/2), an
+//! acceleration tolerance under 2 rate quanta over a block, or above half
+//! W_ii × the limit (the equilibrium's distance from the midpoint). The
+//! robot file lengthens the block for coarse encoders (derive.rs).
+//!
+//! **What it cannot see.** A wheel held at 0 rate (a stall or a dead
+//! encoder: `check_stall`); a wheel driven below `direction_torque_nm`; a
+//! miswired wheel whose controller keeps reversing its torque before a run
+//! of `direction_blocks` blocks forms; and an inverted *encoder* where the
+//! body's coupling is strong: the inverted hypothesis flips only the
+//! wheel's own term (exact for a backwards motor), while a backwards
+//! encoder negates the measured wheel's whole acceleration, the other
+//! wheel's share W_ij·τ_j included, so with the two shares nearly
+//! cancelling the measurement lies near the correct hypothesis (the paper
+//! robot's tuned gains, hil-sim/tests/direction_robots.rs, D113).
 
 use super::config::SafetyLimits;
 use super::hardware::Wheel;
@@ -228,24 +269,23 @@ impl DirectionCheck {
             };
         let change = self.ended_change_radps[i];
         let tol = p.tol_change_radps;
-        // τ_V = τ_c + b·φ̇ at the block's mean rate (the voltage's torque).
-        let mean_rate = self.ended_start_radps[i] + 0.5 * change;
-        let tau_v = sum[i] * p.inv_block_ticks + p.damping_nms_per_rad * mean_rate;
         // A clear prediction, and either a clear change against it (the
         // runaway's acceleration) or no clear change while the wheel turns
         // against its voltage at a clear rate (the runaway's equilibrium at
         // the torque limit, φ̇ = −τ_c / 2b); a wheel that does not turn is a
-        // stall, `check_stall`'s ...
-        let clear = predicted.abs() >= tol
-            && if change.abs() >= tol {
-                predicted * change < 0.0
-            } else {
-                mean_rate * tau_v < 0.0 && mean_rate.abs() >= tol
-            };
+        // stall, `check_stall`'s. (The cheap exits first: bench-m4's tick.)
+        let small = change.abs() < tol;
+        if predicted.abs() < tol || (!small && predicted * change >= 0.0) {
+            self.strikes[i] = 0;
+            return None;
+        }
+        let mean_rate = self.ended_start_radps[i] + 0.5 * change;
+        // τ_V = τ_c + b·φ̇ at the block's mean rate (the voltage's torque).
+        let tau_v = sum[i] * p.inv_block_ticks + p.damping_nms_per_rad * mean_rate;
         // ... and nearer the inverted hypothesis than the correct one: the
         // midpoint is the prediction minus W_ii·τ_V over the block.
         let beyond = change - predicted + p.own_block[i] * tau_v;
-        let against = clear
+        let against = (!small || (mean_rate * tau_v < 0.0 && mean_rate.abs() >= tol))
             && beyond * tau_v < 0.0
             && tau_v.abs() >= p.tol_torque_nm
             && beyond.abs() >= tol;
@@ -402,7 +442,15 @@ mod tests {
         tau_c: impl Fn(u32, [f32; 2]) -> [f32; 2],
         ticks: u32,
     ) -> Option<(u32, StopReason)> {
-        supply_plant(eps, inverted, rate0, tau_c, ticks, f32::INFINITY, Feed::Delivered)
+        supply_plant(
+            eps,
+            inverted,
+            rate0,
+            tau_c,
+            ticks,
+            f32::INFINITY,
+            Feed::Delivered,
+        )
     }
 
     /// What the check is fed (the runtime feeds the delivered torque).
