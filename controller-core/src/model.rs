@@ -98,6 +98,25 @@ impl ReducedModel {
         mat2_mul_vec(&self.n, torque_nm)
     }
 
+    /// Eq. (7)'s torques-to-wheel-accelerations map W = S·N, S =
+    /// \[\[1/r, h/r\], \[1/r, −h/r\]\]: row i is wheel i's (right, left)
+    /// angular acceleration per N·m at wheel j \[rad/s² per N·m\]; the
+    /// diagonal W_ii is positive (a wheel's own torque speeds it up).
+    pub fn wheel_accel_map(&self) -> Mat2 {
+        let (h, inv_r) = (self.params.half_track_m, 1.0 / self.params.wheel_radius_m);
+        let n = &self.n;
+        [
+            [
+                (n[0][0] + h * n[1][0]) * inv_r,
+                (n[0][1] + h * n[1][1]) * inv_r,
+            ],
+            [
+                (n[0][0] - h * n[1][0]) * inv_r,
+                (n[0][1] - h * n[1][1]) * inv_r,
+            ],
+        ]
+    }
+
     /// N⁻¹a: the wheel torques `[right, left]` that produce the acceleration `a`.
     #[inline]
     pub fn n_inv_mul(&self, a: [f32; 2]) -> [f32; 2] {

@@ -1,15 +1,20 @@
-//! The runtime direction check (D74, D109) on each example robot with the
-//! thresholds its robot file derives (D110): a motor or an encoder wired
-//! backwards on either wheel latches `DirectionMismatch` naming that wheel
-//! within 0.5 s of arming, before the robot has gone 10 cm.
+//! The runtime direction check (D74, D109, D111) on each example robot with
+//! the thresholds its robot file derives (D110), with its untuned and its
+//! tuned gains: a motor or an encoder wired backwards on either wheel
+//! latches `DirectionMismatch` naming that wheel within two windows of
+//! arming (`direction_block_ticks × direction_blocks` ticks, 80 ms, each;
+//! the first may be the arming transient's, the second must latch: at most
+//! 162 steps, the left wheel's verdict two ticks after a block's end),
+//! before the robot has gone 10 cm.
 //!
-//! Only the paper robot passes today. The 2 kg TB6612 robot (derived
-//! 0.045 N·m / 89 rad/s²; with D74's fixed 1 N·m it could never get a
-//! verdict at its 0.25 N·m limit) and the 10 kg BTS7960 robot (0.9 N·m /
-//! 5.9 rad/s²) get no stop in this 2 s run, whose torque is saturated at
-//! every step: an open defect (D110); `wmr commission` finds the miswiring
-//! before a run. Add them to the list once the check gives verdicts there.
-//! (Healthy runs of the same robots never stop: `mismatch_sweep.rs`.)
+//! Before D111 only the paper robot passed: the 2 kg TB6612 and the 10 kg
+//! BTS7960 robots' miswired wheel runs at the torque limit into the
+//! positive-feedback equilibrium φ̇ = −τ_c/(2b) within a block or two and
+//! then stops accelerating, and D74's condition wanted a clear
+//! acceleration against the torque in every block (on the 2 kg robot its
+//! acceleration, ≈ 60 rad/s², is below one block's quantisation tolerance
+//! of 89 rad/s² anyway). (Healthy runs of the same robots never stop:
+//! `mismatch_sweep.rs`, the tune tests on robots/paper-2nm.tuned.toml.)
 
 use controller_core::runtime::{StopReason, Wheel};
 use controller_core::ControllerKind;
@@ -25,16 +30,45 @@ fn robot(name: &str) -> Robot {
     Robot::from_toml_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
+/// Every example robot file, untuned and tuned (the paper robot also at
+/// the 2 N·m torque limit of its tuned file).
+const ROBOTS: [&str; 7] = [
+    "paper",
+    "paper.tuned",
+    "paper-2nm.tuned",
+    "tb6612-2kg",
+    "tb6612-2kg.tuned",
+    "bts7960-10kg",
+    "bts7960-10kg.tuned",
+];
+
+/// Open (D113): with the paper robot's tuned gains an inverted *encoder*
+/// is not caught within the bound. Its controller reverses both torques
+/// every ≈ 0.3 s, and through the body's strong coupling (W_ij = 0.6·W_ii
+/// for the paper robot) the measured wheel's acceleration is the negated
+/// sum of both wheels' terms, which lies near the correct hypothesis (the
+/// check's inverted hypothesis flips only the wheel's own term: exact for
+/// a backwards motor, for a backwards encoder only where the coupling is
+/// small). Printed, not asserted.
+const OPEN: [&str; 2] = [
+    "paper.tuned, right wheel, encoder inverted",
+    "paper.tuned, left wheel, encoder inverted",
+];
+
 #[test]
-fn a_backwards_wheel_stops_the_paper_robot() {
-    for name in ["paper"] {
+fn a_backwards_wheel_stops_every_example_robot() {
+    let mut failures = Vec::new();
+    for name in ROBOTS {
         let r = robot(name);
         let scn = base_scenario(&r, 1, 2.0);
         let kind = ControllerKind::Proposed;
         let cfg = scn.runtime_config(scn.controller_config(kind), scn.safety_limits());
+        let s = &cfg.safety;
+        let window = s.direction_block_ticks as usize * s.direction_blocks as usize;
+        let bound = 2 * window + 2;
         println!(
-            "{name}: direction check at {} N·m, {} rad/s²",
-            cfg.safety.direction_torque_nm, cfg.safety.direction_accel_radps2
+            "{name}: direction check at {} N·m, {} rad/s², window {window} ticks: bound {bound} steps",
+            s.direction_torque_nm, s.direction_accel_radps2
         );
         for wheel in [0usize, 1] {
             for motor in [true, false] {
@@ -52,25 +86,31 @@ fn a_backwards_wheel_stops_the_paper_robot() {
                 let est = sensing_estimator_config(&scn.sensor_setup().unwrap());
                 let mut side = RuntimeSide::new(cfg, est).unwrap();
                 let out = run_loop(&scn, &mut world, &mut side, 1).unwrap();
-                let what = format!("{name}, wheel {wheel}, motor {motor}");
-                let sat = out.metrics.saturated_fraction;
-                let (step, reason) = out
-                    .stop
-                    .unwrap_or_else(|| panic!("{what}: no stop (saturated {sat})"));
-                println!("{what}: {reason:?} at step {step}");
-                assert_eq!(
-                    reason,
-                    StopReason::DirectionMismatch {
-                        wheel: Wheel::BOTH[wheel]
-                    },
-                    "{what}"
+                let what = format!(
+                    "{name}, {} wheel, {} inverted",
+                    ["right", "left"][wheel],
+                    if motor { "motor" } else { "encoder" }
                 );
-                assert!(step < 500, "{what}: stopped only at step {step}");
+                let open = OPEN.contains(&what.as_str());
+                let Some((step, reason)) = out.stop else {
+                    println!("{what}: no stop{}", if open { " (open, D113)" } else { "" });
+                    if !open {
+                        failures.push(format!("{what}: no stop"));
+                    }
+                    continue;
+                };
                 // Where the robot was when the check latched (trace every step).
                 let (p0, p) = (out.trace[0].pose, out.trace[step].pose);
                 let gone = (p[0] - p0[0]).hypot(p[1] - p0[1]);
-                assert!(gone < 0.1, "{what}: went {gone} m before the stop");
+                println!("{what}: {reason:?} at step {step}, {gone:.4} m gone");
+                let named = StopReason::DirectionMismatch {
+                    wheel: Wheel::BOTH[wheel],
+                };
+                if !open && (reason != named || step > bound || gone >= 0.1) {
+                    failures.push(format!("{what}: {reason:?} at step {step}, {gone} m"));
+                }
             }
         }
     }
+    assert!(failures.is_empty(), "{failures:#?}");
 }

@@ -32,6 +32,16 @@ pub const DIRECTION_FRICTION_FACTOR: f32 = 1.5;
 /// (D74's example 10 rad/s²), 89 rad/s² for the 2 kg robot's 1,320 counts
 /// and 8-tick window (D110).
 pub const DIRECTION_ACCEL_QUANTA: f32 = 3.0;
+/// The direction check's block is lengthened (from `SafetyLimits::EXAMPLE`'s
+/// 20 ticks) until its acceleration tolerance is at most this fraction of
+/// the margin a miswired wheel's runaway equilibrium leaves, ½·W_ii × the
+/// torque limit (`SafetyLimits::validate_direction`, D112): the 2 kg
+/// robot's coarse encoder gets 48-tick blocks, a paper robot held to
+/// 2 N·m 60-tick ones.
+pub const DIRECTION_ACCEL_MARGIN_FRACTION: f32 = 0.4;
+/// The longest block the derivation picks \[s\] (a slower check is no
+/// check: the stall check's 0.25 s is shorter).
+pub const DIRECTION_MAX_BLOCK_S: f32 = 0.25;
 
 impl Robot {
     /// Mean wheel radius \[m\].
@@ -136,17 +146,50 @@ impl Robot {
         let overrun = libm::roundf(0.5 * period_s * 1e6).max(1.0) as u32;
         let e = SafetyLimits::EXAMPLE;
         let friction = self.motors.coulomb_friction_nm[0].max(self.motors.coulomb_friction_nm[1]);
+        let limit = self.limits.torque_nm;
+        let (block_ticks, accel) = self.direction_block(period_s);
         SafetyLimits {
             max_counts_per_tick: jump,
-            stall_torque_nm: STALL_TORQUE_FRACTION * self.limits.torque_nm,
+            stall_torque_nm: STALL_TORQUE_FRACTION * limit,
             stall_ticks,
             overrun_limit_us: overrun,
-            direction_torque_nm: (DIRECTION_TORQUE_FRACTION * self.limits.torque_nm)
-                .max(DIRECTION_FRICTION_FACTOR * friction),
-            direction_accel_radps2: DIRECTION_ACCEL_QUANTA * self.rate_quantum_radps(period_s)
-                / (e.direction_block_ticks as f32 * period_s),
+            // At most half the limit (validate_direction's bound): a robot
+            // whose friction is above a third of its limit gets a check
+            // whose midpoint is less clear of friction.
+            direction_torque_nm: (DIRECTION_TORQUE_FRACTION * limit)
+                .max(DIRECTION_FRICTION_FACTOR * friction)
+                .min(0.5 * limit),
+            direction_accel_radps2: accel,
+            direction_block_ticks: block_ticks,
             ..e
         }
+    }
+
+    /// The direction check's block \[ticks\] and acceleration tolerance
+    /// \[rad/s²\] for a control period `period_s`: the tolerance is
+    /// [`DIRECTION_ACCEL_QUANTA`] quanta of the windowed rate estimate over
+    /// a block, and the block the shortest from `SafetyLimits::EXAMPLE`'s
+    /// (20 ticks) up to [`DIRECTION_MAX_BLOCK_S`] for which that is at most
+    /// [`DIRECTION_ACCEL_MARGIN_FRACTION`] × ½·W_ii·`limits.torque_nm`
+    /// (W_ii: eq. 7's own-wheel acceleration per N·m, the controller's model).
+    pub fn direction_block(&self, period_s: f32) -> (u16, f32) {
+        let q = self.rate_quantum_radps(period_s);
+        let min = SafetyLimits::EXAMPLE.direction_block_ticks as f32;
+        let max = libm::floorf(DIRECTION_MAX_BLOCK_S / period_s).max(min);
+        let ticks = match controller_core::model::ReducedModel::new(&self.robot_params()) {
+            Ok(m) => {
+                let w = m.wheel_accel_map();
+                let margin = 0.5 * w[0][0].min(w[1][1]) * self.limits.torque_nm;
+                let want = DIRECTION_ACCEL_QUANTA * q
+                    / (DIRECTION_ACCEL_MARGIN_FRACTION * margin * period_s);
+                libm::ceilf(want).clamp(min, max)
+            }
+            Err(_) => min,
+        };
+        (
+            ticks as u16,
+            DIRECTION_ACCEL_QUANTA * q / (ticks * period_s),
+        )
     }
 
     /// The windowed wheel-rate estimate's resolution \[rad/s\]: one count

@@ -401,6 +401,21 @@ impl Robot {
             "limits.max_speed_mps",
             "more counts per 1 ms tick at the top speed than half the 16-bit counter",
         )?;
+        // The direction check's derived thresholds (derive.rs, D112): a
+        // block of at most DIRECTION_MAX_BLOCK_S must resolve the runaway's
+        // equilibrium margin, ½·W_ii × the torque limit, above the rate
+        // estimate's quantisation.
+        let (_, accel) = self.direction_block(CONTROL_PERIOD_S);
+        let w = controller_core::model::ReducedModel::new(&self.robot_params())
+            .map(|m| m.wheel_accel_map())
+            .map_err(|e| RobotError::new("body", Reason::Controller(e)))?;
+        consistent(
+            accel <= 0.5 * w[0][0].min(w[1][1]) * l.torque_nm,
+            "encoders.counts_per_wheel_rev",
+            "limits.torque_nm, body and encoders.speed_window_ticks",
+            "too coarse for the direction check: 3 counts per speed window over its longest block \
+             are more than half the acceleration the torque limit gives a wheel",
+        )?;
         let bp = self.bridge.params();
         for clock in SUPPORTED_TIMER_CLOCKS_HZ {
             consistent(

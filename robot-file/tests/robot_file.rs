@@ -582,3 +582,82 @@ fn build_script_embeds_a_good_file_and_names_the_field_of_a_bad_one() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The derived direction thresholds (D110, D112) pass the runtime's
+/// physical-range validation (`ControlLoop::new` runs
+/// `SafetyLimits::validate_direction`) for every example robot file and for
+/// 400 pseudo-random variants of them (body, motors, encoders and torque
+/// limit each scaled by 0.3-3): every variant the robot file accepts gives
+/// a runtime that accepts its thresholds; a variant whose encoder is too
+/// coarse for the check is refused naming `encoders.counts_per_wheel_rev`.
+#[test]
+fn derived_direction_thresholds_are_always_valid() {
+    use controller_core::runtime::ControlLoop;
+    let mut files = Vec::new();
+    for f in std::fs::read_dir(robots_dir()).unwrap() {
+        let p = f.unwrap().path();
+        if p.extension().is_some_and(|e| e == "toml") {
+            files.push(Robot::from_toml_str(&std::fs::read_to_string(&p).unwrap()).unwrap());
+        }
+    }
+    assert!(files.len() >= 6, "{}", files.len());
+    let ex = RuntimeConfig::example(ControllerKind::Proposed);
+    let check = |r: &Robot| {
+        let c = r
+            .runtime_config(
+                ControllerKind::Proposed,
+                ex.reference,
+                ex.initial_pose,
+                96_000_000,
+            )
+            .unwrap();
+        if let Err(e) = ControlLoop::new(c) {
+            panic!("{}: {e} ({:?})", r.name, c.safety);
+        }
+        c.safety
+    };
+    for r in &files {
+        let s = check(r);
+        println!(
+            "{}: {} N·m, {} rad/s², {} ticks × {}",
+            r.name,
+            s.direction_torque_nm,
+            s.direction_accel_radps2,
+            s.direction_block_ticks,
+            s.direction_blocks
+        );
+    }
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        // 0.3..3, log-uniform.
+        0.3f32 * 10f32.powf((seed >> 40) as f32 / (1u64 << 24) as f32)
+    };
+    let (mut accepted, mut coarse) = (0, 0);
+    for k in 0..400 {
+        let mut r = files[k % files.len()].clone();
+        r.body.mass_kg *= next();
+        r.body.inertia_kgm2 *= next();
+        r.body.wheel_inertia_kgm2 *= next();
+        let s = next();
+        r.body.wheel_radius_m = r.body.wheel_radius_m.map(|x| x * s);
+        r.motors.torque_constant_nm_per_a *= next();
+        r.motors.gear_ratio *= next();
+        r.encoders.counts_per_wheel_rev *= next();
+        r.encoders.speed_window_ticks = ((r.encoders.speed_window_ticks as f32 * next()) as u8)
+            .clamp(1, controller_core::runtime::MAX_SPEED_WINDOW as u8);
+        r.limits.torque_nm *= next();
+        match r.validate() {
+            Ok(()) => {
+                check(&r);
+                accepted += 1;
+            }
+            Err(e) if e.field == "encoders.counts_per_wheel_rev" => coarse += 1,
+            Err(_) => {}
+        }
+    }
+    println!("{accepted} variants accepted, {coarse} refused as too coarse");
+    assert!(accepted >= 40, "{accepted}");
+}

@@ -161,7 +161,7 @@ fn run_miswired(
 /// before the robot has gone 5 cm, and no wheel ever exceeds 5 rad/s (the
 /// plant is frictionless, so after the cut it coasts at the speed it had:
 /// the bound on the wheel speeds is the bound on how far it goes).
-/// Control: with the check off (a torque tolerance beyond any torque) the
+/// Control: with the check off (65,535 blocks in a row to latch) the
 /// same robot runs away: a wheel beyond 8 rad/s (measured: 8.9-19.4), and
 /// no stop for more than 1 s (the health machine's LostPath after about
 /// 3.4 s, measured), so the bounds above are the check's doing.
@@ -169,8 +169,10 @@ fn run_miswired(
 fn miswired_wheel_stops_on_direction_mismatch_and_never_runs_away() {
     use controller_core::runtime::{SafetyLimits, StopReason, Wheel};
     let on = SafetyLimits::EXAMPLE;
+    // Off: no run of blocks ever long enough (a torque tolerance beyond
+    // any torque is refused now, D112).
     let off = SafetyLimits {
-        direction_torque_nm: f32::MAX,
+        direction_blocks: u16::MAX,
         ..on
     };
     for fault in [

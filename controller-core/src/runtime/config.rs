@@ -72,8 +72,12 @@ impl SafetyLimits {
         direction_blocks: 4,
     };
 
-    /// Checks every field.
+    /// Checks every field on its own (positive, finite, in range); the
+    /// direction check's thresholds against the robot they run on are
+    /// [`Self::validate_direction`]'s (both run in `ControlLoop::new` and
+    /// `reconfigure`).
     pub fn validate(self) -> Result<Self, RuntimeConfigError> {
+        use RuntimeConfigError as E;
         let ok = self.max_counts_per_tick > 0
             && self.max_counts_per_tick <= i16::MAX as u16
             && self.stall_torque_nm.is_finite()
@@ -81,18 +85,65 @@ impl SafetyLimits {
             && self.stall_ticks > 0
             && self.overrun_limit_us > 0
             && self.max_consecutive_overruns > 0
-            && self.max_consecutive_input_faults > 0
-            && self.direction_torque_nm.is_finite()
-            && self.direction_torque_nm > 0.0
-            && self.direction_accel_radps2.is_finite()
-            && self.direction_accel_radps2 > 0.0
-            && self.direction_block_ticks >= 3
-            && self.direction_blocks > 0;
-        if ok {
-            Ok(self)
-        } else {
-            Err(RuntimeConfigError::InvalidSafetyLimit)
+            && self.max_consecutive_input_faults > 0;
+        if !ok {
+            return Err(E::InvalidSafetyLimit);
         }
+        if !(self.direction_torque_nm.is_finite() && self.direction_torque_nm > 0.0) {
+            return Err(E::DirectionTorqueOutOfRange);
+        }
+        if !(self.direction_accel_radps2.is_finite() && self.direction_accel_radps2 > 0.0) {
+            return Err(E::DirectionAccelBelowQuantisation);
+        }
+        if self.direction_block_ticks < 3 || self.direction_blocks == 0 {
+            return Err(E::InvalidDirectionBlock);
+        }
+        Ok(self)
+    }
+
+    /// The direction check's thresholds against the robot (D112): each
+    /// bound is one a useful check must meet, each violation names its
+    /// field.
+    ///
+    /// * `direction_torque_nm` ≤ ½ `torque_limit_nm`: a miswired wheel's
+    ///   runaway settles where the voltage's torque τ_V = τ_c + b·φ̇ is
+    ///   −b·φ̇ = τ_c/2 (φ̇ = −τ_c/2b), so above half the limit the
+    ///   equilibrium never gets a verdict
+    ///   ([`RuntimeConfigError::DirectionTorqueOutOfRange`]).
+    /// * `direction_accel_radps2` × block ≥ 2 quanta of the windowed rate
+    ///   estimate (`rate_quantum_radps`, one count per speed window): a
+    ///   block's rate change is the difference of two estimates, each
+    ///   within one quantum of the window's true mean, so a healthy wheel's
+    ///   quantisation alone reaches just under 2 quanta and a lower
+    ///   tolerance false-trips ([`RuntimeConfigError::DirectionAccelBelowQuantisation`]).
+    /// * `direction_accel_radps2` ≤ ½ W_ii·`torque_limit_nm`
+    ///   (`wheel_accel_radps2_per_nm` = W_ii, eq. 7's own-wheel entry,
+    ///   `ReducedModel::wheel_accel_map`): at the runaway's equilibrium
+    ///   the measurement lies W_ii·τ_c/2 from the midpoint between the
+    ///   hypotheses, at most ½ W_ii × the limit; a larger tolerance never
+    ///   fires there ([`RuntimeConfigError::DirectionAccelUnreachable`]).
+    pub fn validate_direction(
+        self,
+        torque_limit_nm: f32,
+        wheel_accel_radps2_per_nm: f32,
+        rate_quantum_radps: f32,
+        period_s: f32,
+    ) -> Result<Self, RuntimeConfigError> {
+        use RuntimeConfigError as E;
+        // The fields are finite and positive (`validate`); the robot's
+        // values come from validated configurations.
+        let s = self.validate()?;
+        if s.direction_torque_nm > 0.5 * torque_limit_nm {
+            return Err(E::DirectionTorqueOutOfRange);
+        }
+        let block_s = s.direction_block_ticks as f32 * period_s;
+        if s.direction_accel_radps2 * block_s < 2.0 * rate_quantum_radps {
+            return Err(E::DirectionAccelBelowQuantisation);
+        }
+        if s.direction_accel_radps2 > 0.5 * wheel_accel_radps2_per_nm * torque_limit_nm {
+            return Err(E::DirectionAccelUnreachable);
+        }
+        Ok(s)
     }
 }
 

@@ -38,6 +38,8 @@ pub struct ControlLoop<const H: usize = HISTORY_LEN> {
     status: Status,
     stall_ticks: [u16; 2],
     consecutive_input_faults: u16,
+    /// The torque delivered during the tick now elapsing \[N·m\]: the
+    /// commanded one, or the clamped duty's where the duty saturated.
     last_torque_nm: [f32; 2],
     direction: DirectionCheck,
     /// Eq. (7) to wheel accelerations for the direction check (from the
@@ -72,7 +74,7 @@ impl<const H: usize> ControlLoop<H> {
         }
         let motor = MotorModel::new(cfg.motor)?;
         let counts = WheelCounts::new(cfg.encoder)?;
-        cfg.safety.validate()?;
+        validate_direction(&cfg.safety, &controller, &cfg.encoder)?;
         let prediction = Prediction::new(
             controller.model(),
             &motor,
@@ -194,10 +196,7 @@ impl<const H: usize> ControlLoop<H> {
                 self.consecutive_input_faults = 0;
                 self.status.consecutive_overruns = 0;
                 self.last_torque_nm = [0.0; 2];
-                self.direction = DirectionCheck::start(
-                    self.counts.last_rate_radps(),
-                    self.status.duty_saturated,
-                );
+                self.direction = DirectionCheck::start(self.counts.last_rate_radps());
                 self.pace = self.pacer.initial_state();
                 self.status.state = RunState::Running;
                 Ok(())
@@ -250,7 +249,7 @@ impl<const H: usize> ControlLoop<H> {
         let new = Controller::new(controller).map_err(invalid)?;
         // The pacer's saturation and health thresholds follow the gains and limit.
         let pacer = Pacer::new(self.cfg.pacing, &controller).map_err(invalid)?;
-        safety.validate().map_err(ReconfigureError::Invalid)?;
+        validate_direction(&safety, &new, &self.cfg.encoder).map_err(ReconfigureError::Invalid)?;
         self.prediction = Prediction::new(new.model(), &self.motor, &safety, controller.period_s);
         self.controller = new;
         self.pace = pacer.initial_state();
@@ -345,7 +344,6 @@ impl<const H: usize> ControlLoop<H> {
                     self.status.run_ticks,
                     [eta.v_mps, eta.omega_radps],
                     self.last_torque_nm,
-                    self.status.duty_saturated,
                     sample.rate_radps,
                 ));
             if stop.is_none() {
@@ -366,10 +364,11 @@ impl<const H: usize> ControlLoop<H> {
             None => self.pacer.status(&self.pace),
         };
         if out.is_some() && stop.is_none() {
+            // The delivered torque (`duty_for` replaces a clamped wheel's).
+            self.last_torque_nm = torque;
             duty = self.duty_for(torque, &sample);
             motors.set(duty);
             enabled = true;
-            self.last_torque_nm = torque;
             self.status.run_ticks = self.status.run_ticks.saturating_add(1);
         } else {
             torque = [0.0; 2];
@@ -533,14 +532,17 @@ impl<const H: usize> ControlLoop<H> {
     }
 
     /// Step 5: torque to duty and direction at each wheel's measured rate
-    /// (the motor model's inverse), flipped for mirrored motors.
+    /// (the motor model's inverse), flipped for mirrored motors. Where the
+    /// duty clamps, `last_torque_nm` becomes the torque the clamped duty
+    /// delivers at that rate by the same model (b_V·V_supply·duty − b·φ̇):
+    /// what the stall and direction checks judge the wheel on (D111).
     fn duty_for(&mut self, torque_nm: [f32; 2], sample: &CountSample) -> [DutyCommand; 2] {
         core::array::from_fn(|i| {
-            let req = self
-                .motor
-                .duty_for_torque(torque_nm[i], sample.rate_radps[i]);
+            let rate = sample.rate_radps[i];
+            let req = self.motor.duty_for_torque(torque_nm[i], rate);
             if req.saturated {
                 self.status.duty_saturated = self.status.duty_saturated.saturating_add(1);
+                self.last_torque_nm[i] = self.motor.torque_for_duty(req.command, rate);
             }
             let mut cmd = req.command;
             if self.cfg.motor_inverted[i] && cmd.duty > 0 {
@@ -549,6 +551,21 @@ impl<const H: usize> ControlLoop<H> {
             cmd
         })
     }
+}
+
+/// [`SafetyLimits::validate_direction`] for the controller's model, torque
+/// limit and period and the encoders' rate-estimate quantum (the coarser
+/// wheel's count over one speed window).
+fn validate_direction(
+    safety: &SafetyLimits,
+    controller: &Controller,
+    encoder: &super::encoder::EncoderParams,
+) -> Result<SafetyLimits, RuntimeConfigError> {
+    let c = controller.config();
+    let w = controller.model().wheel_accel_map();
+    let [q0, q1] = encoder.rad_per_count();
+    let quantum = q0.max(q1) / (encoder.speed_window_ticks as f32 * c.period_s);
+    safety.validate_direction(c.torque_limit_nm, w[0][0].min(w[1][1]), quantum, c.period_s)
 }
 
 #[cfg(test)]

@@ -182,6 +182,9 @@ fn isolated_input_faults_tolerated_when_configured() {
     let mut cfg = line_config(0.5);
     cfg.safety.max_consecutive_input_faults = 3;
     cfg.encoder.speed_window_ticks = 1;
+    // A one-tick window's rate quantum (0.26 rad/s) over a 20 ms block
+    // needs at least 26 rad/s² of tolerance (D112).
+    cfg.safety.direction_accel_radps2 = 30.0;
     let mut r = Rig::new(cfg);
     r.cl.arm().unwrap();
     r.tick();
@@ -395,6 +398,101 @@ fn measurements_matched_against_the_tick_clock() {
     }
     let rej = r.cl.estimator_status().rejected;
     assert_eq!((rej.from_future, rej.too_old), (1, 1));
+}
+
+/// The direction thresholds against the robot (D112), each bound on the
+/// example robot (paper model, 10 N·m, 24,000 counts, 4-tick window:
+/// W_ii = 8.2 rad/s² per N·m, rate quantum 0.0654 rad/s), just inside and
+/// just outside, independently computed here; each rejection names its field.
+#[test]
+fn direction_thresholds_are_physical() {
+    use RuntimeConfigError as E;
+    let base = line_config(0.5);
+    let model = crate::model::ReducedModel::new(&base.controller.robot).unwrap();
+    let w_ii = model.wheel_accel_map()[0][0];
+    // Eq. (7) by hand: 1/(r²·m1) + h²/(r²·I1), m1 and I1 of eq. (5).
+    let p = base.controller.robot;
+    let m1 = crate::params::m1_diagonal(
+        p.mass_kg,
+        p.inertia_kgm2,
+        p.wheel_inertia_kgm2,
+        p.wheel_radius_m,
+        p.half_track_m,
+        p.com_offset_m,
+    );
+    let r2 = p.wheel_radius_m * p.wheel_radius_m;
+    let by_hand = 1.0 / (r2 * m1[0]) + p.half_track_m * p.half_track_m / (r2 * m1[1]);
+    assert!((w_ii - by_hand).abs() < 1e-4 * by_hand, "{w_ii} {by_hand}");
+    let limit = base.controller.torque_limit_nm;
+    let block_s = base.safety.direction_block_ticks as f32 * base.controller.period_s;
+    let quantum = 2.0 * core::f32::consts::PI
+        / (base.encoder.counts_per_wheel_rev
+            * base.encoder.speed_window_ticks as f32
+            * base.controller.period_s);
+    let with = |f: &dyn Fn(&mut SafetyLimits)| {
+        let mut cfg = base;
+        f(&mut cfg.safety);
+        ControlLoop::new(cfg).err()
+    };
+    // The example's values are inside every bound.
+    assert_eq!(with(&|_| {}), None);
+    // Torque: at most half the limit.
+    assert_eq!(with(&|s| s.direction_torque_nm = 0.49 * limit), None);
+    let over = Some(E::DirectionTorqueOutOfRange);
+    assert_eq!(with(&|s| s.direction_torque_nm = 0.51 * limit), over);
+    assert_eq!(with(&|s| s.direction_torque_nm = f32::NAN), over);
+    assert_eq!(with(&|s| s.direction_torque_nm = 0.0), over);
+    // Acceleration: at least 2 quanta over a block ...
+    let low = 2.0 * quantum / block_s;
+    assert_eq!(with(&|s| s.direction_accel_radps2 = 1.01 * low), None);
+    let below = Some(E::DirectionAccelBelowQuantisation);
+    assert_eq!(with(&|s| s.direction_accel_radps2 = 0.99 * low), below);
+    assert_eq!(with(&|s| s.direction_accel_radps2 = f32::INFINITY), below);
+    // ... a longer block lowers the floor, a coarser encoder raises it ...
+    assert_eq!(
+        with(&|s| {
+            s.direction_accel_radps2 = 0.6 * low;
+            s.direction_block_ticks *= 2;
+        }),
+        None
+    );
+    // (The example's 10 rad/s² over 20 ms is 3.06 quanta of its encoder:
+    // 2.04 quanta at 2/3 of its counts, 1.53 at half.)
+    let mut coarse = base;
+    coarse.encoder.counts_per_wheel_rev = base.encoder.counts_per_wheel_rev / 1.5;
+    assert_eq!(ControlLoop::new(coarse).err(), None);
+    coarse.encoder.counts_per_wheel_rev = base.encoder.counts_per_wheel_rev / 2.0;
+    assert_eq!(ControlLoop::new(coarse).err(), below);
+    // ... and at most half the acceleration the torque limit gives.
+    let high = 0.5 * by_hand * limit;
+    assert_eq!(with(&|s| s.direction_accel_radps2 = 0.99 * high), None);
+    let unreachable = Some(E::DirectionAccelUnreachable);
+    assert_eq!(
+        with(&|s| s.direction_accel_radps2 = 1.01 * high),
+        unreachable
+    );
+    // The blocks.
+    let block = Some(E::InvalidDirectionBlock);
+    assert_eq!(with(&|s| s.direction_block_ticks = 2), block);
+    assert_eq!(with(&|s| s.direction_blocks = 0), block);
+    // `reconfigure` checks the same against the new torque limit: the
+    // example's 1 N·m is more than half of a 1.5 N·m limit.
+    let mut r = Rig::new(base);
+    let mut c = base.controller;
+    c.torque_limit_nm = 1.5;
+    assert_eq!(
+        r.cl.reconfigure(c, base.safety).err(),
+        Some(ReconfigureError::Invalid(E::DirectionTorqueOutOfRange))
+    );
+    // Every message names its field.
+    for (e, field) in [
+        (E::DirectionTorqueOutOfRange, "direction_torque_nm"),
+        (E::DirectionAccelBelowQuantisation, "direction_accel_radps2"),
+        (E::DirectionAccelUnreachable, "direction_accel_radps2"),
+        (E::InvalidDirectionBlock, "direction_block_ticks"),
+    ] {
+        assert!(format!("{e}").contains(field), "{e}");
+    }
 }
 
 #[test]

@@ -41,14 +41,24 @@
 //! one count per speed window (0.065 rad/s with the example encoder and its
 //! 4 ms window), so a per-tick difference would be ±65 rad/s² of noise,
 //! while over a 20 ms block it is ±3.3 rad/s². The torque is the mean of
-//! the torques applied during the block (the torque written at a tick acts
-//! until the next one). A block is a mismatch for a wheel when
+//! the torques *delivered* during the block (the torque written at a tick
+//! acts until the next one): the commanded torque, or, at a tick whose duty
+//! clamped at the duty limit, the torque the clamped duty gives by the
+//! runtime's motor model, b_V·V_supply·duty − b·φ̇ (`ControlLoop::duty_for`,
+//! D111). A block is a mismatch for a wheel when
 //!
-//! * the measured rate change is against the correct hypothesis's
-//!   prediction, with |prediction| ≥ `direction_accel_radps2` and
-//!   |change| ≥ `direction_accel_radps2` × the block's duration (a clear
-//!   prediction, a change above the estimate's quantisation; a wheel that
-//!   does not turn is a stall, the stall check's),
+//! * the prediction is clear, |prediction| ≥ `direction_accel_radps2` × the
+//!   block's duration, and either
+//!   - the measured rate change is against it by at least that much (the
+//!     runaway's acceleration), or
+//!   - the change is smaller than that while the wheel turns against its
+//!     voltage's torque (φ̇·τ_V < 0) at |φ̇| ≥ the same number in rad/s
+//!     (D111: the runaway's *equilibrium*: at the torque limit a wheel
+//!     wired backwards settles within a block or two at φ̇ = −τ_c/(2b),
+//!     where it no longer accelerates; a correctly wired wheel turning
+//!     against a voltage that large without accelerating needs an
+//!     unmodelled force beyond `direction_torque_nm`; a wheel that does not
+//!     turn is a stall, the stall check's),
 //! * |τ_V| ≥ `direction_torque_nm` (the hypotheses are apart by
 //!   2·W_ii·|τ_V|, and friction, which the model leaves out, shifts the
 //!   measurement by W_ii times the friction torque: the tolerance is above
@@ -60,9 +70,40 @@
 //! the ESO's and the sliding loop's transients after a disturbance step or
 //! arming (a few ms to a few tens of ms), short enough that a wrongly wired
 //! wheel is stopped while its speed is still small. Any other block (a
-//! consistent one, one below the tolerances, or one where the duty
-//! saturated: the supply then delivers less than the commanded torque, so
-//! a decelerating wheel is legitimate) restarts the count.
+//! consistent one, one below the tolerances) restarts the count.
+//!
+//! **Saturation (D111).** Two limits cut what a wheel gets. The
+//! controller's torque limit clamps the *command*: the check sees the
+//! clamped command, which the bridge delivers, so nothing is special about
+//! it (a runaway drives the command to the limit, and the equilibrium case
+//! above is what catches it there). The duty limit clamps
+//! the *voltage*: the bridge then delivers less than the command (at speed
+//! the back-EMF can make the delivered torque of the opposite sign, a
+//! correctly wired wheel decelerating under a positive command), so the
+//! check is fed the clamped duty's torque instead; a saturated block is
+//! judged like any other (before D111 a block in which either wheel's duty
+//! clamped gave no verdict). The delivered torque is the model's: a supply
+//! that sags below `motor.supply_voltage_v` delivers less still, which the
+//! midpoint's margin (W_ii·τ_V) absorbs as it absorbs a motor-constant
+//! error (D109).
+//!
+//! **Thresholds (D112).** `SafetyLimits::validate_direction` refuses
+//! thresholds that can never fire or that false-trip: `direction_torque_nm`
+//! above half the torque limit (the equilibrium's τ_V is τ_c/2), an
+//! acceleration tolerance under 2 rate quanta over a block, or above half
+//! W_ii × the limit (the equilibrium's distance from the midpoint). The
+//! robot file lengthens the block for coarse encoders (derive.rs).
+//!
+//! **What it cannot see.** A wheel held at 0 rate (a stall or a dead
+//! encoder: `check_stall`); a wheel driven below `direction_torque_nm`; a
+//! miswired wheel whose controller keeps reversing its torque before a run
+//! of `direction_blocks` blocks forms; and an inverted *encoder* where the
+//! body's coupling is strong: the inverted hypothesis flips only the
+//! wheel's own term (exact for a backwards motor), while a backwards
+//! encoder negates the measured wheel's whole acceleration, the other
+//! wheel's share W_ij·τ_j included, so with the two shares nearly
+//! cancelling the measurement lies near the correct hypothesis (the paper
+//! robot's tuned gains, hil-sim/tests/direction_robots.rs, D113).
 
 use super::config::SafetyLimits;
 use super::hardware::Wheel;
@@ -112,13 +153,8 @@ impl Prediction {
         period_s: f32,
     ) -> Self {
         let (h, inv_r) = (model.params.half_track_m, 1.0 / model.params.wheel_radius_m);
-        let n = model.n;
         let block_s = limits.direction_block_ticks as f32 * period_s;
-        let t = period_s * inv_r;
-        let w_tick = [
-            [(n[0][0] + h * n[1][0]) * t, (n[0][1] + h * n[1][1]) * t],
-            [(n[0][0] - h * n[1][0]) * t, (n[0][1] - h * n[1][1]) * t],
-        ];
+        let w_tick = model.wheel_accel_map().map(|row| row.map(|x| x * period_s));
         Self {
             w_tick,
             c_w2_block: model.n1_coeff / model.m1_diag[0] * inv_r * block_s,
@@ -142,46 +178,40 @@ impl Prediction {
 /// a tick inside a block only adds two torques.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct DirectionCheck {
-    /// Σ of the applied torques over the block \[N·m\] `[right, left]`.
+    /// Σ of the delivered torques over the block \[N·m\] `[right, left]`.
     torque_sum_nm: [f32; 2],
     /// Wheel rates at the start of the block \[rad/s\].
     rate_start_radps: [f32; 2],
     /// The ended block's start rates \[rad/s\] (with its change, its mean rate).
     ended_start_radps: [f32; 2],
-    /// The duty-saturation counter (`Status::duty_saturated`) at the
-    /// block's start: a block in which it moved gives no verdict.
-    saturated_at_start: u32,
     /// The ended block awaiting its verdicts (the right wheel's one tick
     /// after its end, the left wheel's two ticks after: no tick does more
     /// than one wheel's arithmetic): torque sums and rate changes.
     ended_torque_sum_nm: [f32; 2],
     ended_change_radps: [f32; 2],
-    /// The ended block gets verdicts (its duty did not saturate).
-    ended_valid: bool,
     /// Consecutive mismatching blocks per wheel.
     strikes: [u16; 2],
 }
 
 impl DirectionCheck {
     /// A check whose first block starts now, at arming: wheel rates
-    /// `rate_radps`, duty-saturation counter `saturated_count`.
-    pub(crate) fn start(rate_radps: [f32; 2], saturated_count: u32) -> Self {
+    /// `rate_radps`.
+    pub(crate) fn start(rate_radps: [f32; 2]) -> Self {
         Self {
             rate_start_radps: rate_radps,
-            saturated_at_start: saturated_count,
             ..Self::default()
         }
     }
 
     /// One running tick: `run_ticks` the steps since arming before this
-    /// one (`Status::run_ticks`), `applied_nm` the torque that acted
-    /// during the elapsed tick (written at the previous one),
-    /// `saturated_count` the duty-saturation counter so far, `rate_radps`
-    /// the wheel rates measured now (the block time is ticks × period: a
-    /// late tick only shifts the tolerance slightly, and sustained
-    /// lateness latches `LoopOverrun` anyway), `eta` the measured
-    /// \[v, ω\] (eq. 7's Coriolis term). Returns the stop when a wheel has
-    /// mismatched `direction_blocks` blocks in a row.
+    /// one (`Status::run_ticks`), `delivered_nm` the torque that acted
+    /// during the elapsed tick (written at the previous one: the commanded
+    /// torque, or where the duty clamped, the clamped duty's torque by the
+    /// motor model), `rate_radps` the wheel rates measured now (the block
+    /// time is ticks × period: a late tick only shifts the tolerance
+    /// slightly, and sustained lateness latches `LoopOverrun` anyway),
+    /// `eta` the measured \[v, ω\] (eq. 7's Coriolis term). Returns the
+    /// stop when a wheel has mismatched `direction_blocks` blocks in a row.
     /// `direction_block_ticks` >= 3 (validated).
     #[inline]
     pub(crate) fn update(
@@ -189,46 +219,40 @@ impl DirectionCheck {
         prediction: &Prediction,
         run_ticks: u32,
         eta: [f32; 2],
-        applied_nm: [f32; 2],
-        saturated_count: u32,
+        delivered_nm: [f32; 2],
         rate_radps: [f32; 2],
     ) -> Option<StopReason> {
-        self.torque_sum_nm[0] += applied_nm[0];
-        self.torque_sum_nm[1] += applied_nm[1];
+        self.torque_sum_nm[0] += delivered_nm[0];
+        self.torque_sum_nm[1] += delivered_nm[1];
         match run_ticks % prediction.block_ticks {
-            0 if run_ticks > 0 => self.end_block(saturated_count, rate_radps),
-            1 if self.ended_valid => return self.judge(prediction, eta, Wheel::Right),
-            2 if self.ended_valid => return self.judge(prediction, eta, Wheel::Left),
+            0 if run_ticks > 0 => self.end_block(rate_radps),
+            // (Before the first block's end the ended block is all zero:
+            // no clear prediction, no verdict.)
+            1 => return self.judge(prediction, eta, Wheel::Right),
+            2 => return self.judge(prediction, eta, Wheel::Left),
             _ => {}
         }
         None
     }
 
     /// The block's end: its sums and rate changes kept for the verdicts,
-    /// the next block started (a block in which the duty saturated gives
-    /// none and clears the counts).
+    /// the next block started.
     #[inline(never)]
-    fn end_block(&mut self, saturated_count: u32, rate_radps: [f32; 2]) {
-        self.ended_valid = saturated_count == self.saturated_at_start;
-        if self.ended_valid {
-            self.ended_torque_sum_nm = self.torque_sum_nm;
-            self.ended_change_radps = [
-                rate_radps[0] - self.rate_start_radps[0],
-                rate_radps[1] - self.rate_start_radps[1],
-            ];
-            self.ended_start_radps = self.rate_start_radps;
-        } else {
-            self.strikes = [0; 2];
-        }
+    fn end_block(&mut self, rate_radps: [f32; 2]) {
+        self.ended_torque_sum_nm = self.torque_sum_nm;
+        self.ended_change_radps = [
+            rate_radps[0] - self.rate_start_radps[0],
+            rate_radps[1] - self.rate_start_radps[1],
+        ];
+        self.ended_start_radps = self.rate_start_radps;
         self.torque_sum_nm = [0.0; 2];
         self.rate_start_radps = rate_radps;
-        self.saturated_at_start = saturated_count;
     }
 
     /// One wheel's verdict on the ended block: eq. (7) at its mean
-    /// torques and the measured η, against the inverted-wiring hypothesis
-    /// (module docs), from its rate change; all in rate change over the
-    /// block \[rad/s\].
+    /// delivered torques and the measured η, against the inverted-wiring
+    /// hypothesis (module docs), from its rate change; all in rate change
+    /// over the block \[rad/s\].
     #[inline(never)]
     fn judge(&mut self, p: &Prediction, eta: [f32; 2], wheel: Wheel) -> Option<StopReason> {
         let i = wheel.index();
@@ -245,19 +269,26 @@ impl DirectionCheck {
             };
         let change = self.ended_change_radps[i];
         let tol = p.tol_change_radps;
-        // Against the correct hypothesis's prediction, clearly (a wheel that
-        // does not move is a stall, `check_stall`'s) ...
-        if predicted * change >= 0.0 || predicted.abs() < tol || change.abs() < tol {
+        // A clear prediction, and either a clear change against it (the
+        // runaway's acceleration) or no clear change while the wheel turns
+        // against its voltage at a clear rate (the runaway's equilibrium at
+        // the torque limit, φ̇ = −τ_c / 2b); a wheel that does not turn is a
+        // stall, `check_stall`'s. (The cheap exits first: bench-m4's tick.)
+        let small = change.abs() < tol;
+        if predicted.abs() < tol || (!small && predicted * change >= 0.0) {
             self.strikes[i] = 0;
             return None;
         }
-        // ... and nearer the inverted hypothesis than the correct one:
-        // τ_V = τ_c + b·φ̇ at the block's mean rate (the voltage's torque),
-        // the midpoint the prediction minus W_ii·τ_V over the block.
         let mean_rate = self.ended_start_radps[i] + 0.5 * change;
+        // τ_V = τ_c + b·φ̇ at the block's mean rate (the voltage's torque).
         let tau_v = sum[i] * p.inv_block_ticks + p.damping_nms_per_rad * mean_rate;
+        // ... and nearer the inverted hypothesis than the correct one: the
+        // midpoint is the prediction minus W_ii·τ_V over the block.
         let beyond = change - predicted + p.own_block[i] * tau_v;
-        let against = beyond * tau_v < 0.0 && tau_v.abs() >= p.tol_torque_nm && beyond.abs() >= tol;
+        let against = (!small || (mean_rate * tau_v < 0.0 && mean_rate.abs() >= tol))
+            && beyond * tau_v < 0.0
+            && tau_v.abs() >= p.tol_torque_nm
+            && beyond.abs() >= tol;
         let k = &mut self.strikes[i];
         *k = if against { k.saturating_add(1) } else { 0 };
         (*k >= p.blocks).then_some(StopReason::DirectionMismatch { wheel })
@@ -310,7 +341,7 @@ mod tests {
             for i in 0..2 {
                 rate[i] += accel[i] * 1e-3;
             }
-            stop = stop.or(check.update(&m, *tick, [0.0; 2], torque, 0, *rate));
+            stop = stop.or(check.update(&m, *tick, [0.0; 2], torque, *rate));
             *tick += 1;
         }
         stop
@@ -324,7 +355,7 @@ mod tests {
     fn opposite_acceleration_latches_after_the_window() {
         let l = SafetyLimits::EXAMPLE;
         let window = (l.direction_block_ticks * l.direction_blocks) as u32;
-        let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2], 0), 0u32, [0.0f32; 2]);
+        let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2]), 0u32, [0.0f32; 2]);
         // Both wheels +5 N·m (straight ahead: both predicted forward),
         // the left measured −50 rad/s² (an inverted encoder).
         assert_eq!(
@@ -369,14 +400,14 @@ mod tests {
             // predicts the left wheel speeding up forwards, as measured.
             ([10.0, -2.5], [60.0, 20.0]),
         ] {
-            let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2], 0), 0u32, [0.0f32; 2]);
+            let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2]), 0u32, [0.0f32; 2]);
             assert_eq!(
                 run(&mut c, &mut t, &mut r, torque, accel, long),
                 None,
                 "{torque:?} {accel:?}"
             );
         }
-        let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2], 0), 0u32, [0.0f32; 2]);
+        let (mut c, mut t, mut r) = (DirectionCheck::start([0.0; 2]), 0u32, [0.0f32; 2]);
         let block = l.direction_block_ticks as u32;
         for _ in 0..20 {
             assert_eq!(
@@ -397,21 +428,6 @@ mod tests {
         }
     }
 
-    /// A saturated duty in a block makes it no mismatch (the supply could
-    /// not deliver the torque).
-    #[test]
-    fn saturated_blocks_do_not_count() {
-        let l = SafetyLimits::EXAMPLE;
-        let mut c = DirectionCheck::start([0.0; 2], 0);
-        let mut rate = [0.0f32; 2];
-        for k in 0..(20 * l.direction_block_ticks * l.direction_blocks) as u32 {
-            rate[0] -= 0.05;
-            // The duty-saturation counter moves in every block.
-            let stop = c.update(&model(), k, [0.0; 2], [5.0, 5.0], k, rate);
-            assert_eq!(stop, None);
-        }
-    }
-
     /// Drives the check with a DC-motor plant on the model's own coupling:
     /// commanded torques `tau_c` at each tick, the real wheel torques from
     /// the applied voltage's torque τ_V = τ_c + b·φ̇ through a motor whose
@@ -426,16 +442,50 @@ mod tests {
         tau_c: impl Fn(u32, [f32; 2]) -> [f32; 2],
         ticks: u32,
     ) -> Option<(u32, StopReason)> {
+        supply_plant(
+            eps,
+            inverted,
+            rate0,
+            tau_c,
+            ticks,
+            f32::INFINITY,
+            Feed::Delivered,
+        )
+    }
+
+    /// What the check is fed (the runtime feeds the delivered torque).
+    #[derive(Clone, Copy, PartialEq)]
+    enum Feed {
+        Delivered,
+        Commanded,
+    }
+
+    /// [`motor_plant`] with the duty clamped: the voltage's torque
+    /// b_V·V limited to ±`tau_v_max` (the supply at the duty limit; the
+    /// runtime's `duty_for` clamps the same way), so the torque delivered
+    /// is clamp(τ_c + b·φ̇) − b·φ̇ by the model. `feed` says which torque
+    /// the check gets.
+    fn supply_plant(
+        eps: f32,
+        inverted: Option<usize>,
+        rate0: [f32; 2],
+        tau_c: impl Fn(u32, [f32; 2]) -> [f32; 2],
+        ticks: u32,
+        tau_v_max: f32,
+        feed: Feed,
+    ) -> Option<(u32, StopReason)> {
         let m = model();
         let w = accel_map(&m);
         let b = m.damping_nms_per_rad;
-        let mut c = DirectionCheck::start(rate0, 0);
+        let mut c = DirectionCheck::start(rate0);
         let mut rate = rate0;
         for k in 0..ticks {
             let tc = tau_c(k, rate);
             let mut real = [0.0f32; 2];
+            let mut delivered = tc;
             for i in 0..2 {
-                let mut tau_v = tc[i] + b * rate[i];
+                let mut tau_v = (tc[i] + b * rate[i]).clamp(-tau_v_max, tau_v_max);
+                delivered[i] = tau_v - b * rate[i];
                 if inverted == Some(i) {
                     tau_v = -tau_v;
                 }
@@ -444,11 +494,80 @@ mod tests {
             for i in 0..2 {
                 rate[i] += (w[i][0] * real[0] + w[i][1] * real[1]) * PERIOD_S;
             }
-            if let Some(stop) = c.update(&m, k, [0.0; 2], tc, 0, rate) {
+            let fed = match feed {
+                Feed::Delivered => delivered,
+                Feed::Commanded => tc,
+            };
+            if let Some(stop) = c.update(&m, k, [0.0; 2], fed, rate) {
                 return Some((k, stop));
             }
         }
         None
+    }
+
+    /// A miswired wheel whose duty saturates at every tick latches within
+    /// the window, naming the wheel: saturated blocks are judged (before
+    /// D111 every block in which the duty saturated was dropped, so this
+    /// never latched). The supply gives at most 3 N·m of voltage torque, the
+    /// loop asks for 8 N·m, so τ_V = 8 + b·φ̇ stays above 3 while the
+    /// runaway wheel is slower than −8.2 rad/s, and its equilibrium under
+    /// the clamp is −3/b = −4.9 rad/s: saturated throughout. Also with the
+    /// motor constant ±20 % off.
+    #[test]
+    fn a_saturated_miswired_wheel_latches() {
+        let l = SafetyLimits::EXAMPLE;
+        let window = (l.direction_block_ticks * l.direction_blocks) as u32;
+        let start = |_: u32, rate: [f32; 2]| speed_loop(5.0, rate);
+        for eps in [-0.2f32, 0.0, 0.2] {
+            for wheel in [0usize, 1] {
+                let (k, stop) = supply_plant(
+                    eps,
+                    Some(wheel),
+                    [0.0; 2],
+                    start,
+                    10 * window,
+                    3.0,
+                    Feed::Delivered,
+                )
+                .unwrap_or_else(|| panic!("ε = {eps}, wheel {wheel}: no stop"));
+                assert_eq!(
+                    stop,
+                    StopReason::DirectionMismatch {
+                        wheel: Wheel::BOTH[wheel]
+                    }
+                );
+                // One block more than the window: a 20 % weaker motor's
+                // first block is below the acceleration tolerance.
+                let bound = window + l.direction_block_ticks as u32 + 2;
+                assert!(k <= bound, "ε = {eps}: latched at tick {k}");
+            }
+        }
+    }
+
+    /// Correctly wired wheels at 30 rad/s (b·φ̇ = 18.4 N·m of back-EMF)
+    /// under +8 N·m commanded, on a supply that gives only 6 N·m of voltage
+    /// torque (a sagging battery): the duty saturates at every tick and the
+    /// wheels *decelerate* under a positive command (delivered
+    /// 6 − 18.4 = −12.4 N·m at first). Judged on the delivered torque, 2 s
+    /// never latch; judged on the commanded torque the same run latches
+    /// (the hypotheses' midpoint alone does not cover it: the two wheels'
+    /// coupling W_ij·(τ_c − τ_delivered) outweighs W_ii·τ_V when the
+    /// shortfall exceeds 1.6 τ_V), so the delivered torque is what keeps it
+    /// from false-tripping.
+    #[test]
+    fn a_saturated_correct_wheel_decelerating_does_not_latch() {
+        let push = |_: u32, _: [f32; 2]| [8.0f32, 8.0];
+        for eps in [-0.2f32, 0.0, 0.2] {
+            assert_eq!(
+                supply_plant(eps, None, [30.0; 2], push, 2000, 6.0, Feed::Delivered),
+                None,
+                "ε = {eps}"
+            );
+        }
+        assert!(
+            supply_plant(0.0, None, [30.0; 2], push, 2000, 6.0, Feed::Commanded).is_some(),
+            "negative control: the commanded torque false-trips"
+        );
     }
 
     /// A wheel-speed P loop (as the dynamic loop acts at the wheels): the

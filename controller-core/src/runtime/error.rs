@@ -32,6 +32,17 @@ pub enum RuntimeConfigError {
     ZeroDutyResolution,
     /// A safety limit is zero, non-finite or out of range.
     InvalidSafetyLimit,
+    /// `direction_torque_nm` must be finite, > 0 and at most half the
+    /// torque limit (`SafetyLimits::validate_direction`).
+    DirectionTorqueOutOfRange,
+    /// `direction_accel_radps2` must be finite, > 0, and over a block at
+    /// least 2 quanta of the windowed wheel-rate estimate.
+    DirectionAccelBelowQuantisation,
+    /// `direction_accel_radps2` must be at most half the wheel
+    /// acceleration the torque limit gives (W_ii × the limit / 2).
+    DirectionAccelUnreachable,
+    /// `direction_block_ticks` must be >= 3 and `direction_blocks` >= 1.
+    InvalidDirectionBlock,
     /// The initial pose is not finite.
     NonFiniteInitialPose,
     /// Button debounce must be >= 1 tick.
@@ -70,6 +81,18 @@ impl core::fmt::Display for RuntimeConfigError {
             Self::InvalidMaxDuty => "max duty fraction must be in (0, 1]",
             Self::ZeroDutyResolution => "duty full scale must be > 0",
             Self::InvalidSafetyLimit => "invalid safety limit",
+            Self::DirectionTorqueOutOfRange => {
+                "direction_torque_nm must be > 0 and at most half the torque limit (a runaway's equilibrium torque)"
+            }
+            Self::DirectionAccelBelowQuantisation => {
+                "direction_accel_radps2 over a block must be at least 2 quanta of the wheel-rate estimate (else quantisation trips it)"
+            }
+            Self::DirectionAccelUnreachable => {
+                "direction_accel_radps2 must be at most half the wheel acceleration at the torque limit (else it never fires)"
+            }
+            Self::InvalidDirectionBlock => {
+                "direction_block_ticks must be >= 3 and direction_blocks >= 1"
+            }
             Self::NonFiniteInitialPose => "initial pose must be finite",
             Self::InvalidDebounce => "button debounce must be >= 1 tick",
             Self::InvalidPwmFrequency => "PWM frequency must be in 1..=100 kHz",
