@@ -214,6 +214,7 @@ fn small_job(restarts: u64) -> TuneJob {
         evaluations: 20,
         restarts,
         controllers: vec![ControllerKind::Smc],
+        preset_mean: Default::default(),
     }
 }
 
