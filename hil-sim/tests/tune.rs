@@ -179,8 +179,9 @@ fn at_a_2_nm_torque_limit_tuned_proposed_not_worse_than_the_better_baseline() {
     assert_eq!(tuned.limits.torque_nm, 2.0);
     let [smc, asmc, prop] = case2_imu(&tuned, |_| {});
     eprintln!("imu, 2 N·m: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4}");
-    // Not met (measured: proposed 5.7 % above the tuned SMC): kept within
-    // 10 % (README.md, "Tuning").
+    // Not met (measured: proposed 5.7 % above the tuned SMC; jobs with the
+    // geometric mean or gyro-only sensing did worse, +10 % and +20 %:
+    // D122): kept within 10 % (README.md, "Tuning").
     assert!(
         prop <= 1.1 * smc.min(asmc),
         "2 N·m: proposed {prop:.4} vs smc {smc:.4}, asmc {asmc:.4}"
