@@ -37,10 +37,22 @@
 #       run, at boot and while running (painted again when the loop
 #       starts), each within STACK_MAX_FRACTION (75 %) of the stack;
 #   (l) the example robots (robots/paper, tb6612-2kg, bts7960-10kg), each
-#       pushed over the link to the image of its bridge mode with the
-#       harness's robot that file's (--robot), boot from flash and track
-#       the square for ROBOT_RECORD_S (4 s) within REL_TOL_ROBOT (5 %) of
-#       hil-sim's runtime path for that robot (device --robot FILE);
+#       pushed over the link to an image whose compiled-in bridge mode is
+#       another (paper -> the two-pwm image, tb6612-2kg -> pwm-dir,
+#       bts7960-10kg -> pwm-in1-in2) with the harness's robot and bridge
+#       wiring that file's (--robot), boot from flash with the stored
+#       [bridge] and track the square for ROBOT_RECORD_S (4 s) within
+#       REL_TOL_ROBOT (5 %) of hil-sim's runtime path for that robot
+#       (device --robot FILE); before the push the bridge stays disabled
+#       (the harness fails the run if a pin map of another mode than its
+#       wiring's is ever enabled);
+#   (n) a stored record with an invalid [bridge] falls back safely: the
+#       store crafted to hold bts7960-10kg with bridge.pwm_frequency_hz =
+#       2000 Hz (below the F446 TIM1's 2,564 Hz at 65,535 counts) and a
+#       valid CRC (--flash-robot, --flash-pwm-hz): the board boots once,
+#       answers in hold with the compiled-in robot ("corrupt or invalid"),
+#       the motors off, no fault; the same robot pushed over the link
+#       (--no-local-check) is refused naming bridge.pwm_frequency_hz;
 #   (m) a robot pushed in hold while a sector erase stalls the CPU for
 #       the datasheet's maximum (2 s): the store aged until the next save
 #       erases (--flash-aged), the push succeeds and reads back, the
@@ -127,22 +139,24 @@ echo "machine: $(uname -m), $(nproc) cores, load $(cut -d' ' -f1 /proc/loadavg);
 
 step "build: the release images (as firmware/ci.sh builds them; skipped when present), stm32-emu, wmr, hil-sim"
 t0=$SECONDS
+# Built in ci.sh's one build directory (only the firmware crate rebuilds
+# after ci.sh) and copied out, as ci.sh does.
+fw_build() {
+    (cd "$ROOT/firmware" && nice cargo build --release --locked --no-default-features \
+        --features "$1" --target "$TARGET" --target-dir target/ci-build)
+}
+FW_BUILT="$ROOT/firmware/target/ci-build/$TARGET/release/firmware"
 for chip in stm32f446re stm32f411ce; do
     elf="$ROOT/firmware/target/ci-$chip/$TARGET/release/firmware"
     if [ ! -f "$elf" ]; then
         command -v flip-link >/dev/null 2>&1 || cargo install flip-link --locked
-        (cd "$ROOT/firmware" && nice cargo build --release --locked --no-default-features \
-            --features "$chip" --target "$TARGET" --target-dir "target/ci-$chip")
+        fw_build "$chip"
+        mkdir -p "$(dirname "$elf")"
+        cp "$FW_BUILT" "$elf"
     fi
 done
 # One F446 image per bridge mode (BRIDGE_MODE, firmware/src/config.rs) and
-# the naive two-PWM control, built in ci.sh's F446 directory (only the
-# firmware crate rebuilds) and copied out; the default image is rebuilt
-# last, so the directory holds ci.sh's image again.
-fw_build() {
-    (cd "$ROOT/firmware" && nice cargo build --release --locked --no-default-features \
-        --features "$1" --target "$TARGET" --target-dir target/ci-stm32f446re)
-}
+# the naive two-PWM control, copied out; ci.sh's default image stays.
 declare -A MODE_ELF
 for mode in two-pwm pwm-in1-in2 naive; do
     if [ "$mode" = naive ]; then
@@ -151,15 +165,16 @@ for mode in two-pwm pwm-in1-in2 naive; do
         BRIDGE_MODE="$mode" fw_build stm32f446re
     fi
     MODE_ELF[$mode]="$OUT_DIR/firmware-$mode"
-    cp "$ELF446" "${MODE_ELF[$mode]}"
+    cp "$FW_BUILT" "${MODE_ELF[$mode]}"
 done
-fw_build stm32f446re
 MODE_ELF[pwm-dir]="$ELF446"
 t_fw=$((SECONDS - t0))
 t0=$SECONDS
 nice cargo build --release --locked
 t_emu=$((SECONDS - t0))
-(cd "$ROOT" && nice cargo build --release --locked -p wmr -p hil-sim)
+# wmr and hil-sim as the README's test command builds them (its features;
+# `cargo build -p wmr -p hil-sim` would compile the stack again: D124).
+(cd "$ROOT" && nice cargo test --release --locked --workspace --no-run --quiet)
 echo "build times: images ${t_fw} s, stm32-emu (with Unicorn's C) ${t_emu} s"
 
 # Starts the emulator with args "$@" and USART2 on a pty; sets EPID, PTY.
@@ -435,19 +450,28 @@ if small_reverse "$peak_r" "$peak_l" "$big_r" "$big_l"; then
 fi
 echo "OK: control: the naive two-PWM mapping lurches (largest armature magnitudes right $big_r, left $big_l of the supply): the check rejects it"
 
-step "(l) the example robots, each pushed over the link (wmr robot push), track the square within $REL_TOL_ROBOT of hil-sim's runtime path for that robot"
-# The image of the robot's bridge mode (its compiled-in robot is the
-# paper's with that mode: a pushed robot with another [bridge] would be
-# refused at boot, firmware/src/store.rs), the harness's robot that robot
-# file's (--robot: body, friction, motors, encoders, bridge wiring), the
-# record pushed, read back and booted from flash; then the square for
-# ROBOT_RECORD_S s against `hil-sim device --robot FILE` with the same wmr
-# commands (stm32-emu/reference-robot.toml: the file's encoders and motors).
+step "(l) the example robots, each pushed over the link (wmr robot push) to an image of another bridge mode, run their stored [bridge] and track the square within $REL_TOL_ROBOT of hil-sim's runtime path for that robot"
+# Each robot goes to an image whose compiled-in robot (the paper's with the
+# image's BRIDGE_MODE) has another bridge mode: the firmware reads the
+# record before board::init starts the motor outputs and starts them in
+# the stored [bridge] (firmware/src/store.rs, D115), so one image runs any
+# mode. The harness's robot and its H-bridge wiring are the robot file's
+# (--robot: body, friction, motors, encoders, the [bridge] mode): a board
+# still driving the image's mode would not track. Before the push the
+# image's pin map is its compiled-in mode's; the harness accepts another
+# mode's complete pin map only while the bridge stays disabled (machine.rs
+# wiring_check, D117; its "board wiring" line is printed). The record pushed, read
+# back and booted from flash; then the square for ROBOT_RECORD_S s against
+# `hil-sim device --robot FILE` with the same wmr commands
+# (stm32-emu/reference-robot.toml: the file's encoders and motors).
 declare -A ROBOT_MODE=([paper]=pwm-dir [tb6612-2kg]=pwm-in1-in2 [bts7960-10kg]=two-pwm)
+declare -A IMAGE_MODE=([paper]=two-pwm [tb6612-2kg]=pwm-dir [bts7960-10kg]=pwm-in1-in2)
 declare -A ROBOT_RMS
 for r in paper tb6612-2kg bts7960-10kg; do
     file="$ROOT/robots/$r.toml"
-    start_emu --elf "${MODE_ELF[${ROBOT_MODE[$r]}]}" --robot "$file"
+    [ "${IMAGE_MODE[$r]}" != "${ROBOT_MODE[$r]}" ] || fail "(l) $r: the image's mode must differ from the robot's"
+    grep -q "^mode = \"${ROBOT_MODE[$r]}\"" "$file" || fail "(l) $r: robots/$r.toml's [bridge] mode is not ${ROBOT_MODE[$r]}"
+    start_emu --elf "${MODE_ELF[${IMAGE_MODE[$r]}]}" --robot "$file"
     wait_for_log "IWDG started" 20
     PORT="$PTY"
     out="$(wmr robot push "$file" 2>&1)" || fail "$r: wmr robot push: $out"
@@ -459,6 +483,7 @@ for r in paper tb6612-2kg bts7960-10kg; do
     cleanup
     grep -E "^\[stm32-emu.*(exception [0-9]+ entered|unmodelled|IWDG expired)" "$LOG" && fail "$r: a fault, unmodelled access or watchdog reset"
     [ "$(grep -c "\] boot " "$LOG")" -eq 2 ] || fail "$r: expected exactly the push's reboot"
+    grep "board wiring" "$LOG" || true
     start_hilsim --scenario reference-robot.toml --robot "$file"
     wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "$r: wmr upload (hil-sim)"
     r_ref="$(wmr record --seconds "$ROBOT_RECORD_S" --rate "$RATE_HZ" --out "$OUT_DIR/robot_${r}_hilsim.csv" --arm --quiet)" ||
@@ -470,8 +495,37 @@ for r in paper tb6612-2kg bts7960-10kg; do
     within_rel "$a_rms" "$b_rms" "$REL_TOL_ROBOT" ||
         fail "$r: RMS $a_rms m on the emulated board, $b_rms m on hil-sim's runtime path: beyond $REL_TOL_ROBOT"
     ROBOT_RMS[$r]="$a_rms/$b_rms"
-    echo "OK: $r (${ROBOT_MODE[$r]}): RMS $a_rms m emulated, $b_rms m hil-sim, over $ROBOT_RECORD_S s"
+    echo "OK: $r (${ROBOT_MODE[$r]}, stored, on the ${IMAGE_MODE[$r]} image): RMS $a_rms m emulated, $b_rms m hil-sim, over $ROBOT_RECORD_S s"
 done
+
+step "(n) a stored record with an invalid [bridge] falls back safely; the link refuses the same robot"
+# The store crafted (--flash-robot, --flash-pwm-hz: a valid CRC around
+# bridge.pwm_frequency_hz = 2000 Hz, which robot-file refuses: the F446's
+# TIM1 at 168 MHz needs at least 2,564 Hz for 65,535 counts). The firmware
+# never writes such a record; a board flashed by another tool could hold
+# it. The boot must refuse it (robot-file's decode in the load) before the
+# motor outputs start, run the compiled-in robot with the image's bridge,
+# and say so in `wmr status`.
+start_emu --elf "$ELF446" --flash-robot "$ROOT/robots/bts7960-10kg.toml" --flash-pwm-hz 2000
+wait_for_log "IWDG started" 20
+PORT="$PTY"
+st="$(wmr status)" || fail "(n) no answer from the board booted with an invalid stored bridge"
+echo "$st" | grep "robot record"
+grep -q "robot record: compiled-in default (the record in flash is corrupt or invalid)" <<<"$st" ||
+    fail "(n) the invalid stored record was not reported as the fallback's reason: $st"
+grep -q "state Hold" <<<"$st" || fail "(n) not in hold: $st"
+sed 's/^pwm_frequency_hz = .*/pwm_frequency_hz = 2000/' "$ROOT/robots/bts7960-10kg.toml" >"$OUT_DIR/bridge-2khz.toml"
+if out="$(wmr robot push --no-local-check "$OUT_DIR/bridge-2khz.toml" 2>&1)"; then
+    fail "(n) the robot stored a record with a 2 kHz bridge: $out"
+fi
+echo "$out"
+grep -q "refused the record: bridge.pwm_frequency_hz" <<<"$out" || fail "(n) the refusal does not name bridge.pwm_frequency_hz: $out"
+sleep 0.5
+cleanup
+grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled|IWDG expired)" "$LOG" && fail "(n) a reset, fault or unmodelled access"
+[ "$(grep -c "\] boot " "$LOG")" -eq 1 ] || fail "(n) the image booted more than once"
+grep -q "motors driven" "$LOG" && fail "(n) the motors were driven"
+echo "OK: the crafted record refused at boot (compiled-in robot, hold, motors never driven, one boot); the push refused naming bridge.pwm_frequency_hz"
 
 step "(m) a robot pushed in hold while a sector erase stalls the CPU (datasheet max: 2 s for 128 KB at x32)"
 # The store's sectors as the firmware's store code leaves them when the
@@ -554,7 +608,7 @@ for mode in pwm-dir two-pwm pwm-in1-in2; do
     echo "RESULT bridge=$mode rms_pos_err_m=${MODE_RMS[$mode]} reverse_armature_peak_r/l=${MODE_PEAK[$mode]}"
 done
 for r in paper tb6612-2kg bts7960-10kg; do
-    echo "RESULT robot=$r emulated/hil-sim_rms_pos_err_m=${ROBOT_RMS[$r]} record_s=$ROBOT_RECORD_S"
+    echo "RESULT robot=$r bridge=${ROBOT_MODE[$r]} image=${IMAGE_MODE[$r]} emulated/hil-sim_rms_pos_err_m=${ROBOT_RMS[$r]} record_s=$ROBOT_RECORD_S"
 done
 echo "RESULT erase_stall_ms=2000 write_ms=$WRITE_MS watchdog_ms=8192 overruns=$overruns robot_clock_lost_ms=$lost_ms"
 echo "RESULT bridge=naive-two-pwm reverse_armature_peak_r/l=$peak_r/$peak_l (control)"

@@ -8,6 +8,7 @@ use crate::{board, config};
 /// What runs, on what, with which settings.
 pub fn banner(
     board: &board::Board,
+    robot: &robot_file::Robot,
     full_scale: u16,
     cfg: &controller_core::runtime::RuntimeConfig,
 ) {
@@ -26,7 +27,7 @@ pub fn banner(
     info!(
         "loop {=u64} Hz, PWM {=u32} Hz full scale {=u16} counts, watchdog {=u32} us",
         config::CONTROL_HZ,
-        config::bridge(&config::default_robot()).pwm_frequency_hz,
+        robot.bridge.pwm_frequency_hz,
         full_scale,
         config::WATCHDOG_TIMEOUT_US,
     );

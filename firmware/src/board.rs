@@ -30,11 +30,11 @@
 use controller_core::runtime::{BridgeParams, Encoder, WheelOdometryOnly};
 use embassy_stm32::gpio::{Input, Pull};
 use embassy_stm32::pac::timer::vals::FilterValue;
-use embassy_stm32::peripherals::{IWDG, TIM3, TIM4};
+use embassy_stm32::peripherals::{FLASH, IWDG, TIM3, TIM4};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::qei::{self, Qei};
 use embassy_stm32::wdg::IndependentWatchdog;
-use embassy_stm32::{pac, rcc, Config};
+use embassy_stm32::{pac, rcc, Config, Peri};
 
 /// The gyro the control tick samples: the IMU task's newest sample with
 /// the `imu` feature, none without.
@@ -269,8 +269,6 @@ pub struct Board {
     pub imu: Option<crate::imu::ImuPeripherals>,
     /// External poses come over the host link only.
     pub pose_source: WheelOdometryOnly,
-    /// The flash controller, taken by `main` for the robot store.
-    pub flash: Option<embassy_stm32::Peri<'static, embassy_stm32::peripherals::FLASH>>,
     /// The loop's watchdog setting while a robot-record write runs.
     pub stretch: Option<crate::store::WatchdogStretch>,
 }
@@ -391,13 +389,20 @@ pub fn outputs_low_early() {
     });
 }
 
-/// Starts the clocks (HSE with a bounded wait, else HSI) and binds the
-/// peripherals, the motor outputs in `bridge`'s mode and frequency
-/// ([`HBridge::new`]; refused parameters leave them disabled). Motor
-/// outputs stay low throughout: ENABLE and the GPIO lines low, the PWM
-/// channels enabled at duty 0 (driven low by TIM1). Call
-/// [`outputs_low_early`] first.
-pub fn init(bridge: BridgeParams) -> Board {
+/// Starts the clocks (HSE with a bounded wait, else HSI), hands the flash
+/// controller to `load_robot` and then binds the peripherals, the motor
+/// outputs in the mode and frequency of the bridge `load_robot` returns
+/// ([`HBridge::new`]; refused parameters leave them disabled). The robot
+/// record is read before any motor timer runs, so a stored robot's
+/// `[bridge]` of any mode applies at this boot (D115). Motor outputs stay
+/// low throughout: through the load they are the push-pull GPIO outputs
+/// at 0 of [`outputs_low_early`] (TIM1 not yet clocked), then ENABLE and
+/// the GPIO lines low and the PWM channels enabled at duty 0 (driven low
+/// by TIM1). Call [`outputs_low_early`] first.
+pub async fn init<T, F>(load_robot: impl FnOnce(Peri<'static, FLASH>) -> F) -> (Board, T)
+where
+    F: core::future::Future<Output = (BridgeParams, T)>,
+{
     let reset_cause = read_reset_cause();
     let clock = start_hse();
     let p = embassy_stm32::init(clock_config(clock));
@@ -406,9 +411,12 @@ pub fn init(bridge: BridgeParams) -> Board {
         // HSI and raises an NMI, whose handler cuts the outputs.
         pac::RCC.cr().modify(|w| w.set_csson(true));
     }
+    // The robot record (flash reads on the PLL clock, embassy's wait
+    // states): the motor lines are still outputs_low_early's GPIO lows.
+    let (bridge, loaded) = load_robot(p.FLASH).await;
     // Motor outputs in the bridge's mode, every line low (motors.rs).
-    // `black_box`: the mode is a run-time value (the robot file will
-    // supply it), so every mode's code stays in the image.
+    // `black_box`: the mode is a run-time value (the robot record's), so
+    // every mode's code stays in the image.
     let motors = HBridge::new(
         p.TIM1,
         p.PA8,
@@ -459,14 +467,13 @@ pub fn init(bridge: BridgeParams) -> Board {
         rx: p.PA3,
     });
 
-    Board {
+    let board = Board {
         clock,
         reset_cause,
         encoders,
         motors,
         button,
         watchdog,
-        flash: Some(p.FLASH),
         stretch: None,
         link,
         #[cfg(feature = "imu")]
@@ -482,7 +489,8 @@ pub fn init(bridge: BridgeParams) -> Board {
             rx_dma: p.DMA1_CH0,
         }),
         pose_source: WheelOdometryOnly,
-    }
+    };
+    (board, loaded)
 }
 
 /// The last reset's cause from the RCC_CSR flags (RM0383 §6.3.20 /

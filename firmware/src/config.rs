@@ -12,7 +12,7 @@
 
 use controller_core::estimator::EstimatorConfig;
 use controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
-use controller_core::runtime::{BridgeMode, BridgeParams, RuntimeConfig};
+use controller_core::runtime::RuntimeConfig;
 use controller_core::trajectory::{PaperCurve, PaperHeading, Reference};
 use controller_core::ControllerKind;
 use robot_file::Robot;
@@ -39,7 +39,11 @@ pub const CONTROLLER: ControllerKind = ControllerKind::Proposed;
 /// paths from `firmware/`), validates it (a bad file fails the build with
 /// the field, line and reason) and writes it to `OUT_DIR`. Body, motors,
 /// encoders, bridge, IMU mounting, limits and gains all come from it
-/// (docs/robot.md); nothing here repeats a value of it.
+/// (docs/robot.md); nothing here repeats a value of it. The firmware's
+/// `BRIDGE_MODE=pwm-dir|two-pwm|pwm-in1-in2` at build time replaces the
+/// file's `bridge.mode` in this record (CI builds an image of each for
+/// stm32-emu); a robot stored in flash runs with its own `[bridge]`
+/// whatever the image's (store.rs, D115).
 pub static DEFAULT_ROBOT_BYTES: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/robot.bin"));
 
 /// The compiled-in robot, decoded (and validated again) from
@@ -50,48 +54,6 @@ pub static DEFAULT_ROBOT_BYTES: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), 
 pub fn default_robot() -> Robot {
     Robot::decode(DEFAULT_ROBOT_BYTES).unwrap_or_else(|_| Robot::paper())
 }
-
-/// The H-bridge wiring of `robot` (its `[bridge]` section: input scheme,
-/// PWM frequency, zero-duty behaviour; pins per mode in the README's
-/// "Wiring"). `BRIDGE_MODE=pwm-dir|two-pwm|pwm-in1-in2` at build time
-/// overrides the file's mode (CI builds an image of each for stm32-emu);
-/// the board takes it as a run-time value, so every mode's code is in
-/// every image.
-pub fn bridge(robot: &Robot) -> BridgeParams {
-    let file = robot.bridge.params();
-    BridgeParams {
-        mode: bridge_mode(option_env!("BRIDGE_MODE")).unwrap_or(file.mode),
-        ..file
-    }
-}
-
-/// `BRIDGE_MODE` at build time: unset (the robot file's mode) or
-/// `pwm-dir`, `two-pwm`, `pwm-in1-in2`; anything else fails the build.
-const fn bridge_mode(name: Option<&str>) -> Option<BridgeMode> {
-    const fn eq(a: &[u8], b: &[u8]) -> bool {
-        if a.len() != b.len() {
-            return false;
-        }
-        let mut i = 0;
-        while i < a.len() {
-            if a[i] != b[i] {
-                return false;
-            }
-            i += 1;
-        }
-        true
-    }
-    match name {
-        None => None,
-        Some(n) if eq(n.as_bytes(), b"pwm-dir") => Some(BridgeMode::PwmDir),
-        Some(n) if eq(n.as_bytes(), b"two-pwm") => Some(BridgeMode::TwoPwm),
-        Some(n) if eq(n.as_bytes(), b"pwm-in1-in2") => Some(BridgeMode::PwmIn1In2),
-        Some(_) => panic!("BRIDGE_MODE must be pwm-dir, two-pwm or pwm-in1-in2"),
-    }
-}
-
-/// Checked at build time: a bad `BRIDGE_MODE` fails here.
-const _: Option<BridgeMode> = bridge_mode(option_env!("BRIDGE_MODE"));
 
 /// Ticks of pose-estimator history: the oldest external pose (sent over the
 /// host link, `wmr pose-feed`) the runtime can still use. The history keeps

@@ -11,8 +11,8 @@
 //!
 //! Module graph (no cycles): `main` -> every module; `board` -> `config`,
 //! `link`, `imu`, `log`; `imu` -> `config`; `banner` -> `board`, `config`;
-//! `fault` -> `board`; `store` -> `config`; `config`, `link`, `log` -> none
-//! of this crate.
+//! `fault` -> `board`; `store` -> `config`, `motors`; `config`, `link`,
+//! `log` -> none of this crate.
 #![no_std]
 #![no_main]
 
@@ -33,48 +33,60 @@ use defmt_rtt as _;
 use embassy_executor::Spawner;
 use robot_app::ControlTask;
 use static_cell::StaticCell;
-use wmr_device::Device;
+use wmr_device::{Device, DeviceConfigError};
 
 /// The host-link device and runtime with the firmware's pose history.
 type Robot = Device<{ config::POSE_HISTORY_TICKS }>;
+
+/// The robot store over the flash controller (sequential-storage).
+type Store = robot_app::store::FlashRecord<store::StoreFlash>;
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     // Motor lines defined low before the clocks start (HSE start, PLL lock).
     board::outputs_low_early();
-    let default_robot = config::default_robot();
-    let mut board = board::init(config::bridge(&default_robot));
+    // The clocks, then the robot record (store::boot_robot: the flash's or
+    // the compiled-in robot), then the motor outputs in its [bridge]: the
+    // motor lines stay low GPIO outputs through the load (board::init).
+    static STORE: StaticCell<Store> = StaticCell::new();
+    let (mut board, (flash, boot)) = board::init(|p| async move {
+        let Some(flash) = store::store(p) else {
+            never_armed()
+        };
+        let flash = STORE.init(flash);
+        let boot = store::boot_robot(flash).await;
+        (boot.robot.bridge.params(), (flash, boot))
+    })
+    .await;
+    let robot = &boot.robot;
 
     log::enable_cycle_counter();
     // A full scale beyond 16 bits becomes 0: refused by the configuration check.
     let full_scale = u16::try_from(board.motors.full_scale()).unwrap_or(0);
-    // The robot the runtime runs: the flash record's or the compiled-in one
-    // (store::boot_robot).
-    static STORE: StaticCell<robot_app::store::FlashRecord<store::StoreFlash>> = StaticCell::new();
-    let Some(flash) = board.flash.take().and_then(store::store) else {
-        never_armed()
-    };
-    let flash = STORE.init(flash);
-    let boot = store::boot_robot(flash, &default_robot).await;
-    let robot = &boot.robot;
     let cfg = config::runtime_config(robot, full_scale);
-    banner::banner(&board, full_scale, &cfg);
+    banner::banner(&board, robot, full_scale, &cfg);
 
-    let (device, task) = match (
+    // The device (about 12 KiB: the runtime, its estimator history, the
+    // link's buffers) built in its static (StaticCell::init_with writes the
+    // constructor's result there), not on this frame and then moved: moved
+    // by value, each copy was 12 KiB of main's 50 KiB frame (D104, D116).
+    static ROBOT: StaticCell<Result<Robot, DeviceConfigError>> = StaticCell::new();
+    let device = match ROBOT.init_with(|| {
         Robot::with_estimator(
             config::device(robot, board::CHIP_ID),
             cfg,
             config::ESTIMATOR,
-        ),
-        LoopTimer::from_config(&cfg)
-            .ok()
-            .zip(ArmingButton::new(config::BUTTON_DEBOUNCE_TICKS).ok()),
-    ) {
-        (Ok(d), Some((timer, button))) => match ControlTask::new(timer, button, config::APP) {
-            Ok(t) => (d, t),
-            Err(_) => never_armed(),
-        },
-        _ => never_armed(),
+        )
+    }) {
+        Ok(d) => d,
+        Err(_) => never_armed(),
+    };
+    let Some(task) = LoopTimer::from_config(&cfg)
+        .ok()
+        .zip(ArmingButton::new(config::BUTTON_DEBOUNCE_TICKS).ok())
+        .and_then(|(timer, button)| ControlTask::new(timer, button, config::APP).ok())
+    else {
+        never_armed()
     };
     // The IMU in its own task: it probes and configures the chip while the
     // control task starts, and never holds it up (board::BoardGyro reads
@@ -85,11 +97,6 @@ async fn main(spawner: Spawner) {
     }
     link::start_if_present(&spawner, board.link.take());
     info!("state: HOLD (motors off). Load a reference with wmr and arm, or press the button (slow circle).");
-    // The device (about 7 KiB) in a static of its own, the task holds a
-    // reference: moved into the task by value, the future would hold it
-    // twice (the argument and the local it is moved into).
-    static ROBOT: StaticCell<Robot> = StaticCell::new();
-    let device = ROBOT.init(device);
     device.board_report_mut().reset_cause = board.reset_cause;
     device.attach_robot_store(robot_store::validate_robot, boot.record(), boot.source);
     spawner.spawn(unwrap!(control(board, device, task, flash).ok()));
@@ -101,7 +108,7 @@ async fn control(
     mut board: board::Board,
     device: &'static mut Robot,
     task: ControlTask,
-    flash: &'static mut robot_app::store::FlashRecord<store::StoreFlash>,
+    flash: &'static mut Store,
 ) {
     task.run_with_store(&mut board, device, &link::PIPES, flash)
         .await

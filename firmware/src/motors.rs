@@ -69,6 +69,24 @@ pub const TIM1_CLOCK_HZ: u32 = 96_000_000;
 #[cfg(feature = "stm32f446re")]
 pub const TIM1_CLOCK_HZ: u32 = 168_000_000;
 
+// Every robot record robot-file accepts runs on this TIM1: its
+// validation checks `bridge.pwm_frequency_hz` against each of
+// `SUPPORTED_TIMER_CLOCKS_HZ` (100..=65,535 duty levels), so a stored
+// robot's [bridge] never reaches HBridge::new's refusal (D115).
+const _: () = {
+    let clocks = robot_file::SUPPORTED_TIMER_CLOCKS_HZ;
+    let mut i = 0;
+    let mut found = false;
+    while i < clocks.len() {
+        found |= clocks[i] == TIM1_CLOCK_HZ;
+        i += 1;
+    }
+    assert!(
+        found,
+        "TIM1_CLOCK_HZ is not one of robot_file::SUPPORTED_TIMER_CLOCKS_HZ"
+    );
+};
+
 // GPIOB lines (bit numbers).
 const PB_R_DIR_IN1: u32 = 12;
 const PB_L_DIR_IN1: u32 = 13;

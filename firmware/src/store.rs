@@ -31,6 +31,7 @@ use embassy_stm32::peripherals::FLASH;
 use embassy_stm32::Peri;
 use robot_app::store::FlashRecord;
 use robot_store::RobotStore;
+use static_cell::StaticCell;
 use wmr_protocol::{RobotSource, ROBOT_BLOB_MAX};
 
 /// The store's flash.
@@ -93,63 +94,55 @@ impl WatchdogStretch {
     }
 }
 
-/// The robot a boot runs and the record the device reports.
+/// The robot a boot runs and the record the device reports, in a static
+/// ([`boot_robot`]): not on `main`'s stack (D104's 62 KiB boot stack).
 pub struct BootRobot {
-    /// The robot the runtime is configured from.
+    /// The robot the board, the runtime, the estimator and the link are
+    /// configured from.
     pub robot: robot_file::Robot,
     /// Where it came from (`wmr status`).
     pub source: RobotSource,
-    record: [u8; ROBOT_BLOB_MAX],
-    len: usize,
+    record: &'static [u8],
 }
 
 impl BootRobot {
     /// The record in force (robot-file's binary form).
     pub fn record(&self) -> &[u8] {
-        &self.record[..self.len]
+        self.record
     }
 }
 
-/// Loads the robot record from flash, or falls back to the compiled-in
-/// robot (`config::DEFAULT_ROBOT_BYTES`), saying why over defmt. A flash
-/// robot whose `[bridge]` differs from the compiled-in one is not used: the
-/// board was started (and its motor lines wired) for the image's bridge;
-/// rebuild with that robot file as `ROBOT_FILE` instead.
-pub async fn boot_robot(
-    flash: &mut FlashRecord<StoreFlash>,
-    default_robot: &robot_file::Robot,
-) -> BootRobot {
+/// Loads the robot record from flash into a static, or falls back to the
+/// compiled-in robot (`config::DEFAULT_ROBOT_BYTES`) when the record is
+/// missing, corrupt or invalid (robot-file's decode: header, CRC-32, every
+/// field, the `[bridge]` included), saying which and why over defmt
+/// (`wmr status` shows the source). Runs before `board::init` starts the
+/// motor outputs, which take the returned robot's `[bridge]`: a stored
+/// robot of any bridge mode runs at once. Any record robot-file accepts
+/// runs on this board's TIM1 (its PWM frequency is checked against every
+/// supported timer clock, motors.rs).
+/// The record (256 B) and the decoded robot (about 1 KiB) live in statics,
+/// not on `main`'s stack. Call once (a second call panics: StaticCell).
+pub async fn boot_robot(flash: &mut FlashRecord<StoreFlash>) -> &'static BootRobot {
+    static RECORD: StaticCell<[u8; ROBOT_BLOB_MAX]> = StaticCell::new();
+    static BOOT: StaticCell<BootRobot> = StaticCell::new();
     let default = crate::config::DEFAULT_ROBOT_BYTES;
     let n_default = default.len().min(ROBOT_BLOB_MAX);
-    let mut record = [0u8; ROBOT_BLOB_MAX];
-    let (n, mut source, fault) =
-        robot_app::store::load_record(flash, &default[..n_default], &mut record).await;
-    let mut len = n;
-    let bridge = crate::config::bridge(default_robot);
-    let robot = match robot_file::Robot::decode(&record[..n]) {
-        Ok(r) if crate::config::bridge(&r) == bridge => r,
-        other => {
-            if other.is_ok() {
-                defmt::error!(
-                    "robot record: its [bridge] differs from the image's; running the compiled-in robot"
-                );
-                source = RobotSource::DefaultCorrupt;
-            }
-            record[..n_default].copy_from_slice(&default[..n_default]);
-            len = n_default;
-            default_robot.clone()
-        }
-    };
+    let record = RECORD.init([0; ROBOT_BLOB_MAX]);
+    let (n, source, fault) =
+        robot_app::store::load_record(flash, &default[..n_default], record).await;
+    let record: &'static [u8] = &record[..n];
     defmt::info!(
         "robot record: {} (CRC-32 {=u32:08x}), fallback reason {}",
         source,
-        wmr_device::robot::record_crc32(&record[..len]),
+        wmr_device::robot::record_crc32(record),
         fault
     );
-    BootRobot {
-        robot,
+    BOOT.init_with(|| BootRobot {
+        // Either record decodes (the flash record passed the same decode in
+        // load_record's validation, build.rs decoded the compiled-in one).
+        robot: robot_file::Robot::decode(record).unwrap_or_else(|_| crate::config::default_robot()),
         source,
         record,
-        len,
-    }
+    })
 }

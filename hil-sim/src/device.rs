@@ -23,6 +23,8 @@ use sim_robot::world::Actuation;
 use sim_robot::World;
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use wmr_device::{Device, DeviceConfig, LinkConfig};
 use wmr_protocol::{
@@ -343,6 +345,58 @@ pub fn serve(
 fn transient(e: &std::io::Error) -> bool {
     use std::io::ErrorKind::*;
     matches!(e.kind(), TimedOut | WouldBlock | Interrupted)
+}
+
+/// The simulated robot served on a pseudo-terminal by a thread of this
+/// process ([`serve`] on [`open_pty`]'s master side): what `hil-sim device
+/// --pty` runs, as the end-to-end tests' rig (hil-sim's and wmr's). The
+/// robot stops when this is dropped.
+pub struct PtyRobot {
+    /// The pty's path: the port to give the host.
+    pub path: String,
+    stop: Arc<AtomicBool>,
+    handle: Option<JoinHandle<Result<SimRobot, String>>>,
+    _slave: serialport::TTYPort,
+}
+
+impl PtyRobot {
+    /// Serves `robot` at `speed` × real time on a new pty.
+    pub fn start(mut robot: SimRobot, speed: f64) -> Result<Self, String> {
+        let (mut master, slave, path) = open_pty()?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        let handle =
+            std::thread::spawn(move || serve(&mut robot, &mut master, speed, &s).map(|()| robot));
+        Ok(Self {
+            path,
+            stop,
+            handle: Some(handle),
+            _slave: slave,
+        })
+    }
+
+    /// Stops the robot: the robot, or the error that ended [`serve`].
+    pub fn finish(mut self) -> Result<SimRobot, String> {
+        self.stop.store(true, Ordering::Relaxed);
+        match self.handle.take().map(JoinHandle::join) {
+            Some(Ok(r)) => r,
+            _ => Err("the robot's thread panicked".into()),
+        }
+    }
+
+    /// One real-time robot at a time: tests hold this lock while theirs
+    /// runs (several at once on 2 shared cores would starve the robots'
+    /// clocks, which timing assertions measure).
+    pub fn serial() -> MutexGuard<'static, ()> {
+        static SERIAL: Mutex<()> = Mutex::new(());
+        SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+impl Drop for PtyRobot {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
 }
 
 /// A pseudo-terminal pair for the simulated robot: the master side for

@@ -4,12 +4,10 @@
 //! found and left to the wires).
 
 use controller_core::ControllerKind;
-use hil_sim::device::{open_pty, serve, Miswire, SimRobot};
-use hil_sim::scenario::{Scenario, Sensing, TrajectoryKind};
+use hil_sim::device::{Miswire, PtyRobot, SimRobot};
+use hil_sim::scenario::{PerturbationPart, Scenario, Sensing, TrajectoryKind};
 use robot_file::Robot;
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::Duration;
 use wmr::commission::{commission, CommissionArgs};
 use wmr::Link;
@@ -17,21 +15,15 @@ use wmr::Link;
 const PAPER: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../robots/paper.toml");
 
 fn floor_scenario() -> Scenario {
-    let mut scn = Scenario {
+    // Wheel odometry plus a z-gyro.
+    Scenario {
         name: "commission".into(),
         duration_s: 60.0,
         trajectory: TrajectoryKind::Line,
+        perturbations: PerturbationPart::none(),
         ..Scenario::default()
-    };
-    let p = &mut scn.perturbations;
-    p.window_s = [0.0, 0.0];
-    p.beta = 0.0;
-    p.eps = 0.0;
-    p.skid_scale = 0.0;
-    p.disturbance_nm = 0.0;
-    // Wheel odometry plus a z-gyro.
-    scn.sensing.preset = Sensing::Imu;
-    scn
+    }
+    .with_sensing(Sensing::Imu)
 }
 
 /// Runs `wmr commission --floor` on a simulated robot miswired by
@@ -39,17 +31,14 @@ fn floor_scenario() -> Scenario {
 fn run(file: &Robot, miswire: Miswire, tag: &str) -> (bool, String, Option<Robot>) {
     let scn = floor_scenario();
     let f = file.clone();
-    let mut robot = SimRobot::miswired(&scn, ControllerKind::Proposed, &miswire, move |rt| {
+    let robot = SimRobot::miswired(&scn, ControllerKind::Proposed, &miswire, move |rt| {
         // The robot runs the file: its inversion flags and resolution.
         rt.encoder.inverted = f.encoders.inverted;
         rt.encoder.counts_per_wheel_rev = f.encoders.counts_per_wheel_rev;
         rt.motor_inverted = f.bridge.motor_inverted;
     })
     .unwrap();
-    let (mut master, _slave, path) = open_pty().unwrap();
-    let stop = Arc::new(AtomicBool::new(false));
-    let s = stop.clone();
-    let h = std::thread::spawn(move || serve(&mut robot, &mut master, 2.0, &s));
+    let robot = PtyRobot::start(robot, 2.0).unwrap();
     let dir = std::env::temp_dir().join(format!("wmr-commission-{}-{tag}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let robot_path = dir.join("robot.toml");
@@ -65,12 +54,11 @@ fn run(file: &Robot, miswire: Miswire, tag: &str) -> (bool, String, Option<Robot
         turns: None,
         duration_ms: 1000,
     };
-    let mut link = Link::open(&path, Duration::from_millis(1000)).unwrap();
+    let mut link = Link::open(&robot.path, Duration::from_millis(1000)).unwrap();
     link.hello().unwrap();
     let mut out = Vec::new();
     let r = commission(&args, &mut link, &mut out);
-    stop.store(true, Ordering::Relaxed);
-    h.join().unwrap().unwrap();
+    robot.finish().unwrap();
     let mut text = String::from_utf8(out).unwrap();
     if let Err(e) = &r {
         text.push_str(&format!("error: {e}\n"));

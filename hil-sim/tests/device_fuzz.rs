@@ -265,15 +265,13 @@ impl Fuzz {
             if n == 0 {
                 break;
             }
-            let mut rest = &buf[..n];
-            while !rest.is_empty() {
-                let (d, r) = self.rx.feed::<Reply>(rest);
-                rest = r;
-                match d {
-                    None => {}
-                    Some(Decoded::Frame { msg, .. }) => self.check_reply(msg),
-                    Some(other) => panic!("the robot sent a bad frame: {other:?}"),
-                }
+            let mut got = Vec::new();
+            self.rx.feed_all::<Reply>(&buf[..n], |d| match d {
+                Decoded::Frame { msg, .. } => got.push(msg),
+                other => panic!("the robot sent a bad frame: {other:?}"),
+            });
+            for msg in got {
+                self.check_reply(msg);
             }
         }
     }

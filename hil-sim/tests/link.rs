@@ -6,12 +6,11 @@
 //! them flaky.
 
 use controller_core::ControllerKind;
-use hil_sim::device::{open_pty, serve, SimRobot};
+use hil_sim::device::{open_pty, PtyRobot, SimRobot};
 use hil_sim::scenario::{PerturbationPart, Scenario, Sensing, TrajectoryKind};
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use wmr::Link;
 use wmr_protocol::*;
@@ -20,51 +19,26 @@ use wmr_protocol::*;
 /// time next to its host, and several at once on a 2-core machine would
 /// starve the robots' clocks (what the timing assertions measure).
 fn serial() -> std::sync::MutexGuard<'static, ()> {
-    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+    PtyRobot::serial()
 }
 
-/// The simulated robot served on a pty in a thread.
-struct Robot {
-    path: String,
-    stop: Arc<AtomicBool>,
-    handle: Option<JoinHandle<SimRobot>>,
-    _slave: serialport::TTYPort,
-}
+/// The simulated robot served on a pty in a thread (the shared rig).
+struct Robot(PtyRobot);
 
 impl Robot {
     fn start(scn: &Scenario, speed: f64) -> Self {
-        let (mut master, slave, path) = open_pty().unwrap();
-        let mut robot = SimRobot::new(scn, ControllerKind::Proposed).unwrap();
-        let stop = Arc::new(AtomicBool::new(false));
-        let s = stop.clone();
-        let handle = std::thread::spawn(move || {
-            serve(&mut robot, &mut master, speed, &s).unwrap();
-            robot
-        });
-        Self {
-            path,
-            stop,
-            handle: Some(handle),
-            _slave: slave,
-        }
+        let robot = SimRobot::new(scn, ControllerKind::Proposed).unwrap();
+        Self(PtyRobot::start(robot, speed).unwrap())
     }
 
     fn link(&self) -> Link {
-        let mut l = Link::open(&self.path, Duration::from_millis(1000)).unwrap();
+        let mut l = Link::open(&self.0.path, Duration::from_millis(1000)).unwrap();
         l.hello().unwrap();
         l
     }
 
-    fn finish(mut self) -> SimRobot {
-        self.stop.store(true, Ordering::Relaxed);
-        self.handle.take().unwrap().join().unwrap()
-    }
-}
-
-impl Drop for Robot {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
+    fn finish(self) -> SimRobot {
+        self.0.finish().unwrap()
     }
 }
 
@@ -80,6 +54,19 @@ fn nominal(trajectory: TrajectoryKind, duration_s: f64) -> Scenario {
         ..Scenario::default()
     }
     .with_sensing(Sensing::Mocap)
+}
+
+/// A robot armed on the built-in circle from its start (2, 0, π/2),
+/// telemetry `selection` at `rate_hz`: the robot and its link.
+fn armed_on_circle(selection: TelemetrySelection, rate_hz: u16) -> (Robot, Link) {
+    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
+    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
+    let robot = Robot::start(&scn, 1.0);
+    let mut link = robot.link();
+    ok(&mut link, builtin("circle"));
+    ok(&mut link, Request::SetTelemetry { selection, rate_hz });
+    ok(&mut link, Request::Arm);
+    (robot, link)
 }
 
 fn ok(link: &mut Link, req: Request) {
@@ -209,7 +196,7 @@ fn version_mismatch_both_ways() {
 
     // A host of the next version talking to our robot.
     let robot = Robot::start(&nominal(TrajectoryKind::Paper, 1.0), 1.0);
-    let mut port = serialport::new(&robot.path, 115_200)
+    let mut port = serialport::new(&robot.0.path, 115_200)
         .timeout(Duration::from_millis(5))
         .open_native()
         .unwrap();
@@ -394,19 +381,7 @@ fn recorded_run_matches_the_simulation(scn: &Scenario, shape: &str) -> serde_jso
 #[test]
 fn link_silence_while_running_stops_within_the_timeout() {
     let _serial = serial();
-    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
-    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
-    let robot = Robot::start(&scn, 1.0);
-    let mut link = robot.link();
-    ok(&mut link, builtin("circle"));
-    ok(
-        &mut link,
-        Request::SetTelemetry {
-            selection: TELEMETRY_TRACKING,
-            rate_hz: 1000,
-        },
-    );
-    ok(&mut link, Request::Arm);
+    let (robot, mut link) = armed_on_circle(TELEMETRY_TRACKING, 1000);
     // From here on the host only listens.
     let frames = telemetry_until(&mut link, Duration::from_secs(20), |t| {
         t.state == RunStateMsg::Hold && t.t_ref_s > 0.0
@@ -500,21 +475,9 @@ fn drive_without_refresh_stops_after_its_timeout() {
 #[test]
 fn estop_reaches_zero_torque_within_two_ticks() {
     let _serial = serial();
-    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
-    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
-    let robot = Robot::start(&scn, 1.0);
-    let mut link = robot.link();
-    ok(&mut link, builtin("circle"));
-    ok(
-        &mut link,
-        Request::SetTelemetry {
-            selection: TELEMETRY_TRACKING,
-            rate_hz: 1000,
-        },
-    );
-    ok(&mut link, Request::Arm);
+    let (robot, link) = armed_on_circle(TELEMETRY_TRACKING, 1000);
     drop(link);
-    let mut port = serialport::new(&robot.path, 115_200)
+    let mut port = serialport::new(&robot.0.path, 115_200)
         .timeout(Duration::from_millis(5))
         .open_native()
         .unwrap();
@@ -583,19 +546,7 @@ fn estop_reaches_zero_torque_within_two_ticks() {
 #[test]
 fn garbage_and_corrupted_frames_never_disturb_the_loop() {
     let _serial = serial();
-    let mut scn = nominal(TrajectoryKind::Circle, 1.0);
-    scn.initial_pose = [2.0, 0.0, std::f64::consts::FRAC_PI_2];
-    let robot = Robot::start(&scn, 1.0);
-    let mut link = robot.link();
-    ok(&mut link, builtin("circle"));
-    ok(
-        &mut link,
-        Request::SetTelemetry {
-            selection: TELEMETRY_TRACKING | TELEMETRY_COUNTERS,
-            rate_hz: 100,
-        },
-    );
-    ok(&mut link, Request::Arm);
+    let (robot, mut link) = armed_on_circle(TELEMETRY_TRACKING | TELEMETRY_COUNTERS, 100);
     // The link holds the port exclusively: the garbage goes through it.
     let mut rng = 0x1234_5678u32;
     let mut next = || {

@@ -54,15 +54,12 @@ impl Host {
         robot.step().unwrap();
         let mut buf = [0u8; 8192];
         let n = robot.device().pop_tx(&mut buf);
-        let mut rest = &buf[..n];
         let mut replies = Vec::new();
-        while !rest.is_empty() {
-            let (d, r) = self.dec.feed::<Reply>(rest);
-            rest = r;
-            if let Some(Decoded::Frame { msg, .. }) = d {
+        self.dec.feed_all::<Reply>(&buf[..n], |d| {
+            if let Decoded::Frame { msg, .. } = d {
                 replies.push(msg);
             }
-        }
+        });
         replies
     }
 }

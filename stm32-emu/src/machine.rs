@@ -203,8 +203,13 @@ pub struct Board {
     pub csr_at_boot: u32,
     /// Last motor-output state seen (for change events).
     pub last_bridge: BridgeInputs,
-    /// How the harness's H-bridges are wired to the pins (the image's
-    /// `BRIDGE_MODE`; firmware/src/motors.rs).
+    /// The firmware's pin map at this boot's loop start when it is another
+    /// bridge mode's than [`Self::bridge_mode`]'s (the image's compiled-in
+    /// robot before a robot of the wired mode is pushed): its bridge must
+    /// stay disabled until the next reset (`wiring_check`).
+    pub foreign_pin_map: Option<BridgeMode>,
+    /// How the harness's H-bridges are wired to the pins (the mode of the
+    /// robot the image runs, stored or compiled in; firmware/src/motors.rs).
     pub bridge_mode: BridgeMode,
     /// Largest |armature voltage fraction| per wheel while driven since
     /// [`Self::peak_from_s`], and when (logged on every new peak).
@@ -285,6 +290,7 @@ impl Board {
             loop_started: false,
             csr_at_boot: 0,
             last_bridge: BridgeInputs::default(),
+            foreign_pin_map: None,
             bridge_mode: BridgeMode::PwmDir,
             armature_peak: [(0.0, 0.0); 2],
             peak_from_s: 0.0,
@@ -459,9 +465,55 @@ impl Board {
     /// The pins and timers the harness wires to the robot (firmware/src/
     /// board.rs) as the firmware configured them when its loop starts: a
     /// changed pin map fails the run instead of leaving the robot unwired.
-    fn wiring_check(&self) -> Result<(), String> {
+    /// A complete pin map of another bridge mode (an image whose
+    /// compiled-in robot has another mode, before the robot of the wired
+    /// mode is pushed and booted) is accepted as [`Self::foreign_pin_map`]:
+    /// the run fails if the firmware then enables the bridge
+    /// ([`Self::foreign_enable_check`]) before the next reset.
+    fn wiring_check(&mut self) -> Result<(), String> {
+        self.foreign_pin_map = None;
+        let Err(e) = self.pin_map_check(self.bridge_mode) else {
+            return Ok(());
+        };
+        let others: Vec<BridgeMode> = [
+            BridgeMode::PwmDir,
+            BridgeMode::TwoPwm,
+            BridgeMode::PwmIn1In2,
+        ]
+        .into_iter()
+        .filter(|&m| m != self.bridge_mode && self.pin_map_check(m).is_ok())
+        .collect();
+        match others.first() {
+            Some(&m) => {
+                self.foreign_pin_map = Some(m);
+                let names: Vec<String> = others.iter().map(|m| format!("{m:?}")).collect();
+                self.event(format!(
+                    "board wiring ({:?}): the firmware's pin map is {}'s; its bridge must stay disabled until the next reset",
+                    self.bridge_mode,
+                    names.join(" / ")
+                ));
+                Ok(())
+            }
+            None => Err(e),
+        }
+    }
+
+    /// Fails when the bridge is enabled while the firmware's pin map is
+    /// another mode's than the wiring's ([`Self::foreign_pin_map`]).
+    fn foreign_enable_check(&self, b: &BridgeInputs) -> Result<(), String> {
+        match self.foreign_pin_map {
+            Some(m) if b.enable => Err(format!(
+                "board wiring ({:?}): the firmware enabled the bridge with {m:?}'s pin map",
+                self.bridge_mode
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// [`Self::wiring_check`] against the pin map of `mode`.
+    fn pin_map_check(&self, mode: BridgeMode) -> Result<(), String> {
         use gpio::Mode::{Alternate, Output};
-        let two = self.bridge_mode == BridgeMode::TwoPwm;
+        let two = mode == BridgeMode::TwoPwm;
         let want: [(usize, u32, gpio::Mode, &str); 12] = [
             (0, 8, Alternate(1), "PA8 right PWM / IN1 (TIM1_CH1, AF1)"),
             (0, 9, Alternate(1), "PA9 left PWM / IN1 (TIM1_CH2, AF1)"),
@@ -488,8 +540,7 @@ impl Board {
             let got = self.gpio[port].mode(pin);
             if got != mode {
                 return Err(format!(
-                    "board wiring ({:?}): {what} expected, the firmware set {got:?}: the harness's robot would be unwired (update stm32-emu's pin map, or run with the image's --bridge)",
-                    self.bridge_mode
+                    "board wiring ({mode:?}): {what} expected, the firmware set {got:?}: the harness's robot would be unwired (update stm32-emu's pin map, or run with the image's --bridge)"
                 ));
             }
         }
@@ -499,6 +550,7 @@ impl Board {
     /// Advances the robot to now with the bridge as it is.
     fn sync_robot(&mut self) -> Result<(), String> {
         let b = self.bridge()?;
+        self.foreign_enable_check(&b)?;
         let now = self.now_ps();
         self.robot.advance(now, &b)?;
         if let (Some((t, c)), None) = (self.fault_at, self.cut_after_fault) {
@@ -1160,6 +1212,7 @@ impl<'a> Machine<'a> {
             d.sysclk_hz = crate::periph::rcc::HSI_HZ;
             d.flash.reset();
             d.flash_stall_ps = 0;
+            d.foreign_pin_map = None;
             d.pwr = Pwr::default();
             d.gpio = "ABCDEFGH".chars().map(Port::new).collect();
             d.tim1 = Timer::new("TIM1", Kind::Advanced, 16_000_000);
@@ -1743,18 +1796,41 @@ mod tests {
         .unwrap();
         b.write_word(0x4002_0420, 0x22 << 24, 0xFF << 24).unwrap();
         b.wiring_check().unwrap();
-        // The TwoPwm harness wants PB13/PB0 on TIM1 CH1N/CH2N: the same
-        // pins fail by name, then pass once on AF1.
+        assert_eq!(b.foreign_pin_map, None);
+        // The TwoPwm harness wants PB13/PB0 on TIM1 CH1N/CH2N: its own map
+        // fails by name, the GPIO map is PwmDir's complete map (an image of
+        // another compiled-in mode before the push): accepted as foreign,
+        // the bridge must then stay disabled.
         b.bridge_mode = BridgeMode::TwoPwm;
-        let e = b.wiring_check().unwrap_err();
+        let e = b.pin_map_check(BridgeMode::TwoPwm).unwrap_err();
         assert!(e.contains("PB13"), "{e}");
+        b.wiring_check().unwrap();
+        assert_eq!(b.foreign_pin_map, Some(BridgeMode::PwmDir));
+        let mut inputs = BridgeInputs::default();
+        b.foreign_enable_check(&inputs).unwrap();
+        inputs.enable = true;
+        let e = b.foreign_enable_check(&inputs).unwrap_err();
+        assert!(
+            e.contains("enabled the bridge with PwmDir's pin map"),
+            "{e}"
+        );
         b.write_word(0x4002_0400, (0b10 << 26) | 0b10, (0b11 << 26) | 0b11)
             .unwrap();
         b.write_word(0x4002_0424, 1 << 20, 0xF << 20).unwrap(); // AFRH PB13 = 1
         b.write_word(0x4002_0420, 1, 0xF).unwrap(); // AFRL PB0 = 1
         b.wiring_check().unwrap();
+        assert_eq!(b.foreign_pin_map, None);
+        b.foreign_enable_check(&inputs).unwrap();
         b.bridge_mode = BridgeMode::PwmDir;
-        assert!(b.wiring_check().unwrap_err().contains("PB13"));
+        assert!(b
+            .pin_map_check(BridgeMode::PwmDir)
+            .unwrap_err()
+            .contains("PB13"));
+        b.wiring_check().unwrap();
+        assert_eq!(b.foreign_pin_map, Some(BridgeMode::TwoPwm));
+        // A map of no mode (PA8 back to an input) still fails by name.
+        b.write_word(0x4002_0000, 0, 0b11 << 16).unwrap();
+        assert!(b.wiring_check().unwrap_err().contains("PA8"));
     }
 
     /// An exception taken between two instructions of an IT block (the

@@ -7,10 +7,14 @@
 //!           [--chip f446re|f411ce] [--pty] [--realtime] [--seconds S]
 //!           [--press AT_S] [--stall AT_S:MS] [--fault hardfault@AT_S|busfault@AT_S]
 //!           [--bridge pwm-dir|two-pwm|pwm-in1-in2] [--peak-from S]
-//!           [--robot FILE] [--flash-timing typ|max] [--summary FILE] [--quiet]
+//!           [--robot FILE] [--flash-timing typ|max]
+//!           [--flash-aged | --flash-robot FILE [--flash-pwm-hz N]]
+//!           [--summary FILE] [--quiet]
 //! ```
-//! `--bridge` says how the harness's H-bridges are wired (the image's
-//! `BRIDGE_MODE`, default pwm-dir); the largest armature voltage per wheel
+//! `--bridge` says how the harness's H-bridges are wired (the `[bridge]`
+//! mode of the robot the image runs: the stored robot's, else the
+//! compiled-in one's, `BRIDGE_MODE`; default `--robot`'s mode, else
+//! pwm-dir); the largest armature voltage per wheel
 //! from `--peak-from` on is logged (`armature peak`) and in the summary.
 //! `--robot FILE` makes the simulated robot that robot file's (body,
 //! friction, motors, encoders, motor directions; the bridge wiring its
@@ -20,7 +24,10 @@
 //! (`periph::flash`); `--flash-aged` starts with the robot store's sectors
 //! as the firmware's store code leaves them when the next save must erase
 //! a sector (the `--robot` file's record, or the paper robot's, saved until
-//! then).
+//! then); `--flash-robot FILE` starts with that robot file's record saved
+//! once; `--flash-pwm-hz N` crafts it: its `bridge.pwm_frequency_hz`
+//! replaced by N after robot-file's validation, with a valid CRC (a record
+//! the firmware never writes; another tool could have flashed it).
 //! With `--pty` the first line on stdout is the pty's path (as `hil-sim
 //! device --pty` prints it) and the run goes on until killed or `--seconds`.
 //! The summary (JSON, one line) goes to `--summary` or stdout at the end.
@@ -46,13 +53,16 @@ struct Args {
     robot: Option<robot_file::Robot>,
     flash_timing: stm32_emu::periph::flash::FlashTiming,
     flash_aged: bool,
+    flash_robot: Option<(String, robot_file::Robot)>,
+    flash_pwm_hz: Option<u32>,
 }
 
 fn usage() -> String {
     "usage: stm32-emu --elf FILE [--chip f446re|f411ce] [--pty] [--realtime] [--seconds S] \
      [--press AT_S] [--stall AT_S:MS] [--fault hardfault@AT_S|busfault@AT_S] \
      [--bridge pwm-dir|two-pwm|pwm-in1-in2] [--peak-from S] [--robot FILE] \
-     [--flash-timing typ|max] [--flash-aged] [--summary FILE] [--quiet]"
+     [--flash-timing typ|max] [--flash-aged | --flash-robot FILE [--flash-pwm-hz N]] \
+     [--summary FILE] [--quiet]"
         .into()
 }
 
@@ -83,6 +93,8 @@ fn parse_args() -> Result<Args, String> {
         robot: None,
         flash_timing: stm32_emu::periph::flash::FlashTiming::TYPICAL,
         flash_aged: false,
+        flash_robot: None,
+        flash_pwm_hz: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
@@ -133,6 +145,21 @@ fn parse_args() -> Result<Args, String> {
                 );
             }
             "--flash-aged" => a.flash_aged = true,
+            "--flash-robot" => {
+                let f = val()?;
+                let text =
+                    std::fs::read_to_string(&f).map_err(|e| format!("--flash-robot {f}: {e}"))?;
+                let r = robot_file::Robot::from_toml_str(&text)
+                    .map_err(|e| format!("--flash-robot {f}: {e}"))?;
+                a.flash_robot = Some((f, r));
+            }
+            "--flash-pwm-hz" => {
+                let v = val()?;
+                a.flash_pwm_hz = Some(
+                    v.parse()
+                        .map_err(|_| format!("--flash-pwm-hz {v}: not a whole number of Hz"))?,
+                );
+            }
             "--flash-timing" => {
                 use stm32_emu::periph::flash::FlashTiming;
                 a.flash_timing = match val()?.as_str() {
@@ -158,6 +185,12 @@ fn parse_args() -> Result<Args, String> {
             "-h" | "--help" => return Err(usage()),
             _ => return Err(format!("unknown argument {k}\n{}", usage())),
         }
+    }
+    if a.flash_aged && a.flash_robot.is_some() {
+        return Err("--flash-aged and --flash-robot both set the store: choose one".into());
+    }
+    if a.flash_pwm_hz.is_some() && a.flash_robot.is_none() {
+        return Err("--flash-pwm-hz changes the --flash-robot record: give --flash-robot".into());
     }
     if a.elf.is_empty() {
         return Err(format!("--elf is required\n{}", usage()));
@@ -214,6 +247,31 @@ fn run() -> Result<i32, String> {
         m.board().event(format!(
             "flash: store aged by {saves} saves of \"{}\" (the next save erases a sector)",
             robot.name
+        ));
+    }
+
+    if let Some((f, robot)) = &a.flash_robot {
+        let mut robot = robot.clone();
+        // A crafted record: the field replaced after robot-file's
+        // validation, encoded with a valid CRC, saved without a check.
+        let validate: robot_store::RobotValidator = match a.flash_pwm_hz {
+            Some(hz) => {
+                robot.bridge.pwm_frequency_hz = hz;
+                |_| Ok(())
+            }
+            None => robot_store::validate_robot,
+        };
+        let mut blob = [0u8; robot_file::MAX_ENCODED_LEN];
+        let n = robot
+            .encode(&mut blob)
+            .map_err(|e| format!("--flash-robot {f}: {e:?}"))?;
+        m.board().flash().store = stm32_emu::periph::flash::stored_store(&blob[..n], validate)?;
+        m.board().event(format!(
+            "flash: the store holds \"{}\" ({f}, {n} B, saved once{})",
+            robot.name,
+            a.flash_pwm_hz.map_or(String::new(), |hz| format!(
+                ", crafted: bridge.pwm_frequency_hz = {hz}, not validated"
+            ))
         ));
     }
 

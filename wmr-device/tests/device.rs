@@ -4,15 +4,14 @@
 //! without a mode; a latched stop is left only through a clear; every
 //! intact request answered exactly once.
 
-use controller_core::runtime::{NoGyro, RuntimeConfig, TickTiming, WheelOdometryOnly};
-use controller_core::ControllerKind;
+mod common;
+
+use common::{device_config, drain, frame, nack, quiet_runtime, PERIOD_US};
+use controller_core::runtime::{NoGyro, TickTiming, WheelOdometryOnly};
 use proptest::prelude::*;
 use sim_robot::test_doubles::{RecordingDriver, ScriptedEncoder};
-use wmr_device::{Device, DeviceConfig, LinkConfig};
+use wmr_device::{Device, LinkConfig};
 use wmr_protocol::*;
-
-/// Control period of the tests \[µs\].
-const PERIOD_US: u32 = 1000;
 
 struct Rig {
     dev: Device,
@@ -25,27 +24,14 @@ struct Rig {
     last_ref_v: f32,
 }
 
-fn device_config() -> DeviceConfig {
-    DeviceConfig {
-        chip: "test",
-        capabilities: CAP_TRAJECTORY | CAP_VELOCITY | CAP_EXTERNAL_POSE,
-        link: LinkConfig::DEFAULT,
-        button_reference: None,
-    }
-}
-
 impl Rig {
     fn new() -> Self {
-        let mut rt = RuntimeConfig::example(ControllerKind::Proposed);
-        // The scripted encoders never move: no stall detection in these
-        // tests (the closed-loop ones in hil-sim run it).
-        rt.safety.stall_ticks = u16::MAX;
-        // Nor the governor: a robot that never moves would hold its
-        // reference back (tested with the governor in controller-core and
-        // end to end in hil-sim's link tests).
-        rt.pacing = controller_core::pacer::PacingConfig::off();
         Self {
-            dev: Device::new(device_config(), rt).unwrap(),
+            dev: Device::new(
+                device_config(CAP_TRAJECTORY | CAP_VELOCITY | CAP_EXTERNAL_POSE),
+                quiet_runtime(),
+            )
+            .unwrap(),
             enc: [ScriptedEncoder(0); 2],
             drv: RecordingDriver::default(),
             now_us: 0,
@@ -84,23 +70,11 @@ impl Rig {
             );
         }
         assert!(rep.torque_nm.iter().all(|t| t.is_finite()));
-        let mut buf = [0u8; 4096];
-        loop {
-            let n = self.dev.pop_tx(&mut buf);
-            if n == 0 {
-                break;
-            }
-            let mut rest = &buf[..n];
-            while !rest.is_empty() {
-                let (d, r) = self.rx.feed::<Reply>(rest);
-                rest = r;
-                match d {
-                    Some(Decoded::Frame { msg, .. }) => self.replies.push(msg),
-                    None => {}
-                    Some(other) => panic!("device sent a bad frame: {other:?}"),
-                }
-            }
-        }
+        let replies = &mut self.replies;
+        drain(&mut self.dev, &mut self.rx, |d| match d {
+            Decoded::Frame { msg, .. } => replies.push(msg),
+            other => panic!("device sent a bad frame: {other:?}"),
+        });
     }
 
     fn send_raw(&mut self, bytes: &[u8]) {
@@ -116,9 +90,7 @@ impl Rig {
     }
 
     fn send(&mut self, req: &Request, seq: u16) {
-        let mut buf = [0u8; MAX_FRAME];
-        let f = encode(req, seq, &mut buf).unwrap().to_vec();
-        self.send_raw(&f);
+        self.send_raw(&frame(req, seq));
     }
 
     /// Sends and ticks until the answer to `seq` arrives.
@@ -132,13 +104,6 @@ impl Rig {
             }
         }
         panic!("no answer to {req:?}");
-    }
-}
-
-fn nack(r: &Reply) -> Option<ErrorCode> {
-    match r {
-        Reply::Nack { error, .. } => Some(*error),
-        _ => None,
     }
 }
 
@@ -961,7 +926,9 @@ fn absurd_gains_and_references_are_refused() {
 
 /// An external pose at `x_m` on the estimate's line (y, θ: the start's).
 fn pose_req(t_robot_us: u32, x_m: f32, std_dev: [f32; 3]) -> Request {
-    let start = RuntimeConfig::example(ControllerKind::Proposed).initial_pose;
+    let start =
+        controller_core::runtime::RuntimeConfig::example(controller_core::ControllerKind::Proposed)
+            .initial_pose;
     Request::ExternalPose {
         t_robot_us,
         pose: PoseMsg {

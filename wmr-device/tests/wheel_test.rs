@@ -6,14 +6,15 @@
 //! every end (time up, another request, link silence, a latched stop,
 //! the button) turning the motors off on that tick, within its bound.
 
+mod common;
+
+use common::{device_config, drain, frame, nack, quiet_runtime, PERIOD_US};
 use controller_core::runtime::{DutyCommand, NoGyro, RuntimeConfig, TickTiming, WheelOdometryOnly};
 use controller_core::ControllerKind;
 use sim_robot::test_doubles::{RecordingDriver, ScriptedEncoder};
 use wmr_device::wheel_test::torque_cap_nm;
-use wmr_device::{Device, DeviceConfig, LinkConfig};
+use wmr_device::Device;
 use wmr_protocol::*;
-
-const PERIOD_US: u32 = 1000;
 
 struct Rig {
     dev: Device,
@@ -29,18 +30,10 @@ struct Rig {
 
 impl Rig {
     fn new() -> Self {
-        let mut rt = RuntimeConfig::example(ControllerKind::Proposed);
-        rt.safety.stall_ticks = u16::MAX;
-        rt.pacing = controller_core::pacer::PacingConfig::off();
+        let rt = quiet_runtime();
         let cap_nm = torque_cap_nm(&rt);
-        let cfg = DeviceConfig {
-            chip: "test",
-            capabilities: CAP_VELOCITY,
-            link: LinkConfig::DEFAULT,
-            button_reference: None,
-        };
         Self {
-            dev: Device::new(cfg, rt).unwrap(),
+            dev: Device::new(device_config(CAP_VELOCITY), rt).unwrap(),
             enc: [ScriptedEncoder(0); 2],
             drv: RecordingDriver::default(),
             now_us: 0,
@@ -70,26 +63,16 @@ impl Rig {
             &mut WheelOdometryOnly,
             TickTiming::on_schedule_at(self.now_us, PERIOD_US),
         );
-        let mut buf = [0u8; 4096];
-        loop {
-            let n = self.dev.pop_tx(&mut buf);
-            if n == 0 {
-                break;
+        let replies = &mut self.replies;
+        drain(&mut self.dev, &mut self.rx, |d| {
+            if let Decoded::Frame { msg, .. } = d {
+                replies.push(msg);
             }
-            let mut rest = &buf[..n];
-            while !rest.is_empty() {
-                let (d, r) = self.rx.feed::<Reply>(rest);
-                rest = r;
-                if let Some(Decoded::Frame { msg, .. }) = d {
-                    self.replies.push(msg);
-                }
-            }
-        }
+        });
     }
 
     fn send(&mut self, req: &Request, seq: u16) {
-        let mut buf = [0u8; MAX_FRAME];
-        let f = encode(req, seq, &mut buf).unwrap().to_vec();
+        let f = frame(req, seq);
         assert_eq!(self.dev.push_rx(&f), f.len());
     }
 
@@ -118,13 +101,6 @@ fn test(wheel: u8, torque_nm: f32, duration_ms: u16) -> Request {
         torque_nm,
         duration_ms,
     })
-}
-
-fn nack(r: &Reply) -> Option<ErrorCode> {
-    match r {
-        Reply::Nack { error, .. } => Some(*error),
-        _ => None,
-    }
 }
 
 #[test]

@@ -203,6 +203,23 @@ impl<const N: usize> FrameDecoder<N> {
             }
         }
     }
+
+    /// Feeds all of `input`, calling `on` with each outcome in order: the
+    /// loop around [`feed`](Self::feed) that every reader of a byte stream
+    /// writes (same outcomes, whatever the chunking).
+    pub fn feed_all<M: DeserializeOwned>(
+        &mut self,
+        mut input: &[u8],
+        mut on: impl FnMut(Decoded<M>),
+    ) {
+        while !input.is_empty() {
+            let (decoded, rest) = self.feed::<M>(input);
+            input = rest;
+            if let Some(d) = decoded {
+                on(d);
+            }
+        }
+    }
 }
 
 fn check_envelope<M: DeserializeOwned>(env: &Envelope<'_>) -> Decoded<M> {

@@ -12,17 +12,25 @@ fn frame<M: Serialize>(msg: &M, seq: u16) -> StdVec<u8> {
 
 fn decode_all<M: DeserializeOwned>(
     dec: &mut FrameDecoder<MAX_FRAME>,
+    bytes: &[u8],
+) -> StdVec<Decoded<M>> {
+    let mut out = StdVec::new();
+    dec.feed_all::<M>(bytes, |d| out.push(d));
+    out
+}
+
+/// `feed` one call at a time, checking that each call makes progress
+/// (an independent loop to hold `feed_all` against).
+fn decode_stepwise<M: DeserializeOwned>(
+    dec: &mut FrameDecoder<MAX_FRAME>,
     mut bytes: &[u8],
 ) -> StdVec<Decoded<M>> {
     let mut out = StdVec::new();
-    let mut guard = 0;
     while !bytes.is_empty() {
         let (d, rest) = dec.feed::<M>(bytes);
         assert!(rest.len() < bytes.len() || d.is_some(), "no progress");
         out.extend(d);
         bytes = rest;
-        guard += 1;
-        assert!(guard < 100_000);
     }
     out
 }
@@ -322,6 +330,33 @@ proptest! {
         let got = decode_all::<Request>(&mut dec, &bytes);
         let zeros = bytes.iter().filter(|&&b| b == 0).count();
         prop_assert!(got.len() <= zeros + bytes.len() / MAX_FRAME + 1);
+    }
+
+    /// `feed_all` gives exactly the outcomes of calling `feed` until the
+    /// input is used up, whatever the chunking of a stream of good,
+    /// damaged and garbage bytes.
+    #[test]
+    fn feed_all_is_the_feed_loop(
+        garbage in proptest::collection::vec(any::<u8>(), 0..300),
+        flip in any::<prop::sample::Index>(),
+        chunk in 1usize..64,
+    ) {
+        let mut bytes = StdVec::new();
+        for (i, r) in sample_requests().iter().take(4).enumerate() {
+            bytes.extend(frame(r, i as u16));
+        }
+        let n = bytes.len();
+        bytes[flip.index(n)] ^= 0x10;
+        bytes.extend(&garbage);
+        bytes.extend(frame(&Request::Arm, 9));
+        let mut a = FrameDecoder::<MAX_FRAME>::new();
+        let mut whole = StdVec::new();
+        for c in bytes.chunks(chunk) {
+            a.feed_all::<Request>(c, |d| whole.push(d));
+        }
+        let mut b = FrameDecoder::<MAX_FRAME>::new();
+        let stepwise = decode_stepwise::<Request>(&mut b, &bytes);
+        prop_assert_eq!(whole, stepwise);
     }
 
     /// One flipped bit anywhere in a frame is never accepted as a

@@ -9,7 +9,11 @@ CycloneDDS's IDL (ROS 2 type names `nav_msgs::msg::dds_::Odometry_`, topics
 Steps (each fails loudly, exit 1 with the reason):
  1. /odom, /tf, /diagnostics arrive (discovery on loopback);
  2. cmd_vel before the arm service is refused: the robot does not move;
- 3. /initialpose sets the pose: /odom reports it;
+ 3. /initialpose sets the pose: /odom reports it; the robot's parameters
+    as ROS parameters (rcl_interfaces/GetParameters, SetParameters): read
+    from the robot, a gain set and read back, a gain beyond its physical
+    range refused with the robot's reason, a read-only one refused, a
+    limit set reaches the bridge's limits (/diagnostics); then restored;
  4. the arm service (std_srvs/Trigger, rmw_cyclonedds's request header)
     succeeds; cmd_vel (TwistStamped, 20 Hz) drives the robot as commanded:
     /odom's twist and the motion of its poses match v and w;
@@ -42,7 +46,7 @@ from dataclasses import dataclass, field
 from cyclonedds.core import Qos, Policy
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import array, float64, int32, sequence, uint8, uint32
+from cyclonedds.idl.types import array, float64, int32, int64, sequence, uint8, uint32
 from cyclonedds.pub import DataWriter
 from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
@@ -224,6 +228,77 @@ class TriggerResponse(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Response
     message: str
 
 
+# rcl_interfaces (the parameter services), after ROS 2 Jazzy's .msg/.srv
+# definitions, with the same request header.
+@dataclass
+class ParameterValue(IdlStruct, typename="rcl_interfaces::msg::dds_::ParameterValue_"):
+    ptype: uint8
+    bool_value: bool
+    integer_value: int64
+    double_value: float64
+    string_value: str
+    byte_array_value: sequence[uint8]
+    bool_array_value: sequence[bool]
+    integer_array_value: sequence[int64]
+    double_array_value: sequence[float64]
+    string_array_value: sequence[str]
+
+
+PARAMETER_DOUBLE = 3
+
+
+def double_value(x):
+    return ParameterValue(PARAMETER_DOUBLE, False, 0, x, "", [], [], [], [], [])
+
+
+@dataclass
+class Parameter(IdlStruct, typename="rcl_interfaces::msg::dds_::Parameter_"):
+    name: str
+    value: ParameterValue
+
+
+@dataclass
+class SetParametersResult(IdlStruct, typename="rcl_interfaces::msg::dds_::SetParametersResult_"):
+    successful: bool
+    reason: str
+
+
+@dataclass
+class SetParametersRequest(IdlStruct, typename="rcl_interfaces::srv::dds_::SetParameters_Request_"):
+    client_guid: array[uint8, 8]
+    seq_high: int32
+    seq_low: uint32
+    parameters: sequence[Parameter]
+
+
+@dataclass
+class SetParametersResponse(IdlStruct, typename="rcl_interfaces::srv::dds_::SetParameters_Response_"):
+    client_guid: array[uint8, 8]
+    seq_high: int32
+    seq_low: uint32
+    results: sequence[SetParametersResult]
+
+
+@dataclass
+class GetParametersRequest(IdlStruct, typename="rcl_interfaces::srv::dds_::GetParameters_Request_"):
+    client_guid: array[uint8, 8]
+    seq_high: int32
+    seq_low: uint32
+    names: sequence[str]
+
+
+@dataclass
+class GetParametersResponse(IdlStruct, typename="rcl_interfaces::srv::dds_::GetParameters_Response_"):
+    client_guid: array[uint8, 8]
+    seq_high: int32
+    seq_low: uint32
+    values: sequence[ParameterValue]
+
+
+NODE = "wmr_bridge"  # the bridge's node: its parameter services are /wmr_bridge/...
+TRIGGERS = ("arm", "disarm", "emergency_stop", "clear_stop")
+
+
 # --- helpers ---------------------------------------------------------------
 
 
@@ -277,14 +352,14 @@ class Ros:
             self.dp, Topic(self.dp, "rt/initialpose", PoseWithCovarianceStamped), qos=RELIABLE
         )
         self.services = {}
-        for s in ("arm", "disarm", "emergency_stop", "clear_stop"):
-            rq = DataWriter(
-                self.dp, Topic(self.dp, f"rq/wmr/{s}Request", TriggerRequest), qos=RELIABLE
-            )
-            rr = DataReader(
-                self.dp, Topic(self.dp, f"rr/wmr/{s}Reply", TriggerResponse), qos=RELIABLE
-            )
-            self.services[s] = (rq, rr)
+        kinds = [(f"wmr/{s}", TriggerRequest, TriggerResponse) for s in TRIGGERS] + [
+            (f"{NODE}/set_parameters", SetParametersRequest, SetParametersResponse),
+            (f"{NODE}/get_parameters", GetParametersRequest, GetParametersResponse),
+        ]
+        for s, req, resp in kinds:
+            rq = DataWriter(self.dp, Topic(self.dp, f"rq/{s}Request", req), qos=RELIABLE)
+            rr = DataReader(self.dp, Topic(self.dp, f"rr/{s}Reply", resp), qos=RELIABLE)
+            self.services[s] = (rq, rr, req)
 
     def spin(self, seconds=0.0):
         end = time.monotonic() + seconds
@@ -335,29 +410,42 @@ class Ros:
         p = o.pose.pose
         return p.position.x, p.position.y, yaw_of(p.orientation)
 
-    def call(self, service, timeout=5.0):
-        rq, rr = self.services[service]
+    def request(self, service, timeout=5.0, **body):
+        """One request to /SERVICE (rmw_cyclonedds's header), its response."""
+        rq, rr, req = self.services[service]
         end = time.monotonic() + timeout
         while not (rq.get_matched_subscriptions() and rr.get_matched_publications()):
             if time.monotonic() > end:
-                fail(f"service /wmr/{service}: no server discovered")
+                fail(f"service /{service}: no server discovered")
             self.spin(0.05)
         self.seq += 1
-        rq.write(
-            TriggerRequest(
-                client_guid=self.guid,
-                seq_high=0,
-                seq_low=self.seq,
-                structure_needs_at_least_one_member=0,
-            )
-        )
+        rq.write(req(client_guid=self.guid, seq_high=0, seq_low=self.seq, **body))
         while time.monotonic() < end:
             for r in rr.take(N=10):
                 if list(r.client_guid) == self.guid and r.seq_low == self.seq:
-                    log(f"service /wmr/{service}: success {r.success}: {r.message}")
                     return r
             self.spin(0.02)
-        fail(f"service /wmr/{service}: no response within {timeout} s")
+        fail(f"service /{service}: no response within {timeout} s")
+
+    def call(self, service, timeout=5.0):
+        """A std_srvs/Trigger service of the bridge (/wmr/SERVICE)."""
+        r = self.request(f"wmr/{service}", timeout, structure_needs_at_least_one_member=0)
+        log(f"service /wmr/{service}: success {r.success}: {r.message}")
+        return r
+
+    def set_param(self, name, x):
+        """rcl_interfaces/SetParameters with one double: its result."""
+        r = self.request(f"{NODE}/set_parameters", parameters=[Parameter(name, double_value(x))])
+        if len(r.results) != 1:
+            fail(f"set_parameters {name}: {len(r.results)} results for 1 parameter")
+        return r.results[0]
+
+    def get_params(self, *names):
+        """rcl_interfaces/GetParameters: the values, in order."""
+        r = self.request(f"{NODE}/get_parameters", names=list(names))
+        if len(r.values) != len(names):
+            fail(f"get_parameters {names}: {len(r.values)} values")
+        return r.values
 
     def send_twist(self, v, w, age_s=0.0):
         self.cmd_vel.write(
@@ -444,6 +532,9 @@ def main(mcap_path):
         return math.hypot(p[0] - want[0], p[1] - want[1]) < 1e-4 and abs(wrap(p[2] - want[2])) < 1e-4
     ros.wait_for("/odom at the /initialpose pose", at_want, 3.0)
     log(f"/initialpose {want}: /odom reports {ros.pose()}")
+
+    # 3b. ROS parameters: the robot's, read and written through the link
+    params_check(ros, limits)
 
     # 7 (run here, before any motion: the simulated robot coasts after a stop).
     # localiser poses, 80 ms old, offset 8 cm in x from /odom: fused
@@ -619,6 +710,55 @@ def main(mcap_path):
     ros.spin(0.5)
     ros.odom_all = list(ros.odom)
     return ros, d
+
+
+def params_check(ros, limits):
+    """The robot's parameters as ROS parameters of the bridge's node: read
+    from the robot, set through the link, the robot's refusals with its
+    reason, and the bridge's own limits follow a set."""
+    def rel(a, b):
+        return abs(a - b) <= 1e-6 * max(abs(a), abs(b))  # f32 on the link
+
+    ms, kx, period = ros.get_params("max_speed_mps", "k_x", "control_period_s")
+    if ms.ptype != PARAMETER_DOUBLE or not rel(ms.double_value, limits["max_speed_mps"]):
+        fail(f"get_parameters max_speed_mps = {ms}: not the robot's {limits['max_speed_mps']} (/diagnostics)")
+    k0, v0 = kx.double_value, ms.double_value
+    if not (kx.ptype == PARAMETER_DOUBLE and k0 > 0 and period.double_value > 0):
+        fail(f"get_parameters k_x = {kx}, control_period_s = {period}")
+    k1 = 1.25 * k0
+    r = ros.set_param("k_x", k1)
+    if not r.successful:
+        fail(f"set_parameters k_x = {k1}: refused: {r.reason}")
+    (got,) = ros.get_params("k_x")
+    if not rel(got.double_value, k1):
+        fail(f"k_x set to {k1}, the robot reads back {got.double_value}")
+    # beyond half the control rate (wmr-device's physical range of a gain)
+    big = 2.0 / period.double_value
+    r = ros.set_param("k_x", big)
+    if r.successful or "outside its physical range" not in r.reason:
+        fail(f"set_parameters k_x = {big}: {r} (want the robot's refusal)")
+    refusal = r.reason
+    (got,) = ros.get_params("k_x")
+    if not rel(got.double_value, k1):
+        fail(f"a refused k_x changed it: {got.double_value}, not {k1}")
+    r = ros.set_param("control_period_s", 0.002)
+    if r.successful or "read only" not in r.reason:
+        fail(f"set_parameters control_period_s: {r} (read only)")
+    # a limit: the robot takes it and the bridge's own limits follow
+    v1 = 0.9 * v0
+    r = ros.set_param("max_speed_mps", v1)
+    if not r.successful:
+        fail(f"set_parameters max_speed_mps = {v1}: refused: {r.reason}")
+    _, bridge = ros.fresh_values()
+    if not rel(float(bridge["max_speed_mps"]), v1):
+        fail(f"max_speed_mps set to {v1}: the bridge's /diagnostics say {bridge['max_speed_mps']}")
+    for name, x in (("k_x", k0), ("max_speed_mps", v0)):
+        if not ros.set_param(name, x).successful:
+            fail(f"set_parameters {name} back to {x}: refused")
+    got = ros.get_params("k_x", "max_speed_mps")
+    if not (rel(got[0].double_value, k0) and rel(got[1].double_value, v0)):
+        fail(f"k_x, max_speed_mps not restored: {got[0].double_value}, {got[1].double_value}")
+    log(f"ROS parameters: k_x {k0} -> {k1} read back from the robot; k_x = {big} refused ({refusal!r}); control_period_s read only; max_speed_mps {v0} -> {v1} in the bridge's limits; both restored")
 
 
 def check_against_log(ros, d, mcap_path):

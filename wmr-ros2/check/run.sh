@@ -8,10 +8,8 @@
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 cd "$ROOT"
-CYCLONEDDS_VERSION=11.0.1
-MCAP_VERSION=1.6.0
-ROSBAGS_VERSION=0.11.9
 fail() { echo "ros2 interop: FAIL: $*" >&2; exit 1; }
+. ros-mcap/check/lib.sh
 
 if [ -z "${WMR_ROS2_IN_NETNS:-}" ]; then
     command -v unshare >/dev/null || fail "unshare (util-linux) not found"
@@ -19,19 +17,11 @@ if [ -z "${WMR_ROS2_IN_NETNS:-}" ]; then
         apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq iproute2 ||
             fail "apt-get install iproute2 (the namespace's loopback needs ip)"
     fi
-    VENV="${ROS2_CHECK_VENV:-$ROOT/target/ros2-check-venv}"
-    want="$CYCLONEDDS_VERSION $MCAP_VERSION $ROSBAGS_VERSION"
-    if ! "$VENV/bin/python" -c "import cyclonedds, mcap, rosbags" 2>/dev/null ||
-        [ "$("$VENV/bin/python" -c 'import importlib.metadata as m; print(m.version("cyclonedds"), m.version("mcap"), m.version("rosbags"))')" != "$want" ]; then
-        python3 -m venv "$VENV" || fail "python3 -m venv (apt-get install python3-venv)"
-        "$VENV/bin/pip" install --quiet "cyclonedds==$CYCLONEDDS_VERSION" "mcap==$MCAP_VERSION" "rosbags==$ROSBAGS_VERSION" ||
-            fail "pip install cyclonedds==$CYCLONEDDS_VERSION mcap==$MCAP_VERSION rosbags==$ROSBAGS_VERSION"
-    fi
-    echo "python: $("$VENV/bin/python" --version), cyclonedds $CYCLONEDDS_VERSION, mcap $MCAP_VERSION, rosbags $ROSBAGS_VERSION"
-    cargo build --release -p hil-sim
+    check_venv "${ROS2_CHECK_VENV:-$ROOT/target/ros-check-venv}"
+    build_host_tools
     (cd wmr-ros2 && cargo build --release --locked)
     # Everything below runs in the namespace (this script again).
-    exec unshare -n bash -c "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && WMR_ROS2_IN_NETNS=1 ROS2_PY='$VENV/bin/python' bash '$0'"
+    exec unshare -n bash -c "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && WMR_ROS2_IN_NETNS=1 ROS2_PY='$PY' bash '$0'"
 fi
 
 # --- inside the private network namespace ---
@@ -44,15 +34,7 @@ cleanup() {
     [ -n "$DEV_PID" ] && kill "$DEV_PID" 2>/dev/null || true
 }
 trap cleanup EXIT
-"$ROOT/target/release/hil-sim" device --pty --scenario wmr-ros2/check/scenario.toml --for-s 120 >"$OUT/dev.out" 2>"$OUT/dev.err" </dev/null &
-DEV_PID=$!
-t_end=$((SECONDS + 10))
-until [ -s "$OUT/dev.out" ]; do
-    kill -0 "$DEV_PID" 2>/dev/null || fail "hil-sim device exited: $(cat "$OUT/dev.err")"
-    [ "$SECONDS" -lt "$t_end" ] || fail "hil-sim device named no pty within 10 s"
-    sleep 0.1
-done
-PTY="$(head -1 "$OUT/dev.out")"
+start_device "$OUT" --scenario wmr-ros2/check/scenario.toml --for-s 120
 "$ROOT/target/release/wmr-ros2" --port "$PTY" --service-mapping cyclone --cmd-timeout-ms 500 --mcap "$OUT/bridge.mcap" \
     --for-s 110 2>"$OUT/bridge.err" &
 BRIDGE_PID=$!

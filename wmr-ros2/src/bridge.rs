@@ -823,6 +823,42 @@ impl Bridge {
         }
     }
 
+    /// A robot parameter, read from the robot (ROS `get_parameters`).
+    pub fn get_param(&mut self, id: ParamId) -> Result<f32, Fatal> {
+        param(&mut self.link, id)
+    }
+
+    /// Sets a robot parameter through the link (ROS `set_parameters`):
+    /// refused with the robot's reason (range, "hold only"). A limit the
+    /// bridge uses (speed, yaw rate, accelerations, braking) takes effect
+    /// in the bridge too: cmd_vel scaling, path profiles, `/diagnostics`.
+    pub fn set_param(&mut self, id: ParamId, value: f32) -> Outcome {
+        let r = self.simple(Request::SetParam { id, value }, "set")?;
+        if r.is_ok() {
+            let v = value as f64;
+            let mut new = self.limits;
+            match id {
+                ParamId::MaxSpeedMps => new.max_speed_mps = v,
+                ParamId::MaxYawRateRadps => new.max_yaw_rate_radps = v,
+                ParamId::AccelMps2 => new.accel_mps2 = v,
+                ParamId::AngAccelRadps2 => new.ang_accel_radps2 = v,
+                ParamId::BrakeDecelMps2 => self.brake_decel_mps2 = v,
+                _ => {}
+            }
+            // The robot took it, so it is within the robot's own (tighter)
+            // ranges: Limits::new failing is a robot that is not a robot,
+            // as at connection.
+            self.limits = Limits::new(
+                new.max_speed_mps,
+                new.max_yaw_rate_radps,
+                new.accel_mps2,
+                new.ang_accel_radps2,
+            )
+            .map_err(Fatal::Robot)?;
+        }
+        Ok(r)
+    }
+
     /// The arm service: enables motion; a loaded path starts at once.
     pub fn arm(&mut self) -> Outcome {
         if self.state == RunStateMsg::Stopped {

@@ -11,6 +11,7 @@
 //! - [`bridge`]: the link side (keep-alive, clock sync, state, uploads,
 //!   services), producing the messages ros-mcap builds for the MCAP logs
 //!   ([`ros_mcap::RosFrames`]), so the logs and the live topics agree;
+//! - [`params`]: the robot's parameters as ROS parameters;
 //! - [`topics`]: every topic and service with its type and QoS;
 //! - [`msg`]: the message types the bridge subscribes to.
 #![deny(missing_docs)]
@@ -18,6 +19,7 @@
 pub mod bridge;
 pub mod convert;
 pub mod msg;
+pub mod params;
 pub mod profile;
 pub mod topics;
 

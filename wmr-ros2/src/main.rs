@@ -3,11 +3,13 @@
 //! and [`wmr_ros2::Bridge`].
 
 use clap::{Parser, ValueEnum};
+use ros2_client::parameters::raw::{ParameterType, SetParametersResult};
+use ros2_client::rcl_interfaces as rcl;
 use ros2_client::{
     Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Server,
     ServiceMapping, ServiceTypeName, Subscription,
 };
-use serde::Serialize;
+use serde::{de::DeserializeOwned, Serialize};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -16,6 +18,7 @@ use wmr_ros2::bridge::{self, Bridge, Config, Fatal, Outcome};
 use wmr_ros2::msg::{
     Path, PoseWithCovarianceStamped, TriggerRequest, TriggerResponse, TwistStamped,
 };
+use wmr_ros2::params;
 use wmr_ros2::topics::{self, TopicSpec};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -142,6 +145,163 @@ fn subscription<T: 'static>(node: &mut Node, t: &TopicSpec) -> Result<Subscripti
         .map_err(|e| format!("subscription {}: {e:?}", t.name))
 }
 
+/// The node's parameter services (D123; `wmr_ros2::params`), with the
+/// bridge's service mapping.
+struct ParamServers {
+    get: Server<rcl::GetParametersRequest, rcl::GetParametersResponse>,
+    types: Server<rcl::GetParameterTypesRequest, rcl::GetParameterTypesResponse>,
+    set: Server<rcl::SetParametersRequest, rcl::SetParametersResponse>,
+    list: Server<rcl::ListParametersRequest, rcl::ListParametersResponse>,
+    describe: Server<rcl::DescribeParametersRequest, rcl::DescribeParametersResponse>,
+}
+
+fn server<Q, S>(
+    node: &mut Node,
+    mapping: ServiceMapping,
+    name: &str,
+    package: &str,
+    type_name: &str,
+) -> Result<Server<Q, S>, String>
+where
+    Q: ros2_client::Message + DeserializeOwned + Clone + 'static,
+    S: ros2_client::Message + Serialize + 'static,
+{
+    node.create_server(
+        mapping,
+        &name_of(name)?,
+        &ServiceTypeName::new(package, type_name),
+        topics::service_qos(),
+        topics::service_qos(),
+    )
+    .map_err(|e| format!("service {name}: {e:?}"))
+}
+
+impl ParamServers {
+    fn new(node: &mut Node, mapping: ServiceMapping, node_name: &str) -> Result<Self, String> {
+        let n = |s: &str| format!("/{node_name}/{s}");
+        let rcl = "rcl_interfaces";
+        Ok(Self {
+            get: server(node, mapping, &n("get_parameters"), rcl, "GetParameters")?,
+            types: server(
+                node,
+                mapping,
+                &n("get_parameter_types"),
+                rcl,
+                "GetParameterTypes",
+            )?,
+            set: server(node, mapping, &n("set_parameters"), rcl, "SetParameters")?,
+            list: server(node, mapping, &n("list_parameters"), rcl, "ListParameters")?,
+            describe: server(
+                node,
+                mapping,
+                &n("describe_parameters"),
+                rcl,
+                "DescribeParameters",
+            )?,
+        })
+    }
+
+    /// Answers every pending request; the values come from the robot and
+    /// go to it through the link. Returns a line for each refused set.
+    fn serve(&self, b: &mut Bridge) -> Result<Vec<String>, Fatal> {
+        let mut notes = Vec::new();
+        let mut unsent = 0;
+        while let Ok(Some((id, req))) = self.get.receive_request() {
+            let mut values = Vec::new();
+            for name in &req.names {
+                values.push(match params::find(name) {
+                    Some(p) => p.ros_value(b.get_param(p.id)?),
+                    None => params::value(ParameterType::NOT_SET),
+                });
+            }
+            unsent += self
+                .get
+                .send_response(id, rcl::GetParametersResponse { values })
+                .is_err() as u32;
+        }
+        while let Ok(Some((id, req))) = self.types.receive_request() {
+            let values = req
+                .names
+                .iter()
+                .map(|n| params::find(n).map_or(ParameterType::NOT_SET, |p| p.ros_type()))
+                .collect();
+            unsent += self
+                .types
+                .send_response(id, rcl::GetParameterTypesResponse { values })
+                .is_err() as u32;
+        }
+        while let Ok(Some((id, req))) = self.set.receive_request() {
+            let mut results = Vec::new();
+            for q in &req.parameter {
+                let r = match params::find(&q.name) {
+                    None => Err(format!(
+                        "{}: no such parameter (wmr_ros2 offers the robot's: {})",
+                        q.name,
+                        params::list(&[]).join(", ")
+                    )),
+                    Some(p) => match p.robot_value(&q.value) {
+                        Err(e) => Err(e),
+                        Ok(v) => match b.set_param(p.id, v)? {
+                            Ok(_) => Ok(()),
+                            Err(refusal) => Err(format!("{} = {v}: {refusal}", q.name)),
+                        },
+                    },
+                };
+                if let Err(e) = &r {
+                    notes.push(format!("set_parameters: {e}"));
+                } else {
+                    eprintln!("wmr-ros2: parameter {} set on the robot", q.name);
+                }
+                results.push(SetParametersResult {
+                    successful: r.is_ok(),
+                    reason: r.err().unwrap_or_default(),
+                });
+            }
+            unsent += self
+                .set
+                .send_response(id, rcl::SetParametersResponse { results })
+                .is_err() as u32;
+        }
+        while let Ok(Some((id, req))) = self.list.receive_request() {
+            let result = rcl::ListParametersResult {
+                names: params::list(&req.prefixes),
+                prefixes: Vec::new(),
+            };
+            unsent += self
+                .list
+                .send_response(id, rcl::ListParametersResponse { result })
+                .is_err() as u32;
+        }
+        while let Ok(Some((id, req))) = self.describe.receive_request() {
+            let values = req
+                .names
+                .iter()
+                .map(|n| match params::find(n) {
+                    Some(p) => p.descriptor(),
+                    None => ros2_client::parameters::raw::ParameterDescriptor {
+                        name: n.clone(),
+                        r#type: ParameterType::NOT_SET,
+                        description: String::new(),
+                        additional_constraints: String::new(),
+                        read_only: true,
+                        dynamic_typing: false,
+                        floating_point_range: Vec::new(),
+                        integer_range: Vec::new(),
+                    },
+                })
+                .collect();
+            unsent += self
+                .describe
+                .send_response(id, rcl::DescribeParametersResponse { values })
+                .is_err() as u32;
+        }
+        if unsent > 0 {
+            notes.push(format!("parameter services: {unsent} responses not sent"));
+        }
+        Ok(notes)
+    }
+}
+
 struct Pubs {
     odom: Publisher<ros_mcap::msg::Odometry>,
     tf: Publisher<ros_mcap::msg::TfMessage>,
@@ -260,6 +420,7 @@ fn run(a: &Args) -> Result<(), String> {
             .map_err(|e| format!("service {s}: {e:?}"))?,
         );
     }
+    let param_servers = ParamServers::new(&mut node, mapping, &a.node_name)?;
     let limits = b.limits();
     eprintln!(
         "wmr-ros2: bridging {via} on DDS domain {}: robot r {:.4} m, h {:.4} m, d {:.4} m; limits {:.2} m/s, {:.2} rad/s; motion {}",
@@ -334,6 +495,7 @@ fn run(a: &Args) -> Result<(), String> {
                 }
             }
         }
+        notes.extend(param_servers.serve(&mut b)?);
         for n in notes {
             // The same refusal again (a publisher at 20 Hz): once every 5 s.
             if last_note

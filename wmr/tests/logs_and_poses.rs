@@ -4,11 +4,8 @@
 //! capture times reaching the estimator's history.
 
 use controller_core::ControllerKind;
-use hil_sim::device::{open_pty, serve, SimRobot};
-use hil_sim::scenario::{Scenario, Sensing};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
-use std::thread::JoinHandle;
+use hil_sim::device::{PtyRobot, SimRobot};
+use hil_sim::scenario::{PerturbationPart, Scenario, Sensing};
 use std::time::{Duration, Instant};
 use wmr::cli::{Capture, PoseClock, PoseTally};
 use wmr::Link;
@@ -16,37 +13,20 @@ use wmr_protocol::*;
 
 /// One simulated robot at a time (each runs in real time next to its host).
 fn serial() -> std::sync::MutexGuard<'static, ()> {
-    static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+    PtyRobot::serial()
 }
 
-struct Robot {
-    path: String,
-    stop: Arc<AtomicBool>,
-    handle: Option<JoinHandle<SimRobot>>,
-    _slave: serialport::TTYPort,
-}
+/// The simulated robot served on a pty in a thread (the shared rig).
+struct Robot(PtyRobot);
 
 impl Robot {
     fn start(scn: &Scenario) -> Self {
-        let (mut master, slave, path) = open_pty().unwrap();
-        let mut robot = SimRobot::new(scn, ControllerKind::Proposed).unwrap();
-        let stop = Arc::new(AtomicBool::new(false));
-        let s = stop.clone();
-        let handle = std::thread::spawn(move || {
-            serve(&mut robot, &mut master, 1.0, &s).unwrap();
-            robot
-        });
-        Self {
-            path,
-            stop,
-            handle: Some(handle),
-            _slave: slave,
-        }
+        let robot = SimRobot::new(scn, ControllerKind::Proposed).unwrap();
+        Self(PtyRobot::start(robot, 1.0).unwrap())
     }
 
     fn link(&self) -> Link {
-        let mut l = Link::open(&self.path, Duration::from_millis(1000)).unwrap();
+        let mut l = Link::open(&self.0.path, Duration::from_millis(1000)).unwrap();
         l.hello().unwrap();
         ok(
             &mut l,
@@ -58,15 +38,8 @@ impl Robot {
         l
     }
 
-    fn finish(mut self) -> SimRobot {
-        self.stop.store(true, Ordering::Relaxed);
-        self.handle.take().unwrap().join().unwrap()
-    }
-}
-
-impl Drop for Robot {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
+    fn finish(self) -> SimRobot {
+        self.0.finish().unwrap()
     }
 }
 
@@ -76,19 +49,13 @@ fn ok(link: &mut Link, req: Request) {
 }
 
 fn quiet(sensing: Sensing) -> Scenario {
-    let mut scn = Scenario {
+    Scenario {
         name: "quiet".into(),
         duration_s: 10.0,
+        perturbations: PerturbationPart::none(),
         ..Scenario::default()
-    };
-    let p = &mut scn.perturbations;
-    p.window_s = [0.0, 0.0];
-    p.beta = 0.0;
-    p.eps = 0.0;
-    p.skid_scale = 0.0;
-    p.disturbance_nm = 0.0;
-    scn.sensing.preset = sensing;
-    scn
+    }
+    .with_sensing(sensing)
 }
 
 /// `record --mcap` of a run writes the CSV and the MCAP; `wmr metrics`

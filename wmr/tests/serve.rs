@@ -145,8 +145,7 @@ fn bad_socket_paths_are_clear_errors() {
     }
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "not a socket");
     // A second server on a live socket.
-    let sock = robot.dir.path().join("s.sock");
-    let first = Server::start(&robot.port, &sock, &[]);
+    let (sock, first) = robot.serve(&[]);
     let c = wmr_cmd()
         .arg("--port")
         .arg(&robot.port)
@@ -246,8 +245,7 @@ impl Subscriber {
 fn drive_record_and_pose_feed_at_byte_faults_lose_nothing_unaccounted() {
     let _s = serial();
     let mut robot = Robot::start(&quiet(), true);
-    let sock = robot.dir.path().join("s.sock");
-    let server = Server::start(&robot.port, &sock, &[]);
+    let (sock, server) = robot.serve(&[]);
     let csv = robot.dir.path().join("r.csv");
     let mut feed = wmr_cmd()
         .arg("--serve")
@@ -403,8 +401,7 @@ fn status_time_s(out: &str) -> f64 {
 fn a_restarted_robot_is_found_again_and_reported_as_a_reset() {
     let _s = serial();
     let mut robot = Robot::start(&quiet(), false);
-    let sock = robot.dir.path().join("s.sock");
-    let server = Server::start(&robot.port, &sock, &["--give-up-after", "20"]);
+    let (sock, server) = robot.serve(&["--give-up-after", "20"]);
     let c = finish(client(&sock, &["status"]), BOUND, "status");
     assert!(c.status.success(), "{c}");
     let drive = client(&sock, &["drive", "--v", "0.2", "--w", "0", "--for", "10"]);
@@ -446,8 +443,7 @@ fn clients_leaving_mid_request_do_not_hurt_the_others() {
     use std::io::Write;
     let _s = serial();
     let mut robot = Robot::start(&quiet(), false);
-    let sock = robot.dir.path().join("s.sock");
-    let server = Server::start(&robot.port, &sock, &[]);
+    let (sock, server) = robot.serve(&[]);
     let watch = client(&sock, &["watch", "--seconds", "4", "--rate", "5"]);
     let mut link = Link::connect(&sock, Duration::from_millis(300)).unwrap();
     link.hello().unwrap();
@@ -498,8 +494,7 @@ fn clients_leaving_mid_request_do_not_hurt_the_others() {
 fn a_robot_left_running_by_a_vanished_client_stops_on_link_silence() {
     let _s = serial();
     let robot = Robot::start(&quiet(), false);
-    let sock = robot.dir.path().join("s.sock");
-    let server = Server::start(&robot.port, &sock, &[]);
+    let (sock, server) = robot.serve(&[]);
     let mut link = Link::connect(&sock, Duration::from_millis(300)).unwrap();
     link.hello().unwrap();
     link.command(&Request::Velocity {
@@ -538,8 +533,7 @@ fn a_robot_left_running_by_a_vanished_client_stops_on_link_silence() {
 fn the_server_gives_up_on_a_lost_robot() {
     let _s = serial();
     let mut robot = Robot::start(&quiet(), false);
-    let sock = robot.dir.path().join("s.sock");
-    let server = Server::start(&robot.port, &sock, &["--give-up-after", "1.5"]);
+    let (sock, server) = robot.serve(&["--give-up-after", "1.5"]);
     let c = finish(client(&sock, &["status"]), BOUND, "status");
     assert!(c.status.success(), "{c}");
     robot.stop();
@@ -561,8 +555,7 @@ fn the_server_gives_up_on_a_lost_robot() {
 fn a_requested_reboot_is_not_an_unexpected_reset() {
     let _s = serial();
     let mut robot = Robot::start(&quiet(), false);
-    let sock = robot.dir.path().join("s.sock");
-    let server = Server::start(&robot.port, &sock, &[]);
+    let (sock, server) = robot.serve(&[]);
     std::thread::sleep(Duration::from_millis(600));
     let file = concat!(env!("CARGO_MANIFEST_DIR"), "/../robots/paper.toml");
     let c = finish(client(&sock, &["robot", "push", file]), BOUND, "robot push");

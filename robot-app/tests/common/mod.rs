@@ -399,14 +399,12 @@ impl Rig {
             if n == 0 {
                 break;
             }
-            let mut input = &buf[..n];
-            while !input.is_empty() {
-                let (out, rest) = self.decoder.feed::<Reply>(input);
-                if let Some(Decoded::Frame { msg, .. }) = out {
-                    self.replies.push(msg);
+            let replies = &mut self.replies;
+            self.decoder.feed_all::<Reply>(&buf[..n], |d| {
+                if let Decoded::Frame { msg, .. } = d {
+                    replies.push(msg);
                 }
-                input = rest;
-            }
+            });
         }
     }
 

@@ -265,9 +265,49 @@ pub fn aged_store(blob: &[u8]) -> Result<(Vec<u8>, u32), String> {
     Err("robot store: no erase after 100 000 saves".into())
 }
 
+/// The store's sectors as the firmware's store code leaves them after one
+/// save of `blob` (a record pushed once): what a board flashed with a
+/// record boots from. `validate` is the save's check: robot-store's
+/// `validate_robot` for a real record, one that accepts anything to put a
+/// crafted record there (a valid CRC around fields robot-file refuses),
+/// which only a tool other than the firmware could have written.
+pub fn stored_store(blob: &[u8], validate: robot_store::RobotValidator) -> Result<Vec<u8>, String> {
+    type Ram = robot_store::RamFlash<{ STORE_SIZE as usize }, { SECTOR_BYTES as usize }>;
+    let mut ram: Box<Ram> = Box::new(Ram::new());
+    let mut store = robot_store::RobotStore::new(&mut *ram, 0..STORE_SIZE)
+        .map_err(|_| "robot store: range refused".to_string())?;
+    embassy_futures::block_on(store.save(validate, blob))
+        .map_err(|e| format!("robot store: save failed: {e:?}"))?;
+    Ok(store.into_flash().bytes_mut().to_vec())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One save leaves a store that robot-store loads the same record
+    /// from (what the firmware's boot does), the rest erased.
+    #[test]
+    fn stored_store_loads_back_the_record() {
+        let robot = robot_file::Robot::paper();
+        let mut blob = [0u8; robot_file::MAX_ENCODED_LEN];
+        let n = robot.encode(&mut blob).unwrap();
+        let mut bytes = stored_store(&blob[..n], robot_store::validate_robot).unwrap();
+        assert_eq!(bytes.len(), STORE_SIZE as usize);
+        type Ram = robot_store::RamFlash<{ STORE_SIZE as usize }, { SECTOR_BYTES as usize }>;
+        let mut ram: Box<Ram> = Box::new(Ram::new());
+        ram.bytes_mut().copy_from_slice(&bytes);
+        let mut store = robot_store::RobotStore::new(&mut *ram, 0..STORE_SIZE).unwrap();
+        let mut out = [0u8; robot_store::ROBOT_BLOB_MAX];
+        let got = embassy_futures::block_on(store.load(robot_store::validate_robot, &mut out));
+        assert_eq!(got, Ok(n));
+        assert_eq!(&out[..n], &blob[..n]);
+        // The second sector untouched.
+        assert!(bytes
+            .split_off(SECTOR_BYTES as usize)
+            .iter()
+            .all(|&b| b == 0xFF));
+    }
 
     fn unlocked() -> Flash {
         let mut f = Flash::default();

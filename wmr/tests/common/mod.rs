@@ -10,7 +10,7 @@
 
 use controller_core::ControllerKind;
 use hil_sim::device::{open_pty, serve, SimRobot};
-use hil_sim::scenario::{Scenario, Sensing};
+use hil_sim::scenario::{PerturbationPart, Scenario, Sensing};
 use std::collections::HashSet;
 use std::io::{Read, Write};
 use std::os::unix::io::AsRawFd;
@@ -24,25 +24,18 @@ use wmr_protocol::{Decoded, FrameDecoder, Reply, MAX_FRAME};
 
 /// One rig at a time: each serves a real-time robot (2 cores, shared).
 pub fn serial() -> std::sync::MutexGuard<'static, ()> {
-    static SERIAL: Mutex<()> = Mutex::new(());
-    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+    hil_sim::device::PtyRobot::serial()
 }
 
 /// The paper robot without perturbations, the true pose measured (mocap).
 pub fn quiet() -> Scenario {
-    let mut scn = Scenario {
+    Scenario {
         name: "quiet".into(),
         duration_s: 60.0,
+        perturbations: PerturbationPart::none(),
         ..Scenario::default()
-    };
-    let p = &mut scn.perturbations;
-    p.window_s = [0.0, 0.0];
-    p.beta = 0.0;
-    p.eps = 0.0;
-    p.skid_scale = 0.0;
-    p.disturbance_nm = 0.0;
-    scn.sensing.preset = Sensing::Mocap;
-    scn
+    }
+    .with_sensing(Sensing::Mocap)
 }
 
 /// A small deterministic generator (xorshift64*).
@@ -355,6 +348,16 @@ impl Robot {
         std::thread::sleep(Duration::from_millis(300));
         self.spawn();
         old
+    }
+}
+
+impl Robot {
+    /// `wmr serve` on this robot's port, its socket in the rig's directory:
+    /// (the socket, the server).
+    pub fn serve(&self, extra: &[&str]) -> (PathBuf, Server) {
+        let sock = self.dir.path().join("s.sock");
+        let server = Server::start(&self.port, &sock, extra);
+        (sock, server)
     }
 }
 

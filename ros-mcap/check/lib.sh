@@ -1,0 +1,48 @@
+# Sourced by ros-mcap/check/run.sh and wmr-ros2/check/run.sh (each defines
+# fail and cds to the repository's root first).
+
+# The independent Python readers, exact versions, in one venv for both
+# checks: cyclonedds (the ROS 2 interop), mcap and rosbags (both).
+CYCLONEDDS_VERSION=11.0.1
+MCAP_VERSION=1.6.0
+ROSBAGS_VERSION=0.11.9
+
+# check_venv DIR: DIR becomes a venv with exactly these versions (made anew
+# when any differs); sets PY.
+check_venv() {
+    local venv=$1 want="$CYCLONEDDS_VERSION $MCAP_VERSION $ROSBAGS_VERSION"
+    if ! "$venv/bin/python" -c "import cyclonedds, mcap, rosbags" 2>/dev/null ||
+        [ "$("$venv/bin/python" -c 'import importlib.metadata as m; print(m.version("cyclonedds"), m.version("mcap"), m.version("rosbags"))')" != "$want" ]; then
+        python3 -m venv "$venv" || fail "python3 -m venv (apt-get install python3-venv)"
+        "$venv/bin/pip" install --quiet "cyclonedds==$CYCLONEDDS_VERSION" "mcap==$MCAP_VERSION" "rosbags==$ROSBAGS_VERSION" ||
+            fail "pip install cyclonedds==$CYCLONEDDS_VERSION mcap==$MCAP_VERSION rosbags==$ROSBAGS_VERSION"
+    fi
+    PY="$venv/bin/python"
+    echo "python: $("$PY" --version), cyclonedds $CYCLONEDDS_VERSION, mcap $MCAP_VERSION, rosbags $ROSBAGS_VERSION"
+}
+
+# build_host_tools: target/release/hil-sim and wmr as the README's test
+# command builds them. `cargo test --release --workspace` resolves the
+# features with the workspace's dev-dependencies (controller-core's
+# test-doubles, ...); `cargo build -p hil-sim -p wmr` resolves others and
+# compiled controller-core, wmr-device, robot-app, sim-robot, hil-sim and wmr
+# a second time (175 CPU-s, D124). After the test command nothing compiles.
+build_host_tools() {
+    cargo test --release --workspace --no-run --quiet
+}
+
+# start_device OUT ARGS...: `hil-sim device --pty ARGS` in the background,
+# its output in OUT/dev.out and OUT/dev.err; sets DEV_PID and PTY.
+start_device() {
+    local out=$1
+    shift
+    "$ROOT/target/release/hil-sim" device --pty "$@" >"$out/dev.out" 2>"$out/dev.err" </dev/null &
+    DEV_PID=$!
+    local t_end=$((SECONDS + 10))
+    until [ -s "$out/dev.out" ]; do
+        kill -0 "$DEV_PID" 2>/dev/null || fail "hil-sim device exited: $(cat "$out/dev.err")"
+        [ "$SECONDS" -lt "$t_end" ] || fail "hil-sim device named no pty within 10 s"
+        sleep 0.1
+    done
+    PTY="$(head -1 "$out/dev.out")"
+}
