@@ -42,6 +42,7 @@ fn identify_run_then_fit_over_the_pty() {
         duration: 24.0,
         area: 2.5,
         rate: None,
+        robot: None,
     };
     let mut text = Vec::new();
     let r = wmr::identify::run(&run, &mut link, &mut text);

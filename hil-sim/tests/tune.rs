@@ -46,27 +46,16 @@ fn eval(scns: &[Scenario], kind: ControllerKind) -> Evaluation {
 /// Acceptance lines of issue 19 that the committed files do not meet,
 /// measured by this test (README.md, "Tuning"): (robot, sensing, line).
 /// For these the test asserts the weaker bound given (a ratio), so that a
-/// regression still fails: tb6612 imu −18.5 %, bts7960 imu −2.9 %, paper
-/// mocap −17.6 % (the paper's gains already track to 0.082 m there); under
-/// mocap the tuned SMC of the tb6612 tracks to 0.021 m against the tuned
-/// proposed controller's 0.063 m; under imu the tuned SMC of the bts7960 is
-/// 1 % better.
+/// regression still fails. Both are gyro-only (`imu`): without a position
+/// measurement the position drifts with the skid and slip whatever the
+/// gains (p95 ~0.9-1.2 m), and the geometric mean of D119, which made the
+/// `mocap` lines of all three robots met, counts the drift by its relative
+/// change: tb6612 imu +0.8 % against the paper gains (1.1738 vs 1.1646 m;
+/// with the arithmetic mean it was −18.5 %, but then the tuned SMC tracked
+/// 3x better under mocap), bts7960 imu −3.3 %.
 const SHORTFALLS: &[(&str, Sensing, Line, f64)] = &[
-    ("tb6612-2kg", Sensing::Imu, Line::ThirtyPercent, 0.9),
-    (
-        "tb6612-2kg",
-        Sensing::Mocap,
-        Line::NotWorseThanBaselines,
-        3.5,
-    ),
+    ("tb6612-2kg", Sensing::Imu, Line::ThirtyPercent, 1.05),
     ("bts7960-10kg", Sensing::Imu, Line::ThirtyPercent, 1.0),
-    (
-        "bts7960-10kg",
-        Sensing::Imu,
-        Line::NotWorseThanBaselines,
-        1.05,
-    ),
-    ("paper", Sensing::Mocap, Line::ThirtyPercent, 0.9),
 ];
 
 /// An acceptance line.
@@ -159,9 +148,10 @@ fn case2_imu(r: &Robot, f: impl Fn(&mut Scenario)) -> [f64; 3] {
 
 #[test]
 fn gyro_only_with_inertia_mismatch_tuned_proposed_not_worse_than_the_better_baseline() {
-    // Not met (measured: proposed 6.2 % above the tuned SMC at ×0.6, 13.5 %
-    // above the tuned ASMC at ×1.6): the test keeps them within 10 % and
-    // 20 % (README.md, "Tuning").
+    // Measured with robots/paper.tuned.toml (D119): ×1.6 met (proposed
+    // 8.7 % below the tuned SMC); ×0.6 not met by 0.7 % (0.5146 vs the
+    // tuned SMC's 0.5113 m): the test keeps ×0.6 within 5 % and asserts
+    // ×1.6 (README.md, "Tuning").
     let tuned = robot("paper.tuned");
     let mut ratios = Vec::new();
     for scale in [0.6, 1.6] {
@@ -173,7 +163,7 @@ fn gyro_only_with_inertia_mismatch_tuned_proposed_not_worse_than_the_better_base
         ratios.push((scale, prop / smc.min(asmc)));
     }
     for (scale, r) in ratios {
-        let bound = if scale == 0.6 { 1.1 } else { 1.2 };
+        let bound = if scale == 0.6 { 1.05 } else { 1.0 };
         assert!(
             r <= bound,
             "inertia x{scale}: proposed/best baseline {r:.3} > {bound}"
@@ -189,8 +179,9 @@ fn at_a_2_nm_torque_limit_tuned_proposed_not_worse_than_the_better_baseline() {
     assert_eq!(tuned.limits.torque_nm, 2.0);
     let [smc, asmc, prop] = case2_imu(&tuned, |_| {});
     eprintln!("imu, 2 N·m: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4}");
-    // Not met (measured: proposed 5.7 % above the tuned SMC): kept within
-    // 10 % (README.md, "Tuning").
+    // Not met (measured: proposed 5.7 % above the tuned SMC; jobs with the
+    // geometric mean or gyro-only sensing did worse, +10 % and +20 %:
+    // D122): kept within 10 % (README.md, "Tuning").
     assert!(
         prop <= 1.1 * smc.min(asmc),
         "2 N·m: proposed {prop:.4} vs smc {smc:.4}, asmc {asmc:.4}"
@@ -214,6 +205,7 @@ fn small_job(restarts: u64) -> TuneJob {
         evaluations: 20,
         restarts,
         controllers: vec![ControllerKind::Smc],
+        preset_mean: Default::default(),
     }
 }
 

@@ -60,6 +60,12 @@ pub struct RunArgs {
     /// 100 Hz the link carried without loss in a 0.5 s probe in hold].
     #[arg(long)]
     pub rate: Option<u16>,
+    /// The robot file of the robot (docs/robot.md): its mass, inertia,
+    /// wheel inertia and d enter the torque check of the excitation
+    /// [default: the handshake's r, h and mass with the paper robot's
+    /// inertias, which overstate a small robot's torque many times].
+    #[arg(long, value_name = "FILE.toml")]
+    pub robot: Option<PathBuf>,
 }
 
 /// `identify fit` options.
@@ -272,11 +278,25 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
         duration_s: a.duration,
         ramp_s: 3.0f32.min(0.25 * a.duration),
     };
+    // The model of the check: the file's body when given, with the r and h
+    // the robot announces (what the waypoints become wheel rates with).
+    let body = match &a.robot {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| LinkError::Io(format!("cannot read {}: {e}", path.display())))?;
+            robot_file::Robot::from_toml_str(&text)
+                .map_err(|e| LinkError::Io(format!("{}: {e}", path.display())))?
+                .robot_params()
+        }
+        None => controller_core::RobotParams {
+            mass_kg: info.mass_kg,
+            ..controller_core::RobotParams::paper()
+        },
+    };
     let robot = controller_core::RobotParams {
         wheel_radius_m: info.wheel_radius_m,
         half_track_m: info.half_track_m,
-        mass_kg: info.mass_kg,
-        ..controller_core::RobotParams::paper()
+        ..body
     };
     // The robot refuses waypoints beyond its limits; the torque and the
     // area are checked here, against half the torque limit.

@@ -47,6 +47,11 @@ pub struct TuneArgs {
     /// Independent restarts per controller (0 from the file's gains).
     #[arg(long, default_value_t = 1)]
     pub restarts: u64,
+    /// How the cost combines the sensing presets' p95 window RMS (D119):
+    /// their mean, or their geometric mean (a relative change of any
+    /// preset counts alike).
+    #[arg(long, value_enum, default_value = "arithmetic")]
+    pub preset_mean: crate::tune::cost::PresetMean,
     /// Controllers to tune (comma-separated).
     #[arg(long, value_delimiter = ',', default_value = "smc,asmc,proposed")]
     pub controllers: Vec<String>,
@@ -172,6 +177,7 @@ pub fn tune(a: &TuneArgs, out: &mut dyn Write) -> Result<(), String> {
         evaluations: a.evaluations,
         restarts: a.restarts,
         controllers,
+        preset_mean: a.preset_mean,
     };
     job.validate()?;
     let shard = a.shard.unwrap_or(Shard::WHOLE);

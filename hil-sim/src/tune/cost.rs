@@ -31,13 +31,51 @@ pub const CHATTER_WEIGHT_M_S: f64 = 2e-5;
 /// running robot reaches on the tuning set.
 pub const STOP_PENALTY_M: f64 = 100.0;
 
+/// How the cost combines the sensing presets' p95 window RMS (D119).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum PresetMean {
+    /// Their mean: a preset without a position measurement (`imu`, ~1 m
+    /// of drift) outweighs one with it (`mocap`, centimetres) in absolute
+    /// terms, so its changes steer the optimiser.
+    #[default]
+    Arithmetic,
+    /// Their geometric mean: the same relative change of any preset's p95
+    /// changes the cost by the same factor, so a halved `mocap` error
+    /// counts as much as a halved `imu` drift.
+    Geometric,
+}
+
+impl PresetMean {
+    /// The mean of `values` (positive; each at least 1e-9 for the
+    /// geometric mean).
+    pub fn of(self, values: &[f64]) -> f64 {
+        let n = values.len() as f64;
+        match self {
+            PresetMean::Arithmetic => values.iter().sum::<f64>() / n,
+            PresetMean::Geometric => {
+                (values.iter().map(|x| x.max(1e-9).ln()).sum::<f64>() / n).exp()
+            }
+        }
+    }
+
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            PresetMean::Arithmetic => "arithmetic",
+            PresetMean::Geometric => "geometric",
+        }
+    }
+}
+
 /// What one evaluation found.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Evaluation {
     /// The cost \[m\].
     pub cost: f64,
-    /// Mean over the sensing presets of the 95th percentile of the window
-    /// RMS position error of that preset's runs \[m\].
+    /// Mean (the job's [`PresetMean`]) over the sensing presets of the 95th
+    /// percentile of the window RMS position error of that preset's runs
+    /// \[m\].
     pub p95_rms_win_m: f64,
     /// Per sensing preset (in the set's order): its p95 window RMS \[m\].
     pub per_sensing: Vec<(Sensing, f64)>,
@@ -110,8 +148,15 @@ pub fn score(scn: &Scenario, cfg: ControllerConfig) -> RunScore {
     }
 }
 
-/// The cost of a list of run scores (in scenario order).
+/// The cost of a list of run scores (in scenario order), the presets'
+/// p95 averaged arithmetically.
 pub fn aggregate(scores: &[RunScore]) -> Evaluation {
+    aggregate_with(scores, PresetMean::Arithmetic)
+}
+
+/// The cost of a list of run scores (in scenario order), the presets' p95
+/// combined by `mean`.
+pub fn aggregate_with(scores: &[RunScore], mean: PresetMean) -> Evaluation {
     let n = scores.len().max(1) as f64;
     let rms: Vec<f64> = scores.iter().map(|s| s.rms_win_m).collect();
     let mut presets: Vec<Sensing> = Vec::new();
@@ -134,7 +179,7 @@ pub fn aggregate(scores: &[RunScore]) -> Evaluation {
     let p95 = if per_sensing.is_empty() {
         STOP_PENALTY_M
     } else {
-        per_sensing.iter().map(|x| x.1).sum::<f64>() / per_sensing.len() as f64
+        mean.of(&per_sensing.iter().map(|x| x.1).collect::<Vec<_>>())
     };
     let mean_rms = rms.iter().sum::<f64>() / n;
     let sat = scores.iter().map(|s| s.saturated).sum::<f64>() / n;
@@ -163,6 +208,17 @@ pub fn evaluate(
     make: &(dyn Fn(&ControllerConfig) -> ControllerConfig + Sync),
     tick: &(dyn Fn() + Sync),
 ) -> Evaluation {
+    evaluate_with(scenarios, kind, make, tick, PresetMean::Arithmetic)
+}
+
+/// [`evaluate`] with the presets' p95 combined by `mean`.
+pub fn evaluate_with(
+    scenarios: &[Scenario],
+    kind: controller_core::ControllerKind,
+    make: &(dyn Fn(&ControllerConfig) -> ControllerConfig + Sync),
+    tick: &(dyn Fn() + Sync),
+    mean: PresetMean,
+) -> Evaluation {
     let scores: Vec<RunScore> = scenarios
         .par_iter()
         .map(|scn| {
@@ -171,7 +227,7 @@ pub fn evaluate(
             s
         })
         .collect();
-    aggregate(&scores)
+    aggregate_with(&scores, mean)
 }
 
 #[cfg(test)]
@@ -218,5 +274,31 @@ mod tests {
         assert!((e.p95_rms_win_m - (0.019 + 19.0) / 2.0).abs() < 1e-12);
         assert_eq!(e.per_sensing.len(), 2);
         assert_eq!(e.per_sensing[0], (Sensing::Mocap, 0.019));
+    }
+
+    #[test]
+    fn geometric_mean_weighs_relative_changes_of_each_preset_alike() {
+        // mocap runs of 1..20 mm, imu runs of 1..20 m: p95 19 mm and 19 m.
+        let set = |mocap_scale: f64, imu_scale: f64| {
+            let mut s: Vec<RunScore> = (1..=20)
+                .map(|i| run(mocap_scale * 1e-3 * f64::from(i), false))
+                .collect();
+            s.extend((1..=20).map(|i| RunScore {
+                sensing: Sensing::Imu,
+                ..run(imu_scale * f64::from(i), false)
+            }));
+            aggregate_with(&s, PresetMean::Geometric).p95_rms_win_m
+        };
+        let base = set(1.0, 1.0);
+        assert!((base - (0.019f64 * 19.0).sqrt()).abs() < 1e-12);
+        // Halving either preset's errors divides the mean by sqrt(2); the
+        // arithmetic mean would hardly see the mocap half.
+        let (m, i) = (set(0.5, 1.0), set(1.0, 0.5));
+        assert!((m / base - 0.5f64.sqrt()).abs() < 1e-12, "{m} {base}");
+        assert!((i / base - 0.5f64.sqrt()).abs() < 1e-12, "{i} {base}");
+        // One preset: the mean is its p95 (up to rounding of exp(ln x)).
+        let one: Vec<RunScore> = (1..=20).map(|i| run(f64::from(i), false)).collect();
+        let g = aggregate_with(&one, PresetMean::Geometric).p95_rms_win_m;
+        assert!((g - 19.0).abs() < 1e-12);
     }
 }

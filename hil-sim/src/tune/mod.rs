@@ -27,7 +27,7 @@ use crate::rng::Rng;
 use crate::scenario::{Robot, Scenario};
 use crate::shard::Shard;
 use controller_core::ControllerKind;
-use cost::{evaluate, Evaluation};
+use cost::{evaluate_with, Evaluation, PresetMean};
 use optimise::{minimise, Optimizer};
 use serde::{Deserialize, Serialize};
 use set::{Part, TuneSet};
@@ -57,6 +57,10 @@ pub struct TuneJob {
     /// Controllers tuned (names), in the paper's order.
     #[serde(with = "kinds")]
     pub controllers: Vec<ControllerKind>,
+    /// How the cost combines the sensing presets' p95 (D119; shard files
+    /// without it are of the arithmetic mean).
+    #[serde(default)]
+    pub preset_mean: PresetMean,
 }
 
 mod kinds {
@@ -206,6 +210,7 @@ fn score_gains(
     train: &[Scenario],
     val: &[Scenario],
     tick: &(dyn Fn() + Sync),
+    mean: PresetMean,
 ) -> Scored {
     let make = |c: &controller_core::ControllerConfig| match x {
         Some(x) => space::decode(c, x),
@@ -213,8 +218,8 @@ fn score_gains(
     };
     Scored {
         gains: robot_file::GainSet::of(&make(&train[0].controller_config(kind))),
-        training: evaluate(train, kind, &make, tick),
-        validation: evaluate(val, kind, &make, tick),
+        training: evaluate_with(train, kind, &make, tick, mean),
+        validation: evaluate_with(val, kind, &make, tick, mean),
     }
 }
 
@@ -237,7 +242,7 @@ pub fn run_shard(
             .map(|&k| {
                 (
                     k.name().to_string(),
-                    score_gains(k, None, &train, &val, tick),
+                    score_gains(k, None, &train, &val, tick, job.preset_mean),
                 )
             })
             .collect::<Vec<_>>()
@@ -253,7 +258,16 @@ pub fn run_shard(
                 let mut g = Rng::new(run_seed(job.set.seed ^ kind_salt(kind) ^ 0x7374_6172, r));
                 (0..dims).map(|_| g.uniform()).collect()
             };
-            let f = |u: &[f64]| evaluate(&train, kind, &|c| space::decode(c, u), tick).cost;
+            let f = |u: &[f64]| {
+                evaluate_with(
+                    &train,
+                    kind,
+                    &|c| space::decode(c, u),
+                    tick,
+                    job.preset_mean,
+                )
+                .cost
+            };
             let seed = run_seed(job.set.seed ^ kind_salt(kind), r);
             let opt = minimise(job.optimizer, &f, &x0, job.evaluations, seed, &|e, c| {
                 note(&format!(
@@ -261,7 +275,7 @@ pub fn run_shard(
                     kind.name()
                 ))
             })?;
-            let tuned = score_gains(kind, Some(&opt.x), &train, &val, tick);
+            let tuned = score_gains(kind, Some(&opt.x), &train, &val, tick, job.preset_mean);
             note(&format!(
                 "{} restart {r}: training {:.4} m, validation {:.4} m",
                 kind.name(),
@@ -482,9 +496,14 @@ impl TuneOutcome {
             j.restarts,
             self.simulations,
         ));
-        h.push_str(
-            "# Cost [m] = p95 window RMS + saturation and chatter penalties + 100 per stop:\n",
-        );
+        h.push_str(match j.preset_mean {
+            PresetMean::Arithmetic => {
+                "# Cost [m] = p95 window RMS + saturation and chatter penalties + 100 per stop:\n"
+            }
+            PresetMean::Geometric => {
+                "# Cost [m] = geometric mean over the presets of the p95 window RMS + saturation and chatter penalties + 100 per stop:\n"
+            }
+        });
         for line in self.table().lines() {
             h.push_str("#   ");
             h.push_str(line);
