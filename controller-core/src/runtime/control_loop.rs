@@ -563,8 +563,7 @@ fn validate_direction(
 ) -> Result<SafetyLimits, RuntimeConfigError> {
     let c = controller.config();
     let w = controller.model().wheel_accel_map();
-    let [q0, q1] = encoder.rad_per_count();
-    let quantum = q0.max(q1) / (encoder.speed_window_ticks as f32 * c.period_s);
+    let quantum = encoder.rate_quantum_radps(c.period_s);
     safety.validate_direction(c.torque_limit_nm, w[0][0].min(w[1][1]), quantum, c.period_s)
 }
 

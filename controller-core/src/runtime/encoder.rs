@@ -78,6 +78,13 @@ impl EncoderParams {
         let base = 2.0 * core::f32::consts::PI / self.counts_per_wheel_rev;
         [base * self.radius_scale[0], base * self.radius_scale[1]]
     }
+
+    /// The windowed rate estimate's resolution \[rad/s\]: one count of
+    /// the coarser wheel over one speed window of `period_s` ticks.
+    pub fn rate_quantum_radps(&self, period_s: f32) -> f32 {
+        let [q0, q1] = self.rad_per_count();
+        q0.max(q1) / (self.speed_window_ticks as f32 * period_s)
+    }
 }
 
 /// Per-wheel count tracking: previous raw count, accumulated position and
