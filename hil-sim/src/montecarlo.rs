@@ -506,6 +506,7 @@ mod tests {
             degraded_fraction: None,
             health_transitions: None,
             safe_stop: None,
+            rms_est_err_window_m: None,
         };
         let rs = [
             Outcome::Metrics(m(1.0, Some(2.0))),

@@ -587,6 +587,7 @@ mod tests {
             degraded_fraction: None,
             health_transitions: None,
             safe_stop: None,
+            rms_est_err_window_m: None,
         };
         let rows = vec![
             (vec!["1".into(), "smc".into()], m.clone()),

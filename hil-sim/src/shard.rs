@@ -516,6 +516,7 @@ mod tests {
                         degraded_fraction: None,
                         health_transitions: None,
                         safe_stop: None,
+                        rms_est_err_window_m: None,
                     })
                 },
             })

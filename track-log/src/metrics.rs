@@ -51,6 +51,15 @@ pub struct Metrics {
     /// True when the health machine latched a safe stop (null with it off).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub safe_stop: Option<bool>,
+    /// RMS over the perturbation window of the sensing error: the distance
+    /// between the position of G the controller was given (the estimator's
+    /// fused pose; the true one with ideal sensing) and the true position
+    /// \[m\]. No controller tracks the truth better than its estimate of it:
+    /// by the triangle inequality (Minkowski's, for the RMS)
+    /// `rms_pos_err_window_m ≥ rms_est_err_window_m − rms(|e_xy|)` over the
+    /// window. Null where the truth is unknown (a robot's log).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rms_est_err_window_m: Option<f64>,
 }
 
 /// Streaming accumulator for [`Metrics`].
@@ -75,6 +84,8 @@ pub struct MetricsAcc {
     n_fault: u64,
     track_fault: bool,
     paced: bool,
+    est_sq_win: f64,
+    n_est_win: u64,
     lag_final: f64,
     min_scale: f64,
     n_degraded: u64,
@@ -152,6 +163,16 @@ impl MetricsAcc {
         self.transitions = transitions;
     }
 
+    /// One step's sensing error (the distance between the position the
+    /// controller was given and the true one \[m\]); counted in the window
+    /// only ([`Metrics::rms_est_err_window_m`]).
+    pub fn push_estimate(&mut self, in_window: bool, est_err_m: f64) {
+        if in_window {
+            self.n_est_win += 1;
+            self.est_sq_win += est_err_m * est_err_m;
+        }
+    }
+
     /// Final metrics for a run of `duration_s` with control period `dt_s`.
     pub fn finish(&self, duration_s: f64, dt_s: f64) -> Metrics {
         let rms = |sq: f64, n: u64| if n > 0 { (sq / n as f64).sqrt() } else { 0.0 };
@@ -187,6 +208,8 @@ impl MetricsAcc {
                 .then(|| self.n_degraded as f64 / self.n.max(1) as f64),
             health_transitions: self.paced.then_some(self.transitions),
             safe_stop: self.paced.then_some(self.safe_stop),
+            rms_est_err_window_m: (self.n_est_win > 0)
+                .then(|| rms(self.est_sq_win, self.n_est_win)),
         }
     }
 }

@@ -7,7 +7,7 @@
 
 use controller_core::pacer::PaceReport;
 use controller_core::runtime::StopReason;
-use controller_core::{ControllerKind, Diagnostics, RefSample};
+use controller_core::{ControllerKind, Diagnostics, Pose, RefSample};
 use sim_robot::world::{Actuation, Reading};
 use sim_robot::World;
 
@@ -25,6 +25,10 @@ pub struct ControlOutput {
     pub reference: RefSample,
     /// Governor and health machine after this step.
     pub pace: PaceReport,
+    /// The pose of G the controller was given this step (the estimator's
+    /// fused pose; the exact one with ideal sensing), for the sensing-error
+    /// metric.
+    pub pose_used: Pose,
 }
 
 /// The controller side of the simulated loop.

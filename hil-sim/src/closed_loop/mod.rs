@@ -92,6 +92,7 @@ pub fn run_loop(
             diag: d,
             reference: rs,
             pace,
+            pose_used,
         } = side.step(k, &reading, world);
         let tau = world.torque_nm(&actuation, reading.wheel_rate_radps);
 
@@ -112,6 +113,13 @@ pub fn run_loop(
             tau,
             d.saturated,
             fe,
+        );
+        acc.push_estimate(
+            perturbations.in_window(t),
+            norm(
+                pose_used.x_m as f64 - st.q[0],
+                pose_used.y_m as f64 - st.q[1],
+            ),
         );
         if scn.governor.enabled {
             acc.push_pace(

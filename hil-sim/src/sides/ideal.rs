@@ -92,6 +92,7 @@ impl ControlSide for IdealSide {
             diag: out.diag,
             reference,
             pace,
+            pose_used: ideal.pose,
         }
     }
 

@@ -101,6 +101,7 @@ impl ControlSide for RuntimeSide {
             diag: rep.diag,
             reference: rep.reference,
             pace: rep.pace,
+            pose_used: rep.pose,
         }
     }
 
