@@ -35,6 +35,7 @@ fn validation(r: &Robot, sensing: Sensing) -> Vec<Scenario> {
         validation: VALIDATION,
         torque_scale_min: 1.0,
         duration_s: 40.0,
+        disturbance_max_fraction: hil_sim::tune::set::DISTURBANCE_FRACTION.1,
     }
     .scenarios(Part::Validation)
 }
@@ -52,7 +53,8 @@ fn eval(scns: &[Scenario], kind: ControllerKind) -> Evaluation {
 /// `mocap` lines of all three robots met, counts the drift by its relative
 /// change: tb6612 imu +0.8 % against the paper gains (1.1738 vs 1.1646 m;
 /// with the arithmetic mean it was −18.5 %, but then the tuned SMC tracked
-/// 3x better under mocap), bts7960 imu −3.3 %.
+/// 3x better under mocap), bts7960 imu −3.3 %. The test prints the sensing
+/// error beside them (D126): the estimator's drift is the whole error there.
 const SHORTFALLS: &[(&str, Sensing, Line, f64)] = &[
     ("tb6612-2kg", Sensing::Imu, Line::ThirtyPercent, 1.05),
     ("bts7960-10kg", Sensing::Imu, Line::ThirtyPercent, 1.0),
@@ -95,6 +97,15 @@ fn tuned_files_beat_the_paper_gains_and_the_tuned_baselines_on_validation_seeds(
                 asmc.stops,
                 prop.stops,
             );
+            let est = |e: &Evaluation| e.per_sensing_est_err_m[0].1;
+            eprintln!(
+                "{name:<13} {:<6} mean window sensing error [m] (estimate against truth): paper gains {:.4}; tuned smc {:.4}, asmc {:.4}, proposed {:.4}",
+                sensing.name(),
+                est(&paper),
+                est(&smc),
+                est(&asmc),
+                est(&prop),
+            );
             if prop.stops != 0 {
                 failures.push(format!("{name} {sensing:?}: tuned proposed stopped"));
             }
@@ -127,22 +138,26 @@ fn tuned_files_beat_the_paper_gains_and_the_tuned_baselines_on_validation_seeds(
 }
 
 /// Mean window RMS over the paper's Case 2, seeds 1-4, gyro-only sensing,
-/// with the scenario changed by `f`, per controller.
-fn case2_imu(r: &Robot, f: impl Fn(&mut Scenario)) -> [f64; 3] {
+/// with the scenario changed by `f`, per controller; beside it the mean
+/// sensing error over the window (`rms_est_err_window_m`: the estimator's
+/// position against the true one), the part of the error no controller
+/// can remove without a position measurement.
+fn case2_imu(r: &Robot, f: impl Fn(&mut Scenario)) -> [(f64, f64); 3] {
     ControllerKind::ALL.map(|k| {
         let seeds = 1..=4u64;
         let n = seeds.clone().count() as f64;
-        seeds
+        let (win, est) = seeds
             .map(|seed| {
                 let mut s = Scenario::paper_case(2, seed, None, None)
                     .with_robots(Some(r), None)
                     .with_sensing(Sensing::Imu);
                 f(&mut s);
                 let o = hil_sim::sim::run_with(&s, s.controller_config(k), 0).unwrap();
-                o.metrics.rms_pos_err_window_m
+                let m = &o.metrics;
+                (m.rms_pos_err_window_m, m.rms_est_err_window_m.unwrap())
             })
-            .sum::<f64>()
-            / n
+            .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        (win / n, est / n)
     })
 }
 
@@ -155,9 +170,10 @@ fn gyro_only_with_inertia_mismatch_tuned_proposed_not_worse_than_the_better_base
     let tuned = robot("paper.tuned");
     let mut ratios = Vec::new();
     for scale in [0.6, 1.6] {
-        let [smc, asmc, prop] = case2_imu(&tuned, |s| s.plant.inertia_scale = scale);
+        let [(smc, es), (asmc, ea), (prop, ep)] =
+            case2_imu(&tuned, |s| s.plant.inertia_scale = scale);
         eprintln!(
-            "imu, inertia x{scale}: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4} (proposed/best {:.3})",
+            "imu, inertia x{scale}: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4} (proposed/best {:.3}); sensing error smc {es:.4}, asmc {ea:.4}, proposed {ep:.4}",
             prop / smc.min(asmc)
         );
         ratios.push((scale, prop / smc.min(asmc)));
@@ -177,8 +193,8 @@ fn at_a_2_nm_torque_limit_tuned_proposed_not_worse_than_the_better_baseline() {
     // tuned for that limit (robots/paper-2nm.tuned.toml, docs/tuning.md).
     let tuned = robot("paper-2nm.tuned");
     assert_eq!(tuned.limits.torque_nm, 2.0);
-    let [smc, asmc, prop] = case2_imu(&tuned, |_| {});
-    eprintln!("imu, 2 N·m: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4}");
+    let [(smc, es), (asmc, ea), (prop, ep)] = case2_imu(&tuned, |_| {});
+    eprintln!("imu, 2 N·m: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4}; sensing error smc {es:.4}, asmc {ea:.4}, proposed {ep:.4}");
     // Not met (measured: proposed 5.7 % above the tuned SMC; jobs with the
     // geometric mean or gyro-only sensing did worse, +10 % and +20 %:
     // D122): kept within 10 % (README.md, "Tuning").
@@ -200,6 +216,7 @@ fn small_job(restarts: u64) -> TuneJob {
             validation: 2,
             torque_scale_min: 1.0,
             duration_s: 20.0,
+            disturbance_max_fraction: hil_sim::tune::set::DISTURBANCE_FRACTION.1,
         },
         optimizer: Optimizer::Cmaes,
         evaluations: 20,

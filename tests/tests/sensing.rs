@@ -249,7 +249,10 @@ fn sensing_error_metric_is_the_estimate_against_the_truth() {
             .iter()
             .filter(|t| t.t_s >= w0 && t.t_s < w1)
             .collect();
-        let ctrl = (inw.iter().map(|t| t.e[0] * t.e[0] + t.e[1] * t.e[1]).sum::<f64>()
+        let ctrl = (inw
+            .iter()
+            .map(|t| t.e[0] * t.e[0] + t.e[1] * t.e[1])
+            .sum::<f64>()
             / inw.len() as f64)
             .sqrt();
         let a = o.sim.metrics.rms_pos_err_window_m;
@@ -259,10 +262,18 @@ fn sensing_error_metric_is_the_estimate_against_the_truth() {
             sensing.name()
         );
         // f32 poses and errors: slack of 1e-4 m.
-        assert!((a - b).abs() <= ctrl + 1e-4, "{sensing:?}: |{a} − {b}| > {ctrl}");
+        assert!(
+            (a - b).abs() <= ctrl + 1e-4,
+            "{sensing:?}: |{a} − {b}| > {ctrl}"
+        );
         assert!(ctrl <= a + b + 1e-4, "{sensing:?}: {ctrl} > {a} + {b}");
         est.push(b);
     }
     assert!(est[0] < 0.02, "mocap sensing error {} m", est[0]);
-    assert!(est[1] > 10.0 * est[0], "imu {} vs mocap {} m", est[1], est[0]);
+    assert!(
+        est[1] > 10.0 * est[0],
+        "imu {} vs mocap {} m",
+        est[1],
+        est[0]
+    );
 }

@@ -58,6 +58,10 @@ pub struct TuneArgs {
     /// Smallest torque-limit scale drawn per scenario (1 = always the robot's).
     #[arg(long, default_value_t = 1.0)]
     pub torque_scale_min: f64,
+    /// Largest disturbance amplitude drawn, as a fraction of the torque
+    /// limit (drawn in (0.05, F); the paper's 1 N·m on a 2 N·m robot is 0.5).
+    #[arg(long, value_name = "F", default_value_t = crate::tune::set::DISTURBANCE_FRACTION.1)]
+    pub disturbance_max: f64,
     /// Tune the robot with this per-wheel torque limit instead of its file's
     /// `limits.torque_nm` (written into the tuned file) [N·m].
     #[arg(long, value_name = "N·m")]
@@ -172,6 +176,7 @@ pub fn tune(a: &TuneArgs, out: &mut dyn Write) -> Result<(), String> {
             validation: a.validate,
             torque_scale_min: a.torque_scale_min,
             duration_s: a.duration,
+            disturbance_max_fraction: a.disturbance_max,
         },
         optimizer: a.optimizer,
         evaluations: a.evaluations,

@@ -79,6 +79,11 @@ pub struct Evaluation {
     pub p95_rms_win_m: f64,
     /// Per sensing preset (in the set's order): its p95 window RMS \[m\].
     pub per_sensing: Vec<(Sensing, f64)>,
+    /// Per sensing preset (in the set's order): the mean over its runs of
+    /// the window RMS sensing error (`rms_est_err_window_m`: the estimated
+    /// position against the true one; reported, not in the cost) \[m\].
+    #[serde(default)]
+    pub per_sensing_est_err_m: Vec<(Sensing, f64)>,
     /// Mean of the window RMS position error \[m\].
     pub mean_rms_win_m: f64,
     /// Mean saturated fraction of the steps.
@@ -103,6 +108,8 @@ pub struct RunScore {
     pub chatter_per_s: f64,
     /// The run stopped.
     pub stopped: bool,
+    /// Window RMS sensing error \[m\] (0 for a run that failed).
+    pub est_err_win_m: f64,
     /// The run's sensing preset.
     pub sensing: Sensing,
 }
@@ -135,6 +142,10 @@ pub fn score(scn: &Scenario, cfg: ControllerConfig) -> RunScore {
                     0.0
                 },
                 stopped: runtime_stop || m.safe_stop == Some(true) || !finite,
+                est_err_win_m: m
+                    .rms_est_err_window_m
+                    .filter(|x| x.is_finite())
+                    .unwrap_or(0.0),
                 sensing: scn.sensing.preset,
             }
         }
@@ -143,6 +154,7 @@ pub fn score(scn: &Scenario, cfg: ControllerConfig) -> RunScore {
             saturated: 1.0,
             chatter_per_s: 0.0,
             stopped: true,
+            est_err_win_m: 0.0,
             sensing: scn.sensing.preset,
         },
     }
@@ -176,6 +188,17 @@ pub fn aggregate_with(scores: &[RunScore], mean: PresetMean) -> Evaluation {
             (p, summarize(&v).map_or(STOP_PENALTY_M, |s| s.p95))
         })
         .collect();
+    let per_sensing_est_err_m = presets
+        .iter()
+        .map(|&p| {
+            let v: Vec<f64> = scores
+                .iter()
+                .filter(|s| s.sensing == p)
+                .map(|s| s.est_err_win_m)
+                .collect();
+            (p, v.iter().sum::<f64>() / v.len().max(1) as f64)
+        })
+        .collect();
     let p95 = if per_sensing.is_empty() {
         STOP_PENALTY_M
     } else {
@@ -192,6 +215,7 @@ pub fn aggregate_with(scores: &[RunScore], mean: PresetMean) -> Evaluation {
             + STOP_PENALTY_M * stops as f64,
         p95_rms_win_m: p95,
         per_sensing,
+        per_sensing_est_err_m,
         mean_rms_win_m: mean_rms,
         mean_saturated: sat,
         mean_chatter_per_s: chat,
@@ -240,6 +264,7 @@ mod tests {
             saturated: 0.1,
             chatter_per_s: 10.0,
             stopped,
+            est_err_win_m: rms / 2.0,
             sensing: Sensing::Mocap,
         }
     }
@@ -274,6 +299,9 @@ mod tests {
         assert!((e.p95_rms_win_m - (0.019 + 19.0) / 2.0).abs() < 1e-12);
         assert_eq!(e.per_sensing.len(), 2);
         assert_eq!(e.per_sensing[0], (Sensing::Mocap, 0.019));
+        // The sensing error is each preset's plain mean (of 0.5..10 mm and m).
+        assert!((e.per_sensing_est_err_m[0].1 - 0.5e-3 * 10.5).abs() < 1e-12);
+        assert!((e.per_sensing_est_err_m[1].1 - 0.5 * 10.5).abs() < 1e-12);
     }
 
     #[test]

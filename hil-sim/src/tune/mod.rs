@@ -496,6 +496,13 @@ impl TuneOutcome {
             j.restarts,
             self.simulations,
         ));
+        if j.set.disturbance_max_fraction != crate::tune::set::DISTURBANCE_FRACTION.1 {
+            h.push_str(&format!(
+                "# Disturbance amplitude drawn in ({}, {}) x the torque limit.\n",
+                crate::tune::set::DISTURBANCE_FRACTION.0,
+                j.set.disturbance_max_fraction
+            ));
+        }
         h.push_str(match j.preset_mean {
             PresetMean::Arithmetic => {
                 "# Cost [m] = p95 window RMS + saturation and chatter penalties + 100 per stop:\n"
