@@ -192,13 +192,13 @@ impl Robot {
         )
     }
 
-    /// The windowed wheel-rate estimate's resolution \[rad/s\]: one count
-    /// per speed window (`encoders.speed_window_ticks` periods of `period_s`).
+    /// The windowed wheel-rate estimate's resolution \[rad/s\]: one count of
+    /// the coarser wheel (the larger radius scale) per speed window
+    /// (`encoders.speed_window_ticks` periods of `period_s`): the runtime's
+    /// own definition ([`EncoderParams::rate_quantum_radps`]), the one its
+    /// validation of the derived thresholds uses.
     pub fn rate_quantum_radps(&self, period_s: f32) -> f32 {
-        2.0 * core::f32::consts::PI
-            / (self.encoders.counts_per_wheel_rev
-                * self.encoders.speed_window_ticks as f32
-                * period_s)
+        self.encoder_params().rate_quantum_radps(period_s)
     }
 
     /// The whole runtime configuration for controller `kind`, following

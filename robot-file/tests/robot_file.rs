@@ -587,7 +587,7 @@ fn build_script_embeds_a_good_file_and_names_the_field_of_a_bad_one() {
 /// physical-range validation (`ControlLoop::new` runs
 /// `SafetyLimits::validate_direction`) for every example robot file and for
 /// 400 pseudo-random variants of them (body, motors, encoders and torque
-/// limit each scaled by 0.3-3): every variant the robot file accepts gives
+/// limit each scaled by 0.3-3, the right wheel's radius by another 0.95-1.05): every variant the robot file accepts gives
 /// a runtime that accepts its thresholds; a variant whose encoder is too
 /// coarse for the check is refused naming `encoders.counts_per_wheel_rev`.
 #[test]
@@ -642,7 +642,13 @@ fn derived_direction_thresholds_are_always_valid() {
         r.body.inertia_kgm2 *= next();
         r.body.wheel_inertia_kgm2 *= next();
         let s = next();
-        r.body.wheel_radius_m = r.body.wheel_radius_m.map(|x| x * s);
+        // Unequal wheels too (the right one 0.95-1.05 × the left): the
+        // runtime's rate quantum is the coarser wheel's.
+        let d = 0.95 + 0.1 * (next() - 0.3) / 2.7;
+        r.body.wheel_radius_m = [
+            r.body.wheel_radius_m[0] * s * d,
+            r.body.wheel_radius_m[1] * s,
+        ];
         r.motors.torque_constant_nm_per_a *= next();
         r.motors.gear_ratio *= next();
         r.encoders.counts_per_wheel_rev *= next();
