@@ -446,3 +446,25 @@ fn plant_file_makes_the_simulated_robot_differ() {
     assert_eq!(nominal, run(&["--robot", p, "--plant", p]));
     assert_ne!(nominal, run(&["--plant", wide.to_str().unwrap()]));
 }
+
+/// `compare --robot` says when the paper's cases are beyond the robot
+/// (independent reasons: the paper's own robot, 4 m/s at no load
+/// (24 V / (0.05 V·s/rad × 12) × 0.1 m) and 10 N·m, follows its curve; the
+/// 2 kg robot's 1.22 m/s and 0.25 N·m are below the curve's speed and the
+/// paper's 1 N·m disturbance).
+#[test]
+fn compare_notes_a_robot_the_paper_cases_are_beyond() {
+    let load = |f: &str| {
+        robot_file::Robot::from_toml_str(&std::fs::read_to_string(robots_dir().join(f)).unwrap())
+            .unwrap()
+    };
+    assert_eq!(
+        super::compare::paper_cases_beyond(&load("paper.toml")),
+        None
+    );
+    let note = super::compare::paper_cases_beyond(&load("tb6612-2kg.toml")).unwrap();
+    eprintln!("{note}");
+    assert!(note.contains("no-load speed 1.22 m/s"), "{note}");
+    assert!(note.contains("4.0 x limits.torque_nm = 0.25"), "{note}");
+    assert!(note.contains("hil-sim sweep --robot"), "{note}");
+}
