@@ -177,28 +177,22 @@ pub fn aggregate_with(scores: &[RunScore], mean: PresetMean) -> Evaluation {
             presets.push(s.sensing);
         }
     }
-    let per_sensing: Vec<(Sensing, f64)> = presets
-        .iter()
-        .map(|&p| {
-            let v: Vec<f64> = scores
-                .iter()
-                .filter(|s| s.sensing == p)
-                .map(|s| s.rms_win_m)
-                .collect();
-            (p, summarize(&v).map_or(STOP_PENALTY_M, |s| s.p95))
-        })
-        .collect();
-    let per_sensing_est_err_m = presets
-        .iter()
-        .map(|&p| {
-            let v: Vec<f64> = scores
-                .iter()
-                .filter(|s| s.sensing == p)
-                .map(|s| s.est_err_win_m)
-                .collect();
-            (p, v.iter().sum::<f64>() / v.len().max(1) as f64)
-        })
-        .collect();
+    // Per preset, in the set's order: `f` of each of its runs, reduced by `g`.
+    let per_preset = |f: fn(&RunScore) -> f64, g: &dyn Fn(&[f64]) -> f64| -> Vec<(Sensing, f64)> {
+        presets
+            .iter()
+            .map(|&p| {
+                let v: Vec<f64> = scores.iter().filter(|s| s.sensing == p).map(f).collect();
+                (p, g(&v))
+            })
+            .collect()
+    };
+    let per_sensing = per_preset(|s| s.rms_win_m, &|v| {
+        summarize(v).map_or(STOP_PENALTY_M, |s| s.p95)
+    });
+    let per_sensing_est_err_m = per_preset(|s| s.est_err_win_m, &|v| {
+        v.iter().sum::<f64>() / v.len().max(1) as f64
+    });
     let p95 = if per_sensing.is_empty() {
         STOP_PENALTY_M
     } else {
