@@ -137,52 +137,116 @@ fn tuned_files_beat_the_paper_gains_and_the_tuned_baselines_on_validation_seeds(
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// Mean window RMS over the paper's Case 2, seeds 1-4, gyro-only sensing,
-/// with the scenario changed by `f`, per controller; beside it the mean
-/// sensing error over the window (`rms_est_err_window_m`: the estimator's
-/// position against the true one), the part of the error no controller
-/// can remove without a position measurement.
-fn case2_imu(r: &Robot, f: impl Fn(&mut Scenario)) -> [(f64, f64); 3] {
-    ControllerKind::ALL.map(|k| {
-        let seeds = 1..=4u64;
-        let n = seeds.clone().count() as f64;
-        let (win, est) = seeds
+/// Seeds of the paper's Case 2 for the gyro-only lines. Seed to seed a
+/// controller's window RMS there swings by ±25 % (the estimator's drift,
+/// D126): over 4 seeds the paired standard error of proposed − SMC was
+/// 0.06 m, larger than the differences judged; 64 seeds bring it to about
+/// 0.01 m (D128). None of them is a tuning seed (the tuning sets draw their
+/// own scenarios, `TuneSet::scenarios`).
+const CASE2_SEEDS: u64 = 64;
+
+/// One gyro-only line over [`CASE2_SEEDS`] seeds: per controller
+/// (`ControllerKind::ALL` order) the mean window RMS and the mean sensing
+/// error over the window (`rms_est_err_window_m`: the estimator's position
+/// against the true one, the part of the error no controller can remove
+/// without a position measurement), and the paired difference proposed −
+/// better baseline (by mean) with its standard error.
+struct GyroLine {
+    win_m: [f64; 3],
+    est_m: [f64; 3],
+    /// Mean chatter (`Metrics::chatter`) and saturated fraction of ticks.
+    chatter: [f64; 3],
+    saturated: [f64; 3],
+    diff_m: f64,
+    diff_se_m: f64,
+    proposed_better: usize,
+}
+
+impl GyroLine {
+    fn measure(r: &Robot, f: impl Fn(&mut Scenario) + Sync) -> Self {
+        use rayon::prelude::*;
+        // Per seed and controller: window RMS, sensing error, chatter,
+        // saturated fraction.
+        let rows: Vec<[[f64; 4]; 3]> = (1..=CASE2_SEEDS)
+            .into_par_iter()
             .map(|seed| {
-                let mut s = Scenario::paper_case(2, seed, None, None)
-                    .with_robots(Some(r), None)
-                    .with_sensing(Sensing::Imu);
-                f(&mut s);
-                let o = hil_sim::sim::run_with(&s, s.controller_config(k), 0).unwrap();
-                let m = &o.metrics;
-                (m.rms_pos_err_window_m, m.rms_est_err_window_m.unwrap())
+                ControllerKind::ALL.map(|k| {
+                    let mut s = Scenario::paper_case(2, seed, None, None)
+                        .with_robots(Some(r), None)
+                        .with_sensing(Sensing::Imu);
+                    f(&mut s);
+                    let o = hil_sim::sim::run_with(&s, s.controller_config(k), 0).unwrap();
+                    let m = &o.metrics;
+                    [
+                        m.rms_pos_err_window_m,
+                        m.rms_est_err_window_m.unwrap(),
+                        m.chatter,
+                        m.saturated_fraction,
+                    ]
+                })
             })
-            .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-        (win / n, est / n)
-    })
+            .collect();
+        let n = rows.len() as f64;
+        let mean = |c: usize, q: usize| rows.iter().map(|r| r[c][q]).sum::<f64>() / n;
+        let of = |q: usize| -> [f64; 3] { std::array::from_fn(|c| mean(c, q)) };
+        let (win_m, est_m, chatter, saturated) = (of(0), of(1), of(2), of(3));
+        let best = if win_m[0] <= win_m[1] { 0 } else { 1 };
+        let d: Vec<f64> = rows.iter().map(|r| r[2][0] - r[best][0]).collect();
+        let diff_m = d.iter().sum::<f64>() / n;
+        let var = d.iter().map(|x| (x - diff_m).powi(2)).sum::<f64>() / (n - 1.0);
+        Self {
+            win_m,
+            est_m,
+            chatter,
+            saturated,
+            diff_m,
+            diff_se_m: (var / n).sqrt(),
+            proposed_better: d.iter().filter(|x| **x < 0.0).count(),
+        }
+    }
+
+    /// Proposed mean over the better baseline's.
+    fn ratio(&self) -> f64 {
+        self.win_m[2] / self.win_m[0].min(self.win_m[1])
+    }
+
+    fn print(&self, label: &str) {
+        let ([smc, asmc, prop], [es, ea, ep]) = (self.win_m, self.est_m);
+        let base = smc.min(asmc);
+        eprintln!(
+            "imu, {label}, Case 2 seeds 1-{CASE2_SEEDS}: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4} (proposed/best {:.3}; paired proposed − best {:+.4} ± {:.4} m standard error, {:+.1} ± {:.1} %, proposed better on {}/{CASE2_SEEDS} seeds); sensing error smc {es:.4}, asmc {ea:.4}, proposed {ep:.4}; chatter {:.0} / {:.0} / {:.0}, torque saturated {:.3} / {:.3} / {:.3} of the ticks",
+            self.ratio(),
+            self.diff_m,
+            self.diff_se_m,
+            100.0 * self.diff_m / base,
+            100.0 * self.diff_se_m / base,
+            self.proposed_better,
+            self.chatter[0],
+            self.chatter[1],
+            self.chatter[2],
+            self.saturated[0],
+            self.saturated[1],
+            self.saturated[2],
+        );
+    }
 }
 
 #[test]
 fn gyro_only_with_inertia_mismatch_tuned_proposed_not_worse_than_the_better_baseline() {
-    // Measured with robots/paper.tuned.toml (D119): ×1.6 met (proposed
-    // 8.7 % below the tuned SMC); ×0.6 not met by 0.7 % (0.5146 vs the
-    // tuned SMC's 0.5113 m): the test keeps ×0.6 within 5 % and asserts
-    // ×1.6 (README.md, "Tuning").
+    // Measured with robots/paper.tuned.toml (D119, D128), 64 seeds: ×0.6
+    // proposed 3.2 % below the tuned SMC (paired standard error 2.3 %; over
+    // seeds 1-4 it was 0.7 % above, within that noise), ×1.6 9.4 % below.
     let tuned = robot("paper.tuned");
     let mut ratios = Vec::new();
     for scale in [0.6, 1.6] {
-        let [(smc, es), (asmc, ea), (prop, ep)] =
-            case2_imu(&tuned, |s| s.plant.inertia_scale = scale);
-        eprintln!(
-            "imu, inertia x{scale}: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4} (proposed/best {:.3}); sensing error smc {es:.4}, asmc {ea:.4}, proposed {ep:.4}",
-            prop / smc.min(asmc)
-        );
-        ratios.push((scale, prop / smc.min(asmc)));
+        let line = GyroLine::measure(&tuned, |s| s.plant.inertia_scale = scale);
+        line.print(&format!("inertia x{scale}"));
+        ratios.push((scale, line.ratio()));
     }
     for (scale, r) in ratios {
-        let bound = if scale == 0.6 { 1.05 } else { 1.0 };
         assert!(
-            r <= bound,
-            "inertia x{scale}: proposed/best baseline {r:.3} > {bound}"
+            r <= 1.0,
+            "inertia x{scale}: proposed/best baseline {r:.3} > 1"
         );
     }
 }
@@ -193,14 +257,16 @@ fn at_a_2_nm_torque_limit_tuned_proposed_not_worse_than_the_better_baseline() {
     // tuned for that limit (robots/paper-2nm.tuned.toml, docs/tuning.md).
     let tuned = robot("paper-2nm.tuned");
     assert_eq!(tuned.limits.torque_nm, 2.0);
-    let [(smc, es), (asmc, ea), (prop, ep)] = case2_imu(&tuned, |_| {});
-    eprintln!("imu, 2 N·m: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4}; sensing error smc {es:.4}, asmc {ea:.4}, proposed {ep:.4}");
-    // Not met (measured: proposed 5.7 % above the tuned SMC; jobs with the
-    // geometric mean or gyro-only sensing did worse, +10 % and +20 %:
-    // D122): kept within 10 % (README.md, "Tuning").
+    let line = GyroLine::measure(&tuned, |_| {});
+    line.print("2 N·m");
+    // Not met (measured over 64 seeds: proposed 6.7 % above the tuned SMC,
+    // paired standard error 1.1 %, better on 17 of 64 seeds; jobs with the
+    // geometric mean, gyro-only sensing or larger disturbances did worse:
+    // D122, D126, D128): kept within 10 % (README.md, "Tuning").
     assert!(
-        prop <= 1.1 * smc.min(asmc),
-        "2 N·m: proposed {prop:.4} vs smc {smc:.4}, asmc {asmc:.4}"
+        line.ratio() <= 1.1,
+        "2 N·m: proposed/best baseline {:.3} > 1.1",
+        line.ratio()
     );
 }
 
