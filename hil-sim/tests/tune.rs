@@ -145,13 +145,15 @@ fn tuned_files_beat_the_paper_gains_and_the_tuned_baselines_on_validation_seeds(
 /// own scenarios, `TuneSet::scenarios`).
 const CASE2_SEEDS: u64 = 64;
 
-/// One gyro-only line over [`CASE2_SEEDS`] seeds: per controller
+/// One line of Case 2 (gyro-only, or with the sensing given) over
+/// [`CASE2_SEEDS`] seeds: per controller
 /// (`ControllerKind::ALL` order) the mean window RMS and the mean sensing
 /// error over the window (`rms_est_err_window_m`: the estimator's position
 /// against the true one, the part of the error no controller can remove
 /// without a position measurement), and the paired difference proposed −
 /// better baseline (by mean) with its standard error.
-struct GyroLine {
+struct Case2Line {
+    sensing: Sensing,
     win_m: [f64; 3],
     est_m: [f64; 3],
     /// Mean chatter (`Metrics::chatter`) and saturated fraction of ticks.
@@ -162,8 +164,8 @@ struct GyroLine {
     proposed_better: usize,
 }
 
-impl GyroLine {
-    fn measure(r: &Robot, f: impl Fn(&mut Scenario) + Sync) -> Self {
+impl Case2Line {
+    fn measure(r: &Robot, sensing: Sensing, f: impl Fn(&mut Scenario) + Sync) -> Self {
         use rayon::prelude::*;
         // Per seed and controller: window RMS, sensing error, chatter,
         // saturated fraction.
@@ -173,7 +175,7 @@ impl GyroLine {
                 ControllerKind::ALL.map(|k| {
                     let mut s = Scenario::paper_case(2, seed, None, None)
                         .with_robots(Some(r), None)
-                        .with_sensing(Sensing::Imu);
+                        .with_sensing(sensing);
                     f(&mut s);
                     let o = hil_sim::sim::run_with(&s, s.controller_config(k), 0).unwrap();
                     let m = &o.metrics;
@@ -195,6 +197,7 @@ impl GyroLine {
         let diff_m = d.iter().sum::<f64>() / n;
         let var = d.iter().map(|x| (x - diff_m).powi(2)).sum::<f64>() / (n - 1.0);
         Self {
+            sensing,
             win_m,
             est_m,
             chatter,
@@ -214,7 +217,8 @@ impl GyroLine {
         let ([smc, asmc, prop], [es, ea, ep]) = (self.win_m, self.est_m);
         let base = smc.min(asmc);
         eprintln!(
-            "imu, {label}, Case 2 seeds 1-{CASE2_SEEDS}: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4} (proposed/best {:.3}; paired proposed − best {:+.4} ± {:.4} m standard error, {:+.1} ± {:.1} %, proposed better on {}/{CASE2_SEEDS} seeds); sensing error smc {es:.4}, asmc {ea:.4}, proposed {ep:.4}; chatter {:.0} / {:.0} / {:.0}, torque saturated {:.3} / {:.3} / {:.3} of the ticks",
+            "{}, {label}, Case 2 seeds 1-{CASE2_SEEDS}: mean window RMS [m] smc {smc:.4}, asmc {asmc:.4}, proposed {prop:.4} (proposed/best {:.3}; paired proposed − best {:+.4} ± {:.4} m standard error, {:+.1} ± {:.1} %, proposed better on {}/{CASE2_SEEDS} seeds); sensing error smc {es:.4}, asmc {ea:.4}, proposed {ep:.4}; chatter {:.0} / {:.0} / {:.0}, torque saturated {:.3} / {:.3} / {:.3} of the ticks",
+            self.sensing.name(),
             self.ratio(),
             self.diff_m,
             self.diff_se_m,
@@ -239,7 +243,7 @@ fn gyro_only_with_inertia_mismatch_tuned_proposed_not_worse_than_the_better_base
     let tuned = robot("paper.tuned");
     let mut ratios = Vec::new();
     for scale in [0.6, 1.6] {
-        let line = GyroLine::measure(&tuned, |s| s.plant.inertia_scale = scale);
+        let line = Case2Line::measure(&tuned, Sensing::Imu, |s| s.plant.inertia_scale = scale);
         line.print(&format!("inertia x{scale}"));
         ratios.push((scale, line.ratio()));
     }
@@ -257,17 +261,24 @@ fn at_a_2_nm_torque_limit_tuned_proposed_not_worse_than_the_better_baseline() {
     // tuned for that limit (robots/paper-2nm.tuned.toml, docs/tuning.md).
     let tuned = robot("paper-2nm.tuned");
     assert_eq!(tuned.limits.torque_nm, 2.0);
-    let line = GyroLine::measure(&tuned, |_| {});
+    let line = Case2Line::measure(&tuned, Sensing::Imu, |_| {});
     line.print("2 N·m");
-    // Not met (measured over 64 seeds: proposed 6.7 % above the tuned SMC,
-    // paired standard error 1.1 %, better on 17 of 64 seeds; jobs with the
-    // geometric mean, gyro-only sensing or larger disturbances did worse:
-    // D122, D126, D128): kept within 10 % (README.md, "Tuning").
-    assert!(
-        line.ratio() <= 1.1,
-        "2 N·m: proposed/best baseline {:.3} > 1.1",
-        line.ratio()
-    );
+    // The same line with a position measurement: the heavier chatter
+    // weight of the file (D129) must not cost the proposed controller its
+    // lead there.
+    let mocap = Case2Line::measure(&tuned, Sensing::Mocap, |_| {});
+    mocap.print("2 N·m");
+    // Measured over 64 seeds (D129): with the file tuned at
+    // `--chatter-weight 5e-4` the proposed controller is 6.8 % below the
+    // tuned SMC (paired standard error 2.3 %, better on 46 of 64 seeds);
+    // with the default weight it was 6.7 % above (D128).
+    for (l, name) in [(&line, "imu"), (&mocap, "mocap")] {
+        assert!(
+            l.ratio() <= 1.0,
+            "2 N·m, {name}: proposed/best baseline {:.3} > 1",
+            l.ratio()
+        );
+    }
 }
 
 /// A job small enough for a test: ideal sensing (the bare controller, no
@@ -289,6 +300,7 @@ fn small_job(restarts: u64) -> TuneJob {
         restarts,
         controllers: vec![ControllerKind::Smc],
         preset_mean: Default::default(),
+        chatter_weight_m_s: hil_sim::tune::cost::CHATTER_WEIGHT_M_S,
     }
 }
 

@@ -52,6 +52,12 @@ pub struct TuneArgs {
     /// preset counts alike).
     #[arg(long, value_enum, default_value = "arithmetic")]
     pub preset_mean: crate::tune::cost::PresetMean,
+    /// Cost of chatter (D129): the cost [m] of a mean chatter of 1 (N·m/s)
+    /// per N·m of torque limit, in [0, 1e-2] m·s. The default costs the
+    /// paper robot's 76 /s 1.5 mm; 5e-4 makes it 3.8 cm, enough to steer
+    /// the optimiser away from gains that chatter.
+    #[arg(long, value_name = "m·s", default_value_t = crate::tune::cost::CHATTER_WEIGHT_M_S)]
+    pub chatter_weight: f64,
     /// Controllers to tune (comma-separated).
     #[arg(long, value_delimiter = ',', default_value = "smc,asmc,proposed")]
     pub controllers: Vec<String>,
@@ -183,6 +189,7 @@ pub fn tune(a: &TuneArgs, out: &mut dyn Write) -> Result<(), String> {
         restarts: a.restarts,
         controllers,
         preset_mean: a.preset_mean,
+        chatter_weight_m_s: a.chatter_weight,
     };
     job.validate()?;
     let shard = a.shard.unwrap_or(Shard::WHOLE);

@@ -23,10 +23,14 @@ use serde::{Deserialize, Serialize};
 
 /// Cost of a mean saturated fraction of 1 (saturated every step) \[m\].
 pub const SATURATION_WEIGHT_M: f64 = 0.05;
-/// Cost of a mean chatter of 1 (N·m/s)/(N·m of torque limit) \[m·s\]:
-/// 76 /s (the paper robot's proposed controller through the runtime)
-/// costs 1.5 mm.
+/// Cost of a mean chatter of 1 (N·m/s)/(N·m of torque limit) \[m·s\] by
+/// default (`--chatter-weight`, D129): 76 /s (the paper robot's proposed
+/// controller through the runtime) costs 1.5 mm.
 pub const CHATTER_WEIGHT_M_S: f64 = 2e-5;
+/// Largest `--chatter-weight` \[m·s\]: at 1e-2 a chatter of 76 /s costs
+/// 0.76 m, more than the drift of a gyro-only run; beyond it the cost would
+/// rank a controller that stops moving its wheels above one that tracks.
+pub const MAX_CHATTER_WEIGHT_M_S: f64 = 1e-2;
 /// Cost of each run that stopped \[m\]: more than any window RMS a
 /// running robot reaches on the tuning set.
 pub const STOP_PENALTY_M: f64 = 100.0;
@@ -65,6 +69,45 @@ impl PresetMean {
             PresetMean::Arithmetic => "arithmetic",
             PresetMean::Geometric => "geometric",
         }
+    }
+}
+
+/// How the cost is made from the runs' scores: the preset mean (D119) and
+/// the chatter weight (D129).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CostSpec {
+    /// How the presets' p95 window RMS are combined.
+    pub preset_mean: PresetMean,
+    /// Cost of a mean chatter of 1 (N·m/s)/(N·m of torque limit) \[m·s\].
+    pub chatter_weight_m_s: f64,
+}
+
+impl Default for CostSpec {
+    fn default() -> Self {
+        PresetMean::default().into()
+    }
+}
+
+impl From<PresetMean> for CostSpec {
+    /// That mean with the default chatter weight ([`CHATTER_WEIGHT_M_S`]).
+    fn from(preset_mean: PresetMean) -> Self {
+        Self {
+            preset_mean,
+            chatter_weight_m_s: CHATTER_WEIGHT_M_S,
+        }
+    }
+}
+
+impl CostSpec {
+    /// Refuses a chatter weight outside \[0, [`MAX_CHATTER_WEIGHT_M_S`]\].
+    pub fn validate(&self) -> Result<(), String> {
+        let w = self.chatter_weight_m_s;
+        if !(0.0..=MAX_CHATTER_WEIGHT_M_S).contains(&w) {
+            return Err(format!(
+                "--chatter-weight must be in [0, {MAX_CHATTER_WEIGHT_M_S}] m·s (the cost of a chatter of 1 (N·m/s) per N·m of torque limit; default {CHATTER_WEIGHT_M_S}), got {w}"
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -161,14 +204,13 @@ pub fn score(scn: &Scenario, cfg: ControllerConfig) -> RunScore {
 }
 
 /// The cost of a list of run scores (in scenario order), the presets'
-/// p95 averaged arithmetically.
+/// p95 averaged arithmetically, with the default chatter weight.
 pub fn aggregate(scores: &[RunScore]) -> Evaluation {
-    aggregate_with(scores, PresetMean::Arithmetic)
+    aggregate_with(scores, CostSpec::default())
 }
 
-/// The cost of a list of run scores (in scenario order), the presets' p95
-/// combined by `mean`.
-pub fn aggregate_with(scores: &[RunScore], mean: PresetMean) -> Evaluation {
+/// The cost of a list of run scores (in scenario order) as `spec` makes it.
+pub fn aggregate_with(scores: &[RunScore], spec: CostSpec) -> Evaluation {
     let n = scores.len().max(1) as f64;
     let rms: Vec<f64> = scores.iter().map(|s| s.rms_win_m).collect();
     let mut presets: Vec<Sensing> = Vec::new();
@@ -196,7 +238,8 @@ pub fn aggregate_with(scores: &[RunScore], mean: PresetMean) -> Evaluation {
     let p95 = if per_sensing.is_empty() {
         STOP_PENALTY_M
     } else {
-        mean.of(&per_sensing.iter().map(|x| x.1).collect::<Vec<_>>())
+        spec.preset_mean
+            .of(&per_sensing.iter().map(|x| x.1).collect::<Vec<_>>())
     };
     let mean_rms = rms.iter().sum::<f64>() / n;
     let sat = scores.iter().map(|s| s.saturated).sum::<f64>() / n;
@@ -205,7 +248,7 @@ pub fn aggregate_with(scores: &[RunScore], mean: PresetMean) -> Evaluation {
     Evaluation {
         cost: p95
             + SATURATION_WEIGHT_M * sat
-            + CHATTER_WEIGHT_M_S * chat
+            + spec.chatter_weight_m_s * chat
             + STOP_PENALTY_M * stops as f64,
         p95_rms_win_m: p95,
         per_sensing,
@@ -226,16 +269,16 @@ pub fn evaluate(
     make: &(dyn Fn(&ControllerConfig) -> ControllerConfig + Sync),
     tick: &(dyn Fn() + Sync),
 ) -> Evaluation {
-    evaluate_with(scenarios, kind, make, tick, PresetMean::Arithmetic)
+    evaluate_with(scenarios, kind, make, tick, CostSpec::default())
 }
 
-/// [`evaluate`] with the presets' p95 combined by `mean`.
+/// [`evaluate`] with the cost as `spec` makes it.
 pub fn evaluate_with(
     scenarios: &[Scenario],
     kind: controller_core::ControllerKind,
     make: &(dyn Fn(&ControllerConfig) -> ControllerConfig + Sync),
     tick: &(dyn Fn() + Sync),
-    mean: PresetMean,
+    spec: CostSpec,
 ) -> Evaluation {
     let scores: Vec<RunScore> = scenarios
         .par_iter()
@@ -245,7 +288,7 @@ pub fn evaluate_with(
             s
         })
         .collect();
-    aggregate_with(&scores, mean)
+    aggregate_with(&scores, spec)
 }
 
 #[cfg(test)]
@@ -309,7 +352,7 @@ mod tests {
                 sensing: Sensing::Imu,
                 ..run(imu_scale * f64::from(i), false)
             }));
-            aggregate_with(&s, PresetMean::Geometric).p95_rms_win_m
+            aggregate_with(&s, PresetMean::Geometric.into()).p95_rms_win_m
         };
         let base = set(1.0, 1.0);
         assert!((base - (0.019f64 * 19.0).sqrt()).abs() < 1e-12);
@@ -320,7 +363,51 @@ mod tests {
         assert!((i / base - 0.5f64.sqrt()).abs() < 1e-12, "{i} {base}");
         // One preset: the mean is its p95 (up to rounding of exp(ln x)).
         let one: Vec<RunScore> = (1..=20).map(|i| run(f64::from(i), false)).collect();
-        let g = aggregate_with(&one, PresetMean::Geometric).p95_rms_win_m;
+        let g = aggregate_with(&one, PresetMean::Geometric.into()).p95_rms_win_m;
         assert!((g - 19.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_chatter_weight_prices_chatter_and_nothing_else() {
+        let s: Vec<RunScore> = (1..=20).map(|i| run(f64::from(i), false)).collect();
+        let with = |w: f64| {
+            aggregate_with(
+                &s,
+                CostSpec {
+                    preset_mean: PresetMean::Arithmetic,
+                    chatter_weight_m_s: w,
+                },
+            )
+        };
+        let (none, heavy) = (with(0.0), with(5e-4));
+        // Every run chatters 10 /s: 5e-4 m·s adds 5 mm, and nothing else moves.
+        assert!((heavy.cost - none.cost - 5e-4 * 10.0).abs() < 1e-12);
+        assert_eq!(heavy.p95_rms_win_m, none.p95_rms_win_m);
+        assert_eq!(heavy.mean_chatter_per_s, none.mean_chatter_per_s);
+        assert_eq!(with(CHATTER_WEIGHT_M_S), aggregate(&s));
+    }
+
+    #[test]
+    fn a_chatter_weight_outside_its_range_is_refused_naming_the_flag() {
+        for w in [
+            -1e-6,
+            MAX_CHATTER_WEIGHT_M_S * 1.01,
+            f64::NAN,
+            f64::INFINITY,
+        ] {
+            let spec = CostSpec {
+                chatter_weight_m_s: w,
+                ..CostSpec::default()
+            };
+            let e = spec.validate().unwrap_err();
+            assert!(e.contains("--chatter-weight"), "{e}");
+        }
+        for w in [0.0, CHATTER_WEIGHT_M_S, MAX_CHATTER_WEIGHT_M_S] {
+            let spec = CostSpec {
+                chatter_weight_m_s: w,
+                ..CostSpec::default()
+            };
+            assert!(spec.validate().is_ok(), "{w}");
+        }
     }
 }

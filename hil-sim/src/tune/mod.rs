@@ -27,7 +27,7 @@ use crate::rng::Rng;
 use crate::scenario::{Robot, Scenario};
 use crate::shard::Shard;
 use controller_core::ControllerKind;
-use cost::{evaluate_with, Evaluation, PresetMean};
+use cost::{evaluate_with, CostSpec, Evaluation, PresetMean, CHATTER_WEIGHT_M_S};
 use optimise::{minimise, Optimizer};
 use serde::{Deserialize, Serialize};
 use set::{Part, TuneSet};
@@ -61,6 +61,14 @@ pub struct TuneJob {
     /// without it are of the arithmetic mean).
     #[serde(default)]
     pub preset_mean: PresetMean,
+    /// Cost of chatter \[m·s\] (D129; shard files without it are of the
+    /// default, [`CHATTER_WEIGHT_M_S`]).
+    #[serde(default = "default_chatter_weight")]
+    pub chatter_weight_m_s: f64,
+}
+
+fn default_chatter_weight() -> f64 {
+    CHATTER_WEIGHT_M_S
 }
 
 mod kinds {
@@ -105,7 +113,16 @@ impl TuneJob {
         if self.controllers.is_empty() {
             return Err("no controller to tune".into());
         }
+        self.cost().validate()?;
         self.set.validate()
+    }
+
+    /// How this job's cost is made.
+    pub fn cost(&self) -> CostSpec {
+        CostSpec {
+            preset_mean: self.preset_mean,
+            chatter_weight_m_s: self.chatter_weight_m_s,
+        }
     }
 
     /// Evaluations the optimiser really spends per controller and restart
@@ -210,7 +227,7 @@ fn score_gains(
     train: &[Scenario],
     val: &[Scenario],
     tick: &(dyn Fn() + Sync),
-    mean: PresetMean,
+    spec: CostSpec,
 ) -> Scored {
     let make = |c: &controller_core::ControllerConfig| match x {
         Some(x) => space::decode(c, x),
@@ -218,8 +235,8 @@ fn score_gains(
     };
     Scored {
         gains: robot_file::GainSet::of(&make(&train[0].controller_config(kind))),
-        training: evaluate_with(train, kind, &make, tick, mean),
-        validation: evaluate_with(val, kind, &make, tick, mean),
+        training: evaluate_with(train, kind, &make, tick, spec),
+        validation: evaluate_with(val, kind, &make, tick, spec),
     }
 }
 
@@ -242,7 +259,7 @@ pub fn run_shard(
             .map(|&k| {
                 (
                     k.name().to_string(),
-                    score_gains(k, None, &train, &val, tick, job.preset_mean),
+                    score_gains(k, None, &train, &val, tick, job.cost()),
                 )
             })
             .collect::<Vec<_>>()
@@ -259,14 +276,7 @@ pub fn run_shard(
                 (0..dims).map(|_| g.uniform()).collect()
             };
             let f = |u: &[f64]| {
-                evaluate_with(
-                    &train,
-                    kind,
-                    &|c| space::decode(c, u),
-                    tick,
-                    job.preset_mean,
-                )
-                .cost
+                evaluate_with(&train, kind, &|c| space::decode(c, u), tick, job.cost()).cost
             };
             let seed = run_seed(job.set.seed ^ kind_salt(kind), r);
             let opt = minimise(job.optimizer, &f, &x0, job.evaluations, seed, &|e, c| {
@@ -275,7 +285,7 @@ pub fn run_shard(
                     kind.name()
                 ))
             })?;
-            let tuned = score_gains(kind, Some(&opt.x), &train, &val, tick, job.preset_mean);
+            let tuned = score_gains(kind, Some(&opt.x), &train, &val, tick, job.cost());
             note(&format!(
                 "{} restart {r}: training {:.4} m, validation {:.4} m",
                 kind.name(),
@@ -501,6 +511,12 @@ impl TuneOutcome {
                 "# Disturbance amplitude drawn in ({}, {}) x the torque limit.\n",
                 crate::tune::set::DISTURBANCE_FRACTION.0,
                 j.set.disturbance_max_fraction
+            ));
+        }
+        if j.chatter_weight_m_s != CHATTER_WEIGHT_M_S {
+            h.push_str(&format!(
+                "# Chatter weight {} m·s (default {CHATTER_WEIGHT_M_S}).\n",
+                j.chatter_weight_m_s
             ));
         }
         h.push_str(match j.preset_mean {
