@@ -47,18 +47,22 @@ fn eval(scns: &[Scenario], kind: ControllerKind) -> Evaluation {
 /// Acceptance lines of issue 19 that the committed files do not meet,
 /// measured by this test (README.md, "Tuning"): (robot, sensing, line).
 /// For these the test asserts the weaker bound given (a ratio), so that a
-/// regression still fails. Both are gyro-only (`imu`): without a position
-/// measurement the position drifts with the skid and slip whatever the
-/// gains (p95 ~0.9-1.2 m), and the geometric mean of D119, which made the
-/// `mocap` lines of all three robots met, counts the drift by its relative
-/// change: tb6612 imu +0.8 % against the paper gains (1.1738 vs 1.1646 m;
-/// with the arithmetic mean it was −18.5 %, but then the tuned SMC tracked
-/// 3x better under mocap), bts7960 imu −3.3 %. The test prints the sensing
-/// error beside them (D126): the estimator's drift is the whole error there.
+/// regression still fails, and checks the explanation: both are gyro-only
+/// (`imu`), where the paper gains' p95 window RMS is the p95 of their own
+/// sensing error (the estimate's drift with the skid and slip, D126) to
+/// within [`PAPER_GAINS_AT_THE_DRIFT`]: tb6612 imu +0.8 % against the paper
+/// gains (1.1738 vs 1.1646 m; with the arithmetic mean of D119 it was
+/// −18.5 %, but then the tuned SMC tracked 3x better under mocap), bts7960
+/// imu −3.3 %.
 const SHORTFALLS: &[(&str, Sensing, Line, f64)] = &[
     ("tb6612-2kg", Sensing::Imu, Line::ThirtyPercent, 1.05),
     ("bts7960-10kg", Sensing::Imu, Line::ThirtyPercent, 1.0),
 ];
+
+/// Where a 30 % line is a shortfall, the paper gains' p95 window RMS is
+/// at most this multiple of their p95 sensing error (their tracking adds
+/// at most 2 % to the estimate's drift: measured 1.0000 and 1.0019).
+const PAPER_GAINS_AT_THE_DRIFT: f64 = 1.02;
 
 /// An acceptance line.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -98,13 +102,18 @@ fn tuned_files_beat_the_paper_gains_and_the_tuned_baselines_on_validation_seeds(
                 prop.stops,
             );
             let est = |e: &Evaluation| e.per_sensing_est_err_m[0].1;
+            let est95 = |e: &Evaluation| e.per_sensing_est_err_p95_m[0].1;
             eprintln!(
-                "{name:<13} {:<6} mean window sensing error [m] (estimate against truth): paper gains {:.4}; tuned smc {:.4}, asmc {:.4}, proposed {:.4}",
+                "{name:<13} {:<6} window sensing error [m] (estimate against truth), mean / p95: paper gains {:.4} / {:.4}; tuned smc {:.4} / {:.4}, asmc {:.4} / {:.4}, proposed {:.4} / {:.4}",
                 sensing.name(),
                 est(&paper),
+                est95(&paper),
                 est(&smc),
+                est95(&smc),
                 est(&asmc),
+                est95(&asmc),
                 est(&prop),
+                est95(&prop),
             );
             if prop.stops != 0 {
                 failures.push(format!("{name} {sensing:?}: tuned proposed stopped"));
@@ -121,6 +130,23 @@ fn tuned_files_beat_the_paper_gains_and_the_tuned_baselines_on_validation_seeds(
                     .iter()
                     .find(|x| (x.0, x.1, x.2) == (name, sensing, line));
                 let bound = short.map_or(need, |x| x.3);
+                // The explanation of a 30 % shortfall, checked: the paper
+                // gains already track their estimate (Minkowski: window RMS
+                // <= sensing error + the controller's own error), so their
+                // p95 is the estimate's drift, which the line would need
+                // gains to cut by 30 %.
+                if short.is_some() && line == Line::ThirtyPercent {
+                    let floor = paper.p95_rms_win_m / est95(&paper);
+                    eprintln!(
+                        "{name:<13} {:<6} paper gains: p95 window RMS / p95 sensing error {floor:.4}",
+                        sensing.name()
+                    );
+                    if floor > PAPER_GAINS_AT_THE_DRIFT {
+                        failures.push(format!(
+                            "{name} {sensing:?}: the paper gains' p95 is {floor:.3} x their sensing error's (> {PAPER_GAINS_AT_THE_DRIFT}): the shortfall's explanation no longer holds"
+                        ));
+                    }
+                }
                 if ratio > bound {
                     failures.push(format!(
                         "{name} {sensing:?} {line:?}: ratio {ratio:.3} > {bound}{}",

@@ -127,6 +127,12 @@ pub struct Evaluation {
     /// position against the true one; reported, not in the cost) \[m\].
     #[serde(default)]
     pub per_sensing_est_err_m: Vec<(Sensing, f64)>,
+    /// Per sensing preset (in the set's order): the 95th percentile over
+    /// its runs of the window RMS sensing error \[m\]: beside
+    /// [`Self::per_sensing`], how much of the p95 is the estimate's own
+    /// drift (reported, not in the cost).
+    #[serde(default)]
+    pub per_sensing_est_err_p95_m: Vec<(Sensing, f64)>,
     /// Mean of the window RMS position error \[m\].
     pub mean_rms_win_m: f64,
     /// Mean saturated fraction of the steps.
@@ -235,6 +241,9 @@ pub fn aggregate_with(scores: &[RunScore], spec: CostSpec) -> Evaluation {
     let per_sensing_est_err_m = per_preset(|s| s.est_err_win_m, &|v| {
         v.iter().sum::<f64>() / v.len().max(1) as f64
     });
+    let per_sensing_est_err_p95_m = per_preset(|s| s.est_err_win_m, &|v| {
+        summarize(v).map_or(0.0, |s| s.p95)
+    });
     let p95 = if per_sensing.is_empty() {
         STOP_PENALTY_M
     } else {
@@ -253,6 +262,7 @@ pub fn aggregate_with(scores: &[RunScore], spec: CostSpec) -> Evaluation {
         p95_rms_win_m: p95,
         per_sensing,
         per_sensing_est_err_m,
+        per_sensing_est_err_p95_m,
         mean_rms_win_m: mean_rms,
         mean_saturated: sat,
         mean_chatter_per_s: chat,
@@ -339,6 +349,9 @@ mod tests {
         // The sensing error is each preset's plain mean (of 0.5..10 mm and m).
         assert!((e.per_sensing_est_err_m[0].1 - 0.5e-3 * 10.5).abs() < 1e-12);
         assert!((e.per_sensing_est_err_m[1].1 - 0.5 * 10.5).abs() < 1e-12);
+        // Its p95 is taken like the window RMS's: half of 19 mm and 19 m.
+        assert!((e.per_sensing_est_err_p95_m[0].1 - 0.0095).abs() < 1e-12);
+        assert!((e.per_sensing_est_err_p95_m[1].1 - 9.5).abs() < 1e-12);
     }
 
     #[test]
