@@ -91,17 +91,20 @@ fn main() -> ! {
     let (rx, tx) = uart::Uart0::new(time::CPU_HZ).split();
     // The executor runs in an interrupt at the lowest priority; the time
     // driver's and the UART's interrupts (priority 0) preempt it. Thread
-    // mode sleeps (WFI): QEMU 7.2 executes the thread-mode executor's WFE
-    // as a no-op, so that executor would spin, and under -icount every
-    // spinning instruction is virtual time (the guest would run several
-    // times slower than real time instead of idling).
+    // mode spins on NOPs instead of sleeping (WFI): under `-icount
+    // sleep=off` (run.sh) virtual time is then the instruction count alone,
+    // so a host that keeps QEMU off the CPU cannot make a tick late (with
+    // WFI and sleep=on, idle virtual time followed the host's clock, and a
+    // host wake-up 5 ms late latched LoopOverrun: README, "QEMU command
+    // line"). The guest runs slower than real time. Not `spin_loop()`: its
+    // YIELD makes QEMU leave the CPU loop on every instruction.
     let mut nvic = cp.NVIC;
     // SAFETY: set before the executor starts, as InterruptExecutor requires.
     unsafe { nvic.set_priority(ExecutorIrq, EXECUTOR_PRIORITY) };
     let spawner = EXECUTOR.start(ExecutorIrq);
     spawn_all(spawner, device, task, rx, tx, cfg, period_us);
     loop {
-        cortex_m::asm::wfi();
+        cortex_m::asm::nop();
     }
 }
 
