@@ -196,18 +196,24 @@ impl PerturbationGrid {
 mod tests {
     use super::*;
 
+    /// A Case-style profile: the fault ε = 0.2 and the 1 N·m disturbance over
+    /// `window_s`, with the slip frequency and skid scale given.
+    fn case_profile(window_s: [f64; 2], beta_radps: f64, skid_scale: f64) -> PerturbationProfile {
+        PerturbationProfile {
+            window_s,
+            beta_radps,
+            fault_eps: 0.2,
+            skid_scale,
+            disturbance_nm: 1.0,
+            fault_eps_end: None,
+        }
+    }
+
     /// The printed rates are the time derivatives of the printed signals
     /// (central differences).
     #[test]
     fn rates_are_derivatives_of_the_signals() {
-        let p = PerturbationProfile {
-            window_s: [0.0, 100.0],
-            beta_radps: 0.15,
-            fault_eps: 0.2,
-            skid_scale: 0.5,
-            disturbance_nm: 1.0,
-            fault_eps_end: None,
-        };
+        let p = case_profile([0.0, 100.0], 0.15, 0.5);
         let h = 1e-6;
         for i in 1..200 {
             let t = 0.37 * i as f64;
@@ -226,14 +232,7 @@ mod tests {
     /// off-grid and repeated queries too.
     #[test]
     fn grid_equals_direct_evaluation() {
-        let p = PerturbationProfile {
-            window_s: [1.0, 30.0],
-            beta_radps: 0.15,
-            fault_eps: 0.2,
-            skid_scale: 0.05,
-            disturbance_nm: 1.0,
-            fault_eps_end: None,
-        };
+        let p = case_profile([1.0, 30.0], 0.15, 0.05);
         let h = 1e-3;
         let mut g = PerturbationGrid::new(p, 0.5 * h);
         let close = |a: &Perturbation, b: &Perturbation| {
@@ -268,14 +267,7 @@ mod tests {
     /// the three phasors with sin/cos there).
     #[test]
     fn same_instant_by_another_sum_is_one_query() {
-        let p = PerturbationProfile {
-            window_s: [0.0, 100.0],
-            beta_radps: 0.15,
-            fault_eps: 0.2,
-            skid_scale: 0.05,
-            disturbance_nm: 1.0,
-            fault_eps_end: None,
-        };
+        let p = case_profile([0.0, 100.0], 0.15, 0.05);
         let h = 1e-3;
         let mut g = PerturbationGrid::new(p, 0.5 * h);
         let mut other_sum = 0;
@@ -296,14 +288,7 @@ mod tests {
 
     #[test]
     fn nothing_outside_the_window() {
-        let p = PerturbationProfile {
-            window_s: [10.0, 35.0],
-            beta_radps: 0.1,
-            fault_eps: 0.2,
-            skid_scale: 0.05,
-            disturbance_nm: 1.0,
-            fault_eps_end: None,
-        };
+        let p = case_profile([10.0, 35.0], 0.1, 0.05);
         assert_eq!(p.at(9.999), Perturbation::default());
         assert_eq!(p.at(35.0), Perturbation::default());
         assert_eq!(p.at(10.0).fault_eps, 0.2);

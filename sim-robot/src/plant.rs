@@ -864,38 +864,45 @@ mod tests {
         );
     }
 
-    /// The perturbed constraint (2), A(q)·q̇ = Δ_S, holds along a run with slip,
-    /// skid and disturbance (no fault), with A's printed typos corrected.
-    #[test]
-    fn perturbed_constraint_holds_along_run() {
-        let plant = paper_plant();
+    /// Integrates `steps` ms of a perturbed run and checks the perturbed
+    /// constraint (2), A(q)·q̇ = Δ_S, at every step, per wheel:
+    /// −s·ẋ + c·ẏ − d·θ̇ = δ_skid and c·ẋ + s·ẏ ± h·θ̇ − r_i·φ̇_i = −r_i·ϖ_i
+    /// (A's printed typos corrected).
+    fn assert_perturbed_constraint(plant: &Plant, steps: u32) {
         let p = *plant.params();
-        let (r, h, d) = (p.wheel_radius_m[0], p.half_track_m, p.com_offset_m);
+        let ([rr, rl], h, d) = (p.wheel_radius_m, p.half_track_m, p.com_offset_m);
         let mut st = PlantState {
             q: [0.0, 0.0, 0.5, 0.0, 0.0],
             nu: [0.3, 0.2],
         };
         let dt = 1e-3;
-        for k in 0..5000 {
+        for k in 0..steps {
             let t = k as f64 * dt;
             let pert = perturbed(t);
             let qd = plant.q_dot(&st, &pert);
             let (s, c) = st.q[2].sin_cos();
             let aq = [
                 -s * qd[0] + c * qd[1] - d * qd[2],
-                c * qd[0] + s * qd[1] + h * qd[2] - r * qd[3],
-                c * qd[0] + s * qd[1] - h * qd[2] - r * qd[4],
+                c * qd[0] + s * qd[1] + h * qd[2] - rr * qd[3],
+                c * qd[0] + s * qd[1] - h * qd[2] - rl * qd[4],
             ];
             let ds = [
                 pert.skid_mps,
-                -r * pert.wheel_slip_radps[0],
-                -r * pert.wheel_slip_radps[1],
+                -rr * pert.wheel_slip_radps[0],
+                -rl * pert.wheel_slip_radps[1],
             ];
             for i in 0..3 {
                 assert!((aq[i] - ds[i]).abs() < 1e-12, "row {i} at t {t}");
             }
             st = plant.rk4_step(&st, t, dt, &[0.3, 0.1], &mut perturbed);
         }
+    }
+
+    /// The perturbed constraint (2) holds along a run with slip, skid and
+    /// disturbance (no fault) on the paper's robot.
+    #[test]
+    fn perturbed_constraint_holds_along_run() {
+        assert_perturbed_constraint(&paper_plant(), 5000);
     }
 
     /// P1 closed form equals SᵀM0·U̇_D + SᵀC0·U_D from the 5x5 matrices.
@@ -1090,33 +1097,7 @@ mod tests {
     /// c·ẋ + s·ẏ ± h·θ̇ − r_i·φ̇_i = −r_i·ϖ_i, along a perturbed run.
     #[test]
     fn perturbed_constraint_holds_with_unequal_radii() {
-        let plant = Plant::new(params_lr(0.102, 0.099));
-        let p = *plant.params();
-        let ([rr, rl], h, d) = (p.wheel_radius_m, p.half_track_m, p.com_offset_m);
-        let mut st = PlantState {
-            q: [0.0, 0.0, 0.5, 0.0, 0.0],
-            nu: [0.3, 0.2],
-        };
-        for k in 0..2000 {
-            let t = k as f64 * 1e-3;
-            let pert = perturbed(t);
-            let qd = plant.q_dot(&st, &pert);
-            let (s, c) = st.q[2].sin_cos();
-            let aq = [
-                -s * qd[0] + c * qd[1] - d * qd[2],
-                c * qd[0] + s * qd[1] + h * qd[2] - rr * qd[3],
-                c * qd[0] + s * qd[1] - h * qd[2] - rl * qd[4],
-            ];
-            let ds = [
-                pert.skid_mps,
-                -rr * pert.wheel_slip_radps[0],
-                -rl * pert.wheel_slip_radps[1],
-            ];
-            for i in 0..3 {
-                assert!((aq[i] - ds[i]).abs() < 1e-12, "row {i} at t {t}");
-            }
-            st = plant.rk4_step(&st, t, 1e-3, &[0.3, 0.1], &mut perturbed);
-        }
+        assert_perturbed_constraint(&Plant::new(params_lr(0.102, 0.099)), 2000);
     }
 
     fn with_friction(viscous: f64, coulomb: f64) -> Plant {
