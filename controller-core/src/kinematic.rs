@@ -136,6 +136,42 @@ mod tests {
     use super::*;
     use crate::tracking::error_rate;
 
+    /// Integrates the closed kinematic loop (η = η_c exactly, d = 0, the
+    /// constant fault `fault` with a perfect estimate) from `e0` for `steps`
+    /// Euler steps of 0.1 ms under the reference speeds `reference(t)` =
+    /// (v_s, ω_s), calls `check(te, η_c, (v_s, ω_s))` at every step, and asserts that `lyap` never increases
+    /// (up to the step's O(dt²) error) and ends below 1e-3 of its start.
+    fn assert_lyapunov_decreases(
+        g: &KinematicGains,
+        e0: [f32; 3],
+        fault: [f32; 2],
+        steps: u32,
+        reference: impl Fn(f32) -> (f32, f32),
+        lyap: impl Fn([f32; 3]) -> f32,
+        mut check: impl FnMut(&TrackingError, [f32; 2], (f32, f32)),
+    ) {
+        let what = format!("k_y {}, v_s(0) {}", g.k_y, reference(0.0).0);
+        let mut e = e0;
+        let dt = 1e-4f32;
+        let mut v_prev = lyap(e);
+        let v0 = v_prev;
+        for k in 0..steps {
+            let t = k as f32 * dt;
+            let (vs, ws) = reference(t);
+            let te = TrackingError::from(e);
+            let eta = g.eta_c(&te, vs, ws, fault);
+            check(&te, eta, (vs, ws));
+            let de = error_rate(&te, eta, fault, vs, ws, 0.0);
+            for i in 0..3 {
+                e[i] += de[i] * dt;
+            }
+            let v = lyap(e);
+            assert!(v <= v_prev + 1e-6, "{what} t {t}: V rose {v_prev} -> {v}");
+            v_prev = v;
+        }
+        assert!(v_prev < 1e-3 * v0, "{what}: V {v_prev} of {v0}");
+    }
+
     /// Closed kinematic loop (η = η_c exactly, d = 0, constant fault with a
     /// perfect estimate): V_K of eq. (15) never increases and e → 0.
     #[test]
@@ -145,29 +181,15 @@ mod tests {
                 k_y,
                 ..KinematicGains::paper()
             };
-            let fault = [0.1f32, 0.05];
-            let mut e = [1.0f32, -0.8, 0.6];
-            let dt = 1e-4f32;
-            let mut v_prev = g.lyapunov(&e.into());
-            let v0 = v_prev;
-            for k in 0..100_000 {
-                let t = k as f32 * dt;
-                let (vs, ws) = (0.5 + 0.2 * libm::sinf(0.3 * t), 0.2 * libm::cosf(0.5 * t));
-                let te = TrackingError::from(e);
-                let eta = g.eta_c(&te, vs, ws, fault);
-                let de = error_rate(&te, eta, fault, vs, ws, 0.0);
-                for i in 0..3 {
-                    e[i] += de[i] * dt;
-                }
-                let v = g.lyapunov(&e.into());
-                // V̇ <= 0 up to the Euler step's O(dt²) error.
-                assert!(
-                    v <= v_prev + 1e-6,
-                    "k_y {k_y} t {t}: V rose {v_prev} -> {v}"
-                );
-                v_prev = v;
-            }
-            assert!(v_prev < 1e-3 * v0, "k_y {k_y}: V {v_prev} of {v0}");
+            assert_lyapunov_decreases(
+                &g,
+                [1.0, -0.8, 0.6],
+                [0.1, 0.05],
+                100_000,
+                |t| (0.5 + 0.2 * libm::sinf(0.3 * t), 0.2 * libm::cosf(0.5 * t)),
+                |e| g.lyapunov(&e.into()),
+                |_, _, _| {},
+            );
         }
     }
 
@@ -223,37 +245,29 @@ mod tests {
         }
         .with_large_error_bound(DEFAULT_LARGE_ERROR_M);
         let l2 = DEFAULT_LARGE_ERROR_M * DEFAULT_LARGE_ERROR_M;
-        let lyap = |e: [f32; 3]| {
-            0.5 * l2 * libm::logf(1.0 + (e[0] * e[0] + e[1] * e[1]) / l2)
-                + (1.0 - libm::cosf(e[2])) / g.k_y
-        };
         for sign in [1.0f32, -1.0] {
             let fault = [0.1f32, 0.05];
-            let mut e = [1.5f32, 3.0, 1.42];
-            let dt = 1e-4f32;
-            let mut v_prev = lyap(e);
-            let v0 = v_prev;
-            for k in 0..200_000 {
-                let t = k as f32 * dt;
-                let vs = sign * (0.8 + 0.5 * libm::sinf(0.3 * t));
-                let ws = 0.2 * libm::cosf(0.5 * t);
-                let te = TrackingError::from(e);
-                let eta = g.eta_c(&te, vs, ws, fault);
+            assert_lyapunov_decreases(
+                &g,
+                [1.5, 3.0, 1.42],
+                fault,
+                200_000,
+                |t| {
+                    (
+                        sign * (0.8 + 0.5 * libm::sinf(0.3 * t)),
+                        0.2 * libm::cosf(0.5 * t),
+                    )
+                },
+                |e| {
+                    0.5 * l2 * libm::logf(1.0 + (e[0] * e[0] + e[1] * e[1]) / l2)
+                        + (1.0 - libm::cosf(e[2])) / g.k_y
+                },
                 // Bounded for any error: |k_y·g·v_s·e_y| <= k_y·|v_s|·L/2.
-                let lat = eta[1] - ws - g.k_th * te.sin_eth - fault[1];
-                assert!(lat.abs() <= g.k_y * vs.abs() * 0.5 * DEFAULT_LARGE_ERROR_M + 1e-4);
-                let de = error_rate(&te, eta, fault, vs, ws, 0.0);
-                for i in 0..3 {
-                    e[i] += de[i] * dt;
-                }
-                let v = lyap(e);
-                assert!(
-                    v <= v_prev + 1e-6,
-                    "sign {sign} t {t}: V rose {v_prev} -> {v}"
-                );
-                v_prev = v;
-            }
-            assert!(v_prev < 1e-3 * v0, "sign {sign}: V {v_prev} of {v0}");
+                |te, eta, (vs, ws)| {
+                    let lat = eta[1] - ws - g.k_th * te.sin_eth - fault[1];
+                    assert!(lat.abs() <= g.k_y * vs.abs() * 0.5 * DEFAULT_LARGE_ERROR_M + 1e-4);
+                },
+            );
         }
     }
 
