@@ -51,29 +51,20 @@ mkdir -p "$OUT_DIR"
 TARGET=thumbv7em-none-eabihf
 ELF="target/$TARGET/release/firmware-emu"
 WMR="$ROOT/target/release/wmr"
-HILSIM="$ROOT/target/release/hil-sim"
 LOG="$OUT_DIR/emu.log"
 CSV="$OUT_DIR/emu_square.csv"
 REF_CSV="$OUT_DIR/hilsim_square.csv"
 T_START=$SECONDS
 
-step() { printf '\n== %s\n' "$*"; }
-fail() {
-    echo "FAIL: $*" >&2
-    if [ -s "$LOG" ]; then
-        echo "---- last lines of the board's log ($LOG):" >&2
-        tail -15 "$LOG" >&2
-    fi
-    exit 1
-}
+LOG_NAME="the board's log"
+. "$ROOT/scripts/check-lib.sh"
 
 QPID=""
+DEV_PID=""
 cleanup() {
     exec 3<&-
-    if [ -n "$QPID" ] && kill -0 "$QPID" 2>/dev/null; then
-        kill "$QPID" 2>/dev/null || true
-        wait "$QPID" 2>/dev/null || true
-    fi
+    stop_pid "$QPID"
+    stop_pid "$DEV_PID"
 }
 trap cleanup EXIT
 trap 'exit 130' INT TERM
@@ -226,17 +217,10 @@ echo "plant step (outside the tick) max $plant_max instructions; late ticks $lat
 echo "OK: worst tick $max_all < $TICK_BUDGET instructions"
 
 step "reference: hil-sim's runtime path behind the link, the same wmr commands"
-"$HILSIM" device --pty --scenario reference.toml >"$OUT_DIR/hilsim.out" 2>"$OUT_DIR/hilsim.err" </dev/null &
-QPID=$!
-t_end=$((SECONDS + 10))
-until [ -s "$OUT_DIR/hilsim.out" ]; do
-    kill -0 "$QPID" 2>/dev/null || fail "hil-sim device exited: $(cat "$OUT_DIR/hilsim.err")"
-    [ "$SECONDS" -lt "$t_end" ] || fail "hil-sim device named no pty within 10 s"
-    sleep 0.1
-done
-drive "$(head -1 "$OUT_DIR/hilsim.out")" sim "$REF_CSV"
+start_device "$OUT_DIR" --scenario reference.toml
+drive "$DEV_PTY" sim "$REF_CSV"
 cleanup
-QPID=""
+DEV_PID=""
 ref_rec="$rec"
 
 step "check (b): tracking the square, against hil-sim's runtime path"

@@ -97,28 +97,20 @@ ELF446="$ROOT/firmware/target/ci-stm32f446re/$TARGET/release/firmware"
 ELF411="$ROOT/firmware/target/ci-stm32f411ce/$TARGET/release/firmware"
 EMU="$PWD/target/release/stm32-emu"
 WMR="$ROOT/target/release/wmr"
-HILSIM="$ROOT/target/release/hil-sim"
 LOG="$OUT_DIR/emu.log"
 T_START=$SECONDS
 
-step() { printf '\n== %s\n' "$*"; }
-fail() {
-    echo "FAIL: $*" >&2
-    if [ -s "$LOG" ]; then
-        echo "---- last lines of the emulator's log ($LOG):" >&2
-        tail -15 "$LOG" >&2
-    fi
-    exit 1
-}
+LOG_NAME="the emulator's log"
+. "$ROOT/scripts/check-lib.sh"
 
 EPID=""
+DEV_PID=""
 cleanup() {
     exec 3<&-
-    if [ -n "$EPID" ] && kill -0 "$EPID" 2>/dev/null; then
-        kill "$EPID" 2>/dev/null || true
-        wait "$EPID" 2>/dev/null || true
-    fi
+    stop_pid "$EPID"
+    stop_pid "$DEV_PID"
     EPID=""
+    DEV_PID=""
 }
 trap cleanup EXIT
 trap 'exit 130' INT TERM
@@ -290,18 +282,10 @@ tail_motor="$(grep -E "motors (off|driven)" "$LOG" | tail -1)"
 grep -q "motors off" <<<"$tail_motor" || fail "the motors are still driven after the link-loss stop"
 echo "OK: the firmware stopped the robot on link silence, motors off"
 
-# Starts `hil-sim device --pty` with args "$@"; sets EPID, PORT.
+# Starts `hil-sim device --pty` with args "$@"; sets DEV_PID, PORT.
 start_hilsim() {
-    rm -f "$OUT_DIR/hilsim.out"
-    "$HILSIM" device --pty "$@" >"$OUT_DIR/hilsim.out" 2>"$OUT_DIR/hilsim.err" </dev/null &
-    EPID=$!
-    local t_end=$((SECONDS + 10))
-    until [ -s "$OUT_DIR/hilsim.out" ]; do
-        kill -0 "$EPID" 2>/dev/null || fail "hil-sim device exited: $(cat "$OUT_DIR/hilsim.err")"
-        [ "$SECONDS" -lt "$t_end" ] || fail "hil-sim device named no pty within 10 s"
-        sleep 0.1
-    done
-    PORT="$(head -1 "$OUT_DIR/hilsim.out")"
+    start_device "$OUT_DIR" "$@"
+    PORT="$DEV_PTY"
 }
 
 step "reference: hil-sim's runtime path behind the link, the same wmr commands"

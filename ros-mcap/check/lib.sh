@@ -1,5 +1,5 @@
-# Sourced by ros-mcap/check/run.sh and wmr-ros2/check/run.sh (each defines
-# fail and cds to the repository's root first).
+# Sourced by ros-mcap/check/run.sh and wmr-ros2/check/run.sh (each sources
+# scripts/check-lib.sh and cds to the repository's root first).
 
 # The independent Python readers, exact versions, in one venv for both
 # checks: cyclonedds (the ROS 2 interop), mcap and rosbags (both).
@@ -29,20 +29,4 @@ check_venv() {
 # a second time (175 CPU-s, D124). After the test command nothing compiles.
 build_host_tools() {
     cargo test --release --workspace --no-run --quiet
-}
-
-# start_device OUT ARGS...: `hil-sim device --pty ARGS` in the background,
-# its output in OUT/dev.out and OUT/dev.err; sets DEV_PID and PTY.
-start_device() {
-    local out=$1
-    shift
-    "$ROOT/target/release/hil-sim" device --pty "$@" >"$out/dev.out" 2>"$out/dev.err" </dev/null &
-    DEV_PID=$!
-    local t_end=$((SECONDS + 10))
-    until [ -s "$out/dev.out" ]; do
-        kill -0 "$DEV_PID" 2>/dev/null || fail "hil-sim device exited: $(cat "$out/dev.err")"
-        [ "$SECONDS" -lt "$t_end" ] || fail "hil-sim device named no pty within 10 s"
-        sleep 0.1
-    done
-    PTY="$(head -1 "$out/dev.out")"
 }

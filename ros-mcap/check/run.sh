@@ -11,10 +11,10 @@ ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 cd "$ROOT"
 OUT="$(mktemp -d)"
 DEV_PID=""
-cleanup() { [ -n "$DEV_PID" ] && kill "$DEV_PID" 2>/dev/null || true; }
-trap cleanup EXIT
-fail() { echo "mcap check: FAIL: $*" >&2; exit 1; }
+FAIL_PREFIX="mcap check: "
+. scripts/check-lib.sh
 . ros-mcap/check/lib.sh
+trap 'stop_pid "$DEV_PID"' EXIT
 
 check_venv "${MCAP_CHECK_VENV:-$ROOT/target/ros-check-venv}"
 build_host_tools
@@ -31,10 +31,10 @@ echo "wmr metrics: CSV and MCAP give the same JSON: $(cat "$OUT/sim_csv.json")"
 
 echo "== robot side: wmr record --mcap against hil-sim device --pty"
 start_device "$OUT" --for-s 60
-"$WMR" --port "$PTY" upload trajectories/square.toml
-"$WMR" --port "$PTY" record --seconds 5 --arm --quiet --out "$OUT/rec.csv" --mcap "$OUT/rec.mcap" >"$OUT/rec.json" ||
+"$WMR" --port "$DEV_PTY" upload trajectories/square.toml
+"$WMR" --port "$DEV_PTY" record --seconds 5 --arm --quiet --out "$OUT/rec.csv" --mcap "$OUT/rec.mcap" >"$OUT/rec.json" ||
     fail "wmr record --mcap: $(cat "$OUT/rec.json")"
-"$WMR" --port "$PTY" disarm >/dev/null
+"$WMR" --port "$DEV_PTY" disarm >/dev/null
 "$PY" ros-mcap/check/mcap_check.py "$OUT/rec.mcap" "$OUT/rec.csv"
 "$WMR" metrics "$OUT/rec.csv" >"$OUT/rec_csv.json"
 "$WMR" metrics "$OUT/rec.mcap" >"$OUT/rec_mcap.json"

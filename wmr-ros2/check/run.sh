@@ -8,7 +8,8 @@
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 cd "$ROOT"
-fail() { echo "ros2 interop: FAIL: $*" >&2; exit 1; }
+FAIL_PREFIX="ros2 interop: "
+. scripts/check-lib.sh
 . ros-mcap/check/lib.sh
 
 if [ -z "${WMR_ROS2_IN_NETNS:-}" ]; then
@@ -30,12 +31,12 @@ OUT="$(mktemp -d)"
 DEV_PID=""
 BRIDGE_PID=""
 cleanup() {
-    [ -n "$BRIDGE_PID" ] && kill "$BRIDGE_PID" 2>/dev/null || true
-    [ -n "$DEV_PID" ] && kill "$DEV_PID" 2>/dev/null || true
+    stop_pid "$BRIDGE_PID"
+    stop_pid "$DEV_PID"
 }
 trap cleanup EXIT
 start_device "$OUT" --scenario wmr-ros2/check/scenario.toml --for-s 120
-"$ROOT/target/release/wmr-ros2" --port "$PTY" --service-mapping cyclone --cmd-timeout-ms 500 --mcap "$OUT/bridge.mcap" \
+"$ROOT/target/release/wmr-ros2" --port "$DEV_PTY" --service-mapping cyclone --cmd-timeout-ms 500 --mcap "$OUT/bridge.mcap" \
     --for-s 110 2>"$OUT/bridge.err" &
 BRIDGE_PID=$!
 sleep 0.5
