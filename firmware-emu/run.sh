@@ -65,6 +65,8 @@ cleanup() {
     exec 3<&-
     stop_pid "$QPID"
     stop_pid "$DEV_PID"
+    QPID=""
+    DEV_PID=""
 }
 trap cleanup EXIT
 trap 'exit 130' INT TERM
@@ -164,7 +166,6 @@ fi
 emu_rec="$rec"
 sleep 1.2 # one more status line in the board's log
 cleanup
-QPID=""
 
 # The number after "KEY": in the JSON line $2 (default: the record's; "" when missing).
 json() { sed -n "s/.*\"$1\":\([-0-9.eE+]*\).*/\1/p" <<<"${2:-$rec}"; }
@@ -220,7 +221,6 @@ step "reference: hil-sim's runtime path behind the link, the same wmr commands"
 start_device "$OUT_DIR" --scenario reference.toml
 drive "$DEV_PTY" sim "$REF_CSV"
 cleanup
-DEV_PID=""
 ref_rec="$rec"
 
 step "check (b): tracking the square, against hil-sim's runtime path"

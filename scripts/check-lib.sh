@@ -22,12 +22,12 @@ fail() {
 # stop_pid PID: stops a background process of this shell if it still runs
 # (SIGTERM; SIGKILL after 5 s) and reaps it; nothing when PID is empty.
 stop_pid() {
-    local pid=$1 i
+    local pid=$1
     if [ -z "$pid" ] || ! kill -0 "$pid" 2>/dev/null; then
         return 0
     fi
     kill "$pid" 2>/dev/null || true
-    for i in $(seq 50); do
+    for _ in $(seq 50); do
         kill -0 "$pid" 2>/dev/null || break
         sleep 0.1
     done
