@@ -241,6 +241,13 @@ impl SimRobot {
         self.world.true_pose()
     }
 
+    /// The true wheel angles φ = \[φ_R, φ_L\] \[rad\] (the plant's, which
+    /// the encoders sample).
+    pub fn true_wheel_angles_rad(&self) -> [f64; 2] {
+        let q = &self.world.state().q;
+        [q[3], q[4]]
+    }
+
     /// Robot time of the next tick \[µs\] (wraps like a firmware clock).
     pub fn now_us(&self) -> u32 {
         (self.step * self.timer.period_us() as u64) as u32

@@ -210,8 +210,18 @@ fn upload_arm_through_a_cut_line_fails_clearly_and_recovers() {
         "{e}\n{out}"
     );
     assert!(t0.elapsed() < BOUND);
-    let (r, out) = finish(&rig.wmr(&["status"]), "status");
-    r.unwrap();
+    // The controlled stop ends once the robot is at rest (issue 31): ask
+    // until it has, at most 60 times.
+    let mut out = String::new();
+    for _ in 0..60 {
+        let (r, o) = finish(&rig.wmr(&["status"]), "status");
+        r.unwrap();
+        out = o;
+        if !out.contains("state Stopping") {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(250));
+    }
     assert!(
         out.contains("state Hold") && out.contains("LinkSilence"),
         "{out}"

@@ -13,6 +13,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use wmr::Link;
+use wmr_device::limits::REST_HOLD_S;
 use wmr_protocol::*;
 
 /// The link tests run one at a time: each serves a simulated robot in real
@@ -375,6 +376,36 @@ fn recorded_run_matches_the_simulation(scn: &Scenario, shape: &str) -> serde_jso
     m.clone()
 }
 
+/// A controlled stop ended with the robot at rest (issue 31): over the
+/// last `REST_HOLD_S` of telemetry before hold, both wheels' measured
+/// ground speeds v ± h·ω stayed at or below the device's rest speed.
+fn assert_at_rest_before(frames: &[Telemetry]) {
+    let hold_us = frames.last().unwrap().t_robot_us;
+    // The paper robot of both rigs: its rest speed, as the device derives it.
+    let mut sim = SimRobot::new(&Scenario::default(), ControllerKind::Proposed).unwrap();
+    let cfg = *sim.device().control().config();
+    let rest_mps = wmr_device::limits::RobotLimits::of(&cfg).rest_speed_mps as f64;
+    let half_track_m = cfg.controller.robot.half_track_m as f64;
+    let window_us = (REST_HOLD_S * 1e6) as u32;
+    let mut n = 0;
+    for f in frames.iter().rev().skip(1) {
+        if hold_us.wrapping_sub(f.t_robot_us) > window_us {
+            break;
+        }
+        let [v, w] = f.tracking.unwrap().eta.map(f64::from);
+        let wheel = (v + half_track_m * w)
+            .abs()
+            .max((v - half_track_m * w).abs());
+        assert!(
+            wheel <= rest_mps * 1.01,
+            "{wheel:.4} m/s at a wheel {} µs before hold",
+            hold_us.wrapping_sub(f.t_robot_us)
+        );
+        n += 1;
+    }
+    assert!(n >= 50, "{n} frames in the last {window_us} µs before hold");
+}
+
 /// Armed by the host, then silence: braking starts within the link
 /// timeout (500 ms, one telemetry period of slack), the robot stands still
 /// and disarms (zero torque) within the braking time.
@@ -403,8 +434,15 @@ fn link_silence_while_running_stops_within_the_timeout() {
         "braking began {:.3} s after arming",
         braking - armed
     );
-    // 0.5 m/s at 1 m/s² brakes in 0.5 s.
-    assert!(t_us(hold) - braking <= 0.5 + 0.002);
+    // 0.5 m/s at 1 m/s² brakes in 0.5 s; then the device waits for the
+    // wheels to be at rest for REST_HOLD_S (issue 31), here well within
+    // a further second. The last frames before hold show the robot at rest.
+    let stop_s = t_us(hold) - braking;
+    assert!(
+        (REST_HOLD_S as f64..=1.5 + REST_HOLD_S as f64).contains(&stop_s),
+        "the stop took {stop_s:.3} s"
+    );
+    assert_at_rest_before(&frames);
     assert_eq!(hold.tracking.unwrap().torque_nm, [0.0; 2]);
     drop(link);
     robot.finish();
@@ -462,8 +500,14 @@ fn drive_without_refresh_stops_after_its_timeout() {
     assert!(stopping - run <= 0.2 + 0.002, "{:.3} s", stopping - run);
     let hold = frames.last().unwrap();
     assert_eq!(hold.state, RunStateMsg::Hold);
-    // v reached at most 1 m/s² × 0.2 s = 0.2 m/s: 0.2 s of braking.
-    assert!(hold.t_robot_us as f64 * 1e-6 - stopping <= 0.2 + 0.002);
+    // v reached at most 1 m/s² × 0.2 s = 0.2 m/s: 0.2 s of braking, then
+    // the wait for the wheels at rest (issue 31).
+    let stop_s = hold.t_robot_us as f64 * 1e-6 - stopping;
+    assert!(
+        (REST_HOLD_S as f64..=1.2 + REST_HOLD_S as f64).contains(&stop_s),
+        "the stop took {stop_s:.3} s"
+    );
+    assert_at_rest_before(&frames);
     assert_eq!(hold.tracking.unwrap().torque_nm, [0.0; 2]);
     drop(link);
     robot.finish();

@@ -180,6 +180,12 @@ impl<const H: usize> Device<H> {
         self.handler.state()
     }
 
+    /// The cause of the last stop (controlled, latched or a disarm), as
+    /// the status reports it.
+    pub fn last_stop(&self) -> Option<StopCode> {
+        self.handler.session.last_stop
+    }
+
     /// The loaded mode.
     pub fn mode(&self) -> ModeMsg {
         self.handler.selector.mode_msg()

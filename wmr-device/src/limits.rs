@@ -43,6 +43,24 @@ pub const MAX_POSITION_M: f32 = 1000.0;
 pub const MIN_GAIN: f32 = 1e-3;
 /// Least torque limit and stall torque \[N·m\].
 pub const MIN_TORQUE_NM: f32 = 0.01;
+/// A controlled stop ends when both wheels' measured ground speeds
+/// (r·φ̇, from the windowed encoder rates) have stayed at or below this
+/// \[m/s\], or [`REST_QUANTA`] of the encoder's rate resolution when
+/// that is coarser ([`RobotLimits::rest_speed_mps`]), for [`REST_HOLD_S`]
+/// (issue 31: "stopped" means at rest, not the braking reference at rest).
+pub const REST_SPEED_MPS: f32 = 0.02;
+/// The rest threshold in quanta of the windowed rate estimate: a wheel
+/// held in place by the controller may read ±1 count per window (a
+/// 1,320-count encoder over an 8-tick window reads 0.6 rad/s steps, 2 cm/s
+/// on a 3.3 cm wheel), which is no motion.
+pub const REST_QUANTA: f32 = 1.5;
+/// How long both wheels must stay below [`REST_SPEED_MPS`] for a
+/// controlled stop to end \[s\].
+pub const REST_HOLD_S: f32 = 0.1;
+/// The time a controlled stop may hold its braking reference at rest,
+/// waiting for the robot to come to rest, before the stop's bound cuts
+/// the motors whatever the robot does \[s\].
+pub const REST_SETTLE_MAX_S: f32 = 2.0;
 
 /// The robot's physical limits, derived from its runtime configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,6 +78,10 @@ pub struct RobotLimits {
     pub max_rate_per_s: f32,
     /// Control period \[s\].
     pub period_s: f32,
+    /// A wheel at or below this measured ground speed is at rest \[m/s\]:
+    /// [`REST_SPEED_MPS`], or [`REST_QUANTA`] rate quanta of the encoder
+    /// times the wheel radius when coarser.
+    pub rest_speed_mps: f32,
 }
 
 impl RobotLimits {
@@ -71,6 +93,7 @@ impl RobotLimits {
         stall_torque_nm: f32::MAX,
         max_rate_per_s: 500.0,
         period_s: 1e-3,
+        rest_speed_mps: REST_SPEED_MPS,
     };
 
     /// The limits of the robot `rt` describes (a validated configuration).
@@ -89,6 +112,11 @@ impl RobotLimits {
                 / m.winding_resistance_ohm,
             max_rate_per_s: 0.5 / rt.controller.period_s,
             period_s: rt.controller.period_s,
+            rest_speed_mps: REST_SPEED_MPS.max(
+                REST_QUANTA
+                    * rt.encoder.rate_quantum_radps(rt.controller.period_s)
+                    * r.wheel_radius_m,
+            ),
         }
     }
 
@@ -126,17 +154,25 @@ impl RobotLimits {
             .is_none_or(|(lo, hi)| value >= lo && value <= hi)
     }
 
-    /// The longest controlled stop with braking deceleration `decel_mps2`
-    /// and angular acceleration `ang_accel_radps2` \[s\]: from top speed and
-    /// top yaw rate, v and ω falling together. With the least values
-    /// allowed ([`MIN_BRAKE_DECEL_MPS2`], [`MIN_ANG_ACCEL_RADPS2`]) and the
-    /// paper robot (4 m/s, 20 rad/s) it is 20 s; with the defaults (1 m/s²,
-    /// 3 rad/s²) 6.7 s. After it the device cuts the motors whatever the
-    /// braking reference does.
-    pub fn stop_bound_s(&self, decel_mps2: f32, ang_accel_radps2: f32) -> f32 {
+    /// The longest braking ramp with deceleration `decel_mps2` and angular
+    /// acceleration `ang_accel_radps2` \[s\]: from top speed and top yaw
+    /// rate, v and ω falling together. With the least values allowed
+    /// ([`MIN_BRAKE_DECEL_MPS2`], [`MIN_ANG_ACCEL_RADPS2`]) and the paper
+    /// robot (4 m/s, 20 rad/s) it is 20 s; with the defaults (1 m/s²,
+    /// 3 rad/s²) 6.7 s.
+    pub fn brake_ramp_bound_s(&self, decel_mps2: f32, ang_accel_radps2: f32) -> f32 {
         let t_v = self.top_speed_mps / decel_mps2.max(MIN_BRAKE_DECEL_MPS2);
         let t_w = self.top_yaw_rate_radps / ang_accel_radps2.max(MIN_ANG_ACCEL_RADPS2);
         t_v.max(t_w)
+    }
+
+    /// The longest controlled stop \[s\]: the longest braking ramp
+    /// ([`Self::brake_ramp_bound_s`]) and then at most
+    /// [`REST_SETTLE_MAX_S`] holding the reference at rest until the robot
+    /// is at rest. After it the device cuts the motors whatever the robot
+    /// does (paper robot, default braking: 6.7 + 2 = 8.7 s).
+    pub fn stop_bound_s(&self, decel_mps2: f32, ang_accel_radps2: f32) -> f32 {
+        self.brake_ramp_bound_s(decel_mps2, ang_accel_radps2) + REST_SETTLE_MAX_S
     }
 
     /// [`Self::stop_bound_s`] in ticks (rounded up, plus the tick that

@@ -4,11 +4,11 @@
 //! its reply; the arm/disarm transitions and the link watchdog.
 
 use crate::framing::{bump, Framing, RX_BYTES_PER_TICK};
-use crate::limits::{RobotLimits, MAX_POSITION_M};
+use crate::limits::{RobotLimits, MAX_POSITION_M, REST_HOLD_S};
 use crate::params::{self, in_hold, DeviceConfig, MAX_TELEMETRY_RATE_HZ, MAX_VELOCITY_TIMEOUT_MS};
 use crate::reference::{pose_from_msg, PlacedReference, SegmentError, VirtualVehicle};
 use crate::robot::RobotRecord;
-use crate::selection::{Mode, Selected, Selector, VelocityCmd};
+use crate::selection::{Measured, Mode, Selected, Selector, StopPolicy, VelocityCmd};
 use crate::telemetry::{counters, TelemetryScheduler};
 use crate::wheel_test::WheelTest;
 use controller_core::estimator::{PoseMeasurement, RejectReason};
@@ -539,24 +539,22 @@ impl<const H: usize> Handler<H> {
         let silent_us = s.now_us.wrapping_sub(s.last_rx_us);
         if s.host_armed && silent_us > self.cfg.link.link_timeout_ms.saturating_mul(1000) {
             framing.send(&Reply::Event(Event::LinkLost));
-            let cap = self.stop_cap_ticks();
-            let period_s = self.period_s();
+            let policy = self.stop_policy();
             self.selector
-                .start_braking(true, &self.cfg.link, period_s, cap, StopCode::LinkSilence);
+                .start_braking(true, &self.cfg.link, &policy, StopCode::LinkSilence);
         }
     }
 
     /// This tick's reference; finishes a controlled stop (disarm) when the
-    /// braking reference stands still.
+    /// robot is at rest or at the stop's bound.
     pub fn reference_for_tick(&mut self, motors: &mut impl MotorDriver) -> RefSample {
         let running = self.running();
-        let period_s = self.period_s();
         let t_ref_s = self.control.reference_time_s();
         let now_us = self.session.now_us;
-        let cap = self.stop_cap_ticks();
+        let policy = self.stop_policy();
         match self
             .selector
-            .select(running, t_ref_s, now_us, &self.cfg.link, period_s, cap)
+            .select(running, t_ref_s, now_us, &self.cfg.link, &policy)
         {
             Selected::Drive(r) => r,
             Selected::Finished(cause, rest) => {
@@ -575,6 +573,19 @@ impl<const H: usize> Handler<H> {
             .stop_bound_ticks(l.brake_decel_mps2, l.ang_accel_radps2)
     }
 
+    /// How a controlled stop runs with the settings in force (the rest
+    /// thresholds of [`crate::limits`]).
+    pub fn stop_policy(&self) -> StopPolicy {
+        let period_s = self.period_s();
+        let ticks = |s: f32| ((s / period_s) as u32).max(1);
+        StopPolicy {
+            period_s,
+            cap_ticks: self.stop_cap_ticks(),
+            rest_hold_ticks: ticks(REST_HOLD_S),
+            rest_speed_mps: self.limits.rest_speed_mps,
+        }
+    }
+
     /// After the control tick: the stop it reported, the state event and
     /// the telemetry frame.
     pub fn after_tick(&mut self, framing: &mut Framing, rep: &TickReport) {
@@ -583,6 +594,13 @@ impl<const H: usize> Handler<H> {
         if ref_is_finite(&rep.reference) {
             self.selector.last_ref = rep.reference;
         }
+        let [v, w] = [rep.eta.v_mps, rep.eta.omega_radps];
+        let b = self.control.config().controller.robot.half_track_m;
+        self.selector.measured = Measured {
+            pose: rep.pose,
+            eta: [v, w],
+            wheel_mps: [v + b * w, v - b * w],
+        };
         if let Some(r) = rep.stopped {
             self.on_stop(stop_code(r));
         }

@@ -26,13 +26,45 @@ pub(crate) struct VelocityCmd {
     pub expires_us: Option<u32>,
 }
 
-/// A controlled stop in progress.
+/// A controlled stop in progress: a braking ramp from the measured motion
+/// to rest, then the reference held at rest until the robot is at rest.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Braking {
     vehicle: VirtualVehicle,
     rates: [f32; 2],
+    /// Ticks of the braking ramp left (the reference at rest after them).
+    ramp_ticks_left: u32,
+    /// Ticks left until the stop's bound: the motors are cut then
+    /// whatever the robot does.
     ticks_left: u32,
+    /// Consecutive ticks with both wheels at rest.
+    rest_ticks: u32,
     pub cause: StopCode,
+}
+
+/// The robot's measured motion after the last tick: what a controlled stop
+/// brakes from and waits for.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Measured {
+    /// The pose given to the controller (the estimator's fused pose of G).
+    pub pose: controller_core::Pose,
+    /// η = \[v, ω\] from the wheel rates \[m/s, rad/s\].
+    pub eta: [f32; 2],
+    /// Each wheel's ground speed r·φ̇ `[right, left]` \[m/s\].
+    pub wheel_mps: [f32; 2],
+}
+
+/// How a controlled stop runs: the ramp's rates and its bounds.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct StopPolicy {
+    /// Control period \[s\].
+    pub period_s: f32,
+    /// The stop's bound \[ticks\] (`RobotLimits::stop_bound_ticks`).
+    pub cap_ticks: u32,
+    /// Ticks both wheels must stay at rest.
+    pub rest_hold_ticks: u32,
+    /// A wheel at or below this ground speed is at rest \[m/s\].
+    pub rest_speed_mps: f32,
 }
 
 /// The reference of one tick.
@@ -54,6 +86,8 @@ pub(crate) struct Selector {
     pub braking: Option<Braking>,
     /// The reference of the last tick.
     pub last_ref: RefSample,
+    /// The measured motion after the last tick.
+    pub measured: Measured,
 }
 
 impl Selector {
@@ -65,6 +99,7 @@ impl Selector {
             vehicle: VirtualVehicle::default(),
             braking: None,
             last_ref: RefSample::default(),
+            measured: Measured::default(),
         }
     }
 
@@ -107,37 +142,53 @@ impl Selector {
         }
     }
 
-    /// Starts a controlled stop from the last reference sample (when
-    /// `running` and none runs yet): v and ω fall linearly to zero
-    /// together (the path's curvature is kept) at the braking deceleration,
-    /// in at most `cap_ticks` − 1 ticks (faster when the braking settings
-    /// would take longer: D41's hard cap), then the robot disarms.
+    /// Starts a controlled stop from the measured motion (when `running`
+    /// and none runs yet): a reference starting at the robot's pose with
+    /// its measured v and ω, both falling linearly to zero together (the
+    /// path's curvature is kept) at the braking deceleration, then held at
+    /// rest until both wheels have been at rest for the policy's hold time;
+    /// the whole stop ends within `policy.cap_ticks` − 1 ticks (the ramp
+    /// is made faster when the braking settings would take longer: D41's
+    /// hard cap), then the robot disarms.
     pub fn start_braking(
         &mut self,
         running: bool,
         link: &LinkConfig,
-        period_s: f32,
-        cap_ticks: u32,
+        policy: &StopPolicy,
         cause: StopCode,
     ) {
         if self.braking.is_some() || !running {
             return;
         }
-        let r = self.last_ref;
-        let t_v = r.v_mps.abs() / link.brake_decel_mps2;
-        let t_w = r.omega_radps.abs() / link.ang_accel_radps2;
-        let ticks = ((t_v.max(t_w) / period_s) as u32)
+        let m = self.measured;
+        // A non-finite measurement (a runtime fault) brakes from the last
+        // reference instead.
+        let (pose, v, w) = if m.eta.iter().all(|x| x.is_finite()) && m.pose.is_finite() {
+            (m.pose, m.eta[0], m.eta[1])
+        } else {
+            let r = self.last_ref;
+            (r.pose, r.v_mps, r.omega_radps)
+        };
+        let period_s = policy.period_s;
+        let cap = policy.cap_ticks.saturating_sub(1).max(1);
+        let t_v = v.abs() / link.brake_decel_mps2;
+        let t_w = w.abs() / link.ang_accel_radps2;
+        let ramp = ((t_v.max(t_w) / period_s) as u32)
             .saturating_add(1)
-            .min(cap_ticks.saturating_sub(1).max(1));
-        let t = ticks as f32 * period_s;
+            .min(cap);
+        let t = ramp as f32 * period_s;
         self.braking = Some(Braking {
             vehicle: VirtualVehicle::from_sample(RefSample {
-                v_dot_mps2: -r.v_mps / t,
-                omega_dot_radps2: -r.omega_radps / t,
-                ..r
+                pose,
+                v_mps: v,
+                omega_radps: w,
+                v_dot_mps2: -v / t,
+                omega_dot_radps2: -w / t,
             }),
-            rates: [-r.v_mps / t, -r.omega_radps / t],
-            ticks_left: ticks,
+            rates: [-v / t, -w / t],
+            ramp_ticks_left: ramp,
+            ticks_left: cap,
+            rest_ticks: 0,
             cause,
         });
     }
@@ -150,25 +201,39 @@ impl Selector {
         t_ref_s: f32,
         now_us: u32,
         link: &LinkConfig,
-        period_s: f32,
-        cap_ticks: u32,
+        policy: &StopPolicy,
     ) -> Selected {
-        let dt = period_s;
+        let dt = policy.period_s;
         if let Some(b) = &mut self.braking {
+            let rest = RefSample {
+                v_mps: 0.0,
+                omega_radps: 0.0,
+                v_dot_mps2: 0.0,
+                omega_dot_radps2: 0.0,
+                ..b.vehicle.sample
+            };
             if b.ticks_left == 0 {
-                let rest = RefSample {
-                    v_mps: 0.0,
-                    omega_radps: 0.0,
-                    v_dot_mps2: 0.0,
-                    omega_dot_radps2: 0.0,
-                    ..b.vehicle.sample
-                };
+                // The stop's bound: the motors are cut now.
                 return Selected::Finished(b.cause, rest);
             }
-            let out = b.vehicle.sample;
-            b.vehicle.advance(dt, b.rates[0], b.rates[1]);
             b.ticks_left -= 1;
-            return Selected::Drive(out);
+            if b.ramp_ticks_left > 0 {
+                let out = b.vehicle.sample;
+                b.vehicle.advance(dt, b.rates[0], b.rates[1]);
+                b.ramp_ticks_left -= 1;
+                return Selected::Drive(out);
+            }
+            // The reference is at rest: hold it until the robot is.
+            let at_rest = self
+                .measured
+                .wheel_mps
+                .iter()
+                .all(|w| w.abs() <= policy.rest_speed_mps);
+            b.rest_ticks = if at_rest { b.rest_ticks + 1 } else { 0 };
+            if b.rest_ticks >= policy.rest_hold_ticks {
+                return Selected::Finished(b.cause, rest);
+            }
+            return Selected::Drive(rest);
         }
         if !running {
             return Selected::Drive(self.last_ref);
@@ -179,8 +244,8 @@ impl Selector {
             Mode::Trajectory => match self.waypoints.sample(t_ref_s) {
                 Some(r) => r,
                 None => {
-                    self.start_braking(running, link, period_s, cap_ticks, StopCode::TrajectoryEnd);
-                    return self.select(running, t_ref_s, now_us, link, period_s, cap_ticks);
+                    self.start_braking(running, link, policy, StopCode::TrajectoryEnd);
+                    return self.select(running, t_ref_s, now_us, link, policy);
                 }
             },
             Mode::Velocity => {
@@ -191,14 +256,8 @@ impl Selector {
                 // No live command (expired, or armed without one): stop.
                 if expired {
                     self.velocity = VelocityCmd::default();
-                    self.start_braking(
-                        running,
-                        link,
-                        period_s,
-                        cap_ticks,
-                        StopCode::VelocityTimeout,
-                    );
-                    return self.select(running, t_ref_s, now_us, link, period_s, cap_ticks);
+                    self.start_braking(running, link, policy, StopCode::VelocityTimeout);
+                    return self.select(running, t_ref_s, now_us, link, policy);
                 }
                 let s = self.vehicle.sample;
                 let a = VirtualVehicle::ramp_rate(
