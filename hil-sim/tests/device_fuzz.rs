@@ -213,6 +213,8 @@ struct Fuzz {
     /// The true motion of the last tick: speed of G \[m/s\] and the
     /// faster wheel's rim speed r·|φ̇| \[m/s\].
     true_motion: (f64, f64),
+    /// Ticks whose driven reference was checked against the limits.
+    reference_ticks: u64,
     /// Controlled stops ended with the robot at rest, and at their bound.
     stops_at_rest: u64,
     stops_at_bound: u64,
@@ -244,6 +246,7 @@ impl Fuzz {
             wheel_radius_m: file.body.wheel_radius_m.map(f64::from),
             true_motion: (0.0, 0.0),
             name: name.clone(),
+            reference_ticks: 0,
             stops_at_rest: 0,
             stops_at_bound: 0,
             robot,
@@ -297,6 +300,19 @@ impl Fuzz {
         let state = dev.state();
         let moving = matches!(state, RunStateMsg::Running | RunStateMsg::Stopping);
         assert!(moving || !rep.motors_enabled, "motors on in {state:?}");
+        // The reference driven on every tick is within the robot's limits
+        // (issue 31 item 1; a controlled stop's ramp may decelerate at the
+        // link's braking setting).
+        if rep.motors_enabled {
+            let braking = state == RunStateMsg::Stopping;
+            if let Err(e) = self.limits.check_sample(&rep.reference, braking) {
+                panic!(
+                    "{}: a reference beyond the robot's limits: {e:?}",
+                    self.name
+                );
+            }
+            self.reference_ticks += 1;
+        }
         let limit = dev.control().config().controller.torque_limit_nm;
         for t in rep.torque_nm {
             assert!(t.is_finite() && t.abs() <= limit * 1.0001, "torque {t} N·m");

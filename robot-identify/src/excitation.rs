@@ -6,9 +6,14 @@ use controller_core::trajectory::Excitation;
 use controller_core::{Pose, ReducedModel, RobotParams};
 use wmr_protocol::{PoseMsg, Waypoint};
 
-/// Waypoint spacing of the uploaded excitation \[s\]: 20 per second keep
-/// the cubic Hermite between them within 1 mm of the excitation's path.
-pub const WAYPOINT_SPACING_S: f32 = 0.05;
+/// Waypoint spacing of the uploaded excitation \[s\]: 40 per second keep
+/// the cubic Hermite between them within 1 mm of the excitation's path,
+/// and its yaw rate where the excitation reverses within 1.2x of the
+/// excitation's own peak. At 20 per second the Hermite curve between two
+/// waypoints straddling a reversal swept its heading at up to 16.8 rad/s
+/// (the excitation's peak: 2.7 rad/s), beyond the 2 kg robot's 12.9 rad/s
+/// top yaw rate: the device's segment check (issue 31) refused it.
+pub const WAYPOINT_SPACING_S: f32 = 0.025;
 
 /// Peak quantities of an excitation for a robot model.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -122,7 +127,7 @@ mod tests {
         assert!(p.speed_mps <= 0.5 + 1e-6 && p.yaw_rate_radps <= 1.0 + 1e-6);
         assert!(p.torque_nm > 0.1, "{p:?}");
         let w = waypoints(&ex, Pose::new(0.5, -0.5, 1.0));
-        assert_eq!(w.len(), 1201);
+        assert_eq!(w.len(), 2401);
         assert!((w[1].t_s - WAYPOINT_SPACING_S).abs() < 1e-6);
         assert_eq!((w[0].pose.x_m, w[0].pose.y_m, w[0].v_mps), (0.5, -0.5, 0.0));
         let e = check(&ex, &RobotParams::paper(), 1.0, 2.0, 0.1, 0.5, 2.5).unwrap_err();

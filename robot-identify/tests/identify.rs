@@ -377,9 +377,14 @@ fn random_robots_are_identified() {
 /// A run without yaw excitation (ω a hundredth of the default; the yaw
 /// left is the controller's own corrections): the inertia's interval is
 /// at least three times wider than from the default excitation on the
-/// same robot and seed (the information in ω̇ falls), the regressor's
-/// condition number is larger, and the report carries both. (Measured:
-/// ±0.0129 against ±0.0029 kg·m², 4.5 times; cond 3.75 against 3.67.)
+/// same robot and seed (the information in ω̇ falls), and the report
+/// carries the interval and the regressor's condition number. (Measured
+/// with waypoints every 50 ms: ±0.0129 against ±0.0029 kg·m², 4.5 times;
+/// cond 3.75 against 3.67.) The condition number is not asserted to order
+/// the two: with waypoints every 25 ms (issue 31: no yaw-rate spikes where
+/// the excitation reverses) it came out 3.43 poor against 3.62 rich, so a
+/// 2 % difference of either sign says nothing; the interval, which is what
+/// the excitation's poverty costs, does.
 #[test]
 fn a_poor_excitation_is_reported() {
     let scn = scenario(1.0, 1.0, Sensing::Mocap, 7);
@@ -402,12 +407,6 @@ fn a_poor_excitation_is_reported() {
         "poor {:?} rich {:?}\n{text}",
         dp.inertia_kgm2,
         dr.inertia_kgm2
-    );
-    assert!(
-        dp.lsq.condition > dr.lsq.condition,
-        "{} vs {}",
-        dp.lsq.condition,
-        dr.lsq.condition
     );
     assert!(text.contains("condition number"));
     println!(

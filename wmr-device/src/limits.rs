@@ -62,6 +62,42 @@ pub const REST_HOLD_S: f32 = 0.1;
 /// the motors whatever the robot does \[s\].
 pub const REST_SETTLE_MAX_S: f32 = 2.0;
 
+/// A quantity of a reference the robot's limits bound.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Quantity {
+    /// Speed |v| \[m/s\] against [`RobotLimits::top_speed_mps`].
+    SpeedMps,
+    /// Yaw rate |ω| \[rad/s\] against [`RobotLimits::top_yaw_rate_radps`].
+    YawRateRadps,
+    /// Acceleration \[m/s²\] against [`RobotLimits::top_accel_mps2`].
+    AccelMps2,
+}
+
+impl Quantity {
+    /// Its name and unit, for messages.
+    pub fn describe(self) -> (&'static str, &'static str) {
+        match self {
+            Quantity::SpeedMps => ("speed", "m/s"),
+            Quantity::YawRateRadps => ("yaw rate", "rad/s"),
+            Quantity::AccelMps2 => ("acceleration", "m/s²"),
+        }
+    }
+}
+
+/// A reference beyond one of the robot's limits: what, how much, and the
+/// limit (`value` may be NaN).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LimitExceeded {
+    /// The quantity beyond its limit.
+    pub quantity: Quantity,
+    /// Its value (the peak found), in its unit.
+    pub value: f32,
+    /// The limit, in the same unit.
+    pub limit: f32,
+}
+
 /// The robot's physical limits, derived from its runtime configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -73,6 +109,11 @@ pub struct RobotLimits {
     pub top_yaw_rate_radps: f32,
     /// Wheel stall torque η·N·k·V/R \[N·m\].
     pub stall_torque_nm: f32,
+    /// Largest acceleration of the robot's path 2·τ_stall/(r·m_eff) with
+    /// m_eff = m + 2·I_w/r² \[m/s²\] (both wheels at the stall torque; the
+    /// reduced model's (6) linear row). A reference that asks more cannot
+    /// be followed by any motor of this robot.
+    pub top_accel_mps2: f32,
     /// Fastest closed-loop rate a gain may ask, half the control rate
     /// 1/(2·period) \[1/s\].
     pub max_rate_per_s: f32,
@@ -91,6 +132,7 @@ impl RobotLimits {
         top_speed_mps: MAX_SPEED_MPS,
         top_yaw_rate_radps: MAX_YAW_RATE_RADPS,
         stall_torque_nm: f32::MAX,
+        top_accel_mps2: f32::MAX,
         max_rate_per_s: 500.0,
         period_s: 1e-3,
         rest_speed_mps: REST_SPEED_MPS,
@@ -102,14 +144,16 @@ impl RobotLimits {
         let r = &rt.controller.robot;
         let wheel_radps = m.supply_voltage_v / (m.torque_constant_nm_per_a * m.gear_ratio);
         let top_speed_mps = (wheel_radps * r.wheel_radius_m).min(MAX_SPEED_MPS);
+        let stall_torque_nm =
+            m.gear_efficiency * m.gear_ratio * m.torque_constant_nm_per_a * m.supply_voltage_v
+                / m.winding_resistance_ohm;
+        let rw = r.wheel_radius_m;
+        let m_eff = r.mass_kg + 2.0 * r.wheel_inertia_kgm2 / (rw * rw);
         Self {
             top_speed_mps,
             top_yaw_rate_radps: (top_speed_mps / r.half_track_m).min(MAX_YAW_RATE_RADPS),
-            stall_torque_nm: m.gear_efficiency
-                * m.gear_ratio
-                * m.torque_constant_nm_per_a
-                * m.supply_voltage_v
-                / m.winding_resistance_ohm,
+            stall_torque_nm,
+            top_accel_mps2: 2.0 * stall_torque_nm / (rw * m_eff),
             max_rate_per_s: 0.5 / rt.controller.period_s,
             period_s: rt.controller.period_s,
             rest_speed_mps: REST_SPEED_MPS.max(
@@ -145,6 +189,38 @@ impl RobotLimits {
             | ParamId::TelemetryRateHz
             | ParamId::LinkTimeoutMs
             | ParamId::ControlPeriodS => return None,
+        })
+    }
+
+    /// Checks one reference sample against the robot's limits: |v| within
+    /// the top speed, |ω| within the top yaw rate and, unless `braking`
+    /// (the controlled stop decelerates at the link's braking settings,
+    /// toward rest), |v̇| within [`Self::top_accel_mps2`]. A relative
+    /// tolerance of 1e-3 covers f32 rounding. The first quantity beyond
+    /// its limit, with its value and the limit; NaN is beyond every limit.
+    pub fn check_sample(
+        &self,
+        r: &controller_core::trajectory::RefSample,
+        braking: bool,
+    ) -> Result<(), LimitExceeded> {
+        let within = |x: f32, lim: f32| x.abs() <= lim * (1.0 + 1e-3);
+        let q = if !within(r.v_mps, self.top_speed_mps) {
+            (Quantity::SpeedMps, r.v_mps, self.top_speed_mps)
+        } else if !within(r.omega_radps, self.top_yaw_rate_radps) {
+            (
+                Quantity::YawRateRadps,
+                r.omega_radps,
+                self.top_yaw_rate_radps,
+            )
+        } else if !braking && !within(r.v_dot_mps2, self.top_accel_mps2) {
+            (Quantity::AccelMps2, r.v_dot_mps2, self.top_accel_mps2)
+        } else {
+            return Ok(());
+        };
+        Err(LimitExceeded {
+            quantity: q.0,
+            value: q.1,
+            limit: q.2,
         })
     }
 

@@ -3,7 +3,7 @@
 //! cubic Hermite curves, a velocity command integrated into a virtual
 //! vehicle, and the braking profile of a controlled stop.
 
-use crate::limits::{RobotLimits, MAX_POSITION_M, SHAPE_LENGTH_M};
+use crate::limits::{LimitExceeded, Quantity, RobotLimits, MAX_POSITION_M, SHAPE_LENGTH_M};
 use controller_core::math::{atan2, sin_cos, sqrt, wrap_angle};
 use controller_core::trajectory::{
     tangent_sample, Circle, FigureEight, Line, PaperCurve, PaperHeading, RefSample, Reference,
@@ -64,11 +64,13 @@ impl PlacedReference {
     /// scale) within the robot's top speed and yaw rate.
     pub fn within(r: &BuiltinReference, lim: &RobotLimits) -> Option<Self> {
         let len_ok = |l: f32| l >= SHAPE_LENGTH_M.0 && l <= SHAPE_LENGTH_M.1;
-        // (lengths, peak |v| [m/s], peak |ω| [rad/s]) at speed scale 1.
-        let (lengths, v_peak, w_peak) = match r.shape {
+        // (lengths, peak |v| [m/s], peak |ω| [rad/s], peak |p̈| [m/s²]) at
+        // speed scale 1 (|p̈| bounds |v̇|: tangential and centripetal).
+        let (lengths, v_peak, w_peak, a_peak) = match r.shape {
             // v = −w·(ax sin u, 3ay sin 3u): |v| ≤ w·√(ax² + 9ay²); the
             // heading follows W = w·(ax, 3ay(1 + 2cos 2u)) (v = −sin u·W),
-            // which turns at most at ax·w·12ay·w²/(ax·w)² = 12·ay·w/ax.
+            // which turns at most at ax·w·12ay·w²/(ax·w)² = 12·ay·w/ax;
+            // p̈ = −w²·(ax cos u, 9ay cos 3u): |p̈| ≤ w²·√(ax² + 81ay²).
             BuiltinShape::PaperCurve {
                 ax_m,
                 ay_m,
@@ -77,12 +79,19 @@ impl PlacedReference {
                 [ax_m, ay_m],
                 w_radps * sqrt(ax_m * ax_m + 9.0 * ay_m * ay_m),
                 12.0 * ay_m * w_radps / ax_m,
+                w_radps * w_radps * sqrt(ax_m * ax_m + 81.0 * ay_m * ay_m),
             ),
             BuiltinShape::Circle {
                 radius_m,
                 speed_mps,
-            } => ([radius_m; 2], speed_mps, speed_mps / radius_m),
-            // |v| ≤ √2·A·w; |ω| = |ẋÿ − ẏẍ|/|v|² ≤ 3A²w³/(0.4375·A²w²) < 7w.
+            } => (
+                [radius_m; 2],
+                speed_mps,
+                speed_mps / radius_m,
+                speed_mps * speed_mps / radius_m,
+            ),
+            // |v| ≤ √2·A·w; |ω| = |ẋÿ − ẏẍ|/|v|² ≤ 3A²w³/(0.4375·A²w²) < 7w;
+            // p̈ = −A·w²·(sin wt, 2 sin 2wt): |p̈| ≤ √5·A·w².
             BuiltinShape::FigureEight {
                 amplitude_m,
                 w_radps,
@@ -90,13 +99,15 @@ impl PlacedReference {
                 [amplitude_m; 2],
                 core::f32::consts::SQRT_2 * amplitude_m * w_radps,
                 7.0 * w_radps,
+                sqrt(5.0) * amplitude_m * w_radps * w_radps,
             ),
-            BuiltinShape::Line { speed_mps } => ([SHAPE_LENGTH_M.0; 2], speed_mps.abs(), 0.0),
+            BuiltinShape::Line { speed_mps } => ([SHAPE_LENGTH_M.0; 2], speed_mps.abs(), 0.0, 0.0),
         };
         let s = r.speed_scale;
         let physical = lengths.iter().all(|&l| len_ok(l))
             && s * v_peak <= lim.top_speed_mps
-            && s * w_peak <= lim.top_yaw_rate_radps;
+            && s * w_peak <= lim.top_yaw_rate_radps
+            && s * s * a_peak <= lim.top_accel_mps2;
         if !physical {
             return None;
         }
@@ -183,7 +194,7 @@ impl Trajectory for PlacedReference {
 }
 
 /// Why a segment was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SegmentError {
     /// No upload begun, wrong index or non-increasing time.
     OutOfOrder,
@@ -191,6 +202,118 @@ pub enum SegmentError {
     Full,
     /// A non-finite or unphysical value.
     Invalid,
+    /// The curve from waypoint `index` to the next one asks more than the
+    /// robot can do ([`check_segment`]).
+    BeyondLimits {
+        /// Trajectory index of the segment's first waypoint.
+        index: u32,
+        /// What, how much and the limit.
+        exceeded: LimitExceeded,
+    },
+}
+
+/// `x <= limit`, false for NaN (a NaN peak is beyond every limit, and
+/// replaces any running maximum).
+fn at_most(x: f32, limit: f32) -> bool {
+    x <= limit
+}
+
+/// Intervals of a Hermite segment in [`check_segment`] (33 samples).
+pub const SEGMENT_CHECK_SAMPLES: usize = 32;
+
+/// Checks the cubic Hermite curve from `a` to `b` (as [`hermite`] drives
+/// it; `b.t_s > a.t_s`) against the robot's limits `lim` (issue 31 item 1:
+/// each waypoint within the limits is not enough, the curve between two
+/// can ask far more):
+///
+/// * speed: an upper bound of the peak from [`SEGMENT_CHECK_SAMPLES`]
+///   intervals of the velocity polynomial, each bounded by its Taylor
+///   expansion (exact for a quadratic), within O(1/N²) of the peak;
+/// * acceleration |p̈| (tangential and centripetal together, so at least
+///   |v̇|): exact, p̈ is linear in time and peaks at an end;
+/// * yaw rate ω = (ṗ × p̈)/|ṗ|² at the samples (near a standstill, where
+///   [`hermite`] interpolates the heading, the heading's change over the
+///   segment's time); between samples the device's per-tick check
+///   ([`RobotLimits::check_sample`]) holds it.
+///
+/// Cost: two sines and cosines and about 33 × 30 multiplications, no
+/// trigonometry per sample.
+pub fn check_segment(a: &Waypoint, b: &Waypoint, lim: &RobotLimits) -> Result<(), LimitExceeded> {
+    let h = b.t_s - a.t_s;
+    let (sa, ca) = sin_cos(a.pose.theta_rad);
+    let (sb, cb) = sin_cos(b.pose.theta_rad);
+    let m0 = [h * a.v_mps * ca, h * a.v_mps * sa];
+    let m1 = [h * b.v_mps * cb, h * b.v_mps * sb];
+    let d = [
+        3.0 * (b.pose.x_m - a.pose.x_m) - m0[0] - m1[0],
+        3.0 * (b.pose.y_m - a.pose.y_m) - m0[1] - m1[1],
+    ];
+    let norm = |v: [f32; 2]| sqrt(v[0] * v[0] + v[1] * v[1]);
+    // dp/ds = m0(1−s)² + 2d·s(1−s) + m1·s² (a quadratic Bézier), and
+    // d²p/ds² = 2[(d − m0)(1 − s) + (m1 − d)s]: ṗ = (dp/ds)/h, p̈ = (d²p/ds²)/h².
+    let e0 = [d[0] - m0[0], d[1] - m0[1]];
+    let e1 = [m1[0] - d[0], m1[1] - d[1]];
+    let dd_max = 2.0 * norm(e0).max(norm(e1));
+    let accel = dd_max / (h * h);
+    let exceeded = |quantity, value, limit| LimitExceeded {
+        quantity,
+        value,
+        limit,
+    };
+    if !at_most(accel, lim.top_accel_mps2) {
+        return Err(exceeded(Quantity::AccelMps2, accel, lim.top_accel_mps2));
+    }
+    let n = SEGMENT_CHECK_SAMPLES;
+    let step = 1.0 / n as f32;
+    // dp/ds is a quadratic: from a sample s_i, dp/ds(s_i + τ) =
+    // B_i + B'_i·τ + ½B''·τ² exactly, so over [s_i, s_i + step] its norm is
+    // at most max(|B_i|, |B_i + B'_i·step|) (a linear function's norm is
+    // convex) + ½|B''|·step²: a bound within O(step²) of the peak.
+    let b2nd = 2.0 * norm([e1[0] - e0[0], e1[1] - e0[1]]);
+    let mut speed_bound = 0.0f32;
+    let mut omega_peak = 0.0f32;
+    for i in 0..=n {
+        let s = i as f32 * step;
+        let (u, w) = ((1.0 - s) * (1.0 - s), 2.0 * s * (1.0 - s));
+        let bs = [
+            m0[0] * u + d[0] * w + m1[0] * s * s,
+            m0[1] * u + d[1] * w + m1[1] * s * s,
+        ];
+        let dds = [
+            2.0 * (e0[0] * (1.0 - s) + e1[0] * s),
+            2.0 * (e0[1] * (1.0 - s) + e1[1] * s),
+        ];
+        let b2 = bs[0] * bs[0] + bs[1] * bs[1];
+        let speed = sqrt(b2) / h;
+        let ahead = norm([bs[0] + dds[0] * step, bs[1] + dds[1] * step]);
+        let interval = if i < n {
+            sqrt(b2).max(ahead) + 0.5 * b2nd * step * step
+        } else {
+            sqrt(b2)
+        };
+        if !at_most(interval / h, speed_bound) {
+            speed_bound = interval / h;
+        }
+        let omega = if speed < MIN_TANGENT_SPEED_MPS {
+            wrap_angle(b.pose.theta_rad - a.pose.theta_rad) / h
+        } else {
+            (bs[0] * dds[1] - bs[1] * dds[0]) / (h * b2)
+        };
+        if !at_most(omega.abs(), omega_peak) {
+            omega_peak = omega.abs();
+        }
+    }
+    if !at_most(speed_bound, lim.top_speed_mps) {
+        return Err(exceeded(Quantity::SpeedMps, speed_bound, lim.top_speed_mps));
+    }
+    if !at_most(omega_peak, lim.top_yaw_rate_radps) {
+        return Err(exceeded(
+            Quantity::YawRateRadps,
+            omega_peak,
+            lim.top_yaw_rate_radps,
+        ));
+    }
+    Ok(())
 }
 
 /// The bounded buffer of an uploaded trajectory.
@@ -244,7 +367,8 @@ impl WaypointBuffer {
             return Err(SegmentError::OutOfOrder);
         }
         let mut last_t = self.points.back().map(|w| w.t_s);
-        for w in points {
+        let mut prev = self.points.back().copied();
+        for (k, w) in points.iter().enumerate() {
             // Written so that NaN fails every comparison.
             let physical = w.t_s.is_finite()
                 && w.pose.theta_rad.is_finite()
@@ -259,6 +383,14 @@ impl WaypointBuffer {
                 return Err(SegmentError::OutOfOrder);
             }
             last_t = Some(w.t_s);
+            // The curve from the previous waypoint (held, or of this
+            // segment) to this one.
+            if let Some(a) = prev {
+                let index = (first_index + k as u32).wrapping_sub(1);
+                check_segment(&a, w, lim)
+                    .map_err(|exceeded| SegmentError::BeyondLimits { index, exceeded })?;
+            }
+            prev = Some(*w);
         }
         if let Some(t) = t_now_s {
             while self.points.len() >= 2 && self.points.iter().nth(1).is_some_and(|w| w.t_s <= t) {
@@ -542,6 +674,82 @@ mod tests {
                 t += 0.1;
             }
         }
+    }
+
+    /// `check_segment`'s speed and acceleration against an independent
+    /// evaluation: the curve `hermite` drives, sampled every 1/2000 of the
+    /// segment (speed from the sample's v; acceleration from central
+    /// differences of the position every 1/200). The speed bound is never below the
+    /// dense peak and within 2 % (+1 mm/s) above it; the acceleration is
+    /// exact.
+    #[test]
+    fn segment_bounds_hold_against_the_dense_curve() {
+        use proptest::prelude::*;
+        let lim = RobotLimits::ABSOLUTE;
+        let mut runner = proptest::test_runner::TestRunner::default();
+        let coords = (
+            0.05f32..3.0,
+            -2.0f32..2.0,
+            -2.0f32..2.0,
+            -3.2f32..3.2,
+            -3.2f32..3.2,
+            -2.0f32..2.0,
+            -2.0f32..2.0,
+        );
+        runner
+            .run(&coords, |(h, x, y, th0, th1, v0, v1)| {
+                let a = wp(0.0, 0.0, 0.0, th0, v0, 0.0);
+                let b = wp(h, x, y, th1, v1, 0.0);
+                let n = 2000;
+                let pos = |t: f32| {
+                    let r = hermite(&a, &b, t);
+                    [r.pose.x_m as f64, r.pose.y_m as f64]
+                };
+                let (mut v_peak, mut a_peak) = (0.0f64, 0.0f64);
+                for i in 0..=n {
+                    let t = h * i as f32 / n as f32;
+                    v_peak = v_peak.max(hermite(&a, &b, t).v_mps.abs() as f64);
+                    // Every 10th sample, differenced over 10: coarse
+                    // enough for f32 positions (a central second
+                    // difference is exact for a cubic).
+                    if i >= 10 && i <= n - 10 && i % 10 == 0 {
+                        let dt = (10.0 * h / n as f32) as f64;
+                        let (p0, p1, p2) = (
+                            pos(t - 10.0 * h / n as f32),
+                            pos(t),
+                            pos(t + 10.0 * h / n as f32),
+                        );
+                        let acc = [
+                            (p2[0] - 2.0 * p1[0] + p0[0]) / (dt * dt),
+                            (p2[1] - 2.0 * p1[1] + p0[1]) / (dt * dt),
+                        ];
+                        a_peak = a_peak.max(acc[0].hypot(acc[1]));
+                    }
+                }
+                // Limits just below the bound make it report the bound.
+                let tight = RobotLimits {
+                    top_speed_mps: 0.0,
+                    top_accel_mps2: f32::MAX,
+                    ..lim
+                };
+                let e = check_segment(&a, &b, &tight).unwrap_err();
+                let bound = e.value as f64;
+                prop_assert!(bound >= v_peak * (1.0 - 1e-4) - 1e-5, "{bound} < {v_peak}");
+                prop_assert!(bound <= v_peak * 1.02 + 1e-3, "{bound} vs {v_peak}");
+                let tight = RobotLimits {
+                    top_accel_mps2: 0.0,
+                    ..lim
+                };
+                let e = check_segment(&a, &b, &tight).unwrap_err();
+                let acc = e.value as f64;
+                // f32 positions differenced: a few 1e-3 relative.
+                prop_assert!(
+                    (acc - a_peak).abs() <= 0.02 * acc + 0.05,
+                    "{acc} vs {a_peak}"
+                );
+                Ok(())
+            })
+            .unwrap();
     }
 
     /// A placed, scaled line starts on the requested pose, heads its way

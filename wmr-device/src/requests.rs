@@ -416,7 +416,9 @@ impl<const H: usize> Handler<H> {
                     .map_err(|e| match e {
                         SegmentError::OutOfOrder => ErrorCode::OutOfOrder,
                         SegmentError::Full => ErrorCode::BufferFull,
-                        SegmentError::Invalid => ErrorCode::InvalidValue,
+                        SegmentError::Invalid | SegmentError::BeyondLimits { .. } => {
+                            ErrorCode::InvalidValue
+                        }
                     })?;
                 if !running && sel.waypoints.ready() {
                     sel.mode = Mode::Trajectory;
@@ -583,6 +585,7 @@ impl<const H: usize> Handler<H> {
             cap_ticks: self.stop_cap_ticks(),
             rest_hold_ticks: ticks(REST_HOLD_S),
             rest_speed_mps: self.limits.rest_speed_mps,
+            limits: self.limits,
         }
     }
 

@@ -3,6 +3,7 @@
 //! velocity command's virtual vehicle, or the braking profile of a
 //! controlled stop.
 
+use crate::limits::RobotLimits;
 use crate::params::LinkConfig;
 use crate::reference::{PlacedReference, VirtualVehicle, WaypointBuffer};
 use controller_core::trajectory::{RefSample, Trajectory};
@@ -65,6 +66,8 @@ pub(crate) struct StopPolicy {
     pub rest_hold_ticks: u32,
     /// A wheel at or below this ground speed is at rest \[m/s\].
     pub rest_speed_mps: f32,
+    /// The robot's limits: every tick's reference is checked against them.
+    pub limits: RobotLimits,
 }
 
 /// The reference of one tick.
@@ -169,6 +172,11 @@ impl Selector {
             let r = self.last_ref;
             (r.pose, r.v_mps, r.omega_radps)
         };
+        // Within the limits (a wheel measured beyond its no-load speed:
+        // pushed, or an encoder glitch), so the braking reference is too.
+        let lim = &policy.limits;
+        let v = v.clamp(-lim.top_speed_mps, lim.top_speed_mps);
+        let w = w.clamp(-lim.top_yaw_rate_radps, lim.top_yaw_rate_radps);
         let period_s = policy.period_s;
         let cap = policy.cap_ticks.saturating_sub(1).max(1);
         let t_v = v.abs() / link.brake_decel_mps2;
@@ -279,6 +287,15 @@ impl Selector {
                 out
             }
         };
+        // Every tick's reference within the robot's limits (issue 31 item
+        // 1): the uploads are checked segment by segment and the built-in
+        // shapes analytically, so this is the backstop between a
+        // segment's samples; a reference beyond a limit is never driven,
+        // a controlled stop starts instead (cause `Other`).
+        if policy.limits.check_sample(&sample, false).is_err() {
+            self.start_braking(running, link, policy, StopCode::Other);
+            return self.select(running, t_ref_s, now_us, link, policy);
+        }
         Selected::Drive(sample)
     }
 }

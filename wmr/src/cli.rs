@@ -172,6 +172,11 @@ pub struct UploadArgs {
     /// brakes to a stop after link_timeout_ms).
     #[arg(long)]
     pub arm: bool,
+    /// The robot's file: check every waypoint and the curve between each
+    /// two against its limits before sending (the robot checks them too,
+    /// but its refusal cannot say which limit).
+    #[arg(long, value_name = "ROBOT.toml")]
+    pub robot: Option<PathBuf>,
 }
 
 /// `drive` options.
@@ -470,6 +475,17 @@ fn send_segments(
                     )));
                 }
             }
+            Reply::Nack {
+                error: ErrorCode::InvalidValue,
+                ..
+            } => {
+                return Err(LinkError::Io(format!(
+                    "the robot refused the segment from waypoint {}: a waypoint, or the \
+                     curve from the one before it, asks more than the robot's speed, yaw rate \
+                     or acceleration; `wmr upload FILE --robot ROBOT.toml` names which",
+                    next * wmr_protocol::SEGMENT_POINTS
+                )))
+            }
             Reply::Nack { error, .. } => {
                 return Err(LinkError::Nack("TrajectorySegment".into(), error))
             }
@@ -506,6 +522,11 @@ fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
             }
         }
         Upload::Waypoints(pts) => {
+            if let Some(path) = &a.robot {
+                let robot = crate::robot::read_file(path)?;
+                crate::upload::check_waypoints(&pts, &robot)
+                    .map_err(|e| LinkError::Io(format!("{}: {e}", a.file.display())))?;
+            }
             link.command(&Request::TrajectoryBegin {
                 total_points: pts.len() as u32,
             })?;

@@ -280,14 +280,19 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     };
     // The model of the check: the file's body when given, with the r and h
     // the robot announces (what the waypoints become wheel rates with).
-    let body = match &a.robot {
+    let file_robot = match &a.robot {
         Some(path) => {
             let text = std::fs::read_to_string(path)
                 .map_err(|e| LinkError::Io(format!("cannot read {}: {e}", path.display())))?;
-            robot_file::Robot::from_toml_str(&text)
-                .map_err(|e| LinkError::Io(format!("{}: {e}", path.display())))?
-                .robot_params()
+            Some(
+                robot_file::Robot::from_toml_str(&text)
+                    .map_err(|e| LinkError::Io(format!("{}: {e}", path.display())))?,
+            )
         }
+        None => None,
+    };
+    let body = match &file_robot {
+        Some(r) => r.robot_params(),
         None => controller_core::RobotParams {
             mass_kg: info.mass_kg,
             ..controller_core::RobotParams::paper()
@@ -323,6 +328,12 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     })?;
     let start = current_pose(link)?;
     let pts = waypoints(&ex, start);
+    // The robot checks every segment against its limits too (issue 31);
+    // with its file, say which before anything is sent.
+    if let Some(r) = &file_robot {
+        crate::upload::check_waypoints(&pts, r)
+            .map_err(|e| LinkError::Io(format!("excitation: {e}")))?;
+    }
     let segs: Vec<Request> = crate::upload::segments(&pts);
     link.command(&Request::TrajectoryBegin {
         total_points: pts.len() as u32,

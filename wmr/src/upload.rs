@@ -172,6 +172,63 @@ pub fn parse_upload(text: &str, origin: &str) -> Result<(Upload, Vec<String>), S
     }
 }
 
+/// Checks every waypoint and the curve between each two against the
+/// limits of `robot` (its no-load speed and yaw rate, the acceleration its
+/// stall torque gives) with the device's own check
+/// (`wmr_device::reference::check_segment`, issue 31 item 1), so that a
+/// refusal names the segment, the value and the limit before anything is
+/// sent.
+pub fn check_waypoints(points: &[Waypoint], robot: &robot_file::Robot) -> Result<(), String> {
+    use controller_core::trajectory::{Line, Reference};
+    use wmr_device::limits::RobotLimits;
+    // The reference and the timer clock do not enter the limits.
+    let rt = robot
+        .runtime_config(
+            controller_core::ControllerKind::Proposed,
+            Reference::Line(Line {
+                start: controller_core::Pose::new(0.0, 0.0, 0.0),
+                speed_mps: 0.1,
+            }),
+            controller_core::Pose::new(0.0, 0.0, 0.0),
+            96_000_000,
+        )
+        .map_err(|e| format!("robot {}: {e}", robot.name))?;
+    let lim = RobotLimits::of(&rt);
+    for (i, w) in points.iter().enumerate() {
+        let (v, om) = (w.v_mps.abs(), w.omega_radps.abs());
+        let within = v <= lim.top_speed_mps && om <= lim.top_yaw_rate_radps;
+        if !within {
+            return Err(format!(
+                "waypoint {i} (t {:.3} s): v {} m/s, ω {} rad/s; robot {} goes at most {:.3} m/s \
+                 and {:.3} rad/s (its no-load speed): give it a slower waypoint",
+                w.t_s,
+                w.v_mps,
+                w.omega_radps,
+                robot.name,
+                lim.top_speed_mps,
+                lim.top_yaw_rate_radps
+            ));
+        }
+    }
+    for (i, pair) in points.windows(2).enumerate() {
+        if let Err(e) = wmr_device::reference::check_segment(&pair[0], &pair[1], &lim) {
+            let (name, unit) = e.quantity.describe();
+            return Err(format!(
+                "segment {i} (waypoints {i} to {}, t {:.3} to {:.3} s): the curve between them \
+                 reaches a {name} of {:.3} {unit}, above robot {}'s {:.3} {unit}: give the \
+                 waypoints more time between them, or more of them along the path",
+                i + 1,
+                pair[0].t_s,
+                pair[1].t_s,
+                e.value,
+                robot.name,
+                e.limit
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The segments of a waypoint upload, in order (first index, request).
 pub fn segments(points: &[Waypoint]) -> Vec<Request> {
     points
@@ -207,6 +264,59 @@ mod tests {
         assert!(ignored.contains(&"perturbations".to_string()));
         let (_, ignored) = parse_upload("beta = 0.1\ntrajectory = \"line\"\n", "v1.toml").unwrap();
         assert!(ignored.contains(&"beta".to_string()));
+    }
+
+    /// `--robot`: the example square is within every example robot's
+    /// limits; a ±0.1 m slalom every 0.2 s (issue 31: 72.7 rad/s between
+    /// the waypoints) is refused naming the segment, the quantity, the
+    /// value and the limit.
+    #[test]
+    fn waypoints_are_checked_against_the_robot_file() {
+        let read = |rel: &str| {
+            std::fs::read_to_string(format!("{}/../{rel}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+        };
+        let (u, _) = parse_upload(&read("trajectories/square.toml"), "square.toml").unwrap();
+        let Upload::Waypoints(square) = u else {
+            panic!()
+        };
+        for file in ["paper.toml", "tb6612-2kg.toml", "bts7960-10kg.toml"] {
+            let robot = robot_file::Robot::from_toml_str(&read(&format!("robots/{file}"))).unwrap();
+            check_waypoints(&square, &robot).unwrap_or_else(|e| panic!("{file}: {e}"));
+        }
+        // The identification run's excitation at each robot's limits (what
+        // `wmr identify run` uploads): within them between its waypoints.
+        for file in ["paper.toml", "tb6612-2kg.toml", "bts7960-10kg.toml"] {
+            let robot = robot_file::Robot::from_toml_str(&read(&format!("robots/{file}"))).unwrap();
+            let ex = controller_core::trajectory::Excitation::for_limits(
+                robot.limits.max_speed_mps,
+                robot.limits.max_yaw_rate_radps,
+            );
+            let pts = robot_identify::excitation::waypoints(
+                &ex,
+                controller_core::Pose::new(0.0, 0.0, 0.0),
+            );
+            check_waypoints(&pts, &robot).unwrap_or_else(|e| panic!("{file}: {e}"));
+        }
+        let robot = robot_file::Robot::from_toml_str(&read("robots/paper.toml")).unwrap();
+        let slalom: Vec<Waypoint> = (0..8)
+            .map(|i| Waypoint {
+                t_s: i as f32 * 0.2,
+                pose: PoseMsg {
+                    x_m: i as f32 * 0.2,
+                    y_m: if i % 2 == 0 { 0.1 } else { -0.1 },
+                    theta_rad: 0.0,
+                },
+                v_mps: 1.0,
+                omega_radps: 0.0,
+            })
+            .collect();
+        let e = check_waypoints(&slalom, &robot).unwrap_err();
+        assert!(
+            e.contains("segment 0 (waypoints 0 to 1")
+                && e.contains("yaw rate")
+                && e.contains("20.000 rad/s"),
+            "{e}"
+        );
     }
 
     #[test]
