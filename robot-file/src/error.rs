@@ -11,6 +11,8 @@ pub enum Reason {
     NotFinite,
     /// Outside the physical range `[min, max]` (in `unit`).
     OutOfRange {
+        /// The value found.
+        value: f32,
         /// Smallest accepted value.
         min: f32,
         /// Largest accepted value.
@@ -56,8 +58,16 @@ impl core::fmt::Display for RobotError {
         write!(f, "{}: ", self.field)?;
         match self.reason {
             Reason::NotFinite => write!(f, "not a finite number"),
-            Reason::OutOfRange { min, max, unit } => {
-                write!(f, "outside the physical range [{min}, {max}] {unit}")
+            Reason::OutOfRange {
+                value,
+                min,
+                max,
+                unit,
+            } => {
+                write!(
+                    f,
+                    "{value} {unit} is outside the physical range [{min}, {max}] {unit}"
+                )
             }
             Reason::Inconsistent { with, why } => write!(f, "inconsistent with {with}: {why}"),
             Reason::UnsupportedFormat { found } => write!(

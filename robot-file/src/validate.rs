@@ -5,6 +5,10 @@
 use crate::derive::CONTROL_PERIOD_S;
 use crate::error::{Reason, RobotError};
 use crate::sections::{GainSet, Robot, SwitchingGain, FORMAT};
+use controller_core::runtime::bounds::{
+    max_gain_rate_per_s, max_ky, top_speed_mps, MAX_ACCEL_MPS2, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS,
+    MIN_ACCEL_MPS2, MIN_COMMAND_LIMIT, MIN_GAIN, MIN_TORQUE_NM,
+};
 use controller_core::runtime::{BridgeParams, MAX_SPEED_WINDOW};
 use controller_core::ControllerKind;
 
@@ -113,7 +117,12 @@ fn range(
     if x < min || x > max {
         return Err(RobotError::new(
             field,
-            Reason::OutOfRange { min, max, unit },
+            Reason::OutOfRange {
+                value: x,
+                min,
+                max,
+                unit,
+            },
         ));
     }
     Ok(())
@@ -143,6 +152,7 @@ impl Robot {
         for kind in ControllerKind::ALL {
             if let Some(g) = self.gains.of(kind) {
                 validate_gains(kind, g)?;
+                self.validate_gain_rates(kind, g)?;
             }
             self.controller_config(kind)
                 .validate()
@@ -151,12 +161,52 @@ impl Robot {
         Ok(())
     }
 
+    /// The gains the device's loop can follow (controller-core `bounds`,
+    /// the same numbers as wmr-device's parameter ranges, so a file the
+    /// device would refuse at boot is refused here, issue 31 item 3): k_x,
+    /// k_θ, k_s at most half the control rate, k_y at most
+    /// (rate/top speed)², each at least [`MIN_GAIN`].
+    fn validate_gain_rates(&self, kind: ControllerKind, g: &GainSet) -> Result<(), RobotError> {
+        let rate = max_gain_rate_per_s(CONTROL_PERIOD_S);
+        let top = top_speed_mps(self.mean_wheel_radius_m(), self.no_load_wheel_speed_radps());
+        let k = &g.kinematic;
+        range(
+            gain_path!(kind, "kinematic.k_x"),
+            k.k_x,
+            MIN_GAIN,
+            rate,
+            "1/s",
+        )?;
+        range(
+            gain_path!(kind, "kinematic.k_y"),
+            k.k_y,
+            MIN_GAIN,
+            max_ky(CONTROL_PERIOD_S, top),
+            "rad/m²",
+        )?;
+        range(
+            gain_path!(kind, "kinematic.k_th"),
+            k.k_th,
+            MIN_GAIN,
+            rate,
+            "1/s",
+        )?;
+        range(
+            gain_path!(kind, "sliding.k_s"),
+            g.sliding.k_s,
+            MIN_GAIN,
+            rate,
+            "1/s",
+        )
+    }
+
     fn validate_ranges(&self) -> Result<(), RobotError> {
         let n = self.name.len() as f32;
         if n < 1.0 {
             return Err(RobotError::new(
                 "name",
                 Reason::OutOfRange {
+                    value: n,
                     min: 1.0,
                     max: crate::NAME_MAX_LEN as f32,
                     unit: "bytes",
@@ -273,20 +323,35 @@ impl Robot {
             "",
         )?;
         let l = &self.limits;
-        range("limits.torque_nm", l.torque_nm, 1e-3, 1000.0, "N·m")?;
-        range("limits.max_speed_mps", l.max_speed_mps, 0.01, 20.0, "m/s")?;
+        // The device's parameter ranges (controller-core `bounds`, shared
+        // with wmr-device's limits): a file the device would refuse at
+        // boot is refused here (issue 31 item 3).
+        range(
+            "limits.torque_nm",
+            l.torque_nm,
+            MIN_TORQUE_NM,
+            1000.0,
+            "N·m",
+        )?;
+        range(
+            "limits.max_speed_mps",
+            l.max_speed_mps,
+            MIN_COMMAND_LIMIT,
+            MAX_SPEED_MPS,
+            "m/s",
+        )?;
         range(
             "limits.max_yaw_rate_radps",
             l.max_yaw_rate_radps,
-            0.01,
-            50.0,
+            MIN_COMMAND_LIMIT,
+            MAX_YAW_RATE_RADPS,
             "rad/s",
         )?;
         range(
             "limits.max_accel_mps2",
             l.max_accel_mps2,
-            0.01,
-            50.0,
+            MIN_ACCEL_MPS2,
+            MAX_ACCEL_MPS2,
             "m/s²",
         )?;
         range(
@@ -312,10 +377,10 @@ impl Robot {
             "the wheel radii differ by more than 10 % of their mean",
         )?;
         consistent(
-            b.com_offset_m <= b.track_m,
+            b.com_offset_m < 0.5 * b.track_m,
             "body.com_offset_m",
             "body.track_m",
-            "the centre of mass is farther than one track ahead of the axle",
+            "the centre of mass is half a track or more ahead of the axle (the plant model needs d < track/2)",
         )?;
         // All of the mass within sqrt(track² + r²) of G bounds the yaw
         // inertia from above; a robot with all of its mass within 3 % of

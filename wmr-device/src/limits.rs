@@ -8,41 +8,28 @@
 //! reference faster than the motors can drive, no controlled stop that
 //! takes longer than [`RobotLimits::stop_bound_s`].
 
+use controller_core::runtime::bounds::{max_gain_rate_per_s, max_ky, top_speed_mps};
+pub use controller_core::runtime::bounds::{
+    MAX_ACCEL_MPS2, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS, MIN_ACCEL_MPS2, MIN_COMMAND_LIMIT, MIN_GAIN,
+    MIN_TORQUE_NM,
+};
 use controller_core::runtime::RuntimeConfig;
 use wmr_protocol::ParamId;
 
 /// Least deceleration of a controlled stop \[m/s²\]: the gentlest stop
 /// the device makes (a walking-pace robot at 1 m/s stops within 4 s).
 pub const MIN_BRAKE_DECEL_MPS2: f32 = 0.25;
-/// Largest deceleration of a controlled stop and acceleration of velocity
-/// commands \[m/s²\] (2 g: beyond any wheel's grip).
-pub const MAX_ACCEL_MPS2: f32 = 20.0;
-/// Least acceleration of velocity commands \[m/s²\].
-pub const MIN_ACCEL_MPS2: f32 = 0.01;
 /// Least angular acceleration of velocity commands and of the braking
 /// profile \[rad/s²\].
 pub const MIN_ANG_ACCEL_RADPS2: f32 = 1.0;
 /// Largest angular acceleration \[rad/s²\].
 pub const MAX_ANG_ACCEL_RADPS2: f32 = 50.0;
-/// Largest speed any command or reference may ask \[m/s\] (also bounded by
-/// [`RobotLimits::top_speed_mps`]).
-pub const MAX_SPEED_MPS: f32 = 10.0;
-/// Largest yaw rate any command or reference may ask \[rad/s\] (also
-/// bounded by [`RobotLimits::top_yaw_rate_radps`]).
-pub const MAX_YAW_RATE_RADPS: f32 = 30.0;
-/// Least speed and yaw-rate limit of velocity commands \[m/s, rad/s\].
-pub const MIN_COMMAND_LIMIT: f32 = 0.01;
 /// Smallest and largest length of a built-in shape (radius, amplitude)
 /// \[m\].
 pub const SHAPE_LENGTH_M: (f32, f32) = (0.01, 1000.0);
 /// Largest |coordinate| of a start pose or an external pose \[m\] (f32
 /// resolves 0.1 mm there).
 pub const MAX_POSITION_M: f32 = 1000.0;
-/// Least controller gain (k_x, k_y, k_θ, k_s in their units): a smaller one
-/// corrects nothing within a run.
-pub const MIN_GAIN: f32 = 1e-3;
-/// Least torque limit and stall torque \[N·m\].
-pub const MIN_TORQUE_NM: f32 = 0.01;
 /// A controlled stop ends when both wheels' measured ground speeds
 /// (r·φ̇, from the windowed encoder rates) have stayed at or below this
 /// \[m/s\], or [`REST_QUANTA`] of the encoder's rate resolution when
@@ -143,7 +130,7 @@ impl RobotLimits {
         let m = &rt.motor;
         let r = &rt.controller.robot;
         let wheel_radps = m.supply_voltage_v / (m.torque_constant_nm_per_a * m.gear_ratio);
-        let top_speed_mps = (wheel_radps * r.wheel_radius_m).min(MAX_SPEED_MPS);
+        let top_speed_mps = top_speed_mps(r.wheel_radius_m, wheel_radps);
         let stall_torque_nm =
             m.gear_efficiency * m.gear_ratio * m.torque_constant_nm_per_a * m.supply_voltage_v
                 / m.winding_resistance_ohm;
@@ -154,7 +141,7 @@ impl RobotLimits {
             top_yaw_rate_radps: (top_speed_mps / r.half_track_m).min(MAX_YAW_RATE_RADPS),
             stall_torque_nm,
             top_accel_mps2: 2.0 * stall_torque_nm / (rw * m_eff),
-            max_rate_per_s: 0.5 / rt.controller.period_s,
+            max_rate_per_s: max_gain_rate_per_s(rt.controller.period_s),
             period_s: rt.controller.period_s,
             rest_speed_mps: REST_SPEED_MPS.max(
                 REST_QUANTA
@@ -173,7 +160,7 @@ impl RobotLimits {
     /// the rate v·√k_y ≤ R at top speed, so k_y ≤ (R/v_top)² \[rad/m²\].
     pub fn range(&self, id: ParamId) -> Option<(f32, f32)> {
         let r = self.max_rate_per_s;
-        let k_y = (r / self.top_speed_mps) * (r / self.top_speed_mps);
+        let k_y = max_ky(self.period_s, self.top_speed_mps);
         Some(match id {
             ParamId::TorqueLimitNm | ParamId::StallTorqueNm => {
                 (MIN_TORQUE_NM, self.stall_torque_nm)

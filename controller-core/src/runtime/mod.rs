@@ -35,6 +35,7 @@
 //! `period_s`.
 
 mod arming;
+pub mod bounds;
 mod bridge;
 mod config;
 mod control_loop;
