@@ -324,9 +324,16 @@ fn recorded_run_matches_the_simulation(scn: &Scenario, shape: &str) -> serde_jso
     let mut out = Vec::new();
     wmr::cli::record(&args, &mut link, &mut out).unwrap();
     let summary: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    // Every 100 Hz frame of the run recorded, or missing by its sequence
+    // number: the robot (4x real time: 400 frames/s) drops what a host held
+    // up on a loaded machine does not read in time (its send buffer full).
     let rows = summary["rows"].as_u64().unwrap();
+    let dropped = summary["dropped_frames"].as_u64().unwrap();
     let want = (duration * 100.0).round() as u64;
-    assert!((want - 10..=want).contains(&rows), "{rows} rows");
+    assert!(
+        (want - 10..=want).contains(&(rows + dropped)),
+        "{rows} rows, {dropped} dropped"
+    );
     let m = &summary["metrics"];
     let f = |k: &str| m[k].as_f64().unwrap();
     let s = &sim.metrics;
