@@ -32,7 +32,7 @@
 # Env:   OUT_DIR=<dir for the CSVs and the log>  RECORD_S=10  TICK_BUDGET=20000
 #        RMS_BOUND_M=0.05  REL_TOL_RMS=0.15  REL_TOL_FINAL=0.25
 #        MAX_DROPPED_FRAMES=10
-#        WATCHDOG_CHECK=1  QEMU_BOOT_TIMEOUT=20
+#        WATCHDOG_CHECK=1  QEMU_BOOT_TIMEOUT=20  EVENT_TIMEOUT=120
 #        QEMU_ICOUNT=<-icount options; default shift=0,align=off,sleep=off>
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -46,6 +46,10 @@ REL_TOL_FINAL="${REL_TOL_FINAL:-0.25}"
 MAX_DROPPED_FRAMES="${MAX_DROPPED_FRAMES:-10}"
 WATCHDOG_CHECK="${WATCHDOG_CHECK:-1}"
 QEMU_BOOT_TIMEOUT="${QEMU_BOOT_TIMEOUT:-20}"
+# Ceiling [wall s] of a wait for something the board does at a virtual time
+# (QEMU runs at a fraction of real time, less on a loaded machine): the
+# wait ends on the board's line, this only bounds a hang.
+EVENT_TIMEOUT="${EVENT_TIMEOUT:-120}"
 OUT_DIR="${OUT_DIR:-$(mktemp -d)}"
 mkdir -p "$OUT_DIR"
 TARGET=thumbv7em-none-eabihf
@@ -121,6 +125,16 @@ wait_for_log() {
     done
 }
 
+# Waits until the log has at least $2 lines matching $1 (up to $3 s).
+wait_for_log_count() {
+    local pattern="$1" n="$2" t_end=$((SECONDS + $3))
+    until [ "$(grep -c -- "$pattern" "$LOG" || true)" -ge "$n" ]; do
+        kill -0 "$QPID" 2>/dev/null || fail "QEMU exited before $n lines \"$pattern\""
+        [ "$SECONDS" -lt "$t_end" ] || fail "not $n lines \"$pattern\" from the board within $3 s"
+        sleep 0.1
+    done
+}
+
 # Boots the board; sets PTY.
 boot_board() {
     step "boot the emulated board (QEMU mps2-an386, -icount shift=0, UART0 on a pty)"
@@ -164,7 +178,10 @@ if ! drive "$PTY" mps2-an386-emu "$CSV"; then
     fail "wmr record (mps2-an386-emu)"
 fi
 emu_rec="$rec"
-sleep 1.2 # one more status line in the board's log
+# One more 1 s status line in the board's log (one second of virtual time:
+# waited for, not guessed in wall time).
+n_status="$(grep -c '^status ' "$LOG" || true)"
+wait_for_log_count '^status ' $((n_status + 1)) "$EVENT_TIMEOUT"
 cleanup
 
 # The number after "KEY": in the JSON line $2 (default: the record's; "" when missing).
@@ -254,11 +271,12 @@ if [ "$WATCHDOG_CHECK" = "1" ]; then
     if grep -q "^WATCHDOG" "$LOG"; then
         fail "the watchdog fired before the stall"
     fi
-    wait_for_log "^stall-test:" "$QEMU_BOOT_TIMEOUT"
-    wait_for_log "^WATCHDOG:" 10
-    t_end=$((SECONDS + 10))
+    # The stall begins at 3 s of virtual time: up to 120 s of wall time.
+    wait_for_log "^stall-test:" "$EVENT_TIMEOUT"
+    wait_for_log "^WATCHDOG:" "$EVENT_TIMEOUT"
+    t_end=$((SECONDS + EVENT_TIMEOUT))
     while kill -0 "$QPID" 2>/dev/null; do
-        [ "$SECONDS" -lt "$t_end" ] || fail "the watchdog did not reset the board within 10 s of the stall"
+        [ "$SECONDS" -lt "$t_end" ] || fail "the watchdog did not reset the board within $EVENT_TIMEOUT s of the stall"
         sleep 0.1
     done
     QPID=""

@@ -28,7 +28,12 @@ fn floor_scenario() -> Scenario {
 
 /// Runs `wmr commission --floor` on a simulated robot miswired by
 /// `miswire` whose runtime runs `file`; returns (ok, output, proposed file).
+/// One robot at a time (each runs at 2x real time next to its host), its
+/// link timeout 5 s: commissioning does not test link silence, and a host
+/// held up on a loaded machine must not end a wheel test (at 2x, the
+/// default 500 ms is 250 ms of wall time).
 fn run(file: &Robot, miswire: Miswire, tag: &str) -> (bool, String, Option<Robot>) {
+    let _s = PtyRobot::serial();
     let scn = floor_scenario();
     let f = file.clone();
     let robot = SimRobot::miswired(&scn, ControllerKind::Proposed, &miswire, move |rt| {
@@ -56,6 +61,11 @@ fn run(file: &Robot, miswire: Miswire, tag: &str) -> (bool, String, Option<Robot
     };
     let mut link = Link::open(&robot.path, Duration::from_millis(1000)).unwrap();
     link.hello().unwrap();
+    link.command(&wmr_protocol::Request::SetParam {
+        id: wmr_protocol::ParamId::LinkTimeoutMs,
+        value: 5000.0,
+    })
+    .unwrap();
     let mut out = Vec::new();
     let r = commission(&args, &mut link, &mut out);
     robot.finish().unwrap();

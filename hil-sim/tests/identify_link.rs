@@ -34,6 +34,14 @@ fn identify_run_then_fit_over_the_pty() {
     let out_toml = dir.path().join("robot.toml");
     let mut link = wmr::Link::open(&path, Duration::from_millis(500)).unwrap();
     link.hello().unwrap();
+    // The robot runs at 2x real time: its default 500 ms link timeout is
+    // 250 ms of wall time, too close to the host's 100 ms keep-alive on a
+    // loaded machine. Identification does not test link silence.
+    link.command(&wmr_protocol::Request::SetParam {
+        id: wmr_protocol::ParamId::LinkTimeoutMs,
+        value: 5000.0,
+    })
+    .unwrap();
     let run = wmr::identify::RunArgs {
         out: log.clone(),
         v_amp: 0.5,
@@ -41,7 +49,9 @@ fn identify_run_then_fit_over_the_pty() {
         w_base: 1.5,
         duration: 24.0,
         area: 2.5,
-        rate: None,
+        // Not probed: the probe keeps the highest rate the host kept up
+        // with for 3 s of wall time, which depends on the machine's load.
+        rate: Some(250),
         robot: None,
     };
     let mut text = Vec::new();

@@ -212,7 +212,8 @@ fn version_mismatch_both_ways() {
     port.write_all(&arm).unwrap();
     let mut dec = FrameDecoder::<MAX_FRAME>::new();
     let mut got = Vec::new();
-    let end = Instant::now() + Duration::from_secs(5);
+    // A ceiling for a hang: the loop ends on the two answers.
+    let end = Instant::now() + Duration::from_secs(60);
     let mut buf = [0u8; 512];
     while got.len() < 2 && Instant::now() < end {
         if let Ok(n) = port.read(&mut buf) {
@@ -226,6 +227,7 @@ fn version_mismatch_both_ways() {
             }
         }
     }
+    assert!(got.len() >= 2, "answers within 60 s: {got:?}");
     assert!(
         matches!(
             got[0],
@@ -323,9 +325,16 @@ fn recorded_run_matches_the_simulation(scn: &Scenario, shape: &str) -> serde_jso
     let mut out = Vec::new();
     wmr::cli::record(&args, &mut link, &mut out).unwrap();
     let summary: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    // Every 100 Hz frame of the run recorded, or missing by its sequence
+    // number: the robot (4x real time: 400 frames/s) drops what a host held
+    // up on a loaded machine does not read in time (its send buffer full).
     let rows = summary["rows"].as_u64().unwrap();
+    let dropped = summary["dropped_frames"].as_u64().unwrap();
     let want = (duration * 100.0).round() as u64;
-    assert!((want - 10..=want).contains(&rows), "{rows} rows");
+    assert!(
+        (want - 10..=want).contains(&(rows + dropped)),
+        "{rows} rows, {dropped} dropped"
+    );
     let m = &summary["metrics"];
     let f = |k: &str| m[k].as_f64().unwrap();
     let s = &sim.metrics;
@@ -591,6 +600,15 @@ fn estop_reaches_zero_torque_within_two_ticks() {
 fn garbage_and_corrupted_frames_never_disturb_the_loop() {
     let _serial = serial();
     let (robot, mut link) = armed_on_circle(TELEMETRY_TRACKING | TELEMETRY_COUNTERS, 100);
+    // Not a test of link silence: a host held up on a loaded machine must
+    // not stop the robot.
+    ok(
+        &mut link,
+        Request::SetParam {
+            id: ParamId::LinkTimeoutMs,
+            value: 5000.0,
+        },
+    );
     // The link holds the port exclusively: the garbage goes through it.
     let mut rng = 0x1234_5678u32;
     let mut next = || {
@@ -599,10 +617,18 @@ fn garbage_and_corrupted_frames_never_disturb_the_loop() {
         rng ^= rng << 5;
         rng
     };
-    let mut frames = Vec::new();
+    let mut frames: Vec<Telemetry> = Vec::new();
     let start = Instant::now();
     let mut k = 0u32;
-    while start.elapsed() < Duration::from_secs(2) {
+    // Until 150 bursts and 150 running frames (1.5 s of robot time at
+    // 100 Hz; was: 2 s of wall time, whatever the robot did in it).
+    let running = |f: &[Telemetry]| f.iter().filter(|t| t.state == RunStateMsg::Running).count();
+    while k < 150 || running(&frames) < 150 {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{k} bursts, {} running frames in 60 s",
+            running(&frames)
+        );
         k += 1;
         let mut junk: Vec<u8> = (0..40).map(|_| next() as u8).collect();
         if k % 3 == 0 {

@@ -292,6 +292,8 @@ fn run() -> Result<i32, String> {
     };
 
     let wall0 = Instant::now();
+    // Wall time [s] the emulation fell behind and gave up catching up.
+    let mut lag_dropped_s = 0.0f64;
     let until = a.seconds.map_or(u128::MAX, |s| (s * PS) as u128);
     let mut pressed = false;
     let mut released = false;
@@ -388,11 +390,17 @@ fn run() -> Result<i32, String> {
                 m.inject(f);
             }
         }
-        // Pacing: emulated time never ahead of the wall clock.
+        // Pacing: emulated time never ahead of the wall clock, and never
+        // more than 0.1 s behind it: a fall-behind (a loaded machine) is
+        // dropped, not caught up at full speed (~3x real time), which would
+        // stretch the host's wall-clock keep-alives in emulated time towards
+        // the robot's link timeout (as hil-sim's device does).
         if a.realtime {
-            let wall = wall0.elapsed().as_secs_f64();
+            let wall = wall0.elapsed().as_secs_f64() - lag_dropped_s;
             if t_s > wall + 0.002 {
                 std::thread::sleep(Duration::from_secs_f64(t_s - wall));
+            } else if wall - t_s > 0.1 {
+                lag_dropped_s += wall - t_s;
             }
         }
         Ok(())

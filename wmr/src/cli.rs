@@ -1139,13 +1139,56 @@ impl PoseClock {
     }
 }
 
+/// `pose-feed`'s clock: synchronised with the robot at the start (the
+/// best of 5 exchanges) and again before a line when the last sync is
+/// older than the link's keep-alive period (one exchange), so that its
+/// stamps follow the robot's clock as it drifts against the host's (a
+/// crystal's 50 ppm exceeds a 1 ms arrival margin within 20 s; a simulated
+/// robot on a loaded machine falls behind in steps).
+pub struct PoseSync {
+    t0: Instant,
+    unix_t0_ns: u64,
+    period_s: f32,
+    clock: PoseClock,
+    last: Instant,
+}
+
+impl PoseSync {
+    /// The first sync, with a robot of control period `period_s`.
+    pub fn new(link: &mut Link, period_s: f32) -> Result<Self, LinkError> {
+        let t0 = Instant::now();
+        let unix_t0_ns = ros_mcap::unix_now_ns();
+        let clock = PoseClock::from_sync(clock_sync(link, t0, 5)?, unix_t0_ns, period_s);
+        Ok(Self {
+            t0,
+            unix_t0_ns,
+            period_s,
+            clock,
+            last: Instant::now(),
+        })
+    }
+
+    /// The clock for a line arriving now and its arrival \[µs since t0\]
+    /// (read before a re-sync's round trip: the stamp errs early).
+    pub fn at_arrival(&mut self, link: &mut Link) -> Result<(PoseClock, u64), LinkError> {
+        let arrival = host_us(self.t0);
+        if self.last.elapsed() >= link.timing().keep_alive {
+            let s = clock_sync(link, self.t0, 1)?;
+            self.clock = PoseClock::from_sync(s, self.unix_t0_ns, self.period_s);
+            self.last = Instant::now();
+        }
+        Ok((self.clock, arrival))
+    }
+}
+
 /// Feeds pose lines from `lines` (numbered from 1) to the robot; returns
 /// the tally. Each line is stamped in robot time: at its capture time when
-/// it gives one, else when it arrives.
+/// it gives one, else when it arrives. `at_arrival` gives, as each line
+/// arrives, the clock and the arrival time on its host clock \[µs\]
+/// (`pose-feed`: [`PoseSync::at_arrival`]; a test: its own).
 pub fn feed_lines(
     link: &mut Link,
-    clock: &PoseClock,
-    t0: Instant,
+    mut at_arrival: impl FnMut(&mut Link) -> Result<(PoseClock, u64), LinkError>,
     std: [f32; 3],
     lines: impl Iterator<Item = Result<String, LinkError>>,
     tally: &mut PoseTally,
@@ -1153,37 +1196,37 @@ pub fn feed_lines(
     for (i, line) in lines.enumerate() {
         let line = line?;
         let n = i + 1;
-        let arrival = host_us(t0);
         match parse_pose_line(&line, std) {
             Ok(None) => {}
             Err(e) => eprintln!("line {n}: {e}"),
-            Ok(Some(p)) => match link.command(&clock.request(&p, arrival)) {
-                Ok(_) => tally.accepted(),
-                Err(LinkError::Nack(_, e)) => {
-                    tally.refused(e);
-                    eprintln!("line {n}: refused: {}", e.reason());
+            Ok(Some(p)) => {
+                let (clock, arrival) = at_arrival(link)?;
+                match link.command(&clock.request(&p, arrival)) {
+                    Ok(_) => tally.accepted(),
+                    Err(LinkError::Nack(_, e)) => {
+                        tally.refused(e);
+                        eprintln!("line {n}: refused: {}", e.reason());
+                    }
+                    Err(e) => return Err(e),
                 }
-                Err(e) => return Err(e),
-            },
+            }
         }
     }
     Ok(())
 }
 
 fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
-    let t0 = Instant::now();
-    let unix_t0_ns = ros_mcap::unix_now_ns();
     let period_s = match &link.last_hello {
         Some(h) => h.robot.control_period_s,
         None => link.hello()?.robot.control_period_s,
     };
-    let clock = PoseClock::from_sync(clock_sync(link, t0, 5)?, unix_t0_ns, period_s);
+    let mut sync = PoseSync::new(link, period_s)?;
     let std = [a.std[0], a.std[1], a.std[2]];
     let mut tally = PoseTally::default();
     match &a.udp {
         None => {
             let lines = std::io::stdin().lock().lines().map(|l| l.map_err(io));
-            feed_lines(link, &clock, t0, std, lines, &mut tally)?;
+            feed_lines(link, |l| sync.at_arrival(l), std, lines, &mut tally)?;
         }
         Some(addr) => {
             let sock = std::net::UdpSocket::bind(addr)
@@ -1194,7 +1237,13 @@ fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(
                 let text = String::from_utf8_lossy(&buf[..len]).into_owned();
                 let lines: Vec<Result<String, LinkError>> =
                     text.lines().map(|l| Ok(l.to_string())).collect();
-                feed_lines(link, &clock, t0, std, lines.into_iter(), &mut tally)?;
+                feed_lines(
+                    link,
+                    |l| sync.at_arrival(l),
+                    std,
+                    lines.into_iter(),
+                    &mut tally,
+                )?;
             }
         }
     }

@@ -67,7 +67,9 @@ fn io(e: std::io::Error) -> LinkError {
 }
 
 /// Runs one wheel test and waits (bounded) for its end; the link is kept
-/// alive with status reads, which do not end it.
+/// alive with status reads, which do not end it, on the link's keep-alive
+/// period (was a fixed 100 ms: a robot whose link timeout is under ~300 ms
+/// ended the test on link silence).
 pub fn wheel_test(link: &mut Link, cmd: WheelTestCmd) -> Result<WheelTestResult, LinkError> {
     let seq = match link.command(&Request::WheelTest(cmd))? {
         Reply::Ack { seq } => seq,
@@ -78,7 +80,7 @@ pub fn wheel_test(link: &mut Link, cmd: WheelTestCmd) -> Result<WheelTestResult,
     while Instant::now() < deadline {
         if Instant::now() >= next_keepalive {
             link.send(&Request::GetStatus)?;
-            next_keepalive = Instant::now() + Duration::from_millis(100);
+            next_keepalive = Instant::now() + link.timing().keep_alive;
         }
         for (s, r) in link.receive(Duration::from_millis(20))? {
             if let Reply::WheelTestDone { result, .. } = r {

@@ -297,11 +297,16 @@ impl Link {
         for _attempt in 0..self.timing.attempts.max(1) {
             let seq = self.send(req)?;
             let end = Instant::now() + self.timing.answer_timeout;
-            while Instant::now() < end {
+            // Read at least once: a host that was not scheduled until past
+            // the timeout reads the answer waiting for it, not re-sends.
+            loop {
                 for (s, r) in self.poll()? {
                     if s == seq {
                         return Ok(r);
                     }
+                }
+                if Instant::now() >= end {
+                    break;
                 }
             }
         }

@@ -38,9 +38,13 @@ use std::time::{Duration, Instant};
 
 mod common;
 
-/// Robot time from which the perturbations act [s] (after the
-/// identification run: probe ~3 s + 30 s).
-const WINDOW_S: f64 = 40.0;
+/// Robot time from which the perturbations act [s], after the
+/// identification run on any machine: its rate probe takes at most 5 x 3 s
+/// of wall time (less robot time: the robot never runs ahead of the wall
+/// clock), then 30 s of robot time. (It was 40 s: a probe that lost
+/// frames at a few rates on a loaded machine ran the identification into
+/// the perturbations.)
+const WINDOW_S: f64 = 60.0;
 
 fn repo(rel: &str) -> PathBuf {
     PathBuf::from(format!("{}/../{rel}", env!("CARGO_MANIFEST_DIR")))
@@ -297,7 +301,7 @@ fn identify_tune_push_and_track_a_robot_whose_plant_differs_from_its_file() {
     // 3. The file's gains (the device's compiled-in robot), perturbed.
     let wait = Instant::now();
     while robot_time_s(&port) < WINDOW_S {
-        assert!(wait.elapsed() < Duration::from_secs(60), "robot time");
+        assert!(wait.elapsed() < Duration::from_secs(120), "robot time");
         std::thread::sleep(Duration::from_millis(500));
     }
     let before = track_circle(&port, dir.path(), "file-gains", 25.0);

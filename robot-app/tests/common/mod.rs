@@ -62,10 +62,6 @@ pub struct Knobs {
     pub hog_hold: AtomicBool,
     pub hog_active: AtomicBool,
     pub hog_go: Signal<CriticalSectionRawMutex, ()>,
-    /// The flood task writes garbage into the receive pipe while set.
-    pub flood: AtomicBool,
-    pub flooded_bytes: AtomicU32,
-    pub flood_kept_bytes: AtomicU32,
 }
 
 pub struct Shared {
@@ -199,28 +195,6 @@ async fn hog(shared: &'static Shared) {
     }
 }
 
-/// A host flooding the link with garbage as fast as the executor lets it.
-#[embassy_executor::task(pool_size = 16)]
-async fn flood(shared: &'static Shared, pipes: &'static LinkPipes) {
-    let garbage: Vec<u8> = (0..64u32).map(|i| (i * 37 + 11) as u8).collect();
-    loop {
-        if shared.knobs.flood.load(Ordering::SeqCst) {
-            let kept = pipes.port_received(&garbage);
-            shared
-                .knobs
-                .flooded_bytes
-                .fetch_add(garbage.len() as u32, Ordering::SeqCst);
-            shared
-                .knobs
-                .flood_kept_bytes
-                .fetch_add(kept as u32, Ordering::SeqCst);
-        }
-        embassy_futures::yield_now().await;
-        // Let the test thread breathe between bursts (real time only).
-        std::thread::sleep(StdDuration::from_micros(50));
-    }
-}
-
 static SERIAL: Mutex<()> = Mutex::new(());
 
 /// One running application.
@@ -265,7 +239,7 @@ fn leak<T>(x: T) -> &'static mut T {
 
 impl Rig {
     /// Resets the mock clock to 0, starts an executor thread with the
-    /// control task (and the hog and flood tasks, idle), and waits until
+    /// control task (and the hog task, idle), and waits until
     /// the control task has started.
     pub fn start() -> Self {
         Self::start_with(runtime_config(), AppConfig::DEFAULT)
@@ -282,9 +256,6 @@ impl Rig {
                 hog_hold: AtomicBool::new(false),
                 hog_active: AtomicBool::new(false),
                 hog_go: Signal::new(),
-                flood: AtomicBool::new(false),
-                flooded_bytes: AtomicU32::new(0),
-                flood_kept_bytes: AtomicU32::new(0),
             },
         });
         let pipes: &'static LinkPipes = leak(LinkPipes::new());
@@ -308,7 +279,6 @@ impl Rig {
             ex.run(move |sp: Spawner| {
                 sp.spawn(control(board, dev, pipes, task).expect("pool"));
                 sp.spawn(hog(shared).expect("pool"));
-                sp.spawn(flood(shared, pipes).expect("pool"));
             })
         });
         let rig = Self {

@@ -387,7 +387,10 @@ impl Server<'_> {
     }
 
     /// Telemetry off (the server's clients are gone) and the answers in
-    /// flight read, for at most 200 ms.
+    /// flight read: until none is pending and the robot has been quiet for
+    /// 50 ms, for at most 2 s (was 200 ms: a robot slow to answer, e.g. a
+    /// simulated one on a loaded machine, left frames unread and the
+    /// summary's counts short).
     fn shutdown(&mut self) {
         let ids: Vec<ClientId> = self.clients.keys().copied().collect();
         for id in ids {
@@ -397,7 +400,7 @@ impl Server<'_> {
             let o = self.mux.telemetry_request(Instant::now());
             self.dispatch(vec![o]);
         }
-        let end = Instant::now() + Duration::from_millis(200);
+        let end = Instant::now() + Duration::from_secs(2);
         let mut quiet_since = Instant::now();
         while self.port.is_some() && Instant::now() < end {
             let before = self.s.frames_from_robot + self.s.rx_errors;

@@ -16,11 +16,25 @@ use std::io::{Read, Write};
 use std::os::unix::io::AsRawFd;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use wmr_protocol::{Decoded, FrameDecoder, Reply, MAX_FRAME};
+
+/// The longest any wait of the rig and the tests may take (a hang fails;
+/// a slow machine only waits longer): waits end on events, not on time.
+pub const CEILING: Duration = Duration::from_secs(60);
+
+/// Polls `cond` every 10 ms until it holds; fails with `what` after
+/// [`CEILING`].
+pub fn wait_until(what: &str, mut cond: impl FnMut() -> bool) {
+    let t0 = Instant::now();
+    while !cond() {
+        assert!(t0.elapsed() < CEILING, "not within {CEILING:?}: {what}");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
 
 /// One rig at a time: each serves a real-time robot (2 cores, shared).
 pub fn serial() -> std::sync::MutexGuard<'static, ()> {
@@ -194,6 +208,8 @@ struct FaultyPort {
     inner: serialport::TTYPort,
     faulty: Arc<AtomicBool>,
     stats: Arc<Mutex<LineStats>>,
+    /// Reads by the robot (one per tick while its receive buffer has room).
+    reads: Arc<AtomicU64>,
     rng_in: Rng,
     rng_out: Rng,
     pending: Vec<u8>,
@@ -222,6 +238,7 @@ fn transient(e: &std::io::Error) -> bool {
 impl Read for FaultyPort {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         self.push_pending()?;
+        self.reads.fetch_add(1, Ordering::Relaxed);
         let n = self.inner.read(buf)?;
         let mut out = Vec::with_capacity(n);
         let faulty = self.faulty.load(Ordering::Relaxed);
@@ -270,6 +287,7 @@ pub struct Robot {
     pub faulty: Arc<AtomicBool>,
     /// What the line did (since the last start).
     pub stats: Arc<Mutex<LineStats>>,
+    reads: Arc<AtomicU64>,
     scn: Scenario,
     stop: Arc<AtomicBool>,
     handle: Option<JoinHandle<SimRobot>>,
@@ -287,6 +305,7 @@ impl Robot {
             port,
             faulty: Arc::new(AtomicBool::new(faulty)),
             stats: Arc::new(Mutex::new(LineStats::default())),
+            reads: Arc::new(AtomicU64::new(0)),
             scn: scn.clone(),
             stop: Arc::new(AtomicBool::new(false)),
             handle: None,
@@ -314,6 +333,7 @@ impl Robot {
             inner: master,
             faulty: self.faulty.clone(),
             stats: self.stats.clone(),
+            reads: self.reads.clone(),
             rng_in: Rng(0x9E37_79B9 + self.starts),
             rng_out: Rng(0x85EB_CA6B + self.starts),
             pending: Vec::new(),
@@ -339,6 +359,20 @@ impl Robot {
         self.slave = None;
         let _ = std::fs::remove_file(&self.port);
         robot
+    }
+
+    /// Waits until the line has passed `frames` frames to the robot and the
+    /// robot has read its port 20 more times (20 ticks: its 256-byte
+    /// receive buffer is decoded, 128 bytes a tick), so that its counters
+    /// hold every frame the host wrote; the host must have stopped writing.
+    pub fn wait_delivered(&self, frames: u64) {
+        wait_until(&format!("{frames} frames to the robot"), || {
+            self.stats.lock().unwrap().to_robot.frames >= frames
+        });
+        let r0 = self.reads.load(Ordering::Relaxed);
+        wait_until("20 more robot ticks", || {
+            self.reads.load(Ordering::Relaxed) >= r0 + 20
+        });
     }
 
     /// A fresh robot (boot state, its clock from 0) on a new pty at the
@@ -432,6 +466,7 @@ pub struct Server {
     /// Its socket (the first line it printed).
     pub socket: PathBuf,
     stderr: Arc<Mutex<String>>,
+    stderr_reader: Option<JoinHandle<()>>,
     rest: Option<JoinHandle<String>>,
 }
 
@@ -460,7 +495,7 @@ impl Server {
         let mut err = child.stderr.take().unwrap();
         let stderr = Arc::new(Mutex::new(String::new()));
         let e = stderr.clone();
-        std::thread::spawn(move || {
+        let stderr_reader = std::thread::spawn(move || {
             let mut buf = [0u8; 4096];
             while let Ok(n) = err.read(&mut buf) {
                 if n == 0 {
@@ -476,7 +511,7 @@ impl Server {
         let t0 = Instant::now();
         while out.read(&mut b).unwrap_or(0) == 1 && b[0] != b'\n' {
             first.push(b[0] as char);
-            assert!(t0.elapsed() < Duration::from_secs(10));
+            assert!(t0.elapsed() < CEILING);
         }
         let rest = std::thread::spawn(move || {
             let mut s = String::new();
@@ -487,13 +522,10 @@ impl Server {
             child: Some(child),
             socket: PathBuf::from(first),
             stderr,
+            stderr_reader: Some(stderr_reader),
             rest: Some(rest),
         };
-        assert!(
-            s.wait_log("connected to the robot", Duration::from_secs(10)),
-            "{}",
-            s.log()
-        );
+        assert!(s.wait_log("connected to the robot", CEILING), "{}", s.log());
         s
     }
 
@@ -514,12 +546,12 @@ impl Server {
         false
     }
 
-    /// SIGTERM, then its exit within 5 s: status, summary JSON, log.
+    /// SIGTERM, then its exit (within [`CEILING`]): status, summary JSON, log.
     pub fn stop(mut self) -> (ExitStatus, serde_json::Value, String) {
         let child = self.child.take().unwrap();
         // SAFETY: kill has no memory preconditions; pid is our child's.
         unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGTERM) };
-        self.wait(child, Duration::from_secs(5))
+        self.wait(child, CEILING)
     }
 
     /// Its exit by itself within `bound`.
@@ -547,8 +579,11 @@ impl Server {
             }
             std::thread::sleep(Duration::from_millis(20));
         };
+        // Both pipes read to their end: the whole summary and log.
         let rest = self.rest.take().unwrap().join().unwrap();
-        std::thread::sleep(Duration::from_millis(50));
+        if let Some(h) = self.stderr_reader.take() {
+            let _ = h.join();
+        }
         let summary = rest
             .lines()
             .rev()
