@@ -129,6 +129,47 @@ pub fn field_paths() -> Vec<String> {
     v
 }
 
+/// Every fixed-size array of a robot file must have exactly its length:
+/// serde's arrays stop reading after their N elements and the TOML reader
+/// let the rest pass (`wheel_radius_m = [0.1, 0.1, "junk", {a = 1}]` was
+/// accepted, issue 31 item 4). The lengths come from [`field_paths`]
+/// (`body.wheel_radius_m[1]`: two elements).
+fn check_array_lengths(doc: &toml::Table, text: &str) -> Result<(), RobotFileError> {
+    let mut lengths: std::collections::BTreeMap<String, usize> = Default::default();
+    for p in field_paths() {
+        if let Some((base, rest)) = p.split_once('[') {
+            let i: usize = rest.trim_end_matches(']').parse().unwrap_or(0);
+            let n = lengths.entry(base.to_string()).or_insert(0);
+            *n = (*n).max(i + 1);
+        }
+    }
+    for (path, n) in lengths {
+        let mut cur = Some(doc);
+        let parts: Vec<&str> = path.split('.').collect();
+        let mut value = None;
+        for (i, part) in parts.iter().enumerate() {
+            match cur.and_then(|t| t.get(*part)) {
+                Some(toml::Value::Table(t)) if i + 1 < parts.len() => cur = Some(t),
+                Some(v) if i + 1 == parts.len() => value = Some(v),
+                _ => break,
+            }
+        }
+        if let Some(toml::Value::Array(a)) = value {
+            if a.len() != n {
+                return Err(RobotFileError::Toml {
+                    line: line_of(text, &path),
+                    message: format!(
+                        "{path} has {} elements; it takes exactly {n} (remove the others)",
+                        a.len()
+                    ),
+                    field: Some(path),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
 fn present(doc: &toml::Table, path: &str) -> bool {
     let mut cur = doc;
     let parts: Vec<&str> = path.split('.').collect();
@@ -274,6 +315,7 @@ impl Robot {
                 return Err(RobotFileError::UnsupportedFormat { found: *found });
             }
         }
+        check_array_lengths(&table, text)?;
         let robot: Robot = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
         robot.validate().map_err(|error| RobotFileError::Invalid {
             error,

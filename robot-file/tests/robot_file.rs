@@ -667,3 +667,60 @@ fn derived_direction_thresholds_are_always_valid() {
     println!("{accepted} variants accepted, {coarse} refused as too coarse");
     assert!(accepted >= 40, "{accepted}");
 }
+
+/// Issue 31 item 4: a fixed-size array with extra elements of any type
+/// (149 of 400 such files were accepted: serde reads its N elements and
+/// the rest passed) is refused naming the field, its length and the one
+/// it takes; so is one too short. Every fixed-size array of the file,
+/// gain sections included.
+#[test]
+fn fixed_size_arrays_take_exactly_their_length() {
+    let text = read("paper.toml").replace(
+        "wheel_radius_m = [0.1, 0.1]",
+        "wheel_radius_m = [0.1, 0.1, \"junk\", {a = 1}]",
+    );
+    assert!(text.contains("junk"), "the example changed: {text}");
+    let e = Robot::from_toml_str(&text).unwrap_err();
+    assert_eq!(e.field(), Some("body.wheel_radius_m"), "{e}");
+    assert!(
+        e.to_string().contains("has 4 elements; it takes exactly 2"),
+        "{e}"
+    );
+    let with_gains = || {
+        let mut r = Robot::paper();
+        r.gains.proposed = Some(GainSet::paper(ControllerKind::Proposed));
+        r.gains.smc = Some(GainSet::paper(ControllerKind::Smc));
+        r.gains.asmc = Some(GainSet::paper(ControllerKind::Asmc));
+        doc(&r)
+    };
+    let mut v = with_gains();
+    for (path, n) in [
+        ("body.wheel_radius_m", 2),
+        ("encoders.inverted", 2),
+        ("bridge.motor_inverted", 2),
+        ("gains.proposed.eso.lambda", 3),
+        ("gains.smc.observer.max_estimate", 2),
+    ] {
+        let mut w = v.clone();
+        let parts: Vec<&str> = path.split('.').collect();
+        let leaf = parts
+            .iter()
+            .fold(&mut w, |t, k| &mut t.as_table_mut().unwrap()[*k]);
+        let arr = leaf.as_array_mut().unwrap();
+        assert_eq!(arr.len(), n, "{path}");
+        arr.push(arr[0].clone());
+        let e = parse(&w).unwrap_err();
+        assert_eq!(e.field(), Some(path), "{e}");
+        arr_shorten(&mut v, path);
+        let e = parse(&v).unwrap_err();
+        assert_eq!(e.field(), Some(path), "too short: {e}");
+        v = with_gains();
+    }
+}
+
+fn arr_shorten(v: &mut toml::Value, path: &str) {
+    let leaf = path
+        .split('.')
+        .fold(v, |t, k| &mut t.as_table_mut().unwrap()[k]);
+    leaf.as_array_mut().unwrap().pop();
+}
