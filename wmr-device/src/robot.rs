@@ -120,14 +120,21 @@ impl RobotRecord {
         Ok(())
     }
 
-    /// `RobotChunk`: in order, within the declared length.
+    /// `RobotChunk`: in order, within the declared length; a chunk already
+    /// staged with the same bytes (a retry) is accepted again unchanged.
     pub fn chunk(&mut self, offset: u16, data: &[u8]) -> Result<(), ErrorCode> {
         self.store()?;
         if self.pending.is_some() {
             return Err(ErrorCode::Busy);
         }
         let expected = self.expected_len.ok_or(ErrorCode::OutOfOrder)?;
-        if offset as usize != self.staged_len {
+        let (o, n) = (offset as usize, data.len());
+        // A chunk already staged, byte for byte (a retry after a lost
+        // acknowledgement, issue 31 item 5): acknowledged again, no change.
+        if o + n <= self.staged_len && self.staging[o..o + n] == *data {
+            return Ok(());
+        }
+        if o != self.staged_len {
             return Err(ErrorCode::OutOfOrder);
         }
         let end = self.staged_len + data.len();

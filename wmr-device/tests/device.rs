@@ -1280,6 +1280,40 @@ fn a_valid_record_is_stored_after_the_boards_write_and_reads_back() {
     assert_eq!(rig.request(&Request::Arm, 401), Reply::Ack { seq: 401 });
 }
 
+/// Issue 31 item 5: a `RobotChunk` retried after its acknowledgement was
+/// lost (the same offset, the same bytes) is acknowledged again and
+/// changes nothing, as trajectory segments are; a chunk at a staged
+/// offset with other bytes is still out of order; the record commits and
+/// reads back equal.
+#[test]
+fn a_retried_robot_chunk_is_acknowledged_again() {
+    let (mut rig, _) = with_store();
+    let rec = record(300, 9);
+    push(&mut rig, &rec, 100);
+    let first = Request::RobotChunk {
+        offset: 0,
+        data: rec[..ROBOT_CHUNK].iter().copied().collect(),
+    };
+    assert_eq!(rig.request(&first, 150), Reply::Ack { seq: 150 });
+    let mut other = rec[..ROBOT_CHUNK].to_vec();
+    other[3] ^= 0xFF;
+    let changed = Request::RobotChunk {
+        offset: 0,
+        data: other.iter().copied().collect(),
+    };
+    assert_eq!(
+        nack(&rig.request(&changed, 151)),
+        Some(ErrorCode::OutOfOrder)
+    );
+    rig.send(&Request::RobotCommit, 200);
+    rig.tick();
+    assert_eq!(rig.dev.pending_robot_write(), Some(rec.as_slice()));
+    rig.dev.robot_write_done(true);
+    rig.tick();
+    assert!(rig.replies.contains(&Reply::Ack { seq: 200 }));
+    assert_eq!(pull(&mut rig, 300), rec);
+}
+
 /// A record the validator refuses is answered with the field, and nothing
 /// is handed to the board; a failed write keeps the old record.
 #[test]

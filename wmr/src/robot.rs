@@ -228,8 +228,43 @@ pub fn push(
     };
     let rec = encode(&robot)?;
     let io = |e: std::io::Error| err(e.to_string());
-    write_record(link, &rec)?;
-    let back = read_record(link)?;
+    let crc = record_crc32(&rec);
+    // A failure on the way (a lost answer, a cut line) may come after the
+    // robot stored the record, or before: ask it what it stores and runs
+    // now, and say so with the error (issue 31 item 5).
+    let truthfully = |link: &mut Link, e: LinkError| -> LinkError {
+        match status(link) {
+            Ok(s) => {
+                let r = s.robot;
+                let stored = if r.stored_crc32 == crc {
+                    "the pushed record"
+                } else {
+                    "not the pushed record"
+                };
+                let runs = if r.active_crc32 == crc {
+                    "the pushed record"
+                } else {
+                    "not the pushed record"
+                };
+                err(format!(
+                    "{e}; the robot now stores CRC-32 {:08x} ({stored}) and runs CRC-32 {:08x} \
+                     from {:?} ({runs}; pushed: {crc:08x})",
+                    r.stored_crc32, r.active_crc32, r.source
+                ))
+            }
+            Err(s) => err(format!(
+                "{e}; the robot did not answer a status request either ({s}): what it stores \
+                 is unknown, check with `wmr status` when it answers"
+            )),
+        }
+    };
+    if let Err(e) = write_record(link, &rec) {
+        return Err(truthfully(link, e));
+    }
+    let back = match read_record(link) {
+        Ok(b) => b,
+        Err(e) => return Err(truthfully(link, e)),
+    };
     if back != rec {
         return Err(err(format!(
             "read back differs from what was written ({} vs {} bytes)",
@@ -249,7 +284,9 @@ pub fn push(
         writeln!(out, "takes effect at the robot's next boot (`wmr robot push` without --no-reboot reboots it)").map_err(io)?;
         return Ok(());
     }
-    reboot(link)?;
+    if let Err(e) = reboot(link) {
+        return Err(truthfully(link, e));
+    }
     let s = status(link)?;
     if s.robot.source != RobotSource::Flash || s.robot.active_crc32 != record_crc32(&rec) {
         return Err(err(format!(
