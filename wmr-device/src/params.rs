@@ -285,7 +285,6 @@ pub(crate) fn write<const H: usize>(
         ParamId::ControlPeriodS => return Err(ErrorCode::ReadOnly),
         _ => {}
     }
-    in_hold(control.state())?;
     let mut c = control.config().controller;
     let mut s = control.config().safety;
     let mut l = *link;
@@ -305,6 +304,10 @@ pub(crate) fn write<const H: usize>(
         ParamId::TelemetryRateHz | ParamId::LinkTimeoutMs | ParamId::ControlPeriodS => {}
     }
     let l = l.validate().map_err(|_| ErrorCode::InvalidValue)?;
+    // A value bad by construction is InvalidValue in any state (issue 31
+    // item 6: stall_ticks beyond 16 bits while moving was Busy); a good
+    // one waits for hold.
+    in_hold(control.state())?;
     control.reconfigure(c, s).map_err(|e| match e {
         ReconfigureError::Running => ErrorCode::Busy,
         _ => ErrorCode::InvalidValue,

@@ -337,13 +337,14 @@ impl<const H: usize> Handler<H> {
                 _ => Err(ErrorCode::WrongMode),
             },
             Request::SetPose(p) => {
-                in_hold(self.control.state())?;
                 // Within the physical range of positions (D41): a pose at
                 // 3.4e38 m makes the tracking error, and η_c, infinite.
+                // Refused as such in any state, then only in hold.
                 let ok = |c: f32| c.abs() <= MAX_POSITION_M;
                 if !(ok(p.x_m) && ok(p.y_m) && p.theta_rad.is_finite()) {
                     return Err(ErrorCode::InvalidValue);
                 }
+                in_hold(self.control.state())?;
                 self.control
                     .set_pose(pose_from_msg(p))
                     .map_err(|_| ErrorCode::InvalidValue)?;

@@ -1399,3 +1399,63 @@ fn uploads_that_do_not_add_up_are_refused() {
     );
     assert_eq!(rig.dev.pending_robot_write(), None);
 }
+
+/// Issue 31 item 6: values bad by construction are `InvalidValue` in any
+/// state (stall_ticks beyond 16 bits, a pose at 1e30 m, both while
+/// running, were `Busy`); `SetPose` keeps the estimator's refusal counters
+/// (it reset them).
+#[test]
+fn bad_values_while_running_and_set_pose_keeps_the_refusal_counters() {
+    let mut rig = Rig::new();
+    // An external pose 100 m away with a 1 cm std dev: acked, then
+    // refused by the estimator's gate (stamped at a tick already run).
+    for _ in 0..50 {
+        rig.tick();
+    }
+    let t = rig.now_us - 10_000;
+    let a = rig.request(
+        &Request::ExternalPose {
+            t_robot_us: t,
+            pose: PoseMsg {
+                x_m: 100.0,
+                y_m: 0.0,
+                theta_rad: 0.0,
+            },
+            std_dev: [0.01, 0.01, 0.0],
+        },
+        1,
+    );
+    assert_eq!(a, Reply::Ack { seq: 1 });
+    for _ in 0..3 {
+        rig.tick();
+    }
+    let before = status(&mut rig, 2).pose_rejects;
+    assert_eq!(before.outlier, 1, "{before:?}");
+    let set = Request::SetPose(PoseMsg {
+        x_m: 1.0,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    });
+    assert_eq!(rig.request(&set, 3), Reply::Ack { seq: 3 });
+    assert_eq!(status(&mut rig, 4).pose_rejects, before);
+    rig.request(&circle(), 5);
+    assert_eq!(rig.request(&Request::Arm, 6), Reply::Ack { seq: 6 });
+    let stall = Request::SetParam {
+        id: ParamId::StallTicks,
+        value: 1e6,
+    };
+    assert_eq!(nack(&rig.request(&stall, 7)), Some(ErrorCode::InvalidValue));
+    let far = Request::SetPose(PoseMsg {
+        x_m: 1e30,
+        y_m: 0.0,
+        theta_rad: 0.0,
+    });
+    assert_eq!(nack(&rig.request(&far, 8)), Some(ErrorCode::InvalidValue));
+    // Good values wait for hold.
+    let ok = Request::SetParam {
+        id: ParamId::StallTicks,
+        value: 300.0,
+    };
+    assert_eq!(nack(&rig.request(&ok, 9)), Some(ErrorCode::Busy));
+    assert_eq!(nack(&rig.request(&set, 10)), Some(ErrorCode::Busy));
+}

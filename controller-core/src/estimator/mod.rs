@@ -288,6 +288,17 @@ impl<const H: usize> PoseEstimator<H> {
         &self.estimate
     }
 
+    /// Carries the counters of `old` (poses accepted, refused by reason,
+    /// resets, standstill updates) into this estimator: a re-anchored pose
+    /// (`SetPose`) does not erase what was counted and reported (issue 31
+    /// item 6).
+    pub(crate) fn keep_counters(&mut self, old: &EstimatorStatus) {
+        self.status.accepted = old.accepted;
+        self.status.rejected = old.rejected;
+        self.status.resets = old.resets;
+        self.status.standstill_updates = old.standstill_updates;
+    }
+
     /// Status for logs and telemetry.
     pub fn status(&self) -> &EstimatorStatus {
         &self.status

@@ -144,17 +144,20 @@ impl<const H: usize> ControlLoop<H> {
 
     /// Re-anchors the pose: the estimator restarts at `pose` with its
     /// configured initial uncertainty (history and gyro bias estimate
-    /// dropped). Refused while running or for a non-finite pose.
+    /// dropped; its counters kept). Refused while running or for a
+    /// non-finite pose.
     pub fn set_pose(&mut self, pose: Pose) -> Result<(), ReconfigureError> {
         if self.running() {
             return Err(ReconfigureError::Running);
         }
+        let counters = *self.estimator.status();
         self.estimator = PoseEstimator::with_history(
             *self.estimator.config(),
             self.cfg.controller.robot.com_offset_m,
             pose,
         )
         .map_err(|e| ReconfigureError::Invalid(e.into()))?;
+        self.estimator.keep_counters(&counters);
         Ok(())
     }
 
