@@ -596,8 +596,11 @@ fn expect_cause(stop: Stop, expected: &[StopCode], what: &str) -> Result<(), Lin
 }
 
 /// Longest wait for the robot to come to rest after a stop began [s]: its
-/// controlled stop is bounded by its own limits, far below this.
-const STOP_WAIT: Duration = Duration::from_secs(10);
+/// controlled stop is bounded by its own limits (`RobotLimits::stop_bound_s`:
+/// the braking ramp from top speed, at most 10 m/s at the least braking
+/// deceleration 0.25 m/s², 40 s, then at most 2 s waiting for the wheels
+/// at rest), below this.
+const STOP_WAIT: Duration = Duration::from_secs(45);
 
 fn drive(a: &DriveArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
     if !(a.for_s.is_finite() && (0.0..=86_400.0).contains(&a.for_s)) {
@@ -892,7 +895,21 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
             &[StopCode::TrajectoryEnd, StopCode::Disarmed],
             "the recording",
         ),
-        _ => Ok(()),
+        // Without --arm another client drives: a run ending by its own
+        // end, a disarm or an expired velocity command is that client's
+        // business; a safety stop or a lost link ended the recording early
+        // and is not a success either (issue 31 item 6: it exited 0 after
+        // 3.9 s of 15 s).
+        Some(s) => expect_cause(
+            s,
+            &[
+                StopCode::TrajectoryEnd,
+                StopCode::Disarmed,
+                StopCode::VelocityTimeout,
+            ],
+            "the run being recorded",
+        ),
+        None => Ok(()),
     }
 }
 
