@@ -247,9 +247,12 @@ fn toml_error(text: &str, e: &toml::de::Error) -> RobotFileError {
                 }
                 None => table,
             }
-        } else if let Some((k, _)) = this.split_once('=') {
+        } else if let Some((k, _)) = this.split_once('=').filter(|(k, _)| is_bare_key(k.trim())) {
             join(&table, k.trim())
         } else {
+            // A comment (a carriage return or form feed inside one is a
+            // TOML error on its line, issue 31 item 6: its text became the
+            // field's name) or no key: the table.
             table
         }
     });
@@ -258,6 +261,14 @@ fn toml_error(text: &str, e: &toml::de::Error) -> RobotFileError {
         line,
         message,
     }
+}
+
+/// A key as a robot file writes it: letters, digits, `_` and `-` (a TOML
+/// bare key), nothing else (no comment, no control character).
+fn is_bare_key(k: &str) -> bool {
+    !k.is_empty()
+        && k.chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
 }
 
 /// 1-based line of the field at TOML path `path` (`"body.wheel_radius_m[1]"`)

@@ -724,3 +724,27 @@ fn arr_shorten(v: &mut toml::Value, path: &str) {
         .fold(v, |t, k| &mut t.as_table_mut().unwrap()[k]);
     leaf.as_array_mut().unwrap().pop();
 }
+
+/// Issue 31 item 6: a carriage return or form feed inside a comment is a
+/// TOML error on the comment's line; the error names the table there, not
+/// the comment's text as a field.
+#[test]
+fn a_control_character_in_a_comment_names_no_field_of_its_text() {
+    for cc in ['\r', '\u{c}'] {
+        let text = read("paper.toml").replacen(
+            "[body]\n",
+            &format!("[body]\n# a note{cc}mass_kg = 99\n"),
+            1,
+        );
+        let e = Robot::from_toml_str(&text).unwrap_err();
+        let field = e.field().unwrap_or("");
+        assert!(
+            !field.contains("note") && !field.contains('#'),
+            "{cc:?}: {e}"
+        );
+        assert!(
+            matches!(e, RobotFileError::Toml { line: Some(_), .. }),
+            "{cc:?}: {e}"
+        );
+    }
+}
