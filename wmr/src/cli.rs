@@ -1217,12 +1217,28 @@ pub fn feed_lines(
             Ok(None) => {}
             Err(e) => eprintln!("line {n}: {e}"),
             Ok(Some(p)) => {
-                let (clock, arrival) = at_arrival(link)?;
-                match link.command(&clock.request(&p, arrival)) {
+                // A pose is perishable: one the robot did not answer (a
+                // cut line, a busy link) is counted lost and the feed goes
+                // on; only a robot silent for POSE_FEED_GIVE_UP ends it
+                // (issue 31 item 6: a 0.5 s cut ended the feed).
+                let sent = at_arrival(link)
+                    .and_then(|(clock, arrival)| link.command(&clock.request(&p, arrival)));
+                match sent {
                     Ok(_) => tally.accepted(),
                     Err(LinkError::Nack(_, e)) => {
                         tally.refused(e);
                         eprintln!("line {n}: refused: {}", e.reason());
+                    }
+                    Err(LinkError::NoAnswer(what)) => {
+                        let silent = tally.lost(Instant::now());
+                        eprintln!("line {n}: lost (no answer to {what})");
+                        if silent >= POSE_FEED_GIVE_UP {
+                            return Err(LinkError::NoAnswer(format!(
+                                "any pose for {:.0} s ({} lost)",
+                                silent.as_secs_f64(),
+                                tally.lost
+                            )));
+                        }
                     }
                     Err(e) => return Err(e),
                 }
@@ -1268,22 +1284,42 @@ fn pose_feed(a: &PoseFeedArgs, link: &mut Link, out: &mut dyn Write) -> Result<(
     Ok(())
 }
 
-/// What `pose-feed` sent and what the robot refused, by reason.
+/// How long `pose-feed` goes on while the robot answers no pose: longer
+/// than any line cut a serial or USB link recovers from, shorter than a
+/// user's patience with a gone robot.
+pub const POSE_FEED_GIVE_UP: Duration = Duration::from_secs(10);
+
+/// What `pose-feed` sent, what the robot refused, by reason, and what it
+/// did not answer.
 #[derive(Debug, Default)]
 pub struct PoseTally {
     sent: u64,
     refused: Vec<(ErrorCode, u64)>,
+    /// Poses the robot did not answer.
+    pub lost: u64,
+    /// Since when no pose was answered (None: the last one was).
+    silent_since: Option<Instant>,
 }
 
 impl PoseTally {
     /// One pose sent and acknowledged.
     pub fn accepted(&mut self) {
         self.sent += 1;
+        self.silent_since = None;
+    }
+
+    /// One pose sent and not answered at `now`; returns how long no pose
+    /// has been answered.
+    pub fn lost(&mut self, now: Instant) -> Duration {
+        self.sent += 1;
+        self.lost += 1;
+        now - *self.silent_since.get_or_insert(now)
     }
 
     /// One pose sent and refused with `e`.
     pub fn refused(&mut self, e: ErrorCode) {
         self.sent += 1;
+        self.silent_since = None;
         match self.refused.iter_mut().find(|(c, _)| *c == e) {
             Some((_, n)) => *n += 1,
             None => self.refused.push((e, 1)),
@@ -1301,9 +1337,10 @@ impl std::fmt::Display for PoseTally {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{} poses sent, {} refused",
+            "{} poses sent, {} refused, {} lost",
             self.sent,
-            self.refused_total()
+            self.refused_total(),
+            self.lost
         )?;
         for (e, n) in &self.refused {
             write!(f, "\n  {n}: {}", e.reason())?;
@@ -1315,6 +1352,23 @@ impl std::fmt::Display for PoseTally {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// pose-feed's silence (issue 31 item 6): measured from the first
+    /// unanswered pose, reset by any answer, counted in the tally's line.
+    #[test]
+    fn pose_feed_counts_lost_poses_and_their_silence() {
+        let mut t = PoseTally::default();
+        let t0 = Instant::now();
+        assert_eq!(t.lost(t0), Duration::ZERO);
+        assert_eq!(
+            t.lost(t0 + Duration::from_millis(500)),
+            Duration::from_millis(500)
+        );
+        t.accepted();
+        assert_eq!(t.lost(t0 + Duration::from_secs(20)), Duration::ZERO);
+        assert_eq!(t.lost, 3);
+        assert_eq!(t.to_string(), "4 poses sent, 0 refused, 3 lost");
+    }
 
     /// Gaps in telemetry numbers: the frames between, across the u32 wrap;
     /// none for a repeat or a count that restarted (a robot reset).
