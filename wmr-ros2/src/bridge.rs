@@ -141,7 +141,8 @@ pub struct Stats {
     pub cmd_vel: u64,
     /// Forwarded to the robot and acknowledged.
     pub cmd_vel_forwarded: u64,
-    /// Refused as stale (stamped longer ago than the command timeout).
+    /// Refused as stale (stamped longer ago than the command timeout) or
+    /// from the future (more than `MAX_FUTURE_STAMP_NS` ahead).
     pub cmd_vel_stale: u64,
     /// Scaled down to the robot's limits (curvature kept).
     pub cmd_vel_scaled: u64,
@@ -229,6 +230,18 @@ fn status(link: &mut Link) -> Result<wmr_protocol::StatusMsg, Fatal> {
 /// little between hosts).
 pub fn stale(stamp_ns: u64, now_ns: u64, cmd_timeout_ms: u16) -> bool {
     now_ns.saturating_sub(stamp_ns) > cmd_timeout_ms as u64 * 1_000_000
+}
+
+/// How far ahead of this host's clock a command's stamp may be \[ns\]:
+/// hosts' clocks differ a little (NTP keeps them within milliseconds),
+/// never by a second.
+pub const MAX_FUTURE_STAMP_NS: u64 = 1_000_000_000;
+
+/// A command stamped at `stamp_ns` is from the future at `now_ns` when
+/// ahead by more than [`MAX_FUTURE_STAMP_NS`] (issue 31 item 6: a
+/// `cmd_vel` stamped 1,000 s ahead was taken).
+pub fn from_future(stamp_ns: u64, now_ns: u64) -> bool {
+    stamp_ns.saturating_sub(now_ns) > MAX_FUTURE_STAMP_NS
 }
 
 fn nack_reason(e: &LinkError) -> Option<ErrorCode> {
@@ -547,6 +560,15 @@ impl Bridge {
     pub fn cmd_vel(&mut self, tw: &Twist, stamp_ns: Option<u64>) -> Outcome {
         self.stats.cmd_vel += 1;
         let r = match stamp_ns.filter(|s| *s != 0) {
+            Some(s) if from_future(s, ros_mcap::unix_now_ns()) => {
+                self.stats.cmd_vel_stale += 1;
+                Ok(self.refuse(Refusal::Implausible(format!(
+                    "stamped {:.3} s in the future (more than {} s ahead of this host's clock: \
+                     synchronise the clocks)",
+                    s.saturating_sub(ros_mcap::unix_now_ns()) as f64 * 1e-9,
+                    MAX_FUTURE_STAMP_NS / 1_000_000_000
+                ))))
+            }
             Some(s) if stale(s, ros_mcap::unix_now_ns(), self.cfg.cmd_timeout_ms) => {
                 self.stats.cmd_vel_stale += 1;
                 Ok(self.refuse(Refusal::WrongState(format!(
@@ -941,6 +963,9 @@ mod tests {
         assert!(stale(now - 301_000_000, now, 300));
         // From the future (another host's clock ahead): not stale.
         assert!(!stale(now + 50_000_000, now, 300));
+        // A little ahead is another host's clock; 1,000 s ahead is not.
+        assert!(!from_future(now + 50_000_000, now));
+        assert!(from_future(now + 1_000 * 1_000_000_000, now));
     }
 
     #[test]
