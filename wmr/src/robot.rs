@@ -233,6 +233,11 @@ pub fn push(
     // robot stored the record, or before: ask it what it stores and runs
     // now, and say so with the error (issue 31 item 5).
     let truthfully = |link: &mut Link, e: LinkError| -> LinkError {
+        // `err` adds the link-error prefix once.
+        let e = match e {
+            LinkError::Io(m) => m,
+            other => other.to_string(),
+        };
         match status(link) {
             Ok(s) => {
                 let r = s.robot;
