@@ -559,32 +559,44 @@ fn run_session(robot_index: usize, session: Vec<Step>) -> (u64, u64) {
     (f.stops_at_rest, f.stops_at_bound)
 }
 
-/// Random sessions over the simulated plant keep every invariant; prints
-/// how the controlled stops ended (at rest, or at their bound).
-#[test]
-fn random_sessions_on_the_simulated_plant() {
+/// Runs [`fuzz_cases`] sessions drawn from `sessions`, each made into a
+/// robot index and its steps by `session`; returns how many controlled
+/// stops ended at rest and at their bound.
+fn count_stops<S: Strategy>(
+    sessions: S,
+    max_shrink_iters: u32,
+    session: impl Fn(S::Value) -> (usize, Vec<Step>),
+) -> (u64, u64) {
     use proptest::test_runner::{Config, TestRunner};
     use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
-    let cases = fuzz_cases(300);
     let mut runner = TestRunner::new(Config {
-        cases,
-        max_shrink_iters: 200,
+        cases: fuzz_cases(300),
+        max_shrink_iters,
         ..Config::default()
     });
     let (at_rest, at_bound) = (AtomicU64::new(0), AtomicU64::new(0));
-    let sessions = (0usize..64, proptest::collection::vec(step(), 1..40));
     runner
-        .run(&sessions, |(robot_index, session)| {
-            let (r, b) = run_session(robot_index, session);
+        .run(&sessions, |v| {
+            let (robot_index, steps) = session(v);
+            let (r, b) = run_session(robot_index, steps);
             at_rest.fetch_add(r, Relaxed);
             at_bound.fetch_add(b, Relaxed);
             Ok(())
         })
         .unwrap();
-    let (r, b) = (at_rest.into_inner(), at_bound.into_inner());
+    (at_rest.into_inner(), at_bound.into_inner())
+}
+
+/// Random sessions over the simulated plant keep every invariant; prints
+/// how the controlled stops ended (at rest, or at their bound).
+#[test]
+fn random_sessions_on_the_simulated_plant() {
+    let sessions = (0usize..64, proptest::collection::vec(step(), 1..40));
+    let (r, b) = count_stops(sessions, 200, |s| s);
     eprintln!(
-        "{cases} sessions over {} example robots: {r} controlled stops ended at rest, \
+        "{} sessions over {} example robots: {r} controlled stops ended at rest, \
          {b} at their bound",
+        fuzz_cases(300),
         example_robots().len()
     );
     assert!(
@@ -600,15 +612,6 @@ fn random_sessions_on_the_simulated_plant() {
 /// (checked in `Fuzz::tick`) or at its bound.
 #[test]
 fn controlled_stops_end_with_the_robot_at_rest() {
-    use proptest::test_runner::{Config, TestRunner};
-    use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
-    let cases = fuzz_cases(300);
-    let mut runner = TestRunner::new(Config {
-        cases,
-        max_shrink_iters: 100,
-        ..Config::default()
-    });
-    let (at_rest, at_bound) = (AtomicU64::new(0), AtomicU64::new(0));
     let sessions = (
         0usize..64,
         any::<bool>(),
@@ -617,46 +620,38 @@ fn controlled_stops_end_with_the_robot_at_rest() {
         1u16..4000,
         50u16..3000,
     );
-    runner
-        .run(
-            &sessions,
-            |(robot_index, velocity, speed, turn, timeout_ms, run_ticks)| {
-                let robots = example_robots();
-                let f = Fuzz::new(robot_index);
-                let lim = f.limits;
-                drop(f);
-                let _ = robots;
-                let v = speed * lim.top_speed_mps * 0.9;
-                let start = if velocity {
-                    Request::Velocity {
-                        v_mps: v,
-                        omega_radps: turn * lim.top_yaw_rate_radps * 0.5,
-                        timeout_ms,
-                    }
-                } else {
-                    Request::SetReference(BuiltinReference {
-                        shape: BuiltinShape::Circle {
-                            radius_m: (v / (0.5 * lim.top_yaw_rate_radps)).max(0.2),
-                            speed_mps: v,
-                        },
-                        start: None,
-                        speed_scale: 1.0,
-                    })
-                };
-                let session = vec![
-                    Step::Request(start),
-                    Step::Request(Request::Arm),
-                    Step::Idle(run_ticks),
-                    Step::Idle(1500),
-                ];
-                let (r, b) = run_session(robot_index, session);
-                at_rest.fetch_add(r, Relaxed);
-                at_bound.fetch_add(b, Relaxed);
-                Ok(())
-            },
-        )
-        .unwrap();
-    let (r, b) = (at_rest.into_inner(), at_bound.into_inner());
+    let (r, b) = count_stops(
+        sessions,
+        100,
+        |(robot_index, velocity, speed, turn, timeout_ms, run_ticks)| {
+            let lim = Fuzz::new(robot_index).limits;
+            let v = speed * lim.top_speed_mps * 0.9;
+            let start = if velocity {
+                Request::Velocity {
+                    v_mps: v,
+                    omega_radps: turn * lim.top_yaw_rate_radps * 0.5,
+                    timeout_ms,
+                }
+            } else {
+                Request::SetReference(BuiltinReference {
+                    shape: BuiltinShape::Circle {
+                        radius_m: (v / (0.5 * lim.top_yaw_rate_radps)).max(0.2),
+                        speed_mps: v,
+                    },
+                    start: None,
+                    speed_scale: 1.0,
+                })
+            };
+            let steps = vec![
+                Step::Request(start),
+                Step::Request(Request::Arm),
+                Step::Idle(run_ticks),
+                Step::Idle(1500),
+            ];
+            (robot_index, steps)
+        },
+    );
+    let cases = fuzz_cases(300);
     eprintln!("{cases} moving sessions: {r} controlled stops ended at rest, {b} at their bound");
     assert!(
         r + b >= cases as u64 / 2,

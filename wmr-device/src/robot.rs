@@ -120,8 +120,8 @@ impl RobotRecord {
         Ok(())
     }
 
-    /// `RobotChunk`: in order, within the declared length; a chunk already
-    /// staged with the same bytes (a retry) is accepted again unchanged.
+    /// `RobotChunk`: in order, within the declared length; the last chunk
+    /// again with the same bytes (a retry) is accepted again unchanged.
     pub fn chunk(&mut self, offset: u16, data: &[u8]) -> Result<(), ErrorCode> {
         self.store()?;
         if self.pending.is_some() {
@@ -129,9 +129,10 @@ impl RobotRecord {
         }
         let expected = self.expected_len.ok_or(ErrorCode::OutOfOrder)?;
         let (o, n) = (offset as usize, data.len());
-        // A chunk already staged, byte for byte (a retry after a lost
-        // acknowledgement, issue 31 item 5): acknowledged again, no change.
-        if o + n <= self.staged_len && self.staging[o..o + n] == *data {
+        // The last chunk again, byte for byte (a retry after its lost
+        // acknowledgement: the host sends one chunk at a time, issue 31
+        // item 5): acknowledged again, no change.
+        if n > 0 && o + n == self.staged_len && self.staging[o..o + n] == *data {
             return Ok(());
         }
         if o != self.staged_len {

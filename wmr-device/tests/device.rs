@@ -1280,25 +1280,26 @@ fn a_valid_record_is_stored_after_the_boards_write_and_reads_back() {
     assert_eq!(rig.request(&Request::Arm, 401), Reply::Ack { seq: 401 });
 }
 
-/// Issue 31 item 5: a `RobotChunk` retried after its acknowledgement was
-/// lost (the same offset, the same bytes) is acknowledged again and
-/// changes nothing, as trajectory segments are; a chunk at a staged
-/// offset with other bytes is still out of order; the record commits and
-/// reads back equal.
+/// Issue 31 item 5: the last `RobotChunk` retried after its
+/// acknowledgement was lost (the same offset, the same bytes) is
+/// acknowledged again and changes nothing, as trajectory segments are; the
+/// same offset with other bytes is still out of order; the record commits
+/// and reads back equal.
 #[test]
 fn a_retried_robot_chunk_is_acknowledged_again() {
     let (mut rig, _) = with_store();
     let rec = record(300, 9);
     push(&mut rig, &rec, 100);
-    let first = Request::RobotChunk {
-        offset: 0,
-        data: rec[..ROBOT_CHUNK].iter().copied().collect(),
+    let k = (rec.len() - 1) / ROBOT_CHUNK * ROBOT_CHUNK;
+    let last = Request::RobotChunk {
+        offset: k as u16,
+        data: rec[k..].iter().copied().collect(),
     };
-    assert_eq!(rig.request(&first, 150), Reply::Ack { seq: 150 });
-    let mut other = rec[..ROBOT_CHUNK].to_vec();
-    other[3] ^= 0xFF;
+    assert_eq!(rig.request(&last, 150), Reply::Ack { seq: 150 });
+    let mut other = rec[k..].to_vec();
+    other[0] ^= 0xFF;
     let changed = Request::RobotChunk {
-        offset: 0,
+        offset: k as u16,
         data: other.iter().copied().collect(),
     };
     assert_eq!(

@@ -1391,7 +1391,7 @@ mod tests {
         assert_eq!(t.refused_total(), 3);
         let text = t.to_string();
         let mut lines = text.lines();
-        assert_eq!(lines.next(), Some("4 poses sent, 3 refused"));
+        assert_eq!(lines.next(), Some("4 poses sent, 3 refused, 0 lost"));
         assert_eq!(
             lines.next(),
             Some(format!("  2: {}", ErrorCode::PoseBadStdDev.reason()).as_str())
