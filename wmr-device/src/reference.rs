@@ -232,19 +232,32 @@ pub fn check_segment_on_device(
     b: &Waypoint,
     lim: &RobotLimits,
 ) -> Result<(), LimitExceeded> {
+    let sc = |w: &Waypoint| sin_cos(w.pose.theta_rad);
+    check_segment_with(a, sc(a), b, sc(b), lim)
+}
+
+/// [`check_segment_on_device`] with the headings' (sin, cos) given (each
+/// waypoint's computed once by [`WaypointBuffer::push`]).
+fn check_segment_with(
+    a: &Waypoint,
+    (sa, ca): (f32, f32),
+    b: &Waypoint,
+    (sb, cb): (f32, f32),
+    lim: &RobotLimits,
+) -> Result<(), LimitExceeded> {
     let h = b.t_s - a.t_s;
-    let (sa, ca) = sin_cos(a.pose.theta_rad);
-    let (sb, cb) = sin_cos(b.pose.theta_rad);
     let m0 = [h * a.v_mps * ca, h * a.v_mps * sa];
     let m1 = [h * b.v_mps * cb, h * b.v_mps * sb];
     let d = [
         3.0 * (b.pose.x_m - a.pose.x_m) - m0[0] - m1[0],
         3.0 * (b.pose.y_m - a.pose.y_m) - m0[1] - m1[1],
     ];
-    let norm = |v: [f32; 2]| sqrt(v[0] * v[0] + v[1] * v[1]);
+    // Squared norms, one square root at the end of each bound (the
+    // tick's budget: 8 segments in one tick).
+    let norm2 = |v: [f32; 2]| v[0] * v[0] + v[1] * v[1];
     let e0 = [d[0] - m0[0], d[1] - m0[1]];
     let e1 = [m1[0] - d[0], m1[1] - d[1]];
-    let accel = 2.0 * norm(e0).max(norm(e1)) / (h * h);
+    let accel = 2.0 * sqrt(norm2(e0).max(norm2(e1))) / (h * h);
     if !at_most(accel, lim.top_accel_mps2) {
         return Err(LimitExceeded {
             quantity: Quantity::AccelMps2,
@@ -271,15 +284,15 @@ pub fn check_segment_on_device(
             p[1] + k * (e0[1] * (1.0 - s0) + e1[1] * s0),
         ]
     };
-    let mut peak = norm(m0).max(norm(m1));
+    let mut peak2 = norm2(m0).max(norm2(m1));
     for i in 0..4 {
         let s0 = i as f32 * 0.25;
-        peak = peak.max(norm(mid(s0, s0 + 0.25)));
+        peak2 = peak2.max(norm2(mid(s0, s0 + 0.25)));
         if i > 0 {
-            peak = peak.max(norm(at(s0)));
+            peak2 = peak2.max(norm2(at(s0)));
         }
     }
-    let speed = peak / h;
+    let speed = sqrt(peak2) / h;
     if !at_most(speed, lim.top_speed_mps) {
         return Err(LimitExceeded {
             quantity: Quantity::SpeedMps,
@@ -439,7 +452,7 @@ impl WaypointBuffer {
             return Err(SegmentError::OutOfOrder);
         }
         let mut last_t = self.points.back().map(|w| w.t_s);
-        let mut prev = self.points.back().copied();
+        let mut prev = self.points.back().map(|w| (*w, sin_cos(w.pose.theta_rad)));
         for (k, w) in points.iter().enumerate() {
             // Written so that NaN fails every comparison.
             let physical = w.t_s.is_finite()
@@ -457,12 +470,13 @@ impl WaypointBuffer {
             last_t = Some(w.t_s);
             // The curve from the previous waypoint (held, or of this
             // segment) to this one.
-            if let Some(a) = prev {
+            let sc = sin_cos(w.pose.theta_rad);
+            if let Some((a, sca)) = prev {
                 let index = (first_index + k as u32).wrapping_sub(1);
-                check_segment_on_device(&a, w, lim)
+                check_segment_with(&a, sca, w, sc, lim)
                     .map_err(|exceeded| SegmentError::BeyondLimits { index, exceeded })?;
             }
-            prev = Some(*w);
+            prev = Some((*w, sc));
         }
         if let Some(t) = t_now_s {
             while self.points.len() >= 2 && self.points.iter().nth(1).is_some_and(|w| w.t_s <= t) {
