@@ -140,23 +140,24 @@ pub struct TickResult {
 /// controller, a gyro and the pose source `source`.
 #[inline(never)]
 pub fn run_tick<C: Counter>(c: &C, source: PoseSourceModel) -> TickResult {
-    let initial_pose = Pose::new(2.5, 0.0, 0.0); // the simulator's default start
-                                                 // The firmware's robot (ROBOT_FILE at build time, as the firmware
-                                                 // embeds it), its runtime configuration derived as the firmware
-                                                 // derives it, with PWM on the STM32F411's 96 MHz timer clock.
-    let robot = robot_file::Robot::decode(include_bytes!(concat!(env!("OUT_DIR"), "/robot.bin")))
-        .unwrap_or_else(|_| fail("robot file"));
-    let kind = ControllerKind::Proposed;
-    let cfg = robot
-        .runtime_config(
-            kind,
-            RuntimeConfig::example(kind).reference,
-            initial_pose,
-            96_000_000,
-        )
-        .unwrap_or_else(|_| fail("robot's runtime config"));
-    let mut est = EstimatorConfig::EXAMPLE;
-    est.gyro_saturation_radps = PRESET_GYRO.saturation_radps as f32;
+    // The firmware's robot (ROBOT_FILE at build time, as the firmware
+    // embeds it), derived as the firmware derives it (`Robot::derive`),
+    // with PWM on the STM32F411's 96 MHz timer clock and the preset gyro's
+    // saturation, starting where the simulator starts by default.
+    let mut robot =
+        robot_file::Robot::decode(include_bytes!(concat!(env!("OUT_DIR"), "/robot.bin")))
+            .unwrap_or_else(|_| fail("robot file"));
+    robot.control.controller = ControllerKind::Proposed;
+    robot.control.initial_x_m = 2.5;
+    let mut board = robot_file::BoardFacts::of_timer(&robot, 96_000_000)
+        .unwrap_or_else(|_| fail("robot's PWM resolution"));
+    board.gyro_saturation_radps = Some(PRESET_GYRO.saturation_radps as f32);
+    let derived = robot.derive(
+        &board,
+        RuntimeConfig::example(ControllerKind::Proposed).reference,
+    );
+    let (cfg, est) = (derived.runtime, derived.estimator);
+    let initial_pose = cfg.initial_pose;
     let mut control: ControlLoop<HISTORY_LEN> =
         ControlLoop::with_estimator(cfg, est).unwrap_or_else(|_| fail("runtime config"));
     let mut shadow: PoseEstimator<HISTORY_LEN> =

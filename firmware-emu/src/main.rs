@@ -54,9 +54,12 @@ fn main() -> ! {
     // (the F411's), the gyro (sim-robot's MEMS preset: its full scale),
     // and the handshake says "simulated".
     let robot = config::default_robot();
-    let cfg = config::runtime_config(&robot, board::PWM_FULL_SCALE);
-    let mut estimator = config::ESTIMATOR;
-    estimator.gyro_saturation_radps = sim::gyro_saturation_radps();
+    let mut facts = config::board_facts(board::PWM_FULL_SCALE);
+    facts.gyro_saturation_radps = Some(sim::gyro_saturation_radps());
+    let robot_file::Derived {
+        runtime: cfg,
+        estimator,
+    } = robot.derive(&facts, config::PLACEHOLDER_REFERENCE);
     let dev_cfg = DeviceConfig {
         // No robot store here (no flash model): not the firmware's
         // CAP_ROBOT_STORE, so `wmr robot push` says so.

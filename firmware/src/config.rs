@@ -1,21 +1,17 @@
 //! The firmware's configuration: the compiled-in robot (a robot file,
 //! `robot_file::Robot`, docs/robot.md: geometry, motors, encoders, bridge,
 //! IMU mounting, limits, gains) and what is the firmware's own (loop rate,
-//! watchdog, logs, the IMU's bus, the estimator's tuning). Everything the
-//! runtime and the link need is built from a `Robot` ([`runtime_config`],
-//! [`device`]), so a robot read from flash replaces the default whole.
+//! watchdog, logs, the IMU's bus). Everything the runtime and the link need
+//! is built from a `Robot` by the one derivation ([`derive`], [`device`]),
+//! so a robot read from flash replaces the default whole.
 //!
 //! A leaf: it names nothing of this crate (board, IMU driver, log), only
 //! library types, so `firmware-emu` compiles it unchanged (`#[path]`) and
 //! supplies its own board. What depends on the chip (its handshake name)
 //! is a parameter ([`device`]).
 
-use controller_core::estimator::EstimatorConfig;
-use controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
-use controller_core::runtime::RuntimeConfig;
 use controller_core::trajectory::{PaperCurve, PaperHeading, Reference};
-use controller_core::ControllerKind;
-use robot_file::Robot;
+use robot_file::{BoardFacts, Derived, Robot};
 use wmr_device::DeviceConfig;
 use wmr_protocol::BuiltinReference;
 
@@ -30,9 +26,6 @@ pub const TELEMETRY_DECIMATION: u32 = 50;
 /// Button debounce \[ticks\]: held this long counts as one press
 /// (`controller_core::runtime::ArmingButton`).
 pub const BUTTON_DEBOUNCE_TICKS: u16 = 20;
-
-/// Which of the paper's controllers runs.
-pub const CONTROLLER: ControllerKind = ControllerKind::Proposed;
 
 /// The compiled-in robot's binary form (`Robot::encode`): `build.rs` reads
 /// the robot file `ROBOT_FILE` (default `../robots/paper.toml`; relative
@@ -63,46 +56,40 @@ pub fn default_robot() -> Robot {
 /// above the 250 ms latency bound of issue 9 (UWB, a lidar localiser).
 pub const POSE_HISTORY_TICKS: usize = controller_core::estimator::HISTORY_LEN;
 
-/// Where odometry and the estimator start: the origin facing +x.
-pub const INITIAL_POSE: controller_core::Pose = controller_core::Pose::new(0.0, 0.0, 0.0);
-
-/// The full runtime configuration of `robot` for controller
-/// [`CONTROLLER`] at [`CONTROL_HZ`]: `pwm_full_scale` is the PWM timer's
-/// counts at 100 % duty (read back from the timer). The host link supplies
-/// the reference (boot state hold): the paper curve here is never driven,
-/// it only completes the configuration. When the file leaves the
-/// controller's gains to the defaults (no `[gains.proposed]`), the
-/// large-error bound of D23 is on (clean start), as in hil-sim's scenarios
-/// (`clean_start` defaults to true, D63); gains written in the file are
-/// taken as written.
-pub fn runtime_config(robot: &Robot, pwm_full_scale: u16) -> RuntimeConfig {
-    let reference = Reference::Paper(PaperCurve::paper(PaperHeading::SignedSmooth));
-    let mut cfg = robot.runtime_config_for_pwm(CONTROLLER, reference, INITIAL_POSE, pwm_full_scale);
-    cfg.controller.period_s = 1.0 / CONTROL_HZ as f32;
-    cfg.safety = robot.safety_limits(cfg.controller.period_s);
-    if robot.gains.of(CONTROLLER).is_none() {
-        cfg.controller.kinematic.large_error_m = DEFAULT_LARGE_ERROR_M;
+/// What the board tells the one derivation (`Robot::derive`, D138): the
+/// PWM timer's counts at 100 % duty (`pwm_full_scale`, read back from the
+/// timer), the loop rate [`CONTROL_HZ`] and, with the `imu` feature, where
+/// the gyro clips ([`GYRO_SATURATION_RADPS`]). The controller, its gains,
+/// the clean start, the governor and the start pose are the robot file's
+/// (`[control]`, `[gains]`).
+pub fn board_facts(pwm_full_scale: u16) -> BoardFacts {
+    BoardFacts {
+        pwm_full_scale,
+        control_period_s: 1.0 / CONTROL_HZ as f32,
+        #[cfg(feature = "imu")]
+        gyro_saturation_radps: Some(GYRO_SATURATION_RADPS),
+        #[cfg(not(feature = "imu"))]
+        gyro_saturation_radps: None,
     }
-    cfg
 }
 
-/// The pose estimator's tuning: controller-core's example (a MEMS gyro,
-/// external poses from the host link). It starts at the runtime's initial
-/// pose ([`INITIAL_POSE`]) with the robot's centre-of-mass offset, both
-/// taken from the runtime configuration by the control loop.
-#[cfg(not(feature = "imu"))]
-pub const ESTIMATOR: EstimatorConfig = EstimatorConfig::EXAMPLE;
-/// The pose estimator's tuning: controller-core's example (a MEMS gyro,
-/// external poses from the host link; start pose and centre-of-mass offset
-/// from the runtime configuration), and the IMU's saturation: a reading
+/// The reference a derivation completes the runtime configuration with:
+/// the host link supplies the real one (boot state hold), so the paper
+/// curve is never driven.
+pub const PLACEHOLDER_REFERENCE: Reference =
+    Reference::Paper(PaperCurve::paper(PaperHeading::SignedSmooth));
+
+/// Everything `robot` gives the runtime on this board ([`board_facts`]).
+pub fn derive(robot: &Robot, pwm_full_scale: u16) -> Derived {
+    robot.derive(&board_facts(pwm_full_scale), PLACEHOLDER_REFERENCE)
+}
+
+/// Where the gyro clips for the estimator (`imu` feature): a reading
 /// within 2 % of the configured full scale ([`IMU_RANGE`]) counts as
-/// saturated (the chip clips there), so the estimator uses the wheels' yaw
-/// rate for it. ±500 °/s: 0.98 × 8.73 = 8.56 rad/s.
+/// saturated (the chip clips there), so the estimator uses the wheels'
+/// yaw rate for it. ±500 °/s: 0.98 × 8.73 = 8.56 rad/s.
 #[cfg(feature = "imu")]
-pub const ESTIMATOR: EstimatorConfig = EstimatorConfig {
-    gyro_saturation_radps: 0.98 * IMU_RANGE.limit_radps(),
-    ..EstimatorConfig::EXAMPLE
-};
+pub const GYRO_SATURATION_RADPS: f32 = 0.98 * IMU_RANGE.limit_radps();
 
 /// How the IMU is mounted (`imu` feature), from the robot file's
 /// `imu.yaw_axis`: which sensor axis is the robot's vertical axis and

@@ -399,4 +399,4 @@ async fn imu_task(mut p: ImuPeripherals, yaw: YawMapping) {
 /// which SMPLRT_DIV = 0 would not match).
 const _: () = assert!(IMU_DLPF >= 1 && IMU_DLPF <= 6);
 /// The configured range covers the estimator's saturation threshold.
-const _: () = assert!(crate::config::ESTIMATOR.gyro_saturation_radps < IMU_RANGE.limit_radps());
+const _: () = assert!(crate::config::GYRO_SATURATION_RADPS < IMU_RANGE.limit_radps());

@@ -32,6 +32,7 @@ use defmt::{error, info, unwrap};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use robot_app::ControlTask;
+use robot_file::Derived;
 use static_cell::StaticCell;
 use wmr_device::{Device, DeviceConfigError};
 
@@ -63,7 +64,10 @@ async fn main(spawner: Spawner) {
     log::enable_cycle_counter();
     // A full scale beyond 16 bits becomes 0: refused by the configuration check.
     let full_scale = u16::try_from(board.motors.full_scale()).unwrap_or(0);
-    let cfg = config::runtime_config(robot, full_scale);
+    let Derived {
+        runtime: cfg,
+        estimator,
+    } = config::derive(robot, full_scale);
     banner::banner(&board, robot, full_scale, &cfg);
 
     // The device (about 12 KiB: the runtime, its estimator history, the
@@ -71,13 +75,9 @@ async fn main(spawner: Spawner) {
     // constructor's result there), not on this frame and then moved: moved
     // by value, each copy was 12 KiB of main's 50 KiB frame (D104, D116).
     static ROBOT: StaticCell<Result<Robot, DeviceConfigError>> = StaticCell::new();
-    let device = match ROBOT.init_with(|| {
-        Robot::with_estimator(
-            config::device(robot, board::CHIP_ID),
-            cfg,
-            config::ESTIMATOR,
-        )
-    }) {
+    let device = match ROBOT
+        .init_with(|| Robot::with_estimator(config::device(robot, board::CHIP_ID), cfg, estimator))
+    {
         Ok(d) => d,
         Err(_) => never_armed(),
     };

@@ -10,7 +10,6 @@
 //! paces the ticks N times faster than the wall clock.
 
 pub use crate::closed_loop::world::Miswire;
-use crate::hil::sensing_estimator_config;
 use crate::scenario::{Scenario, Sensing};
 use crate::sim::controller_config;
 use controller_core::estimator::EstimatorConfig;
@@ -88,16 +87,22 @@ fn boot_device(boot: &BootConfig, store: &mut FlashRecord<SimFlash>) -> Result<D
     let from_flash = match source {
         RobotSource::Flash => robot_file::Robot::decode(&record[..n])
             .ok()
-            .and_then(|r| {
-                r.runtime_config(
-                    boot.kind,
-                    boot.runtime.reference,
-                    boot.runtime.initial_pose,
-                    SIM_TIMER_CLOCK_HZ,
-                )
-                .ok()
+            .and_then(|mut r| {
+                // As the firmware's boot: the one derivation on this board
+                // (its PWM timer read back for the robot's frequency), with
+                // the device's controller and the scenario's start pose.
+                let p = boot.runtime.initial_pose;
+                r.control.controller = boot.kind;
+                (r.control.initial_x_m, r.control.initial_y_m) = (p.x_m, p.y_m);
+                r.control.initial_heading_rad = p.theta_rad;
+                let facts = robot_file::BoardFacts {
+                    pwm_full_scale: r.pwm_full_scale(SIM_TIMER_CLOCK_HZ).ok()?,
+                    control_period_s: boot.runtime.controller.period_s,
+                    gyro_saturation_radps: Some(boot.estimator.gyro_saturation_radps),
+                };
+                Some(r.derive(&facts, boot.runtime.reference))
             })
-            .and_then(|cfg| Device::with_estimator(boot.dev_cfg, cfg, boot.estimator).ok()),
+            .and_then(|d| Device::with_estimator(boot.dev_cfg, d.runtime, d.estimator).ok()),
         _ => None,
     };
     let (mut device, rec): (Device, &[u8]) = match from_flash {
@@ -170,7 +175,7 @@ impl SimRobot {
         let mut cfg = built;
         runtime(&mut cfg);
         // The runtime gives the estimator its geometry and initial pose.
-        let estimator = sensing_estimator_config(&scn.sensor_setup()?);
+        let estimator = scn.derive(kind).estimator;
         let dev_cfg = DeviceConfig {
             chip: "sim",
             capabilities: CAP_EXTERNAL_POSE

@@ -11,7 +11,7 @@ use crate::scenario::{Scenario, Sensing};
 use controller_core::{ControllerConfig, ControllerKind};
 
 pub use crate::closed_loop::SensingReport;
-pub use crate::sides::runtime::{sensing_estimator_config, HilOptions, RuntimeSide};
+pub use crate::sides::runtime::{HilOptions, RuntimeSide};
 
 /// Result of a HIL run.
 #[derive(Clone, Debug)]
@@ -35,10 +35,9 @@ pub fn run_runtime(
         return Err("the firmware runtime needs a firmware sensing preset, not ideal".into());
     }
     let cfg = scn.runtime_config(controller, opts.safety.unwrap_or(scn.safety_limits()));
-    let sensors = scn.sensor_setup()?;
     let est = opts
         .estimator
-        .unwrap_or_else(|| sensing_estimator_config(&sensors));
+        .unwrap_or_else(|| scn.derive(controller.kind).estimator);
     let mut side = RuntimeSide::new(cfg, est)?;
     let mut world = crate::closed_loop::world::hardware_world(scn, &cfg, opts.dead_encoder)?;
     let mut sim = run_loop(scn, &mut world, &mut side, trace_every)?;

@@ -699,7 +699,7 @@ pub fn write_case_plots(
         case_title: case_title.into(),
     };
     let mut written = Vec::new();
-    let pacing = scn.governor.enabled.then_some(PACING_FIGURE);
+    let pacing = scn.governor_on().then_some(PACING_FIGURE);
     for (name, size) in FIGURES.into_iter().chain(pacing) {
         let p = dir.join(format!("{prefix}_{name}.png"));
         {

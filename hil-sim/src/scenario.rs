@@ -341,17 +341,18 @@ pub struct ControllerPart {
     #[arg(long)]
     pub k_y: Option<f64>,
     /// Large-error bound of the kinematic law's lateral term (D23), beyond
-    /// the paper; on by default, off in [`Scenario::as_printed`].
-    #[serde(skip_serializing_if = "is_true")]
+    /// the paper (None = the robot file's `control.clean_start`, on unless
+    /// the file says otherwise; off in [`Scenario::as_printed`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
     #[arg(long, value_name = "BOOL", action = clap::ArgAction::Set)]
-    pub clean_start: bool,
+    pub clean_start: Option<bool>,
 }
 
 impl Default for ControllerPart {
     fn default() -> Self {
         Self {
             k_y: None,
-            clean_start: true,
+            clean_start: None,
         }
     }
 }
@@ -361,16 +362,17 @@ impl Default for ControllerPart {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(default, deny_unknown_fields)]
 pub struct GovernorPart {
-    /// Governor and health machine on (default; off in
+    /// Governor and health machine on (None = the robot file's
+    /// `control.governor`, on unless the file says otherwise; off in
     /// [`Scenario::as_printed`]).
-    #[serde(skip_serializing_if = "is_true")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     #[arg(long = "governor", value_name = "BOOL", action = clap::ArgAction::Set)]
-    pub enabled: bool,
+    pub enabled: Option<bool>,
 }
 
 impl Default for GovernorPart {
     fn default() -> Self {
-        Self { enabled: true }
+        Self { enabled: None }
     }
 }
 
@@ -393,8 +395,8 @@ pub fn every_key_set() -> Scenario {
     s.plant.actuation_delay_s = 0.002;
     s.perturbations.wheel_torque_scale = [1.0, 0.5];
     s.controller.k_y = Some(20.0);
-    s.controller.clean_start = false;
-    s.governor.enabled = false;
+    s.controller.clean_start = Some(false);
+    s.governor.enabled = Some(false);
     s.sensing.gyro = GyroOverrides {
         gyro_noise_density: Some(1e-4),
         gyro_bias_radps: Some(0.01),
@@ -455,10 +457,6 @@ impl Default for Scenario {
     }
 }
 
-fn is_true(b: &bool) -> bool {
-    *b
-}
-
 fn is_healthy_wheels(s: &[f64; 2]) -> bool {
     *s == [1.0, 1.0]
 }
@@ -488,8 +486,8 @@ impl Scenario {
     /// This scenario in the paper's setting: no governor, no health machine
     /// (what `compare`'s first table runs).
     pub fn as_printed(mut self) -> Self {
-        self.governor.enabled = false;
-        self.controller.clean_start = false;
+        self.governor.enabled = Some(false);
+        self.controller.clean_start = Some(false);
         self
     }
 
@@ -513,11 +511,16 @@ impl Scenario {
 
     /// The runtime/simulator pacing configuration for this scenario.
     pub fn pacing(&self) -> controller_core::pacer::PacingConfig {
-        if self.governor.enabled {
-            controller_core::pacer::PacingConfig::on()
-        } else {
-            controller_core::pacer::PacingConfig::off()
-        }
+        self.derive(controller_core::ControllerKind::Proposed)
+            .runtime
+            .pacing
+    }
+
+    /// True when the reference governor and health machine run: the
+    /// scenario's `[governor] enabled`, else the robot file's
+    /// `control.governor`.
+    pub fn governor_on(&self) -> bool {
+        self.governor.enabled.unwrap_or(self.robot.control.governor)
     }
 
     /// Checks the knobs; a clear message for the first bad one.
@@ -601,6 +604,16 @@ impl Scenario {
                 .sensor_setup()
                 .map(|_| ())
                 .and_then(|_| self.plant_robot().map(|_| ()))
+                .and_then(|_| {
+                    self.controller_robot(controller_core::ControllerKind::Proposed)
+                        .validate()
+                        .map_err(|e| match self.override_of(e.field) {
+                            Some(key) => {
+                                format!("{key} (written into the robot's {}): {e}", e.field)
+                            }
+                            None => format!("robot (with the scenario's overrides): {e}"),
+                        })
+                })
                 .map_err(|e| format!("scenario '{}': {e}", self.name)),
         }
     }
@@ -639,23 +652,8 @@ impl Scenario {
     /// The controller's encoders (firmware sensing): the robot's, with
     /// `encoder_cpr` and `speed_window_ticks` where not 0.
     pub fn encoder(&self) -> EncoderParams {
-        Self::encoder_of(&self.robot, &self.sensing)
-    }
-
-    /// `robot`'s encoders with the sensing part's overrides.
-    fn encoder_of(robot: &Robot, sensing: &SensingPart) -> EncoderParams {
-        let e = robot.encoder_params();
-        EncoderParams {
-            counts_per_wheel_rev: match sensing.encoder_cpr {
-                0 => e.counts_per_wheel_rev,
-                n => n as f32,
-            },
-            speed_window_ticks: match sensing.speed_window_ticks {
-                0 => e.speed_window_ticks,
-                n => n,
-            },
-            ..e
-        }
+        self.controller_robot(controller_core::ControllerKind::Proposed)
+            .encoder_params()
     }
 
     /// The per-wheel torque limit [N·m]: `plant.torque_limit_nm`, or the
@@ -666,58 +664,108 @@ impl Scenario {
             .unwrap_or(f64::from(self.robot.limits.torque_nm))
     }
 
-    /// Controller configuration for this scenario: the robot's model and
-    /// gains (`[gains.<kind>]`, Table 2's without), the scenario's torque
-    /// limit, period and optional k_y override; with `clean_start` the
-    /// large-error bound (the file's, or D23's default where the file has
-    /// the paper's unbounded one), without it eq. (14) as printed.
+    /// The controller's robot for `kind`: the robot file with the
+    /// scenario's overrides written into it as typed edits (D138): the
+    /// controller `kind`, `[controller] clean_start`, `[governor] enabled`,
+    /// the start pose, `plant.torque_limit_nm` (the drive's limit is the
+    /// controller's), `[controller] k_y` (into `[gains.<kind>]`) and the
+    /// sensing part's `encoder_cpr` and `speed_window_ticks`. Not
+    /// validated ([`Scenario::validate`] does).
+    pub fn controller_robot(&self, kind: controller_core::ControllerKind) -> Robot {
+        let mut r = self.robot.clone();
+        let c = &mut r.control;
+        c.controller = kind;
+        c.clean_start = self.controller.clean_start.unwrap_or(c.clean_start);
+        c.governor = self.governor_on();
+        let [x, y, th] = self.initial_pose;
+        (c.initial_x_m, c.initial_y_m, c.initial_heading_rad) = (x as f32, y as f32, th as f32);
+        r.limits.torque_nm = self.torque_limit_nm() as f32;
+        if let Some(k_y) = self.controller.k_y {
+            let mut g = r.gains.resolved(kind);
+            g.kinematic.k_y = k_y as f32;
+            *r.gains.of_mut(kind) = Some(g);
+        }
+        self.sensing.edit_encoders(&mut r.encoders);
+        r
+    }
+
+    /// The scenario key, with its value, that wrote robot field `field` in
+    /// [`Self::controller_robot`] (None: the robot file's own value), so
+    /// that a refusal names what the user wrote.
+    fn override_of(&self, field: &str) -> Option<String> {
+        let s = &self.sensing;
+        match field {
+            "limits.torque_nm" => self
+                .plant
+                .torque_limit_nm
+                .map(|t| format!("torque_limit_nm = {t:e}")),
+            "control.initial_x_m" | "control.initial_y_m" | "control.initial_heading_rad" => {
+                Some(format!("initial_pose = {:?}", self.initial_pose))
+            }
+            "encoders.counts_per_wheel_rev" if s.encoder_cpr != 0 => {
+                Some(format!("encoder_cpr = {}", s.encoder_cpr))
+            }
+            "encoders.speed_window_ticks" if s.speed_window_ticks != 0 => {
+                Some(format!("speed_window_ticks = {}", s.speed_window_ticks))
+            }
+            f if f.ends_with("kinematic.k_y") => self.controller.k_y.map(|k| format!("k_y = {k}")),
+            _ => None,
+        }
+    }
+
+    /// What the simulated board tells the derivation: the PWM resolution
+    /// (`pwm_levels`, or the robot's bridge frequency on the F411's timer
+    /// clock [`TIMER_CLOCK_HZ`]), the scenario's control period and the
+    /// sensing preset's gyro saturation.
+    pub fn board_facts(&self) -> robot_file::BoardFacts {
+        robot_file::BoardFacts {
+            pwm_full_scale: self.duty_full_scale(),
+            control_period_s: self.control_period_s as f32,
+            gyro_saturation_radps: self
+                .sensor_setup()
+                .ok()
+                .and_then(|s| s.gyro)
+                .map(|g| g.saturation_radps as f32),
+        }
+    }
+
+    /// The one derivation (`Robot::derive`) of the controller's robot for
+    /// `kind` ([`Self::controller_robot`]) on the simulated board
+    /// ([`Self::board_facts`]) following the scenario's trajectory.
+    pub fn derive(&self, kind: controller_core::ControllerKind) -> robot_file::Derived {
+        self.controller_robot(kind)
+            .derive(&self.board_facts(), self.trajectory.reference())
+    }
+
+    /// Controller configuration for this scenario (the derivation's, see
+    /// [`Self::controller_robot`] for what the scenario changes).
     pub fn controller_config(
         &self,
         kind: controller_core::ControllerKind,
     ) -> controller_core::ControllerConfig {
-        let printed = controller_core::ControllerConfig::paper(kind)
-            .kinematic
-            .large_error_m;
-        let mut cfg = self.robot.controller_config(kind);
-        cfg.torque_limit_nm = self.torque_limit_nm() as f32;
-        cfg.period_s = self.control_period_s as f32;
-        if let Some(k_y) = self.controller.k_y {
-            cfg.kinematic.k_y = k_y as f32;
-        }
-        cfg.kinematic.large_error_m = match self.controller.clean_start {
-            false => printed,
-            true if cfg.kinematic.large_error_m == printed => {
-                controller_core::kinematic::DEFAULT_LARGE_ERROR_M
-            }
-            true => cfg.kinematic.large_error_m,
-        };
-        cfg
+        self.derive(kind).runtime.controller
     }
 
     /// The runtime's safety limits for this scenario's robot and period
-    /// (`Robot::safety_limits`).
+    /// (`Robot::safety_limits` through the derivation).
     pub fn safety_limits(&self) -> controller_core::runtime::SafetyLimits {
-        self.robot.safety_limits(self.control_period_s as f32)
+        self.derive(controller_core::ControllerKind::Proposed)
+            .runtime
+            .safety
     }
 
-    /// The firmware runtime's configuration for this scenario: `controller`,
-    /// the scenario's reference and initial pose, the robot's encoders,
-    /// motors and motor directions, `safety`, and its pacing.
+    /// The firmware runtime's configuration for this scenario with
+    /// `controller` (e.g. tuned gains) and `safety`: the derivation's for
+    /// `controller.kind`, with those two in place.
     pub fn runtime_config(
         &self,
         controller: controller_core::ControllerConfig,
         safety: controller_core::runtime::SafetyLimits,
     ) -> controller_core::runtime::RuntimeConfig {
-        let p0 = self.initial_pose;
         controller_core::runtime::RuntimeConfig {
             controller,
-            reference: self.trajectory.reference(),
-            initial_pose: controller_core::Pose::new(p0[0] as f32, p0[1] as f32, p0[2] as f32),
-            encoder: self.encoder(),
-            motor: self.motor(),
-            motor_inverted: self.robot.bridge.motor_inverted,
             safety,
-            pacing: self.pacing(),
+            ..self.derive(controller.kind).runtime
         }
     }
 
@@ -727,9 +775,7 @@ impl Scenario {
         match self.sensing.pwm_levels {
             0 => self
                 .robot
-                .bridge
-                .params()
-                .duty_full_scale(TIMER_CLOCK_HZ)
+                .pwm_full_scale(TIMER_CLOCK_HZ)
                 .unwrap_or(MotorParams::EXAMPLE.duty_full_scale),
             n => n as u16,
         }
@@ -738,53 +784,66 @@ impl Scenario {
     /// The controller's motors (firmware sensing): the robot's, with
     /// `pwm_levels` counts at full duty (where not 0).
     pub fn motor(&self) -> MotorParams {
-        self.robot.motor_params(self.duty_full_scale())
+        self.derive(controller_core::ControllerKind::Proposed)
+            .runtime
+            .motor
     }
 
     /// The simulated robot: the plant's robot file (`--plant`, or the
-    /// controller's robot) with the `[plant.<section>]` fields over it,
-    /// validated as a robot file (errors name the field as `plant.<path>`).
+    /// controller's robot) with the `[plant.<section>]` fields written
+    /// over its sections and the sensing part's encoder overrides, then
+    /// validated as a robot file (errors name the field as
+    /// `plant.<path>`). Each section is edited as a typed value: no text
+    /// round trip (D138).
     pub fn plant_robot(&self) -> Result<Robot, String> {
-        let base = self.plant.robot.as_ref().unwrap_or(&self.robot);
-        if self.plant.sections().iter().all(|(_, t)| t.is_none()) {
-            return Ok(base.clone());
-        }
-        let mut table: toml::Table =
-            toml::from_str(&base.to_toml_string()).map_err(|e| format!("plant: {e}"))?;
-        for (name, over) in self.plant.sections() {
-            let Some(over) = over else { continue };
-            match table.get_mut(name) {
-                Some(toml::Value::Table(t)) => {
-                    for (k, v) in over {
-                        if !t.contains_key(k) {
-                            return Err(format!(
-                                "plant.{name}.{k}: not a field of the robot file's [{name}] (docs/robot.md)"
-                            ));
-                        }
-                        t.insert(k.clone(), v.clone());
-                    }
-                }
+        let mut robot = self.plant.robot.as_ref().unwrap_or(&self.robot).clone();
+        fn edit<T: Serialize + serde::de::DeserializeOwned>(
+            name: &str,
+            section: &mut T,
+            over: &Option<toml::Table>,
+        ) -> Result<(), String> {
+            let Some(over) = over else { return Ok(()) };
+            let mut t = match toml::Value::try_from(&*section) {
+                Ok(toml::Value::Table(t)) => t,
                 _ => return Err(format!("plant.{name}: not a section of the robot file")),
+            };
+            for (k, v) in over {
+                if !t.contains_key(k) {
+                    return Err(format!(
+                        "plant.{name}.{k}: not a field of the robot file's [{name}] (docs/robot.md)"
+                    ));
+                }
+                t.insert(k.clone(), v.clone());
             }
+            *section = toml::Value::Table(t)
+                .try_into()
+                .map_err(|e| format!("plant.{name}: {e}"))?;
+            Ok(())
         }
-        let text = toml::to_string(&table).map_err(|e| format!("plant: {e}"))?;
-        Robot::from_toml_str(&text)
-            .map_err(|e| format!("plant (robot file with the [plant.*] fields): {e}"))
+        let p = &self.plant;
+        edit("body", &mut robot.body, &p.body)?;
+        edit("motors", &mut robot.motors, &p.motors)?;
+        edit("encoders", &mut robot.encoders, &p.encoders)?;
+        edit("bridge", &mut robot.bridge, &p.bridge)?;
+        edit("limits", &mut robot.limits, &p.limits)?;
+        self.sensing.edit_encoders(&mut robot.encoders);
+        robot
+            .validate()
+            .map_err(|e| format!("plant (robot file with the [plant.*] fields): {e}"))?;
+        Ok(robot)
     }
+}
 
-    /// The simulated motors: the plant robot's, with the controller's PWM
-    /// resolution (a board property).
-    pub fn plant_motor(&self, plant: &Robot) -> MotorParams {
-        plant.motor_params(self.duty_full_scale())
-    }
-
-    /// The simulated encoders: the plant robot's, with the sensing part's
-    /// overrides, counting the true wheel angle (the radius scale is the
-    /// runtime's business).
-    pub fn plant_encoder(&self, plant: &Robot) -> EncoderParams {
-        EncoderParams {
-            radius_scale: [1.0; 2],
-            ..Self::encoder_of(plant, &self.sensing)
+impl SensingPart {
+    /// Writes `encoder_cpr` and `speed_window_ticks` (where not 0) into a
+    /// robot's `[encoders]`: the controller's and the plant's encoders are
+    /// the same part.
+    pub fn edit_encoders(&self, e: &mut robot_file::Encoders) {
+        if self.encoder_cpr != 0 {
+            e.counts_per_wheel_rev = self.encoder_cpr as f32;
+        }
+        if self.speed_window_ticks != 0 {
+            e.speed_window_ticks = self.speed_window_ticks;
         }
     }
 }

@@ -25,7 +25,7 @@ use controller_core::runtime::{MotorModel, StopReason, Wheel};
 use controller_core::ControllerKind;
 use hil_sim::closed_loop::run_loop;
 use hil_sim::closed_loop::world::{hardware_world_miswired, Miswire};
-use hil_sim::hil::{sensing_estimator_config, RuntimeSide};
+use hil_sim::hil::RuntimeSide;
 use hil_sim::scenario::Robot;
 use hil_sim::sweep::base_scenario;
 use sim_robot::world::Wiring;
@@ -98,7 +98,7 @@ fn a_backwards_wheel_stops_every_example_robot() {
                     counts_per_wheel_rev: None,
                 };
                 let mut world = hardware_world_miswired(&scn, &cfg, None, &miswire).unwrap();
-                let est = sensing_estimator_config(&scn.sensor_setup().unwrap());
+                let est = scn.derive(kind).estimator;
                 let mut side = RuntimeSide::new(cfg, est).unwrap();
                 let out = run_loop(&scn, &mut world, &mut side, 1).unwrap();
                 let what = format!(

@@ -67,14 +67,15 @@ fn leaf<'a>(v: &'a mut toml::Value, path: &[String]) -> &'a mut toml::Value {
 /// the first refusal.
 fn boots(robot: &robot_file::Robot) -> Result<(), String> {
     use controller_core::trajectory::{PaperCurve, PaperHeading, Reference};
+    robot.validate().map_err(|e| format!("robot: {e}"))?;
+    let board = robot_file::BoardFacts::of_timer(robot, hil_sim::device::SIM_TIMER_CLOCK_HZ)
+        .map_err(|e| format!("board: {e}"))?;
     let rt = robot
-        .runtime_config(
-            ControllerKind::Proposed,
+        .derive(
+            &board,
             Reference::Paper(PaperCurve::paper(PaperHeading::SignedSmooth)),
-            controller_core::Pose::new(0.0, 0.0, 0.0),
-            hil_sim::device::SIM_TIMER_CLOCK_HZ,
         )
-        .map_err(|e| format!("runtime_config: {e}"))?;
+        .runtime;
     let dev = wmr_device::DeviceConfig::of_robot(
         robot,
         "test",

@@ -3,7 +3,7 @@
 //! | bytes | content                                   |
 //! |-------|-------------------------------------------|
 //! | 0..4  | [`MAGIC`] `b"WMRB"`                        |
-//! | 4..6  | format version, u16 little-endian ([`crate::FORMAT`]) |
+//! | 4..6  | binary version, u16 little-endian ([`BINARY_VERSION`]) |
 //! | 6..8  | payload length n, u16 little-endian        |
 //! | 8..8+n | payload: the [`Robot`] by postcard        |
 //! | 8+n..12+n | CRC-32 (ISO-HDLC, the zlib/Ethernet one) of bytes 0..8+n, little-endian |
@@ -11,7 +11,13 @@
 //! [`Robot::decode`] checks all of it and then validates the robot.
 
 use crate::error::RobotError;
-use crate::sections::{Robot, FORMAT};
+use crate::sections::Robot;
+
+/// Version of the binary form this build reads and writes: 2 since the
+/// `[control]` section (D138; version 1 had none, and a record of it is
+/// refused as [`DecodeError::UnsupportedFormat`], so a board falls back to
+/// its compiled-in robot until the robot is pushed again).
+pub const BINARY_VERSION: u16 = 2;
 
 /// First four bytes of the binary form.
 pub const MAGIC: [u8; 4] = *b"WMRB";
@@ -71,7 +77,7 @@ impl core::fmt::Display for DecodeError {
             Self::Truncated => write!(f, "truncated robot record"),
             Self::BadMagic => write!(f, "not a robot record (bad magic)"),
             Self::UnsupportedFormat { found } => {
-                write!(f, "robot record format {found}, this build reads {FORMAT}")
+                write!(f, "robot record format {found}, this build reads {BINARY_VERSION} (push the robot file again: `wmr robot push FILE`)")
             }
             Self::BadLength => write!(f, "robot record length inconsistent"),
             Self::BadCrc => write!(f, "robot record CRC mismatch (corrupted)"),
@@ -100,7 +106,7 @@ impl Robot {
             return Err(EncodeError::BufferTooSmall);
         }
         buf[0..4].copy_from_slice(&MAGIC);
-        buf[4..6].copy_from_slice(&(FORMAT as u16).to_le_bytes());
+        buf[4..6].copy_from_slice(&BINARY_VERSION.to_le_bytes());
         buf[6..8].copy_from_slice(&(n as u16).to_le_bytes());
         let body = HEADER_LEN + n;
         let crc = CRC32.checksum(&buf[..body]);
@@ -139,7 +145,7 @@ impl Robot {
             return Err(DecodeError::BadCrc);
         }
         // Checked after the CRC: a corrupted version byte is a corruption.
-        if version as u32 != FORMAT {
+        if version != BINARY_VERSION {
             return Err(DecodeError::UnsupportedFormat { found: version });
         }
         let (robot, rest): (Robot, _) = postcard::take_from_bytes(&bytes[HEADER_LEN..body])

@@ -3,10 +3,11 @@
 
 use crate::error::{Reason, RobotError};
 use crate::sections::Robot;
+use controller_core::estimator::EstimatorConfig;
+use controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
 use controller_core::pacer::PacingConfig;
 use controller_core::runtime::{EncoderParams, MotorParams, RuntimeConfig, SafetyLimits};
 use controller_core::trajectory::Reference;
-use controller_core::types::Pose;
 use controller_core::{ControllerConfig, ControllerKind, RobotParams};
 
 /// Control period the derivations assume \[s\]: the paper's 1 kHz
@@ -201,55 +202,110 @@ impl Robot {
         self.encoder_params().rate_quantum_radps(period_s)
     }
 
-    /// The whole runtime configuration for controller `kind`, following
-    /// `reference` from `initial_pose`, with PWM from a timer clocked at
-    /// `timer_clock_hz` (duty full scale from `BridgeParams::duty_full_scale`).
-    /// Validates the robot first.
-    pub fn runtime_config(
-        &self,
-        kind: ControllerKind,
-        reference: Reference,
-        initial_pose: Pose,
-        timer_clock_hz: u32,
-    ) -> Result<RuntimeConfig, RobotError> {
-        self.validate()?;
-        let full_scale =
-            self.bridge
-                .params()
-                .duty_full_scale(timer_clock_hz)
-                .ok_or(RobotError::new(
-                    "bridge.pwm_frequency_hz",
-                    Reason::Inconsistent {
-                        with: "the board's timer clock",
-                        why: "duty resolution outside 100..=65535 levels",
-                    },
-                ))?;
-        Ok(self.runtime_config_for_pwm(kind, reference, initial_pose, full_scale))
+    /// The PWM timer's counts at 100 % duty for this robot's
+    /// `bridge.pwm_frequency_hz` on a timer clocked at `timer_clock_hz`
+    /// (`BridgeParams::duty_full_scale`); an error naming
+    /// `bridge.pwm_frequency_hz` when that is outside 100..=65,535 levels.
+    pub fn pwm_full_scale(&self, timer_clock_hz: u32) -> Result<u16, RobotError> {
+        self.bridge
+            .params()
+            .duty_full_scale(timer_clock_hz)
+            .ok_or(RobotError::new(
+                "bridge.pwm_frequency_hz",
+                Reason::Inconsistent {
+                    with: "the board's timer clock",
+                    why: "duty resolution outside 100..=65535 levels",
+                },
+            ))
     }
 
-    /// [`Self::runtime_config`] for a PWM timer whose 100 % duty is
-    /// `duty_full_scale` counts (what a board reads back from its timer),
-    /// without validating (the robot is valid when it was read with
-    /// [`Robot::decode`] or `from_toml_str`; `ControlLoop::new` checks the
-    /// result again): the encoders, motors, bridge inversion, the safety
-    /// limits for the controller's period, pacing on.
-    pub fn runtime_config_for_pwm(
-        &self,
-        kind: ControllerKind,
-        reference: Reference,
-        initial_pose: Pose,
-        duty_full_scale: u16,
-    ) -> RuntimeConfig {
-        let controller = self.controller_config(kind);
-        RuntimeConfig {
+    /// The one derivation (D138): everything the runtime takes from this
+    /// robot on `board`, following `reference` (a run's, not a robot
+    /// value; the firmware's placeholder until the host loads one).
+    ///
+    /// - the controller `control.controller` with this robot's model,
+    ///   torque limit and gains ([`Self::controller_config`]) at the
+    ///   board's control period; with `control.clean_start` the
+    ///   large-error bound of D23 ([`DEFAULT_LARGE_ERROR_M`]) where the
+    ///   gains leave it unbounded as printed, without it eq. (14) as
+    ///   printed;
+    /// - the start pose `control.initial_*`, the encoders, motors (at the
+    ///   board's PWM resolution), motor directions, the safety limits for
+    ///   the period ([`Self::safety_limits`]) and pacing
+    ///   (`control.governor`);
+    /// - the pose estimator's tuning: controller-core's example with the
+    ///   board's gyro saturation.
+    ///
+    /// Nothing else builds a `RuntimeConfig` from robot values: the
+    /// firmware, firmware-emu, hil-sim (which first edits a copy of the
+    /// robot with the scenario's overrides), the simulated device, wmr and
+    /// bench-m4 call this. It does not validate: a robot read with
+    /// [`Robot::decode`] or `from_toml_str` is valid, an edited one is
+    /// checked with [`Robot::validate`]; `ControlLoop::new` checks the
+    /// result again.
+    pub fn derive(&self, board: &BoardFacts, reference: Reference) -> Derived {
+        let kind = self.control.controller;
+        let mut controller = self.controller_config(kind);
+        controller.period_s = board.control_period_s;
+        let printed = ControllerConfig::paper(kind).kinematic.large_error_m;
+        controller.kinematic.large_error_m = match self.control.clean_start {
+            false => printed,
+            true if controller.kinematic.large_error_m == printed => DEFAULT_LARGE_ERROR_M,
+            true => controller.kinematic.large_error_m,
+        };
+        let runtime = RuntimeConfig {
             controller,
             reference,
-            initial_pose,
+            initial_pose: self.control.initial_pose(),
             encoder: self.encoder_params(),
-            motor: self.motor_params(duty_full_scale),
+            motor: self.motor_params(board.pwm_full_scale),
             motor_inverted: self.bridge.motor_inverted,
-            safety: self.safety_limits(controller.period_s),
-            pacing: PacingConfig::on(),
+            safety: self.safety_limits(board.control_period_s),
+            pacing: match self.control.governor {
+                true => PacingConfig::on(),
+                false => PacingConfig::off(),
+            },
+        };
+        let mut estimator = EstimatorConfig::EXAMPLE;
+        if let Some(s) = board.gyro_saturation_radps {
+            estimator.gyro_saturation_radps = s;
         }
+        Derived { runtime, estimator }
     }
+}
+
+/// What a derivation needs from the board (or the simulated one) that a
+/// robot file cannot know.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoardFacts {
+    /// PWM timer counts at 100 % duty (read back from the timer;
+    /// [`Robot::pwm_full_scale`] for a timer clock).
+    pub pwm_full_scale: u16,
+    /// Control period \[s\] (the firmware's 1 kHz loop: [`CONTROL_PERIOD_S`]).
+    pub control_period_s: f32,
+    /// Where the board's gyro clips \[rad/s\] (a reading there is not
+    /// trusted); `None`: the estimator example's.
+    pub gyro_saturation_radps: Option<f32>,
+}
+
+impl BoardFacts {
+    /// A board whose PWM timer runs at `timer_clock_hz`, at the paper's
+    /// 1 kHz ([`CONTROL_PERIOD_S`]), without a gyro saturation of its own.
+    pub fn of_timer(robot: &Robot, timer_clock_hz: u32) -> Result<Self, RobotError> {
+        Ok(Self {
+            pwm_full_scale: robot.pwm_full_scale(timer_clock_hz)?,
+            control_period_s: CONTROL_PERIOD_S,
+            gyro_saturation_radps: None,
+        })
+    }
+}
+
+/// Everything a robot gives the runtime ([`Robot::derive`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Derived {
+    /// The runtime's configuration (controller, reference, start pose,
+    /// encoders, motors, safety limits, pacing).
+    pub runtime: RuntimeConfig,
+    /// The pose estimator's tuning.
+    pub estimator: EstimatorConfig,
 }

@@ -12,7 +12,8 @@
 //!   [`Robot::to_toml_string`] and [`json_schema`].
 //! - Derivations ([`Robot::robot_params`], [`Robot::controller_config`],
 //!   [`Robot::motor_params`], [`Robot::encoder_params`],
-//!   [`Robot::safety_limits`], [`Robot::runtime_config`]).
+//!   [`Robot::safety_limits`]) and the one derivation of the runtime,
+//!   [`Robot::derive`].
 #![no_std]
 #![deny(missing_docs)]
 
@@ -29,12 +30,14 @@ mod sections;
 mod text;
 mod validate;
 
-pub use binary::{DecodeError, EncodeError, HEADER_LEN, MAGIC, MAX_ENCODED_LEN};
-pub use derive::{CONTROL_PERIOD_S, JUMP_SPEED_FACTOR, STALL_TIME_S, STALL_TORQUE_FRACTION};
+pub use binary::{DecodeError, EncodeError, BINARY_VERSION, HEADER_LEN, MAGIC, MAX_ENCODED_LEN};
+pub use derive::{
+    BoardFacts, Derived, CONTROL_PERIOD_S, JUMP_SPEED_FACTOR, STALL_TIME_S, STALL_TORQUE_FRACTION,
+};
 pub use error::{Reason, RobotError};
 pub use sections::{
-    Body, Bridge, Encoders, Eso, GainSet, Gains, Imu, Kinematic, Limits, Motors, Name, Observer,
-    Robot, Sliding, SwitchingGain, YawAxis, FORMAT, NAME_MAX_LEN,
+    Body, Bridge, Control, Encoders, Eso, GainSet, Gains, Imu, Kinematic, Limits, Motors, Name,
+    Observer, Robot, Sliding, SwitchingGain, YawAxis, FORMAT, NAME_MAX_LEN,
 };
 #[cfg(feature = "std")]
 pub use text::{field_paths, json_schema, RobotFileError};

@@ -47,6 +47,69 @@ pub struct Robot {
     /// Controller gains per controller (absent = the paper's).
     #[serde(default)]
     pub gains: Gains,
+    /// What runs: the controller, the clean start, the governor, the start
+    /// pose (absent = the defaults of [`Control::default`]).
+    #[serde(default)]
+    pub control: Control,
+}
+
+#[derive(Serialize, Deserialize)]
+#[cfg_attr(feature = "std", derive(schemars::JsonSchema))]
+#[serde(remote = "ControllerKind", rename_all = "kebab-case")]
+#[cfg_attr(feature = "std", schemars(rename = "ControllerKind"))]
+enum ControllerKindDef {
+    /// SMC without observer (baseline).
+    Smc,
+    /// ASMC without observer (baseline).
+    Asmc,
+    /// The paper's controller: fault observer + fal-ESO + ASMC.
+    Proposed,
+}
+
+/// `[control]`: what the robot runs, beyond its mechanics: which of the
+/// paper's controllers, the clean start of D23, the reference governor and
+/// health machine, and the pose odometry starts from. Every field is
+/// optional; the defaults are what the firmware ran before the section
+/// existed (D138).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "std", derive(schemars::JsonSchema))]
+#[serde(default, deny_unknown_fields)]
+pub struct Control {
+    /// The controller: `"proposed"` (default), `"smc"` or `"asmc"`.
+    #[serde(with = "ControllerKindDef")]
+    pub controller: ControllerKind,
+    /// Large-error bound of the kinematic law (D23) where the gains leave
+    /// it unbounded as printed: the robot starts cleanly far from the
+    /// reference. `false`: eq. (14) as printed.
+    pub clean_start: bool,
+    /// Reference governor and health machine on (`controller_core::pacer`).
+    pub governor: bool,
+    /// Where odometry starts, x \[m\].
+    pub initial_x_m: f32,
+    /// Where odometry starts, y \[m\].
+    pub initial_y_m: f32,
+    /// Where odometry starts, heading \[rad\] (counter-clockwise from +x).
+    pub initial_heading_rad: f32,
+}
+
+impl Default for Control {
+    fn default() -> Self {
+        Self {
+            controller: ControllerKind::Proposed,
+            clean_start: true,
+            governor: true,
+            initial_x_m: 0.0,
+            initial_y_m: 0.0,
+            initial_heading_rad: 0.0,
+        }
+    }
+}
+
+impl Control {
+    /// The start pose.
+    pub fn initial_pose(&self) -> controller_core::Pose {
+        controller_core::Pose::new(self.initial_x_m, self.initial_y_m, self.initial_heading_rad)
+    }
 }
 
 /// `[body]`: mass, inertia and geometry.
@@ -470,6 +533,15 @@ impl Gains {
         }
     }
 
+    /// The section for `kind`, to write.
+    pub fn of_mut(&mut self, kind: ControllerKind) -> &mut Option<GainSet> {
+        match kind {
+            ControllerKind::Proposed => &mut self.proposed,
+            ControllerKind::Smc => &mut self.smc,
+            ControllerKind::Asmc => &mut self.asmc,
+        }
+    }
+
     /// The gains `kind` runs with: its section, or the paper's.
     pub fn resolved(&self, kind: ControllerKind) -> GainSet {
         self.of(kind)
@@ -527,6 +599,7 @@ impl Robot {
             },
             limits: Limits::paper(),
             gains: Gains::default(),
+            control: Control::default(),
         }
     }
 }

@@ -340,10 +340,15 @@ impl Robot {
     pub fn to_toml_string(&self) -> String {
         let mut v = toml::Value::try_from(self).expect("a Robot is a TOML table");
         shorten_floats(&mut v);
-        // Absent gain sections are the paper's: no empty `[gains]` table.
+        // Absent gain sections are the paper's: no empty `[gains]` table;
+        // a `[control]` with the defaults is left out (files written before
+        // the section existed read back the same, D138).
         if let toml::Value::Table(t) = &mut v {
             if matches!(t.get("gains"), Some(toml::Value::Table(g)) if g.is_empty()) {
                 t.remove("gains");
+            }
+            if self.control == crate::Control::default() {
+                t.remove("control");
             }
         }
         toml::to_string(&v).expect("a TOML value serializes")

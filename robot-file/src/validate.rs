@@ -59,6 +59,12 @@ pub const FIELDS: &[&str] = &[
     "limits.max_yaw_rate_radps",
     "limits.max_accel_mps2",
     "limits.link_timeout_ms",
+    "control.controller",
+    "control.clean_start",
+    "control.governor",
+    "control.initial_x_m",
+    "control.initial_y_m",
+    "control.initial_heading_rad",
     // gains.<kind>.*: GAIN_FIELDS under each kind (`field_paths`).
 ];
 
@@ -99,6 +105,11 @@ pub const GAIN_FIELDS: &[&str] = &[
     "sliding.switching.adaptive.rho_min",
     "sliding.switching.adaptive.rho_max",
 ];
+
+/// Farthest start position from the origin \[m\] (`control.initial_x_m`,
+/// `initial_y_m`): odometry's frame is the robot's own, a kilometre is
+/// beyond any run of a small robot and keeps f32 positions at 0.1 mm.
+pub const MAX_INITIAL_POSITION_M: f32 = 1000.0;
 
 /// Largest gain accepted (any unit): beyond it a 1 kHz discrete loop is
 /// far past stability; tuning stays well inside.
@@ -149,6 +160,7 @@ impl Robot {
     pub fn validate(&self) -> Result<(), RobotError> {
         self.validate_ranges()?;
         self.validate_consistency()?;
+        self.validate_control()?;
         for kind in ControllerKind::ALL {
             if let Some(g) = self.gains.of(kind) {
                 validate_gains(kind, g)?;
@@ -197,6 +209,23 @@ impl Robot {
             MIN_GAIN,
             rate,
             "1/s",
+        )
+    }
+
+    /// `[control]`: the start pose within [`MAX_INITIAL_POSITION_M`] of
+    /// the origin and the heading within ±π.
+    fn validate_control(&self) -> Result<(), RobotError> {
+        let c = &self.control;
+        let p = MAX_INITIAL_POSITION_M;
+        range("control.initial_x_m", c.initial_x_m, -p, p, "m")?;
+        range("control.initial_y_m", c.initial_y_m, -p, p, "m")?;
+        let pi = core::f32::consts::PI;
+        range(
+            "control.initial_heading_rad",
+            c.initial_heading_rad,
+            -pi,
+            pi,
+            "rad",
         )
     }
 

@@ -2,11 +2,13 @@
 //! form's corruption and fuzz checks.
 
 use controller_core::runtime::{
-    BridgeParams, EncoderParams, MotorParams, RuntimeConfig, SafetyLimits, MIRRORED_LEFT,
+    BridgeParams, ControlLoop, EncoderParams, MotorParams, RuntimeConfig, SafetyLimits,
+    MIRRORED_LEFT,
 };
 use controller_core::{ControllerConfig, ControllerKind, RobotParams};
 use robot_file::{
-    DecodeError, GainSet, Reason, Robot, RobotFileError, FIELDS, GAIN_FIELDS, MAX_ENCODED_LEN,
+    BoardFacts, DecodeError, GainSet, Reason, Robot, RobotFileError, FIELDS, GAIN_FIELDS,
+    MAX_ENCODED_LEN,
 };
 use std::collections::BTreeSet;
 
@@ -25,6 +27,9 @@ fn full() -> Robot {
     r.gains.proposed = Some(GainSet::paper(ControllerKind::Proposed));
     r.gains.smc = Some(GainSet::paper(ControllerKind::Smc));
     r.gains.asmc = Some(GainSet::paper(ControllerKind::Asmc));
+    // Not the defaults, so that the written file has every `[control]` key.
+    r.control.controller = ControllerKind::Asmc;
+    r.control.initial_x_m = 0.25;
     r
 }
 
@@ -119,13 +124,19 @@ fn paper_runtime_config_is_the_example() {
     // RuntimeConfig::example is the configuration every test and the paper
     // comparison ran with; the paper robot must give it, except the
     // safety limits, which are now derived (checked apart below).
-    let r = Robot::paper();
+    let mut r = Robot::paper();
+    // The example runs eq. (14) as printed.
+    r.control.clean_start = false;
     for kind in ControllerKind::ALL {
         let ex = RuntimeConfig::example(kind);
+        r.control.controller = kind;
+        r.control.initial_x_m = ex.initial_pose.x_m;
+        r.control.initial_y_m = ex.initial_pose.y_m;
+        r.control.initial_heading_rad = ex.initial_pose.theta_rad;
         // 96 MHz / 20 kHz = 4,800 = MotorParams::EXAMPLE's full scale.
         let c = r
-            .runtime_config(kind, ex.reference, ex.initial_pose, 96_000_000)
-            .unwrap();
+            .derive(&BoardFacts::of_timer(&r, 96_000_000).unwrap(), ex.reference)
+            .runtime;
         assert_eq!(
             RuntimeConfig {
                 safety: ex.safety,
@@ -162,12 +173,14 @@ fn examples_parse_and_round_trip() {
         let mut buf = [0u8; MAX_ENCODED_LEN];
         let n = r.encode(&mut buf).unwrap();
         assert_eq!(Robot::decode(&buf[..n]).unwrap(), r, "{f}");
+        let board = BoardFacts::of_timer(&r, 96_000_000).unwrap_or_else(|e| panic!("{f}: {e}"));
         for kind in ControllerKind::ALL {
-            r.runtime_config(
-                kind,
-                RuntimeConfig::example(kind).reference,
-                Default::default(),
-                96_000_000,
+            let mut r = r.clone();
+            r.control.controller = kind;
+            let c = r.derive(&board, RuntimeConfig::example(kind).reference);
+            ControlLoop::<{ controller_core::estimator::HISTORY_LEN }>::with_estimator(
+                c.runtime,
+                c.estimator,
             )
             .unwrap_or_else(|e| panic!("{f} {kind:?}: {e}"));
         }
@@ -273,6 +286,10 @@ fn every_field_missing_names_it() {
     for path in all_fields() {
         // An array element cannot be missing; the whole array can.
         let path = path.split('[').next().unwrap().to_string();
+        // `[control]` is optional field by field (its defaults: below).
+        if path.starts_with("control.") {
+            continue;
+        }
         let mut d = doc(&full());
         let (parent, key) = match path.rsplit_once('.') {
             Some((p, k)) => (Some(p), k),
@@ -288,6 +305,56 @@ fn every_field_missing_names_it() {
         assert!(text.contains(key), "{path}: {text}");
         assert_eq!(e.field(), Some(path.as_str()), "{path}: {e}");
     }
+}
+
+#[test]
+fn control_fields_default_one_by_one() {
+    // Each `[control]` field left out takes `Control::default()`'s value,
+    // the others kept: what the firmware ran before the section (D138).
+    let mut full = full();
+    full.control = robot_file::Control {
+        controller: ControllerKind::Smc,
+        clean_start: false,
+        governor: false,
+        initial_x_m: 1.5,
+        initial_y_m: -2.0,
+        initial_heading_rad: 0.5,
+    };
+    let def = robot_file::Control::default();
+    for key in FIELDS.iter().filter_map(|f| f.strip_prefix("control.")) {
+        let mut d = doc(&full);
+        at(&mut d, "control").as_table_mut().unwrap().remove(key);
+        let r = parse(&d).unwrap_or_else(|e| panic!("{key}: {e}"));
+        let mut want = full.control;
+        match key {
+            "controller" => want.controller = def.controller,
+            "clean_start" => want.clean_start = def.clean_start,
+            "governor" => want.governor = def.governor,
+            "initial_x_m" => want.initial_x_m = def.initial_x_m,
+            "initial_y_m" => want.initial_y_m = def.initial_y_m,
+            "initial_heading_rad" => want.initial_heading_rad = def.initial_heading_rad,
+            _ => panic!("a [control] field this test does not know: {key}"),
+        }
+        assert_eq!(r.control, want, "{key}");
+    }
+    // The derivation runs what the section says.
+    let board = BoardFacts::of_timer(&full, 96_000_000).unwrap();
+    let d = full.derive(
+        &board,
+        RuntimeConfig::example(ControllerKind::Smc).reference,
+    );
+    assert_eq!(d.runtime.controller.kind, ControllerKind::Smc);
+    assert_eq!(d.runtime.initial_pose.x_m, 1.5);
+    assert_eq!(
+        d.runtime.pacing,
+        controller_core::pacer::PacingConfig::off()
+    );
+    assert_eq!(
+        d.runtime.controller.kinematic.large_error_m,
+        ControllerConfig::paper(ControllerKind::Smc)
+            .kinematic
+            .large_error_m
+    );
 }
 
 #[test]
@@ -533,7 +600,7 @@ fn payload_that_passes_the_crc_but_is_not_a_robot_is_malformed() {
     let payload = [0xffu8; 40];
     let mut b = Vec::new();
     b.extend_from_slice(&robot_file::MAGIC);
-    b.extend_from_slice(&1u16.to_le_bytes());
+    b.extend_from_slice(&robot_file::BINARY_VERSION.to_le_bytes());
     b.extend_from_slice(&(payload.len() as u16).to_le_bytes());
     b.extend_from_slice(&payload);
     let crc = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC).checksum(&b);
@@ -592,7 +659,6 @@ fn build_script_embeds_a_good_file_and_names_the_field_of_a_bad_one() {
 /// coarse for the check is refused naming `encoders.counts_per_wheel_rev`.
 #[test]
 fn derived_direction_thresholds_are_always_valid() {
-    use controller_core::runtime::ControlLoop;
     let mut files = Vec::new();
     for f in std::fs::read_dir(robots_dir()).unwrap() {
         let p = f.unwrap().path();
@@ -604,13 +670,8 @@ fn derived_direction_thresholds_are_always_valid() {
     let ex = RuntimeConfig::example(ControllerKind::Proposed);
     let check = |r: &Robot| {
         let c = r
-            .runtime_config(
-                ControllerKind::Proposed,
-                ex.reference,
-                ex.initial_pose,
-                96_000_000,
-            )
-            .unwrap();
+            .derive(&BoardFacts::of_timer(r, 96_000_000).unwrap(), ex.reference)
+            .runtime;
         if let Err(e) = ControlLoop::new(c) {
             panic!("{}: {e} ({:?})", r.name, c.safety);
         }

@@ -116,6 +116,32 @@ impl core::fmt::Display for PlantParamsError {
     }
 }
 
+#[cfg(any(test, feature = "robot-file"))]
+impl PlantParams {
+    /// The plant of the robot file `robot` (what it *has*: its per-wheel
+    /// radii, track, masses, friction per wheel), no actuator dynamics:
+    /// the one mapping from a robot file to the simulated body, used by
+    /// [`crate::WorldConfig::of_robot`] and stm32-emu. Not validated
+    /// (`Robot::validate`; [`Plant::new`] checks the numbers again).
+    pub fn of_robot(robot: &robot_file::Robot) -> Self {
+        let b = &robot.body;
+        let m = &robot.motors;
+        Self {
+            mass_kg: b.mass_kg as f64,
+            inertia_kgm2: b.inertia_kgm2 as f64,
+            wheel_inertia_kgm2: b.wheel_inertia_kgm2 as f64,
+            wheel_radius_m: [b.wheel_radius_m[0] as f64, b.wheel_radius_m[1] as f64],
+            half_track_m: 0.5 * b.track_m as f64,
+            com_offset_m: b.com_offset_m as f64,
+            friction: core::array::from_fn(|i| WheelFriction {
+                viscous_nms_per_rad: m.viscous_friction_nms_per_rad[i] as f64,
+                coulomb_nm: m.coulomb_friction_nm[i] as f64,
+            }),
+            actuator: ActuatorDynamics::NONE,
+        }
+    }
+}
+
 impl PlantParams {
     /// The robot of `p` with mass and body inertia scaled (model mismatch),
     /// otherwise exactly as the model (equal radii, no friction, no delay).

@@ -233,24 +233,9 @@ impl WorldConfig {
         model_runtime: &controller_core::runtime::RuntimeConfig,
     ) -> Result<Self, WorldError> {
         plant.validate().map_err(WorldError::Robot)?;
-        let b = &plant.body;
-        let m = &plant.motors;
-        let friction = core::array::from_fn(|i| crate::plant::WheelFriction {
-            viscous_nms_per_rad: m.viscous_friction_nms_per_rad[i] as f64,
-            coulomb_nm: m.coulomb_friction_nm[i] as f64,
-        });
         let e = plant.encoder_params();
         Ok(Self {
-            plant: PlantParams {
-                mass_kg: b.mass_kg as f64,
-                inertia_kgm2: b.inertia_kgm2 as f64,
-                wheel_inertia_kgm2: b.wheel_inertia_kgm2 as f64,
-                wheel_radius_m: [b.wheel_radius_m[0] as f64, b.wheel_radius_m[1] as f64],
-                half_track_m: 0.5 * b.track_m as f64,
-                com_offset_m: b.com_offset_m as f64,
-                friction,
-                actuator: crate::plant::ActuatorDynamics::NONE,
-            },
+            plant: PlantParams::of_robot(plant),
             instruments: Instruments::Hardware(HardwareSensing {
                 // The simulated counters count the true wheel angle
                 // (radius_scale is the runtime's business).
@@ -1340,15 +1325,14 @@ mod tests {
         use controller_core::ControllerKind;
         use robot_file::Robot;
         let kind = ControllerKind::Proposed;
-        let model = Robot::paper();
+        let mut model = Robot::paper();
+        model.control.controller = kind;
+        (model.control.initial_x_m, model.control.initial_y_m) = (0.5, -0.2);
+        model.control.initial_heading_rad = 0.1;
+        let board = robot_file::BoardFacts::of_timer(&model, 96_000_000).unwrap();
         let rt = model
-            .runtime_config(
-                kind,
-                RuntimeConfig::example(kind).reference,
-                Pose::new(0.5, -0.2, 0.1),
-                96_000_000,
-            )
-            .unwrap();
+            .derive(&board, RuntimeConfig::example(kind).reference)
+            .runtime;
         let same = WorldConfig::of_robot(&model, &rt).unwrap();
         assert_eq!(same, WorldConfig::of_runtime(&rt));
         let mut plant = model.clone();

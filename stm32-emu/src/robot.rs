@@ -110,21 +110,7 @@ impl Robot {
     /// hil-sim's plant from the same file.
     pub fn of_file(robot: &robot_file::Robot) -> Result<Self, String> {
         robot.validate().map_err(|e| format!("robot file: {e}"))?;
-        let b = &robot.body;
-        let m = &robot.motors;
-        let plant = PlantParams {
-            mass_kg: b.mass_kg as f64,
-            inertia_kgm2: b.inertia_kgm2 as f64,
-            wheel_inertia_kgm2: b.wheel_inertia_kgm2 as f64,
-            wheel_radius_m: [b.wheel_radius_m[0] as f64, b.wheel_radius_m[1] as f64],
-            half_track_m: 0.5 * b.track_m as f64,
-            com_offset_m: b.com_offset_m as f64,
-            friction: core::array::from_fn(|i| sim_robot::plant::WheelFriction {
-                viscous_nms_per_rad: m.viscous_friction_nms_per_rad[i] as f64,
-                coulomb_nm: m.coulomb_friction_nm[i] as f64,
-            }),
-            actuator: sim_robot::plant::ActuatorDynamics::NONE,
-        };
+        let plant = PlantParams::of_robot(robot);
         let enc = EncoderParams {
             radius_scale: [1.0; 2],
             ..robot.encoder_params()

@@ -338,14 +338,13 @@ mod robot_tests {
             let text = std::fs::read_to_string(dir.join(f)).unwrap();
             let robot = Robot::from_toml_str(&text).unwrap();
             let kind = controller_core::ControllerKind::Proposed;
+            let board = robot_file::BoardFacts::of_timer(&robot, 96_000_000).unwrap();
             let rt = robot
-                .runtime_config(
-                    kind,
+                .derive(
+                    &board,
                     controller_core::runtime::RuntimeConfig::example(kind).reference,
-                    controller_core::Pose::default(),
-                    96_000_000,
                 )
-                .unwrap();
+                .runtime;
             let lim = RobotLimits::of(&rt);
             let dc = DeviceConfig::of_robot(&robot, "test", 0, None);
             dc.validate(&lim).unwrap_or_else(|e| panic!("{f}: {e:?}"));

@@ -182,17 +182,17 @@ pub fn check_waypoints(points: &[Waypoint], robot: &robot_file::Robot) -> Result
     use controller_core::trajectory::{Line, Reference};
     use wmr_device::limits::RobotLimits;
     // The reference and the timer clock do not enter the limits.
+    let board = robot_file::BoardFacts::of_timer(robot, 96_000_000)
+        .map_err(|e| format!("robot {}: {e}", robot.name))?;
     let rt = robot
-        .runtime_config(
-            controller_core::ControllerKind::Proposed,
+        .derive(
+            &board,
             Reference::Line(Line {
                 start: controller_core::Pose::new(0.0, 0.0, 0.0),
                 speed_mps: 0.1,
             }),
-            controller_core::Pose::new(0.0, 0.0, 0.0),
-            96_000_000,
         )
-        .map_err(|e| format!("robot {}: {e}", robot.name))?;
+        .runtime;
     let lim = RobotLimits::of(&rt);
     for (i, w) in points.iter().enumerate() {
         let (v, om) = (w.v_mps.abs(), w.omega_radps.abs());

@@ -156,42 +156,20 @@ pub fn compare_sensing_runs(
 }
 
 /// Why the paper's cases are beyond the controller's robot `r`, or None
-/// when they are within it: the paper's reference faster than the robot's
-/// no-load speed (sampled every 10 ms over the run), or its
-/// disturbance amplitude above half of `limits.torque_nm` (the paper's
-/// 1 N·m is a tenth of its 10 N·m). `compare` then prints this on stderr:
-/// the table still shows what happens, and the message points to the
-/// commands whose reference and disturbance are the robot's own.
+/// when they are within it: the check `hil-sim run` refuses with
+/// ([`crate::limits::check_within_robot`]: the paper's reference against
+/// the robot's top speed, yaw rate and acceleration, its disturbance
+/// against half of `limits.torque_nm`). `compare` then prints this on
+/// stderr: the table still shows what happens, and the message points to
+/// the commands whose reference and disturbance are the robot's own.
 pub fn paper_cases_beyond(r: &Robot) -> Option<String> {
-    use controller_core::trajectory::Trajectory;
     let scn = Scenario::paper_case(2, 1, None, None).with_robots(Some(r), None);
-    let reference = scn.trajectory.reference();
-    let steps = (scn.duration_s / 0.01).round() as usize;
-    let v_peak = (0..=steps)
-        .map(|k| f64::from(reference.sample((k as f64 * 0.01) as f32).v_mps.abs()))
-        .fold(0.0, f64::max);
-    let tau = f64::from(r.limits.torque_nm);
-    let d = scn.perturbations.disturbance_nm;
-    let mut why = Vec::new();
-    let v_top = f64::from(r.no_load_speed_mps());
-    if v_peak > v_top {
-        why.push(format!(
-            "its reference reaches {v_peak:.2} m/s, above the motors' no-load speed {v_top:.2} m/s"
-        ));
-    }
-    if d > 0.5 * tau {
-        why.push(format!(
-            "its {d} N·m disturbance is {:.1} x limits.torque_nm = {tau} N·m",
-            d / tau
-        ));
-    }
-    (!why.is_empty()).then(|| {
+    crate::limits::check_within_robot(&scn).err().map(|why| {
         format!(
-            "note: the paper's cases are beyond robot {:?}: {}; the table shows saturation, not tracking. \
+            "note: the paper's cases are beyond robot {:?}: {why}. The table shows saturation, not tracking. \
              For a reference and disturbances within the robot's limits: `hil-sim sweep --robot FILE` \
              (docs/sweeps.md) and `hil-sim tune --robot FILE` (docs/tuning.md)",
             r.name,
-            why.join("; ")
         )
     })
 }

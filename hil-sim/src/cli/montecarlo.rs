@@ -72,6 +72,7 @@ pub fn montecarlo(a: &McArgs, out: &mut dyn Write) -> Result<(), String> {
     };
     cfg.validate()?;
     crate::limits::check_scenario(&cfg.scenario(0))?;
+    crate::limits::check_within_robot(&cfg.scenario(0))?;
     let shard = a.shard.unwrap_or(Shard::WHOLE);
     let runs = shard.runs(a.runs);
     let pb = Progress::new(

@@ -43,6 +43,7 @@ pub struct RunArgs {
 pub fn run(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
     let scn = a.scenario.build()?;
     crate::limits::check_scenario(&scn)?;
+    crate::limits::check_within_robot(&scn)?;
     if a.scenario.case == Some(1) && a.scenario.flags.get::<f64>("eps").is_some_and(|e| e > 0.0) {
         eprintln!("note: --eps with --case 1 injects the actuator fault of Case 2");
     }

@@ -464,7 +464,15 @@ fn compare_notes_a_robot_the_paper_cases_are_beyond() {
     );
     let note = super::compare::paper_cases_beyond(&load("tb6612-2kg.toml")).unwrap();
     eprintln!("{note}");
-    assert!(note.contains("no-load speed 1.22 m/s"), "{note}");
-    assert!(note.contains("4.0 x limits.torque_nm = 0.25"), "{note}");
+    assert!(note.contains("reaches at most 1.22 m/s"), "{note}");
+    assert!(note.contains("speed of 1.97 m/s"), "{note}");
     assert!(note.contains("hil-sim sweep --robot"), "{note}");
+    // Within its speed (the 0.5 m/s circle), the paper's 1 N·m
+    // disturbance is still 4x the robot's 0.25 N·m.
+    let mut scn = crate::scenario::Scenario::paper_case(2, 1, None, None)
+        .with_robots(Some(&load("tb6612-2kg.toml")), None);
+    scn.trajectory = crate::scenario::TrajectoryKind::Circle;
+    let e = crate::limits::check_within_robot(&scn).unwrap_err();
+    assert!(e.contains("1 N·m is 4.0x"), "{e}");
+    assert!(e.contains("--disturbance 0.025"), "{e}");
 }

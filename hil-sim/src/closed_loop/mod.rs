@@ -121,7 +121,7 @@ pub fn run_loop(
                 pose_used.y_m as f64 - st.q[1],
             ),
         );
-        if scn.governor.enabled {
+        if scn.governor_on() {
             acc.push_pace(
                 t - rs_tau_s,
                 pace.scale as f64,
@@ -151,12 +151,8 @@ pub fn run_loop(
                 f_hat: f2(d.f_hat),
                 f_true,
                 saturated: d.saturated,
-                time_scale: if scn.governor.enabled {
-                    scale_before
-                } else {
-                    1.0
-                },
-                tau_s: if scn.governor.enabled { rs_tau_s } else { t },
+                time_scale: if scn.governor_on() { scale_before } else { 1.0 },
+                tau_s: if scn.governor_on() { rs_tau_s } else { t },
                 health: pace.mode.level(),
                 health_reason: pace.reason as u8,
             });

@@ -34,16 +34,7 @@ fn world(
     };
     let instruments = match instruments {
         Some(i) => i,
-        None => {
-            let sensors = scn.sensor_setup().map_err(err)?;
-            Instruments::Hardware(HardwareSensing {
-                encoder: scn.plant_encoder(&robot),
-                motor: scn.plant_motor(&robot),
-                motor_inverted: robot.bridge.motor_inverted,
-                gyro: sensors.gyro,
-                pose_source: sensors.pose,
-            })
-        }
+        None => Instruments::Hardware(plant_hardware(scn, model)?),
     };
     World::new(&WorldConfig {
         plant,
@@ -105,6 +96,27 @@ pub struct Miswire {
     pub counts_per_wheel_rev: Option<f32>,
 }
 
+/// The plant robot's hardware (sim-robot's mapping of the robot file,
+/// [`WorldConfig::of_robot`]: its encoders counting the true wheel angle,
+/// its motors at the PWM resolution of `model`, its motor directions) with
+/// the scenario's gyro and external pose source.
+fn plant_hardware(scn: &Scenario, model: &RuntimeConfig) -> Result<HardwareSensing, String> {
+    let err = |e: String| format!("scenario '{}': {e}", scn.name);
+    let sensors = scn.sensor_setup().map_err(err)?;
+    let robot = scn.plant_robot().map_err(err)?;
+    match WorldConfig::of_robot(&robot, model)
+        .map_err(|e| err(e.to_string()))?
+        .instruments
+    {
+        Instruments::Hardware(hw) => Ok(HardwareSensing {
+            gyro: sensors.gyro,
+            pose_source: sensors.pose,
+            ..hw
+        }),
+        Instruments::Ideal(_) => Err(err("sim-robot's robot file mapping has no hardware".into())),
+    }
+}
+
 /// [`hardware_world`] with `miswire`'s mistakes.
 pub fn hardware_world_miswired(
     scn: &Scenario,
@@ -112,19 +124,10 @@ pub fn hardware_world_miswired(
     dead_encoder: Option<(usize, f64)>,
     miswire: &Miswire,
 ) -> Result<World, String> {
-    let sensors = scn.sensor_setup()?;
-    let robot = scn.plant_robot()?;
-    let mut encoder = scn.plant_encoder(&robot);
+    let mut hw = plant_hardware(scn, runtime)?;
     if let Some(c) = miswire.counts_per_wheel_rev {
-        encoder.counts_per_wheel_rev = c;
+        hw.encoder.counts_per_wheel_rev = c;
     }
-    let hw = HardwareSensing {
-        encoder,
-        motor: scn.plant_motor(&robot),
-        motor_inverted: robot.bridge.motor_inverted,
-        gyro: sensors.gyro,
-        pose_source: sensors.pose,
-    };
     let dead = dead_encoder.map(|(wheel, from_s)| DeadEncoder { wheel, from_s });
     world(
         scn,

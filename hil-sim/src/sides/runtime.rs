@@ -14,7 +14,6 @@
 //! and the safety supervisor are the code the firmware runs.
 
 use crate::closed_loop::{ControlOutput, ControlSide};
-use crate::sensing::SensorModels;
 use controller_core::estimator::{EstimatorConfig, EstimatorStatus};
 use controller_core::runtime::{ControlLoop, LoopTimer, RuntimeConfig, SafetyLimits, StopReason};
 use controller_core::ControllerKind;
@@ -30,20 +29,9 @@ pub struct HilOptions {
     /// Fault injection: from this time \[s\] on, the encoder of wheel
     /// `.0` (0 = right, 1 = left) stops counting (broken wire).
     pub dead_encoder: Option<(usize, f64)>,
-    /// Estimator tuning (None = [`sensing_estimator_config`]); its initial
+    /// Estimator tuning (None = the derivation's, `Scenario::derive`); its initial
     /// pose and centre-of-mass offset are taken from the scenario.
     pub estimator: Option<EstimatorConfig>,
-}
-
-/// The estimator tuning for a set of simulated sensors, as a user would
-/// set it from the data sheets: [`EstimatorConfig::EXAMPLE`] with the
-/// gyro's full scale.
-pub fn sensing_estimator_config(sensors: &SensorModels) -> EstimatorConfig {
-    let mut est = EstimatorConfig::EXAMPLE;
-    if let Some(g) = sensors.gyro {
-        est.gyro_saturation_radps = g.saturation_radps as f32;
-    }
-    est
 }
 
 /// The runtime as the controller side of the closed loop, reading and

@@ -214,14 +214,12 @@ pub struct Rig {
 /// firmware builds them from its compiled-in robot.
 pub fn runtime_config() -> RuntimeConfig {
     let kind = ControllerKind::Proposed;
-    robot_file::Robot::paper()
-        .runtime_config(
-            kind,
-            RuntimeConfig::example(kind).reference,
-            controller_core::Pose::new(0.0, 0.0, 0.0),
-            96_000_000,
-        )
-        .expect("the paper robot is valid")
+    let robot = robot_file::Robot::paper();
+    let board =
+        robot_file::BoardFacts::of_timer(&robot, 96_000_000).expect("the paper robot is valid");
+    robot
+        .derive(&board, RuntimeConfig::example(kind).reference)
+        .runtime
 }
 
 pub fn device_config() -> DeviceConfig {
