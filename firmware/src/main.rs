@@ -7,12 +7,8 @@
 //! embassy peripherals to robot-app's `Board` trait ([`board`]), sets the
 //! constants ([`config`]), carries the link's transport ([`link`]), the
 //! log lines ([`log`]), the banner ([`banner`]) and the panic and fault
-//! paths ([`fault`]). `main` is the wiring: board, device, tasks.
-//!
-//! Module graph (no cycles): `main` -> every module; `board` -> `config`,
-//! `link`, `imu`, `log`; `imu` -> `config`; `banner` -> `board`, `config`;
-//! `fault` -> `board`; `store` -> `config`, `motors`; `config`, `link`,
-//! `log` -> none of this crate.
+//! paths ([`fault`]). `main` is the wiring: board, device, tasks (module
+//! graph without cycles: `.ci/module_cycles.py`).
 #![no_std]
 #![no_main]
 
@@ -32,7 +28,6 @@ use defmt::{error, info, unwrap};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use robot_app::ControlTask;
-use robot_file::Derived;
 use static_cell::StaticCell;
 use wmr_device::{Device, DeviceConfigError};
 
@@ -64,10 +59,8 @@ async fn main(spawner: Spawner) {
     log::enable_cycle_counter();
     // A full scale beyond 16 bits becomes 0: refused by the configuration check.
     let full_scale = u16::try_from(board.motors.full_scale()).unwrap_or(0);
-    let Derived {
-        runtime: cfg,
-        estimator,
-    } = config::derive(robot, full_scale);
+    let derived = config::derive(robot, full_scale);
+    let (cfg, estimator) = (derived.runtime, derived.estimator);
     banner::banner(&board, robot, full_scale, &cfg);
 
     // The device (about 12 KiB: the runtime, its estimator history, the
