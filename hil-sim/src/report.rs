@@ -226,11 +226,22 @@ pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutpu
             );
         }
     }
+    if let Some((step, reason)) = out.stop {
+        let _ = writeln!(
+            s,
+            "  SAFE STOP at t = {:.3} s: {reason:?}; the runtime held the motors off from there (docs/DECISIONS.md D133; `hil-sim run --csv` traces the lead-up)",
+            step as f64 * scn.control_period_s
+        );
+    }
     if out.rejected_steps > 0 {
         let _ = writeln!(
             s,
-            "  WARNING: {} rejected controller steps",
-            out.rejected_steps
+            "  WARNING: {} controller steps output no torque ({}); a reference beyond the robot is refused before the run (`hil-sim run`), so look at the sensing and the robot file's limits",
+            out.rejected_steps,
+            match out.stop {
+                Some(_) => "the steps after the safe stop above and any input faults",
+                None => "an implausible or missing measurement each",
+            }
         );
     }
     s

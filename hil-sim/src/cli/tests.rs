@@ -476,3 +476,21 @@ fn compare_notes_a_robot_the_paper_cases_are_beyond() {
     assert!(e.contains("1 N·m is 4.0x"), "{e}");
     assert!(e.contains("--disturbance 0.025"), "{e}");
 }
+
+/// A run the runtime stops says so, with the time and the reason (issue
+/// 32: a run printed only a count of rejected steps): the plant's left
+/// motor wired the other way round latches the direction check (D74).
+#[test]
+fn a_safe_stop_is_named_in_the_run_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("miswired.toml");
+    std::fs::write(
+        &f,
+        "version = 2\nduration_s = 2.0\n[sensing]\npreset = \"mocap\"\n[plant.bridge]\nmotor_inverted = [false, false]\n",
+    )
+    .unwrap();
+    let text = run_to_string(&["run", "--scenario", f.to_str().unwrap()]).unwrap();
+    assert!(text.contains("SAFE STOP at t = "), "{text}");
+    assert!(text.contains("DirectionMismatch"), "{text}");
+    assert!(text.contains("after the safe stop above"), "{text}");
+}
