@@ -14,15 +14,13 @@
 
 use core::hint::black_box;
 
-use controller_core::estimator::{
-    EstimatorConfig, GyroSample, PoseEstimator, PoseMeasurement, HISTORY_LEN,
-};
+use controller_core::estimator::{GyroSample, PoseEstimator, PoseMeasurement, HISTORY_LEN};
 use controller_core::math;
 use controller_core::runtime::{
     ControlLoop, Gyro, LoopTimer, PoseSource, RuntimeConfig, WheelEncoders, MAX_POSES_PER_TICK,
     MAX_REPROPAGATION_PER_TICK,
 };
-use controller_core::{ControllerKind, Pose};
+use controller_core::ControllerKind;
 use sim_robot::sensors::PRESET_GYRO;
 use sim_robot::world::{Actuation, HardwareSensing, Instruments};
 use sim_robot::{PoseSourceModel, SimDriver};
