@@ -56,7 +56,7 @@ pub fn default_robot() -> Robot {
 /// above the 250 ms latency bound of issue 9 (UWB, a lidar localiser).
 pub const POSE_HISTORY_TICKS: usize = controller_core::estimator::HISTORY_LEN;
 
-/// What the board tells the one derivation (`Robot::derive`, D138): the
+/// What the board tells the one derivation (`Robot::derive`, D139): the
 /// PWM timer's counts at 100 % duty (`pwm_full_scale`, read back from the
 /// timer), the loop rate [`CONTROL_HZ`] and, with the `imu` feature, where
 /// the gyro clips ([`GYRO_SATURATION_RADPS`]). The controller, its gains,

@@ -665,7 +665,7 @@ impl Scenario {
     }
 
     /// The controller's robot for `kind`: the robot file with the
-    /// scenario's overrides written into it as typed edits (D138): the
+    /// scenario's overrides written into it as typed edits (D139): the
     /// controller `kind`, `[controller] clean_start`, `[governor] enabled`,
     /// the start pose, `plant.torque_limit_nm` (the drive's limit is the
     /// controller's), `[controller] k_y` (into `[gains.<kind>]`) and the
@@ -794,7 +794,7 @@ impl Scenario {
     /// over its sections and the sensing part's encoder overrides, then
     /// validated as a robot file (errors name the field as
     /// `plant.<path>`). Each section is edited as a typed value: no text
-    /// round trip (D138).
+    /// round trip (D139).
     pub fn plant_robot(&self) -> Result<Robot, String> {
         let mut robot = self.plant.robot.as_ref().unwrap_or(&self.robot).clone();
         fn edit<T: Serialize + serde::de::DeserializeOwned>(

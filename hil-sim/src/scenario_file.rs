@@ -217,7 +217,7 @@ mod tests {
             .unwrap();
             let v2 = load_scenario(&repo_file(&format!("scenarios/{name}.toml"))).unwrap();
             // A v1 file wrote `clean_start = true` and `governor = true`
-            // where v2 leaves them to the robot file's `[control]` (D138):
+            // where v2 leaves them to the robot file's `[control]` (D139):
             // the same run when the robot says the same.
             let effective = |mut s: crate::scenario::Scenario| {
                 s.governor.enabled = Some(s.governor_on());

@@ -1,4 +1,4 @@
-//! The one derivation (D138): a scenario's overrides are typed edits of the
+//! The one derivation (D139): a scenario's overrides are typed edits of the
 //! robot, so a command-line override and a robot file that says the same
 //! thing give the same runtime, and one robot value reaches the
 //! controller, the safety limits, the device's limits and the plant
@@ -14,7 +14,7 @@ fn robot(name: &str) -> Robot {
 }
 
 /// `--encoder-cpr 4096 --pwm-levels 1000` derive what a robot file with a
-/// 4,096-count encoder derives: before D138 the flags replaced the
+/// 4,096-count encoder derives: before D139 the flags replaced the
 /// encoder after the derivation, so the direction block stayed the one of
 /// the file's 24,000 counts, the check's tolerance was below two quanta of
 /// the coarser encoder and the run was refused.

@@ -14,7 +14,7 @@ use crate::error::RobotError;
 use crate::sections::Robot;
 
 /// Version of the binary form this build reads and writes: 2 since the
-/// `[control]` section (D138; version 1 had none, and a record of it is
+/// `[control]` section (D139; version 1 had none, and a record of it is
 /// refused as [`DecodeError::UnsupportedFormat`], so a board falls back to
 /// its compiled-in robot until the robot is pushed again).
 pub const BINARY_VERSION: u16 = 2;

@@ -219,7 +219,7 @@ impl Robot {
             ))
     }
 
-    /// The one derivation (D138): everything the runtime takes from this
+    /// The one derivation (D139): everything the runtime takes from this
     /// robot on `board`, following `reference` (a run's, not a robot
     /// value; the firmware's placeholder until the host loads one).
     ///

@@ -70,7 +70,7 @@ enum ControllerKindDef {
 /// paper's controllers, the clean start of D23, the reference governor and
 /// health machine, and the pose odometry starts from. Every field is
 /// optional; the defaults are what the firmware ran before the section
-/// existed (D138).
+/// existed (D139).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "std", derive(schemars::JsonSchema))]
 #[serde(default, deny_unknown_fields)]

@@ -342,7 +342,7 @@ impl Robot {
         shorten_floats(&mut v);
         // Absent gain sections are the paper's: no empty `[gains]` table;
         // a `[control]` with the defaults is left out (files written before
-        // the section existed read back the same, D138).
+        // the section existed read back the same, D139).
         if let toml::Value::Table(t) = &mut v {
             if matches!(t.get("gains"), Some(toml::Value::Table(g)) if g.is_empty()) {
                 t.remove("gains");

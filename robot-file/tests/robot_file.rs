@@ -310,7 +310,7 @@ fn every_field_missing_names_it() {
 #[test]
 fn control_fields_default_one_by_one() {
     // Each `[control]` field left out takes `Control::default()`'s value,
-    // the others kept: what the firmware ran before the section (D138).
+    // the others kept: what the firmware ran before the section (D139).
     let mut full = full();
     full.control = robot_file::Control {
         controller: ControllerKind::Smc,
