@@ -19,6 +19,8 @@ use crate::periph::{
     systick::SysTick, usart::Usart, PS_PER_S,
 };
 use crate::robot::{BridgeInputs, Robot};
+
+mod link;
 use unicorn_engine::unicorn_const::{uc_error, Arch, HookType, MemType, Mode, Prot};
 use unicorn_engine::{ArmCpuModel, RegisterARM, Unicorn};
 
@@ -82,6 +84,8 @@ pub mod irq {
     pub const USART2: usize = 38;
     /// TIM5 (embassy's time driver).
     pub const TIM5: usize = 50;
+    /// USB OTG_FS global interrupt (RM0383 table 38).
+    pub const OTG_FS: usize = 67;
 }
 
 /// Something the harness records.
@@ -175,6 +179,10 @@ pub struct Board {
     pub iwdg: Iwdg,
     /// USART2 (host link on the F446).
     pub usart2: Usart,
+    /// USB OTG_FS (host link on the F411).
+    pub usb: crate::periph::otg_fs::OtgFs,
+    /// The USB host on the F411's cable (`None` on the F446).
+    pub usb_host: Option<crate::usb_host::UsbHost>,
     /// NVIC.
     pub nvic: Nvic,
     /// SCB.
@@ -275,6 +283,8 @@ impl Board {
             tim5: Timer::new("TIM5", Kind::General, 16_000_000),
             iwdg: Iwdg::new(),
             usart2: Usart::new("USART2", 16_000_000),
+            usb: crate::periph::otg_fs::OtgFs::new(),
+            usb_host: (chip == ChipKind::F411ce).then(crate::usb_host::UsbHost::new),
             nvic: Nvic::new(chip.n_irq()),
             scb: Scb::default(),
             systick: SysTick::default(),
@@ -621,6 +631,9 @@ impl Board {
             self.nvic.set_line(n, u || c);
         }
         self.nvic.set_line(irq::USART2, self.usart2.irq());
+        if self.usb_host.is_some() {
+            self.nvic.set_line(irq::OTG_FS, self.usb.irq());
+        }
         if let Some(c) = self.systick.next_irq_cycles() {
             if self.cycles >= c {
                 let _ = self.systick.read(0x8, self.cycles);
@@ -641,6 +654,7 @@ impl Board {
             add(tm.next_irq_ps());
         }
         add(self.usart2.next_event_ps());
+        add(self.usb_host.as_ref().map(|h| h.next_event_ps()));
         add(self.iwdg.expiry_ps());
         t
     }
@@ -749,6 +763,13 @@ impl Board {
                 self.clock_on("USART2", 0x40, 17)?;
                 self.usart2.read(off, now)
             }
+            0x5000_0000..=0x5003_FC00 if self.usb_host.is_some() => {
+                self.clock_on("USB_OTG_FS", 0x34, 7)?;
+                let v = self.usb.read(addr - 0x5000_0000);
+                // A pop of the RX FIFO or a cleared flag lowers the line.
+                self.update_lines();
+                v
+            }
             _ => self.read_ppb(addr),
         }
     }
@@ -801,7 +822,7 @@ impl Board {
         match addr & !0x3FF {
             0x4002_3800 => {
                 // Peripheral resets through the RSTR registers.
-                if matches!(off, 0x10 | 0x20 | 0x24) {
+                if matches!(off, 0x10 | 0x14 | 0x20 | 0x24) {
                     self.peripheral_resets(off, value & mask);
                 }
                 if self.rcc.write(off, value, mask)? {
@@ -880,6 +901,10 @@ impl Board {
                 self.clock_on("USART2", 0x40, 17)?;
                 self.usart2.write(off, value, mask, now)
             }
+            0x5000_0000..=0x5003_FC00 if self.usb_host.is_some() => {
+                self.clock_on("USB_OTG_FS", 0x34, 7)?;
+                self.usb.write(addr - 0x5000_0000, value, mask)
+            }
             _ => self.write_ppb(addr, value, mask),
         }
     }
@@ -942,6 +967,7 @@ impl Board {
                 }
             }
             0x24 if bits & 1 != 0 => self.tim1 = Timer::new("TIM1", Kind::Advanced, apb2t),
+            0x14 if bits & (1 << 7) != 0 => self.usb = crate::periph::otg_fs::OtgFs::new(),
             _ => {}
         }
     }
@@ -1223,6 +1249,7 @@ impl<'a> Machine<'a> {
             let q = std::mem::take(&mut d.usart2.rx_queue);
             d.usart2 = Usart::new("USART2", 16_000_000);
             d.usart2.rx_queue = q;
+            d.usb = crate::periph::otg_fs::OtgFs::new();
             d.nvic = Nvic::new(chip.n_irq());
             d.scb = Scb::default();
             d.systick = SysTick::default();
@@ -1344,6 +1371,7 @@ impl<'a> Machine<'a> {
             {
                 let d = self.uc.get_data_mut();
                 d.sync_robot()?;
+                d.sync_usb()?;
                 d.update_lines();
                 if d.iwdg.expiry_ps().is_some_and(|t| t <= now) {
                     d.event("IWDG expired".into());
@@ -1764,7 +1792,7 @@ mod tests {
         let mut b = Board::new(ChipKind::F446re, vec![0xFF; 1024]);
         let e = b.read_word(0x4000_0024).unwrap_err();
         assert!(e.contains("TIM2"), "{e}");
-        let e = b.write_word(0x5000_0010, 1, !0).unwrap_err();
+        let e = b.write_word(0x5000_0010, 1, !0).unwrap_err(); // F446: OTG_FS not modelled
         assert!(e.contains("USB_OTG_FS") && e.contains("GRSTCTL"), "{e}");
         let e = b.read_word(0x4000_0C24).unwrap_err();
         assert!(e.contains("TIM5") && e.contains("clock off"), "{e}");
