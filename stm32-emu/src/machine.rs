@@ -34,6 +34,15 @@ pub enum ChipKind {
 }
 
 impl ChipKind {
+    /// The arm button's pin (port index, pin) and name: PC13 on the
+    /// Nucleo (B1), PA0 on the Black Pill (KEY) (firmware/src/board.rs).
+    pub fn button(self) -> (usize, u32, &'static str) {
+        match self {
+            Self::F446re => (2, 13, "PC13"),
+            Self::F411ce => (0, 0, "PA0"),
+        }
+    }
+
     /// HSE frequency \[Hz\].
     pub fn hse_hz(self) -> u64 {
         match self {

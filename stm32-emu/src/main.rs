@@ -400,13 +400,15 @@ fn run() -> Result<i32, String> {
         if let Some(at) = a.press {
             if !pressed && t_s >= at {
                 pressed = true;
-                m.board().gpio[2].drive(13, Some(false));
-                m.board().event("arm button PC13 pressed".into());
+                let (port, pin, name) = a.chip.button();
+                m.board().gpio[port].drive(pin, Some(false));
+                m.board().event(format!("arm button {name} pressed"));
             }
             if pressed && !released && t_s >= at + 0.1 {
                 released = true;
-                m.board().gpio[2].drive(13, None);
-                m.board().event("arm button PC13 released".into());
+                let (port, pin, name) = a.chip.button();
+                m.board().gpio[port].drive(pin, None);
+                m.board().event(format!("arm button {name} released"));
             }
         }
         if let Some((at, ms)) = a.stall {
@@ -575,8 +577,8 @@ fn run() -> Result<i32, String> {
     if let Some(h) = &d.usb_host {
         let u = &d.usb.stats;
         s += &format!(
-            "\"usb_configured\":{},\"usb_in_bytes\":{},\"usb_out_bytes\":{},\"usb_in_naks\":{},\"usb_out_naks\":{},\"usb_setups\":{},\"usb_bus_resets\":{},\"usb_frames\":{},\"otg_irqs\":{},",
-            h.configured, h.in_bytes, h.out_bytes, u.in_naks, u.out_naks, u.setups, u.bus_resets, h.frames, taken(16 + 67)
+            "\"usb_configured\":{},\"usb_lost_bytes\":{},\"usb_in_bytes\":{},\"usb_out_bytes\":{},\"usb_in_naks\":{},\"usb_out_naks\":{},\"usb_setups\":{},\"usb_bus_resets\":{},\"usb_frames\":{},\"otg_irqs\":{},",
+            h.configured, h.lost_bytes, h.in_bytes, h.out_bytes, u.in_naks, u.out_naks, u.setups, u.bus_resets, h.frames, taken(16 + 67)
         );
     }
     s += &format!("\"pose\":[{:.4},{:.4},{:.4}],", pose[0], pose[1], pose[2]);

@@ -42,7 +42,7 @@ impl Board {
     pub fn link_from_host(&mut self, bytes: &[u8]) {
         let now = self.now_ps();
         match (self.chip, self.usb_host.as_mut()) {
-            (ChipKind::F411ce, Some(h)) => h.out_queue.extend(bytes),
+            (ChipKind::F411ce, Some(h)) => h.send(bytes),
             _ => self.usart2.host_send(bytes, now),
         }
     }

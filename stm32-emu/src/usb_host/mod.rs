@@ -6,7 +6,7 @@
 //! §9.2.6.3), reads the device, configuration and string descriptors and
 //! checks each ([`descriptors`]), sets the configuration, sets and reads
 //! back the line coding, sets DTR/RTS (SET_CONTROL_LINE_STATE), then moves
-//! the CDC data: bulk OUT from [`UsbHost::out_queue`] (the pty's bytes),
+//! the CDC data: bulk OUT from [`UsbHost::send`] (the pty's bytes),
 //! bulk IN into [`UsbHost::in_data`], the notification endpoint polled at
 //! its bInterval.
 //!
@@ -173,7 +173,11 @@ pub struct UsbHost {
     /// The enumerated device (once configured).
     pub enumerated: Option<Enumerated>,
     /// Bytes for the bulk OUT endpoint (from the pty).
-    pub out_queue: VecDeque<u8>,
+    out_queue: VecDeque<u8>,
+    /// Bytes the host program wrote while the device was not configured
+    /// (unplugged, enumerating): lost, as writes to a vanished
+    /// /dev/ttyACM0 are.
+    pub lost_bytes: u64,
     out_packet: Option<Vec<u8>>,
     out_errors: u32,
     /// Bytes from the bulk IN endpoint, not yet taken.
@@ -233,6 +237,7 @@ impl UsbHost {
             strings: Default::default(),
             enumerated: None,
             out_queue: VecDeque::new(),
+            lost_bytes: 0,
             out_packet: None,
             out_errors: 0,
             in_data: Vec::new(),
@@ -253,6 +258,21 @@ impl UsbHost {
         self.next_ps
     }
 
+    /// Bytes from the host program for the bulk OUT endpoint; lost while
+    /// the device is not configured.
+    pub fn send(&mut self, bytes: &[u8]) {
+        if self.phase == Phase::Running {
+            self.out_queue.extend(bytes);
+        } else {
+            self.lost_bytes += bytes.len() as u64;
+        }
+    }
+
+    /// Bytes queued for bulk OUT.
+    pub fn out_pending(&self) -> usize {
+        self.out_queue.len() + self.out_packet.as_ref().map_or(0, |p| p.len())
+    }
+
     /// The device is configured and its data pipes run.
     pub fn running(&self) -> bool {
         self.phase == Phase::Running
@@ -268,6 +288,7 @@ impl UsbHost {
         };
         self.ctrl = None;
         self.out_packet = None;
+        self.out_queue.clear();
         self.dtr_sent = None;
         self.events.push(format!(
             "USB host: cable unplugged for {:.1} ms",
@@ -436,8 +457,9 @@ impl UsbHost {
                     });
                 } else {
                     self.events.push(format!(
-                        "USB host: DTR {}",
-                        if self.dtr_sent == Some(true) { "high" } else { "low" }
+                        "USB host: DTR {} (SET_CONTROL_LINE_STATE done), {} B received so far",
+                        if self.dtr_sent == Some(true) { "high" } else { "low" },
+                        self.in_bytes
                     ));
                 }
             }
