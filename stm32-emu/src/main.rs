@@ -343,6 +343,9 @@ fn run() -> Result<i32, String> {
         // Host link.
         if let Some((master, _)) = link.as_mut() {
             loop {
+                if !m.board().link_has_room() {
+                    break; // the writer blocks, as on a busy /dev/ttyACM0
+                }
                 match master.read(&mut buf) {
                     Ok(0) => break,
                     Ok(n) => {
@@ -395,7 +398,15 @@ fn run() -> Result<i32, String> {
                     u.used_bytes, u.boot_bytes, u.size_bytes
                 )
             });
-            m.board().event(format!("alive{stack}"));
+            let d = m.uc.get_data();
+            let usb = d.usb_host.as_ref().map_or(String::new(), |h| {
+                let u = &d.usb.stats;
+                format!(
+                    " (usb: configured {}x, IN {} B, OUT {} B, IN NAKs {}, out NAKs {}, lost {} B)",
+                    h.configured, h.in_bytes, h.out_bytes, u.in_naks, u.out_naks, h.lost_bytes
+                )
+            });
+            m.board().event(format!("alive{stack}{usb}"));
         }
         if let Some(at) = a.press {
             if !pressed && t_s >= at {

@@ -9,6 +9,10 @@ use super::{Board, ChipKind};
 /// ±0.25 % at full speed).
 const USB_CLOCK_TOLERANCE: f64 = 0.0025;
 
+/// The host's write buffer for the bulk OUT endpoint \[B\] (Linux's
+/// tty layer holds a few kB before a writer blocks).
+pub const HOST_OUT_BUFFER_BYTES: usize = 4096;
+
 impl Board {
     /// Runs the USB host's slots up to now (F411); a host failure ends
     /// the run with its reason.
@@ -45,6 +49,15 @@ impl Board {
             (ChipKind::F411ce, Some(h)) => h.send(bytes),
             _ => self.usart2.host_send(bytes, now),
         }
+    }
+
+    /// The link takes more bytes from the host program now (USB: fewer
+    /// than [`HOST_OUT_BUFFER_BYTES`] queued for bulk OUT; USART2: always,
+    /// a UART has no flow control here).
+    pub fn link_has_room(&self) -> bool {
+        self.usb_host
+            .as_ref()
+            .is_none_or(|h| h.out_pending() < HOST_OUT_BUFFER_BYTES)
     }
 
     /// Bytes the firmware sent to the host program since the last call.
