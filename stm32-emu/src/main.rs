@@ -406,7 +406,18 @@ fn run() -> Result<i32, String> {
                     h.configured, h.in_bytes, h.out_bytes, u.in_naks, u.out_naks, h.lost_bytes
                 )
             });
-            m.board().event(format!("alive{stack}{usb}"));
+            let t = m.uc.get_data().step_probe.calls;
+            let ticks = if t.n > 0 {
+                format!(
+                    " (control step {} instructions mean, {} max, {} calls)",
+                    t.mean(),
+                    t.max,
+                    t.n
+                )
+            } else {
+                String::new()
+            };
+            m.board().event(format!("alive{stack}{ticks}{usb}"));
         }
         if let Some(at) = a.press {
             if !pressed && t_s >= at {
@@ -592,6 +603,12 @@ fn run() -> Result<i32, String> {
             h.configured, h.lost_bytes, h.in_bytes, h.out_bytes, u.in_naks, u.out_naks, u.setups, u.bus_resets, h.frames, taken(16 + 67)
         );
     }
+    s += &format!(
+        "\"step_insn_mean\":{},\"step_insn_max\":{},\"step_calls\":{},",
+        d.step_probe.calls.mean(),
+        d.step_probe.calls.max,
+        d.step_probe.calls.n
+    );
     s += &format!("\"pose\":[{:.4},{:.4},{:.4}],", pose[0], pose[1], pose[2]);
     s += &format!(
         "\"armature_peak\":[{:.4},{:.4}],",
