@@ -26,8 +26,19 @@
 #       (ENABLE, DIR, PWM) reads low within FAULT_CUT_US (20 µs of emulated
 #       time, measured at the register write that completes it), then the IWDG
 #       resets the chip (IWDGRSTF);
-#   (g) the F411CE image boots to USB enumeration: it reaches the executor
-#       and the first USB OTG_FS access, which is reported as unmodelled;
+#   (g) the F411CE image through USB (src/periph/otg_fs.rs, the host of
+#       src/usb_host written from USB 2.0 ch. 9 and CDC 1.2, the pty as
+#       /dev/ttyACM0): enumeration with every descriptor checked, then
+#       (a)-(f) and (k) as for the F446 (wmr status, the square within
+#       REL_TOL_RMS of hil-sim, link silence, the latch, the IWDG, the
+#       fault handlers, the stack), and USB's own: DTR low (nothing sent,
+#       no stale telemetry after it rises), a host that stops reading
+#       (ticks on time), a flooding host (OUT NAKs, nothing dropped),
+#       unplug/replug while the robot runs (LinkSilence, enumerated
+#       again, the link answers);
+#   (o) the `imu` images (F411, F446) boot, start the loop, wait the
+#       MPU-6050's power-up time and stop at their first I2C1 access
+#       (I2C1, DMA1 and the MPU-6050 are not modelled);
 #   (i) every bridge mode tracks the square: the F446 image built with
 #       BRIDGE_MODE=two-pwm and =pwm-in1-in2, run with the harness's bridge
 #       model of that mode (--bridge: the armature voltage from the pins,
@@ -138,11 +149,11 @@ fw_build() {
         --features "$1" --target "$TARGET" --target-dir target/ci-build)
 }
 FW_BUILT="$ROOT/firmware/target/ci-build/$TARGET/release/firmware"
-for chip in stm32f446re stm32f411ce; do
+for chip in stm32f446re stm32f411ce stm32f446re-imu stm32f411ce-imu; do
     elf="$ROOT/firmware/target/ci-$chip/$TARGET/release/firmware"
     if [ ! -f "$elf" ]; then
         command -v flip-link >/dev/null 2>&1 || cargo install flip-link --locked
-        fw_build "$chip"
+        fw_build "${chip/-imu/,imu}"
         mkdir -p "$(dirname "$elf")"
         cp "$FW_BUILT" "$elf"
     fi
@@ -250,6 +261,7 @@ emu_rec="$rec"
 emu_st="$st"
 emu_t="$(emu_now)"
 cleanup
+cp "$LOG" "$OUT_DIR/emu_a.log"
 grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fail "a reset, fault or unmodelled access during the tracking run"
 boots="$(grep -c "\] boot " "$LOG" || true)"
 [ "$boots" -eq 1 ] || fail "the image booted $boots times"
@@ -314,6 +326,11 @@ min_rows=$((RECORD_S * RATE_HZ - 5))
 within_rel "$rms" "$ref_rms" "$REL_TOL_RMS" ||
     fail "RMS position error $rms m differs from hil-sim's $ref_rms m by more than $REL_TOL_RMS of it"
 echo "OK: RMS $rms m within $REL_TOL_RMS of hil-sim's $ref_rms m ($rows rows, $dropped missing)"
+# Instructions per call of the control step (Controller::step, the
+# harness's probe: entry to return, interrupts included), tracking run.
+step_line() { grep "alive.*control step" "$1" | tail -1 | sed -n 's/.*control step \([0-9]*\) instructions mean, \([0-9]*\) max, \([0-9]*\) calls.*/\1 \2 \3/p'; }
+read -r STEP446_MEAN STEP446_MAX STEP446_N < <(step_line "$OUT_DIR/emu_a.log")
+echo "control step (Controller::step) on the F446 image: $STEP446_MEAN instructions mean, $STEP446_MAX max over $STEP446_N calls"
 speed_pty="$(awk -v e="$emu_t" -v w="$t_drive" 'BEGIN { printf "%.2f", e / w }')"
 
 step "(d) a stalled loop latches (button arms the circle at 0.5 s; CPU held 10 ms at 2 s)"
@@ -396,6 +413,9 @@ for used in "$st411_run" "$st411_boot"; do
     awk -v u="$used" -v s="$st411_size" -v f="$STACK_MAX_FRACTION" 'BEGIN { exit !(u > 0 && u <= f * s) }' ||
         fail "F411: stack high-water $used B: not within $STACK_MAX_FRACTION of the $st411_size B stack"
 done
+read -r STEP411_MEAN STEP411_MAX STEP411_N < <(step_line "$LOG")
+grep -q "bulk IN 0x82/OUT 0x01 64 B" "$LOG" || fail "F411: the CDC data endpoints are not 0x82/0x01 (firmware/src/link.rs DATA_IN_EP assumes IN 2)"
+echo "control step (Controller::step) on the F411 image: $STEP411_MEAN instructions mean, $STEP411_MAX max over $STEP411_N calls"
 echo "OK: F411 through USB: RMS $rms411 m (hil-sim $ref_rms m, F446 $rms m), $rows411 rows; LinkSilence, motors off; stack ${st411_run} B running, ${st411_boot} B at boot, of ${st411_size} B"
 
 step "(g) F411: a stalled loop latches (CPU held 10 ms), the IWDG resets a 100 ms stall, the fault handlers cut the motors"
@@ -490,6 +510,18 @@ unplug_t="$(grep "cable unplugged" "$LOG" | sed -n 's/^\[stm32-emu t= *\([0-9.]*
 stop_t="$(sed -n 's/^\[stm32-emu t= *\([0-9.]*\) s\] motors off.*/\1/p' "$LOG" | awk -v u="$unplug_t" '$1 + 0 >= u + 0 { print; exit }')"
 echo "OK: unplugged at ${unplug_t} s: LinkSilence, motors off at ${stop_t:-?} s; re-enumerated and answering"
 USB_UNPLUG_STOP="$unplug_t/$stop_t"
+
+step "(o) the imu images boot, start the loop, wait the MPU-6050's power-up and stop at I2C1 (not modelled)"
+for chip in f446re f411ce; do
+    elf="$ROOT/firmware/target/ci-stm32$chip-imu/$TARGET/release/firmware"
+    s="$(headless "imu_$chip" --elf "$elf" --chip "$chip" --seconds 1)"
+    grep -q "IWDG started" "$OUT_DIR/imu_$chip.log" || fail "$chip imu: the loop did not start"
+    err="$(sed -n 's/.*"error":"\([^"]*\)".*/\1/p' <<<"$s")"
+    grep -q "I2C1 +0x0 CR1" <<<"$err" || fail "$chip imu: stopped elsewhere than at I2C1: $s"
+    t_i2c="$(json emulated_s "$s")"
+    le 0.1 "$t_i2c" || fail "$chip imu: the first I2C1 access at $t_i2c s, before the MPU-6050's 100 ms power-up"
+    echo "OK: $chip imu: loop running, first I2C1 access at $t_i2c s (after the 100 ms power-up): $err"
+done
 
 step "(i) every bridge mode tracks the square (the F446 image per BRIDGE_MODE, the harness's bridge model per mode)"
 declare -A MODE_RMS
@@ -712,6 +744,8 @@ done
 for r in paper tb6612-2kg bts7960-10kg; do
     echo "RESULT robot=$r bridge=${ROBOT_MODE[$r]} image=${IMAGE_MODE[$r]} emulated/hil-sim_rms_pos_err_m=${ROBOT_RMS[$r]} record_s=$ROBOT_RECORD_S"
 done
+echo "RESULT chip=f411ce link=usb rms_pos_err_m=$rms411 ref_rms_pos_err_m=$ref_rms rows=$rows411 stack_running_b=$st411_run stack_boot_b=$st411_boot step_insn_mean=$STEP411_MEAN step_insn_max=$STEP411_MAX fault_cut_us/insn=${F411_CUT[hardfault]}/${F411_CUT[busfault]} dtr_low_bytes=$dtr_bytes dtr_gap_s=$gap flood_out_naks=$s_naks unplug_at/stop_s=$USB_UNPLUG_STOP"
+echo "RESULT chip=f446re step_insn_mean=$STEP446_MEAN step_insn_max=$STEP446_MAX"
 echo "RESULT erase_stall_ms=2000 write_ms=$WRITE_MS watchdog_ms=8192 overruns=$overruns robot_clock_lost_ms=$lost_ms"
 echo "RESULT bridge=naive-two-pwm reverse_armature_peak_r/l=$peak_r/$peak_l (control)"
 echo "stm32-emu: all checks passed in $((SECONDS - T_START)) s (logs: $OUT_DIR)"

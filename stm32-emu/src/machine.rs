@@ -838,7 +838,10 @@ impl Board {
     /// The name of an address no model covers.
     fn unknown(addr: u32) -> String {
         let p = Self::periph_name(addr);
-        let reg = match (p, addr & 0xFFF) {
+        // The F411 decodes OTG_FS itself (src/periph/otg_fs.rs); on the
+        // F446 the block is not modelled and named by its registers here.
+        let off = addr & 0x3FF;
+        let reg = match (p, off) {
             ("USB_OTG_FS", 0x000) => " GOTGCTL",
             ("USB_OTG_FS", 0x008) => " GAHBCFG",
             ("USB_OTG_FS", 0x00C) => " GUSBCFG",
@@ -847,9 +850,12 @@ impl Board {
             ("USB_OTG_FS", 0x018) => " GINTMSK",
             ("USB_OTG_FS", 0x038) => " GCCFG",
             ("USB_OTG_FS", 0x03C) => " CID",
+            ("I2C1" | "I2C2", 0x00) => " CR1",
+            ("I2C1" | "I2C2", 0x04) => " CR2",
+            ("I2C1" | "I2C2", 0x14) => " SR1",
             _ => "",
         };
-        format!("{p} +0x{:X}{reg}", addr & 0xFFF)
+        format!("{p} +0x{off:X}{reg}")
     }
 
     fn vectactive(&self) -> u32 {
