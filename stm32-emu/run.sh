@@ -418,6 +418,19 @@ grep -q "bulk IN 0x82/OUT 0x01 64 B" "$LOG" || fail "F411: the CDC data endpoint
 echo "control step (Controller::step) on the F411 image: $STEP411_MEAN instructions mean, $STEP411_MAX max over $STEP411_N calls"
 echo "OK: F411 through USB: RMS $rms411 m (hil-sim $ref_rms m, F446 $rms m), $rows411 rows; LinkSilence, motors off; stack ${st411_run} B running, ${st411_boot} B at boot, of ${st411_size} B"
 
+# Negative controls of the host's descriptor checks on the real image: a
+# byte of what the image sends replaced on receipt (--usb-corrupt); the
+# run must fail naming the field (cargo test corrupts every field of a
+# specification-built configuration).
+for c in "device:7=65:bMaxPacketSize0" "config:4=3:bNumInterfaces" "config:67=65:wMaxPacketSize" "config:21=0:bNumEndpoints"; do
+    IFS=: read -r which spec field <<<"$c"
+    s="$(headless f411_corrupt --elf "$ELF411" --chip f411ce --seconds 0.3 --usb-corrupt "$which:$spec")"
+    [ "$(json ok "$s")" = false ] || fail "F411: the host accepted a corrupted $which descriptor ($spec)"
+    err="$(sed -n 's/.*"error":"\([^"]*\)".*/\1/p' <<<"$s")"
+    grep -q "$field" <<<"$err" || fail "F411: the corrupted $which descriptor ($spec) failed without naming $field: $err"
+    echo "OK: control: $which byte ${spec%=*} = ${spec#*=}: $err"
+done
+
 step "(g) F411: a stalled loop latches (CPU held 10 ms), the IWDG resets a 100 ms stall, the fault handlers cut the motors"
 s="$(headless f411_latch --elf "$ELF411" --chip f411ce --press 0.5 --stall 2.0:10 --seconds 2.3)"
 [ "$(json ok "$s")" = true ] || fail "F411 latch run failed: $s"

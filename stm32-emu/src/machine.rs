@@ -1187,7 +1187,9 @@ impl<'a> Machine<'a> {
         let step = image
             .symbols
             .iter()
-            .find(|s| s.0.contains("15controller_core10controller10Controller4step"))
+            .find(|s| {
+                s.0.contains("15controller_core10controller10Controller4step")
+            })
             .map(|s| s.1 & !1);
         if let Some(a) = step {
             uc.get_data_mut().step_probe.entry = Some(a);

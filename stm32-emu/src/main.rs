@@ -61,6 +61,8 @@ struct Args {
     usb_stop_reading: Option<(f64, f64)>,
     /// USB (F411): the cable out at AT for MS, then re-plugged.
     usb_unplug: Option<(f64, f64)>,
+    /// USB (F411): a descriptor byte replaced on receipt by the host.
+    usb_corrupt: Option<stm32_emu::usb_host::Corrupt>,
 }
 
 /// `AT:DURATION` (two numbers).
@@ -81,6 +83,7 @@ fn usage() -> String {
      [--bridge pwm-dir|two-pwm|pwm-in1-in2] [--peak-from S] [--robot FILE] \
      [--flash-timing typ|max] [--flash-aged | --flash-robot FILE [--flash-pwm-hz N]] \
      [--usb-dtr-low AT_S:S] [--usb-stop-reading AT_S:S] [--usb-unplug AT_S:MS] \
+     [--usb-corrupt device|config:OFFSET=VALUE] \
      [--summary FILE] [--quiet]"
         .into()
 }
@@ -117,6 +120,7 @@ fn parse_args() -> Result<Args, String> {
         usb_dtr_low: None,
         usb_stop_reading: None,
         usb_unplug: None,
+        usb_corrupt: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
@@ -205,10 +209,27 @@ fn parse_args() -> Result<Args, String> {
             }
             "--peak-from" => a.peak_from = num(&val()?, "--peak-from")?,
             "--usb-dtr-low" => a.usb_dtr_low = Some(pair(&val()?, "--usb-dtr-low")?),
-            "--usb-stop-reading" => {
-                a.usb_stop_reading = Some(pair(&val()?, "--usb-stop-reading")?)
-            }
+            "--usb-stop-reading" => a.usb_stop_reading = Some(pair(&val()?, "--usb-stop-reading")?),
             "--usb-unplug" => a.usb_unplug = Some(pair(&val()?, "--usb-unplug")?),
+            "--usb-corrupt" => {
+                let v = val()?;
+                let bad =
+                    || format!("--usb-corrupt {v}: expected device|config:OFFSET=VALUE (bytes)");
+                let (which, rest) = v.split_once(':').ok_or_else(bad)?;
+                let (o, x) = rest.split_once('=').ok_or_else(bad)?;
+                let device = match which {
+                    "device" => true,
+                    "config" => false,
+                    _ => return Err(bad()),
+                };
+                let offset: usize = o.parse().map_err(|_| bad())?;
+                let value: u8 = x.parse().map_err(|_| bad())?;
+                a.usb_corrupt = Some(stm32_emu::usb_host::Corrupt {
+                    device,
+                    offset,
+                    value,
+                });
+            }
             "-h" | "--help" => return Err(usage()),
             _ => return Err(format!("unknown argument {k}\n{}", usage())),
         }
@@ -219,7 +240,10 @@ fn parse_args() -> Result<Args, String> {
     if a.flash_pwm_hz.is_some() && a.flash_robot.is_none() {
         return Err("--flash-pwm-hz changes the --flash-robot record: give --flash-robot".into());
     }
-    if (a.usb_dtr_low.is_some() || a.usb_stop_reading.is_some() || a.usb_unplug.is_some())
+    if (a.usb_dtr_low.is_some()
+        || a.usb_stop_reading.is_some()
+        || a.usb_unplug.is_some()
+        || a.usb_corrupt.is_some())
         && a.chip != ChipKind::F411ce
     {
         return Err("--usb-* need --chip f411ce (the F446 image's link is USART2)".into());
@@ -262,6 +286,9 @@ fn run() -> Result<i32, String> {
     }
     m.board().flash().timing = a.flash_timing;
     m.board().peak_from_s = a.peak_from;
+    if let Some(h) = m.board().usb_host.as_mut() {
+        h.corrupt = a.usb_corrupt;
+    }
     if !a.quiet {
         for e in &m.board().events {
             eprintln!("[stm32-emu t={:10.6} s] {}", e.t_s, e.what);

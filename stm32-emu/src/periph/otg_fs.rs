@@ -428,8 +428,10 @@ impl OtgFs {
             self.stats.out_naks += 1;
             return Handshake::Nak;
         }
-        self.rx
-            .push_back((Self::status(ep, data.len(), PKT_OUT_DATA), Self::words(data)));
+        self.rx.push_back((
+            Self::status(ep, data.len(), PKT_OUT_DATA),
+            Self::words(data),
+        ));
         let e = &mut self.oute[ep];
         let (pkt_shift, pkt_mask, xfr_mask) = if ep == 0 {
             (19, 1, 0x7F)
@@ -530,7 +532,9 @@ impl OtgFs {
                     ));
                 }
                 let Some((st, data)) = self.rx.pop_front() else {
-                    return Err("USB_OTG_FS GRXSTSP popped with the RX FIFO empty (RXFLVL = 0)".into());
+                    return Err(
+                        "USB_OTG_FS GRXSTSP popped with the RX FIFO empty (RXFLVL = 0)".into(),
+                    );
                 };
                 let ep = (st & 0xF) as usize;
                 match (st >> 17) & 0xF {
@@ -552,9 +556,7 @@ impl OtgFs {
             0x104 | 0x108 | 0x10C => self.dieptxf[((off - 0x100) / 4) as usize],
             0x800 => self.dcfg,
             0x804 => self.dctl,
-            0x808 => {
-                (self.suspended as u32) | (self.enumspd << 1) | (self.fnsof << 8)
-            }
+            0x808 => (self.suspended as u32) | (self.enumspd << 1) | (self.fnsof << 8),
             0x810 => self.diepmsk,
             0x814 => self.doepmsk,
             0x818 => self.daint(),
@@ -563,20 +565,26 @@ impl OtgFs {
             0x900..=0x9FF => {
                 let n = ((off - 0x900) / 0x20) as usize;
                 if n >= EPS {
-                    return Err(format!("USB_OTG_FS +0x{off:03X} (IN endpoint {n}: the F411 has 4)"));
+                    return Err(format!(
+                        "USB_OTG_FS +0x{off:03X} (IN endpoint {n}: the F411 has 4)"
+                    ));
                 }
                 match off & 0x1F {
                     0x00 => self.ine[n].ctl,
                     0x08 => self.diepint(n),
                     0x10 => self.ine[n].tsiz,
-                    0x18 => self.fifo_depth(n).saturating_sub(self.ine[n].fifo.len() as u32),
+                    0x18 => self
+                        .fifo_depth(n)
+                        .saturating_sub(self.ine[n].fifo.len() as u32),
                     r => return Err(format!("USB_OTG_FS DIEP{n} +0x{r:02X}")),
                 }
             }
             0xB00..=0xBFF => {
                 let n = ((off - 0xB00) / 0x20) as usize;
                 if n >= EPS {
-                    return Err(format!("USB_OTG_FS +0x{off:03X} (OUT endpoint {n}: the F411 has 4)"));
+                    return Err(format!(
+                        "USB_OTG_FS +0x{off:03X} (OUT endpoint {n}: the F411 has 4)"
+                    ));
                 }
                 match off & 0x1F {
                     0x00 => self.oute[n].ctl,
@@ -659,7 +667,11 @@ impl OtgFs {
             0x018 => self.gintmsk = merge(self.gintmsk, value, mask),
             0x024 => self.grxfsiz = merge(self.grxfsiz, value, mask) & 0xFFFF,
             0x028 | 0x104 | 0x108 | 0x10C => {
-                let n = if off == 0x28 { 0 } else { ((off - 0x100) / 4) as usize };
+                let n = if off == 0x28 {
+                    0
+                } else {
+                    ((off - 0x100) / 4) as usize
+                };
                 self.dieptxf[n] = merge(self.dieptxf[n], value, mask);
                 let (sa, fd) = (self.dieptxf[n] & 0xFFFF, self.dieptxf[n] >> 16);
                 if sa + fd > FIFO_WORDS || fd < 16 {
@@ -683,7 +695,8 @@ impl OtgFs {
                 }
             }
             0x804 => {
-                self.dctl = merge(self.dctl, value, mask) & !((1 << 7) | (1 << 8) | (1 << 9) | (1 << 10) | (1 << 11));
+                self.dctl = merge(self.dctl, value, mask)
+                    & !((1 << 7) | (1 << 8) | (1 << 9) | (1 << 10) | (1 << 11));
                 if self.dctl & (0x7 << 4) != 0 {
                     return Err("USB_OTG_FS DCTL.TCTL: test modes not modelled".into());
                 }
@@ -695,7 +708,9 @@ impl OtgFs {
             0x900..=0x9FF => {
                 let n = ((off - 0x900) / 0x20) as usize;
                 if n >= EPS {
-                    return Err(format!("USB_OTG_FS +0x{off:03X} (IN endpoint {n}: the F411 has 4)"));
+                    return Err(format!(
+                        "USB_OTG_FS +0x{off:03X} (IN endpoint {n}: the F411 has 4)"
+                    ));
                 }
                 match off & 0x1F {
                     0x00 => {
@@ -713,7 +728,9 @@ impl OtgFs {
             0xB00..=0xBFF => {
                 let n = ((off - 0xB00) / 0x20) as usize;
                 if n >= EPS {
-                    return Err(format!("USB_OTG_FS +0x{off:03X} (OUT endpoint {n}: the F411 has 4)"));
+                    return Err(format!(
+                        "USB_OTG_FS +0x{off:03X} (OUT endpoint {n}: the F411 has 4)"
+                    ));
                 }
                 match off & 0x1F {
                     0x00 => {
@@ -731,7 +748,9 @@ impl OtgFs {
             0xE00 => {
                 self.pcgcctl = merge(self.pcgcctl, value, mask);
                 if self.pcgcctl & 3 != 0 {
-                    return Err("USB_OTG_FS PCGCCTL: clock gating (STPPCLK/GATEHCLK) not modelled".into());
+                    return Err(
+                        "USB_OTG_FS PCGCCTL: clock gating (STPPCLK/GATEHCLK) not modelled".into(),
+                    );
                 }
             }
             0x1000..=0x4FFF => {
@@ -807,7 +826,11 @@ mod tests {
     fn out_packet_then_nak_until_cnak() {
         let mut d = device();
         assert_eq!(d.out(0, 1, b"hello"), Handshake::Ack(vec![]));
-        assert_eq!(d.out(0, 1, b"again"), Handshake::Nak, "NAK after the transfer");
+        assert_eq!(
+            d.out(0, 1, b"again"),
+            Handshake::Nak,
+            "NAK after the transfer"
+        );
         assert_ne!(d.read(0x014).unwrap() & gint::RXFLVL, 0);
         let st = d.read(0x020).unwrap();
         assert_eq!((st & 0xF, (st >> 4) & 0x7FF, (st >> 17) & 0xF), (1, 5, 2));
@@ -817,7 +840,10 @@ mod tests {
         assert_eq!(w1 & 0xFF, b'o' as u32);
         assert_eq!((d.read(0x020).unwrap() >> 17) & 0xF, 3);
         assert_eq!(d.read(0x014).unwrap() & gint::RXFLVL, 0);
-        assert!(d.read(0x1000).is_err(), "a FIFO read with nothing popped fails");
+        assert!(
+            d.read(0x1000).is_err(),
+            "a FIFO read with nothing popped fails"
+        );
         d.write(0xB20, epctl::CNAK, epctl::CNAK).unwrap();
         assert_eq!(d.out(0, 1, b"again"), Handshake::Ack(vec![]));
     }
@@ -829,10 +855,18 @@ mod tests {
         let mut d = device();
         assert_eq!(d.in_token(0, 1), Handshake::Nak);
         d.write(0x930, (1 << 19) | 6, !0).unwrap();
-        d.write(0x920, epctl::CNAK | epctl::EPENA, epctl::CNAK | epctl::EPENA)
-            .unwrap();
+        d.write(
+            0x920,
+            epctl::CNAK | epctl::EPENA,
+            epctl::CNAK | epctl::EPENA,
+        )
+        .unwrap();
         d.write(0x2000, u32::from_le_bytes(*b"abcd"), !0).unwrap();
-        assert_eq!(d.in_token(0, 1), Handshake::Nak, "half the packet in the FIFO");
+        assert_eq!(
+            d.in_token(0, 1),
+            Handshake::Nak,
+            "half the packet in the FIFO"
+        );
         assert_eq!(d.read(0x938).unwrap(), 15);
         d.write(0x2000, u32::from_le_bytes(*b"ef\0\0"), !0).unwrap();
         assert_eq!(d.in_token(0, 1), Handshake::Ack(b"abcdef".to_vec()));

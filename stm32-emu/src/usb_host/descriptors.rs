@@ -123,10 +123,20 @@ pub struct DeviceDesc {
 pub fn device_head(b: &[u8]) -> Result<u8, DescError> {
     need("device", b, 8)?;
     if b[0] != 18 {
-        return Err(field("device", "bLength", b[0] as u32, "18 (USB 2.0 Table 9-8)"));
+        return Err(field(
+            "device",
+            "bLength",
+            b[0] as u32,
+            "18 (USB 2.0 Table 9-8)",
+        ));
     }
     if b[1] != dtype::DEVICE {
-        return Err(field("device", "bDescriptorType", b[1] as u32, "1 = DEVICE (Table 9-5)"));
+        return Err(field(
+            "device",
+            "bDescriptorType",
+            b[1] as u32,
+            "1 = DEVICE (Table 9-5)",
+        ));
     }
     match b[7] {
         8 | 16 | 32 | 64 => Ok(b[7]),
@@ -172,7 +182,12 @@ pub fn device(b: &[u8]) -> Result<DeviceDesc, DescError> {
     }
     let n = b[17];
     if n == 0 {
-        return Err(field("device", "bNumConfigurations", 0, "at least 1 (USB 2.0 §9.6.1)"));
+        return Err(field(
+            "device",
+            "bNumConfigurations",
+            0,
+            "at least 1 (USB 2.0 §9.6.1)",
+        ));
     }
     Ok(DeviceDesc {
         bcd_usb,
@@ -188,7 +203,12 @@ pub fn device(b: &[u8]) -> Result<DeviceDesc, DescError> {
 pub fn config_head(b: &[u8]) -> Result<u16, DescError> {
     need("configuration", b, 9)?;
     if b[0] != 9 {
-        return Err(field("configuration", "bLength", b[0] as u32, "9 (USB 2.0 Table 9-10)"));
+        return Err(field(
+            "configuration",
+            "bLength",
+            b[0] as u32,
+            "9 (USB 2.0 Table 9-10)",
+        ));
     }
     if b[1] != dtype::CONFIGURATION {
         return Err(field(
@@ -200,7 +220,12 @@ pub fn config_head(b: &[u8]) -> Result<u16, DescError> {
     }
     let total = le16(b, 2);
     if total < 9 {
-        return Err(field("configuration", "wTotalLength", total as u32, "at least 9"));
+        return Err(field(
+            "configuration",
+            "wTotalLength",
+            total as u32,
+            "at least 9",
+        ));
     }
     Ok(total)
 }
@@ -316,7 +341,12 @@ pub fn config(b: &[u8]) -> Result<Config, DescError> {
         match d[1] {
             dtype::IAD => {
                 if len != 8 {
-                    return Err(field("interface association", "bLength", len as u32, "8 (IAD ECN Table 9-Z)"));
+                    return Err(field(
+                        "interface association",
+                        "bLength",
+                        len as u32,
+                        "8 (IAD ECN Table 9-Z)",
+                    ));
                 }
                 if !ifaces.is_empty() || iad.is_some() {
                     return Err(field(
@@ -327,16 +357,31 @@ pub fn config(b: &[u8]) -> Result<Config, DescError> {
                     ));
                 }
                 if d[3] < 2 {
-                    return Err(field("interface association", "bInterfaceCount", d[3] as u32, "at least 2"));
+                    return Err(field(
+                        "interface association",
+                        "bInterfaceCount",
+                        d[3] as u32,
+                        "at least 2",
+                    ));
                 }
                 iad = Some((d[2], d[3], (d[4], d[5], d[6])));
             }
             dtype::INTERFACE => {
                 if len != 9 {
-                    return Err(field("interface", "bLength", len as u32, "9 (USB 2.0 Table 9-12)"));
+                    return Err(field(
+                        "interface",
+                        "bLength",
+                        len as u32,
+                        "9 (USB 2.0 Table 9-12)",
+                    ));
                 }
                 if d[3] != 0 {
-                    return Err(field("interface", "bAlternateSetting", d[3] as u32, "0 (no alternate settings here)"));
+                    return Err(field(
+                        "interface",
+                        "bAlternateSetting",
+                        d[3] as u32,
+                        "0 (no alternate settings here)",
+                    ));
                 }
                 if let Some(prev) = ifaces.last() {
                     if prev.endpoints.len() != prev.num_endpoints as usize {
@@ -365,11 +410,18 @@ pub fn config(b: &[u8]) -> Result<Config, DescError> {
             }
             dtype::ENDPOINT => {
                 let Some(cur) = ifaces.last_mut() else {
-                    return Err(DescError::Missing { what: "interface before an endpoint" });
+                    return Err(DescError::Missing {
+                        what: "interface before an endpoint",
+                    });
                 };
                 let name = format!("endpoint 0x{:02X}", d.get(2).copied().unwrap_or(0));
                 if len != 7 {
-                    return Err(field(&name, "bLength", len as u32, "7 (USB 2.0 Table 9-13)"));
+                    return Err(field(
+                        &name,
+                        "bLength",
+                        len as u32,
+                        "7 (USB 2.0 Table 9-13)",
+                    ));
                 }
                 let address = d[2];
                 if address & 0x70 != 0 || address & 0x0F == 0 {
@@ -381,12 +433,22 @@ pub fn config(b: &[u8]) -> Result<Config, DescError> {
                     ));
                 }
                 if addrs.contains(&address) {
-                    return Err(field(&name, "bEndpointAddress", address as u32, "each address once per configuration"));
+                    return Err(field(
+                        &name,
+                        "bEndpointAddress",
+                        address as u32,
+                        "each address once per configuration",
+                    ));
                 }
                 addrs.push(address);
                 let kind = d[3] & 3;
                 if d[3] & !3 != 0 {
-                    return Err(field(&name, "bmAttributes", d[3] as u32, "bits 7..2 zero for bulk and interrupt"));
+                    return Err(field(
+                        &name,
+                        "bmAttributes",
+                        d[3] as u32,
+                        "bits 7..2 zero for bulk and interrupt",
+                    ));
                 }
                 let mps = le16(d, 4);
                 let ok = match kind {
@@ -407,7 +469,12 @@ pub fn config(b: &[u8]) -> Result<Config, DescError> {
                 }
                 let interval = d[6];
                 if kind == 3 && interval == 0 {
-                    return Err(field(&name, "bInterval", 0, "1-255 frames for a full-speed interrupt endpoint (Table 9-13)"));
+                    return Err(field(
+                        &name,
+                        "bInterval",
+                        0,
+                        "1-255 frames for a full-speed interrupt endpoint (Table 9-13)",
+                    ));
                 }
                 cur.endpoints.push(Endpoint {
                     address,
@@ -418,7 +485,9 @@ pub fn config(b: &[u8]) -> Result<Config, DescError> {
             }
             dtype::CS_INTERFACE => {
                 let Some(cur) = ifaces.last_mut() else {
-                    return Err(DescError::Missing { what: "interface before a CDC functional descriptor" });
+                    return Err(DescError::Missing {
+                        what: "interface before a CDC functional descriptor",
+                    });
                 };
                 let sub = d.get(2).copied().unwrap_or(0xFF);
                 if !cur.functional_seen && sub != 0 {
@@ -433,32 +502,62 @@ pub fn config(b: &[u8]) -> Result<Config, DescError> {
                 match sub {
                     0 => {
                         if len != 5 {
-                            return Err(field("CDC header", "bFunctionLength", len as u32, "5 (CDC 1.2 Table 15)"));
+                            return Err(field(
+                                "CDC header",
+                                "bFunctionLength",
+                                len as u32,
+                                "5 (CDC 1.2 Table 15)",
+                            ));
                         }
                         let bcd = le16(d, 3);
                         if !matches!(bcd, 0x0110 | 0x0120) {
-                            return Err(field("CDC header", "bcdCDC", bcd as u32, "0x0110 or 0x0120 (CDC 1.2 Table 15)"));
+                            return Err(field(
+                                "CDC header",
+                                "bcdCDC",
+                                bcd as u32,
+                                "0x0110 or 0x0120 (CDC 1.2 Table 15)",
+                            ));
                         }
                         cur.header = Some(bcd);
                     }
                     1 => {
                         if len != 5 {
-                            return Err(field("CDC call management", "bFunctionLength", len as u32, "5 (PSTN 1.2 Table 3)"));
+                            return Err(field(
+                                "CDC call management",
+                                "bFunctionLength",
+                                len as u32,
+                                "5 (PSTN 1.2 Table 3)",
+                            ));
                         }
                         cur.call_mgmt = Some((d[3], d[4]));
                     }
                     2 => {
                         if len != 4 {
-                            return Err(field("CDC abstract control management", "bFunctionLength", len as u32, "4 (PSTN 1.2 Table 4)"));
+                            return Err(field(
+                                "CDC abstract control management",
+                                "bFunctionLength",
+                                len as u32,
+                                "4 (PSTN 1.2 Table 4)",
+                            ));
                         }
                         if d[3] & 0xF0 != 0 {
-                            return Err(field("CDC abstract control management", "bmCapabilities", d[3] as u32, "bits 7..4 reserved, zero (PSTN 1.2 Table 4)"));
+                            return Err(field(
+                                "CDC abstract control management",
+                                "bmCapabilities",
+                                d[3] as u32,
+                                "bits 7..4 reserved, zero (PSTN 1.2 Table 4)",
+                            ));
                         }
                         cur.acm = Some(d[3]);
                     }
                     6 => {
                         if len < 5 {
-                            return Err(field("CDC union", "bFunctionLength", len as u32, "at least 5 (CDC 1.2 Table 16)"));
+                            return Err(field(
+                                "CDC union",
+                                "bFunctionLength",
+                                len as u32,
+                                "at least 5 (CDC 1.2 Table 16)",
+                            ));
                         }
                         cur.union = Some((d[3], d[4..].to_vec()));
                     }
@@ -492,69 +591,132 @@ pub fn config(b: &[u8]) -> Result<Config, DescError> {
     let comm = ifaces
         .iter()
         .find(|f| f.class.0 == 2)
-        .ok_or(DescError::Missing { what: "communication class interface (class 2)" })?;
+        .ok_or(DescError::Missing {
+            what: "communication class interface (class 2)",
+        })?;
     let cname = format!("interface {}", comm.number);
     if comm.class.1 != 2 {
-        return Err(field(&cname, "bInterfaceSubClass", comm.class.1 as u32, "2 = Abstract Control Model (CDC 1.2 Table 4)"));
+        return Err(field(
+            &cname,
+            "bInterfaceSubClass",
+            comm.class.1 as u32,
+            "2 = Abstract Control Model (CDC 1.2 Table 4)",
+        ));
     }
     if comm.class.2 > 1 && comm.class.2 != 0xFF {
-        return Err(field(&cname, "bInterfaceProtocol", comm.class.2 as u32, "0 (none) or 1 (AT commands) (CDC 1.2 Table 5)"));
+        return Err(field(
+            &cname,
+            "bInterfaceProtocol",
+            comm.class.2 as u32,
+            "0 (none) or 1 (AT commands) (CDC 1.2 Table 5)",
+        ));
     }
-    let bcd_cdc = comm.header.ok_or(DescError::Missing { what: "CDC header functional descriptor" })?;
-    let acm_capabilities = comm.acm.ok_or(DescError::Missing { what: "CDC abstract control management functional descriptor" })?;
-    let (ctrl, subs) = comm
-        .union
-        .clone()
-        .ok_or(DescError::Missing { what: "CDC union functional descriptor" })?;
+    let bcd_cdc = comm.header.ok_or(DescError::Missing {
+        what: "CDC header functional descriptor",
+    })?;
+    let acm_capabilities = comm.acm.ok_or(DescError::Missing {
+        what: "CDC abstract control management functional descriptor",
+    })?;
+    let (ctrl, subs) = comm.union.clone().ok_or(DescError::Missing {
+        what: "CDC union functional descriptor",
+    })?;
     if ctrl != comm.number {
-        return Err(field("CDC union", "bControlInterface", ctrl as u32, "the communication interface's number (CDC 1.2 Table 16)"));
+        return Err(field(
+            "CDC union",
+            "bControlInterface",
+            ctrl as u32,
+            "the communication interface's number (CDC 1.2 Table 16)",
+        ));
     }
     let data_no = subs[0];
     let data = ifaces
         .iter()
         .find(|f| f.number == data_no)
-        .ok_or(DescError::Missing { what: "data interface named by the union's bSubordinateInterface0" })?;
+        .ok_or(DescError::Missing {
+            what: "data interface named by the union's bSubordinateInterface0",
+        })?;
     let dname = format!("interface {}", data.number);
     if data.class.0 != 0x0A {
-        return Err(field(&dname, "bInterfaceClass", data.class.0 as u32, "0x0A = CDC data (CDC 1.2 Table 6), the union's subordinate"));
+        return Err(field(
+            &dname,
+            "bInterfaceClass",
+            data.class.0 as u32,
+            "0x0A = CDC data (CDC 1.2 Table 6), the union's subordinate",
+        ));
     }
     if let Some((_, di)) = comm.call_mgmt {
         if di != data_no {
-            return Err(field("CDC call management", "bDataInterface", di as u32, "the union's data interface (PSTN 1.2 Table 3)"));
+            return Err(field(
+                "CDC call management",
+                "bDataInterface",
+                di as u32,
+                "the union's data interface (PSTN 1.2 Table 3)",
+            ));
         }
     }
     let notify = *comm
         .endpoints
         .iter()
         .find(|e| e.kind == 3 && e.address & 0x80 != 0)
-        .ok_or(DescError::Missing { what: "interrupt IN notification endpoint on the communication interface" })?;
+        .ok_or(DescError::Missing {
+            what: "interrupt IN notification endpoint on the communication interface",
+        })?;
     if comm.endpoints.len() != 1 {
-        return Err(field(&cname, "bNumEndpoints", comm.endpoints.len() as u32, "1 (the notification endpoint, CDC 1.2 §3.4.1)"));
+        return Err(field(
+            &cname,
+            "bNumEndpoints",
+            comm.endpoints.len() as u32,
+            "1 (the notification endpoint, CDC 1.2 §3.4.1)",
+        ));
     }
     let bulk_in = *data
         .endpoints
         .iter()
         .find(|e| e.kind == 2 && e.address & 0x80 != 0)
-        .ok_or(DescError::Missing { what: "bulk IN endpoint on the data interface" })?;
+        .ok_or(DescError::Missing {
+            what: "bulk IN endpoint on the data interface",
+        })?;
     let bulk_out = *data
         .endpoints
         .iter()
         .find(|e| e.kind == 2 && e.address & 0x80 == 0)
-        .ok_or(DescError::Missing { what: "bulk OUT endpoint on the data interface" })?;
+        .ok_or(DescError::Missing {
+            what: "bulk OUT endpoint on the data interface",
+        })?;
     if data.endpoints.len() != 2 {
-        return Err(field(&dname, "bNumEndpoints", data.endpoints.len() as u32, "2 (bulk IN and OUT, CDC 1.2 §3.4.2)"));
+        return Err(field(
+            &dname,
+            "bNumEndpoints",
+            data.endpoints.len() as u32,
+            "2 (bulk IN and OUT, CDC 1.2 §3.4.2)",
+        ));
     }
     // The IAD (required for a class-0xEF device; IAD ECN §2): it groups the
     // two interfaces, with the communication interface's class.
     if let Some((first, count, class)) = iad {
         if first != comm.number {
-            return Err(field("interface association", "bFirstInterface", first as u32, "the communication interface's number"));
+            return Err(field(
+                "interface association",
+                "bFirstInterface",
+                first as u32,
+                "the communication interface's number",
+            ));
         }
         if count != 2 || data_no != first + 1 {
-            return Err(field("interface association", "bInterfaceCount", count as u32, "2 (communication and data interfaces, contiguous)"));
+            return Err(field(
+                "interface association",
+                "bInterfaceCount",
+                count as u32,
+                "2 (communication and data interfaces, contiguous)",
+            ));
         }
         if class.0 != 2 || class.1 != 2 {
-            return Err(field("interface association", "bFunctionClass", class.0 as u32, "2 with subclass 2 (the communication interface's class, IAD ECN)"));
+            return Err(field(
+                "interface association",
+                "bFunctionClass",
+                class.0 as u32,
+                "2 with subclass 2 (the communication interface's class, IAD ECN)",
+            ));
         }
     }
     Ok(Config {
@@ -577,13 +739,26 @@ pub fn config(b: &[u8]) -> Result<Config, DescError> {
 pub fn langids(b: &[u8]) -> Result<Vec<u16>, DescError> {
     need("string 0", b, 4)?;
     if b[1] != dtype::STRING {
-        return Err(field("string 0", "bDescriptorType", b[1] as u32, "3 = STRING"));
+        return Err(field(
+            "string 0",
+            "bDescriptorType",
+            b[1] as u32,
+            "3 = STRING",
+        ));
     }
     let len = b[0] as usize;
     if len != b.len() || len % 2 != 0 || len < 4 {
-        return Err(field("string 0", "bLength", len as u32, "an even count of at least 4, the bytes returned"));
+        return Err(field(
+            "string 0",
+            "bLength",
+            len as u32,
+            "an even count of at least 4, the bytes returned",
+        ));
     }
-    Ok(b[2..].chunks(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect())
+    Ok(b[2..]
+        .chunks(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .collect())
 }
 
 /// A string descriptor (USB 2.0 Table 9-16): UTF-16LE.
@@ -595,10 +770,19 @@ pub fn string(index: u8, b: &[u8]) -> Result<String, DescError> {
     }
     let len = b[0] as usize;
     if len != b.len() || len % 2 != 0 {
-        return Err(field(&name, "bLength", len as u32, "an even count, the bytes returned"));
+        return Err(field(
+            &name,
+            "bLength",
+            len as u32,
+            "an even count, the bytes returned",
+        ));
     }
-    let units: Vec<u16> = b[2..].chunks(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
-    String::from_utf16(&units).map_err(|_| field(&name, "bString", 0, "valid UTF-16LE (USB 2.0 §9.6.7)"))
+    let units: Vec<u16> = b[2..]
+        .chunks(2)
+        .map(|c| u16::from_le_bytes([c[0], c[1]]))
+        .collect();
+    String::from_utf16(&units)
+        .map_err(|_| field(&name, "bString", 0, "valid UTF-16LE (USB 2.0 §9.6.7)"))
 }
 
 #[cfg(test)]
@@ -666,7 +850,10 @@ mod tests {
             let e = device(&d).unwrap_err().to_string();
             assert!(e.contains(name), "byte {i} = {v}: {e}");
         }
-        assert!(matches!(device(&dev()[..12]), Err(DescError::Truncated { .. })));
+        assert!(matches!(
+            device(&dev()[..12]),
+            Err(DescError::Truncated { .. })
+        ));
     }
 
     #[test]
@@ -699,13 +886,22 @@ mod tests {
             let mut c = cfg();
             c[i] = v;
             let e = config(&c).unwrap_err().to_string();
-            assert!(e.contains(name), "byte {i} = 0x{v:02X}: expected {name}: {e}");
+            assert!(
+                e.contains(name),
+                "byte {i} = 0x{v:02X}: expected {name}: {e}"
+            );
         }
         let mut c = cfg();
         c.truncate(c.len() - 1);
         let e = config(&c).unwrap_err().to_string();
         assert!(e.contains("wTotalLength"), "{e}");
-        assert!(string(1, &[5, 3, b'h', 0, b'i']).unwrap_err().to_string().contains("bLength"));
-        assert!(langids(&[4, 2, 9, 4]).unwrap_err().to_string().contains("bDescriptorType"));
+        assert!(string(1, &[5, 3, b'h', 0, b'i'])
+            .unwrap_err()
+            .to_string()
+            .contains("bLength"));
+        assert!(langids(&[4, 2, 9, 4])
+            .unwrap_err()
+            .to_string()
+            .contains("bDescriptorType"));
     }
 }

@@ -135,10 +135,19 @@ enum Step {
 #[derive(Clone, Debug, PartialEq, Eq)]
 enum Phase {
     /// No pull-up seen, or unplugged until the time given.
-    Detached { until_ps: Option<u128>, idle_since_ps: u128 },
-    Debounce { until_ps: u128 },
-    Reset { until_ps: u128 },
-    Recovery { until_ps: u128 },
+    Detached {
+        until_ps: Option<u128>,
+        idle_since_ps: u128,
+    },
+    Debounce {
+        until_ps: u128,
+    },
+    Reset {
+        until_ps: u128,
+    },
+    Recovery {
+        until_ps: u128,
+    },
     Enumerating,
     Running,
 }
@@ -199,6 +208,21 @@ pub struct UsbHost {
     pub configured: u64,
     /// Frames (SOF) sent.
     pub frames: u64,
+    /// Fault injection (a negative control): the byte at this offset of
+    /// the descriptor received is replaced before the checks.
+    pub corrupt: Option<Corrupt>,
+}
+
+/// A descriptor byte the host replaces on receipt (`--usb-corrupt`): the
+/// checks must then fail naming the field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Corrupt {
+    /// In the device descriptor (else the whole configuration).
+    pub device: bool,
+    /// Byte offset.
+    pub offset: usize,
+    /// The value put there.
+    pub value: u8,
 }
 
 impl Default for UsbHost {
@@ -250,6 +274,7 @@ impl UsbHost {
             out_bytes: 0,
             configured: 0,
             frames: 0,
+            corrupt: None,
         }
     }
 
@@ -310,20 +335,38 @@ impl UsbHost {
         });
     }
 
-    fn get_descriptor(&mut self, what: &'static str, ty: u8, index: u8, langid: u16, len: u16, now: u128) {
+    fn get_descriptor(
+        &mut self,
+        what: &'static str,
+        ty: u8,
+        index: u8,
+        langid: u16,
+        len: u16,
+        now: u128,
+    ) {
         let s = setup_packet(0x80, 6, ((ty as u16) << 8) | index as u16, langid, len);
         self.start(what, s, Vec::new(), now);
     }
 
     fn issue(&mut self, now: u128) {
-        let comm = self.config.as_ref().map_or(0, |c| c.acm.comm_interface as u16);
+        let comm = self
+            .config
+            .as_ref()
+            .map_or(0, |c| c.acm.comm_interface as u16);
         match self.step {
-            Step::DevHead => self.get_descriptor("GET_DESCRIPTOR(DEVICE, 64) at address 0", 1, 0, 0, 64, now),
-            Step::SetAddress => {
-                self.start("SET_ADDRESS", setup_packet(0, 5, ADDRESS as u16, 0, 0), Vec::new(), now)
+            Step::DevHead => {
+                self.get_descriptor("GET_DESCRIPTOR(DEVICE, 64) at address 0", 1, 0, 0, 64, now)
             }
+            Step::SetAddress => self.start(
+                "SET_ADDRESS",
+                setup_packet(0, 5, ADDRESS as u16, 0, 0),
+                Vec::new(),
+                now,
+            ),
             Step::Device => self.get_descriptor("GET_DESCRIPTOR(DEVICE)", 1, 0, 0, 18, now),
-            Step::ConfigHead => self.get_descriptor("GET_DESCRIPTOR(CONFIGURATION, 9)", 2, 0, 0, 9, now),
+            Step::ConfigHead => {
+                self.get_descriptor("GET_DESCRIPTOR(CONFIGURATION, 9)", 2, 0, 0, 9, now)
+            }
             Step::Config => {
                 let n = self.total_len;
                 self.get_descriptor("GET_DESCRIPTOR(CONFIGURATION)", 2, 0, 0, n, now)
@@ -336,7 +379,12 @@ impl UsbHost {
             }
             Step::SetConfiguration => {
                 let v = self.config.as_ref().map_or(1, |c| c.value) as u16;
-                self.start("SET_CONFIGURATION", setup_packet(0, 9, v, 0, 0), Vec::new(), now)
+                self.start(
+                    "SET_CONFIGURATION",
+                    setup_packet(0, 9, v, 0, 0),
+                    Vec::new(),
+                    now,
+                )
             }
             Step::SetLineCoding => self.start(
                 "SET_LINE_CODING",
@@ -344,15 +392,21 @@ impl UsbHost {
                 LINE_CODING.to_vec(),
                 now,
             ),
-            Step::GetLineCoding => {
-                self.start("GET_LINE_CODING", setup_packet(0xA1, 0x21, 0, comm, 7), Vec::new(), now)
-            }
+            Step::GetLineCoding => self.start(
+                "GET_LINE_CODING",
+                setup_packet(0xA1, 0x21, 0, comm, 7),
+                Vec::new(),
+                now,
+            ),
             Step::SetControlLineState => self.set_control_line_state(now),
         }
     }
 
     fn set_control_line_state(&mut self, now: u128) {
-        let comm = self.config.as_ref().map_or(0, |c| c.acm.comm_interface as u16);
+        let comm = self
+            .config
+            .as_ref()
+            .map_or(0, |c| c.acm.comm_interface as u16);
         // wValue bit 0 DTR, bit 1 RTS (PSTN 1.2 Table 18).
         let v = if self.dtr { 3 } else { 0 };
         self.dtr_sent = Some(self.dtr);
@@ -365,8 +419,32 @@ impl UsbHost {
     }
 
     /// A control transfer ended with `data` (the data stage's bytes).
-    fn done(&mut self, what: &'static str, data: Vec<u8>, now: u128) -> Result<(), HostError> {
-        let de = |error| HostError::Descriptor { request: what, error };
+    fn done(&mut self, what: &'static str, mut data: Vec<u8>, now: u128) -> Result<(), HostError> {
+        let de = |error| HostError::Descriptor {
+            request: what,
+            error,
+        };
+        if let Some(c) = self.corrupt {
+            let hit = match self.step {
+                Step::Device => c.device,
+                Step::Config => !c.device,
+                _ => false,
+            };
+            if hit && c.offset < data.len() {
+                self.events.push(format!(
+                    "USB host: fault injected: {} byte {} 0x{:02X} -> 0x{:02X}",
+                    if c.device {
+                        "device descriptor"
+                    } else {
+                        "configuration"
+                    },
+                    c.offset,
+                    data[c.offset],
+                    c.value
+                ));
+                data[c.offset] = c.value;
+            }
+        }
         let mut next = None;
         match self.step {
             Step::DevHead => {
@@ -458,7 +536,11 @@ impl UsbHost {
                 } else {
                     self.events.push(format!(
                         "USB host: DTR {} (SET_CONTROL_LINE_STATE done), {} B received so far",
-                        if self.dtr_sent == Some(true) { "high" } else { "low" },
+                        if self.dtr_sent == Some(true) {
+                            "high"
+                        } else {
+                            "low"
+                        },
                         self.in_bytes
                     ));
                 }
@@ -501,7 +583,8 @@ impl UsbHost {
                 let plugged = until_ps.is_none_or(|u| now >= u);
                 if plugged && dev.pullup() {
                     self.unplug_until_ps = None;
-                    self.events.push("USB host: device connected (D+ pull-up), debouncing 100 ms".into());
+                    self.events
+                        .push("USB host: device connected (D+ pull-up), debouncing 100 ms".into());
                     self.phase = Phase::Debounce {
                         until_ps: now + 100 * MS,
                     };
@@ -551,7 +634,8 @@ impl UsbHost {
             Phase::Enumerating | Phase::Running => {}
         }
         if !dev.pullup() {
-            self.events.push("USB host: device disconnected (pull-up off)".into());
+            self.events
+                .push("USB host: device disconnected (pull-up off)".into());
             self.phase = Phase::Detached {
                 until_ps: None,
                 idle_since_ps: now,
@@ -658,7 +742,10 @@ impl UsbHost {
                         if !bytes.is_empty() {
                             return Err(HostError::Protocol {
                                 request: c.what,
-                                what: format!("{} B in the status stage (a zero-length packet expected)", bytes.len()),
+                                what: format!(
+                                    "{} B in the status stage (a zero-length packet expected)",
+                                    bytes.len()
+                                ),
                             });
                         }
                         let what = c.what;
@@ -684,7 +771,10 @@ impl UsbHost {
         let acm = &cfg.acm;
         let addr = self.addr;
         if self.out_packet.is_none() && !self.out_queue.is_empty() {
-            let n = self.out_queue.len().min(acm.bulk_out.max_packet_size as usize);
+            let n = self
+                .out_queue
+                .len()
+                .min(acm.bulk_out.max_packet_size as usize);
             self.out_packet = Some(self.out_queue.drain(..n).collect());
         }
         if let Some(p) = &self.out_packet {
@@ -695,11 +785,17 @@ impl UsbHost {
                     self.out_errors = 0;
                 }
                 Handshake::Nak => {}
-                Handshake::Stall => return Err(HostError::Stall { request: "bulk OUT" }),
+                Handshake::Stall => {
+                    return Err(HostError::Stall {
+                        request: "bulk OUT",
+                    })
+                }
                 Handshake::Timeout => {
                     self.out_errors += 1;
                     if self.out_errors >= 3 {
-                        return Err(HostError::NoAnswer { request: "bulk OUT" });
+                        return Err(HostError::NoAnswer {
+                            request: "bulk OUT",
+                        });
                     }
                 }
             }
@@ -710,7 +806,11 @@ impl UsbHost {
                     if b.len() > acm.bulk_in.max_packet_size as usize {
                         return Err(HostError::Protocol {
                             request: "bulk IN",
-                            what: format!("babble: {} B in a {} B endpoint", b.len(), acm.bulk_in.max_packet_size),
+                            what: format!(
+                                "babble: {} B in a {} B endpoint",
+                                b.len(),
+                                acm.bulk_in.max_packet_size
+                            ),
                         });
                     }
                     self.in_bytes += b.len() as u64;
@@ -718,23 +818,78 @@ impl UsbHost {
                 }
                 Handshake::Nak => {}
                 Handshake::Stall => return Err(HostError::Stall { request: "bulk IN" }),
-                Handshake::Timeout => {
-                    return Err(HostError::NoAnswer { request: "bulk IN" })
-                }
+                Handshake::Timeout => return Err(HostError::NoAnswer { request: "bulk IN" }),
             }
         }
         if frame_start && self.frames % acm.notify.interval.max(1) as u64 == 0 {
             match dev.in_token(addr, (acm.notify.address & 0xF) as usize) {
-                Handshake::Ack(b) => self
-                    .events
-                    .push(format!("USB host: notification {b:02X?}")),
+                Handshake::Ack(b) => self.events.push(format!("USB host: notification {b:02X?}")),
                 Handshake::Nak => {}
-                Handshake::Stall => return Err(HostError::Stall { request: "notification IN" }),
+                Handshake::Stall => {
+                    return Err(HostError::Stall {
+                        request: "notification IN",
+                    })
+                }
                 Handshake::Timeout => {
-                    return Err(HostError::NoAnswer { request: "notification IN" })
+                    return Err(HostError::NoAnswer {
+                        request: "notification IN",
+                    })
                 }
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A device whose core is connected (pull-up on) but whose firmware
+    /// never answers: the host debounces 100 ms before the reset, accepts
+    /// the SETUP (the core always does), then fails the request after the
+    /// 500 ms first-data limit of §9.2.6.4, naming it.
+    #[test]
+    fn silent_device_times_out_naming_the_request() {
+        let mut d = OtgFs::new();
+        d.write(0x00C, 1 << 30, !0).unwrap();
+        d.write(0x038, (1 << 16) | (1 << 21), !0).unwrap();
+        d.write(0x800, 3, !0).unwrap();
+        d.write(0x024, 64, !0).unwrap();
+        d.write(0x028, (16 << 16) | 64, !0).unwrap();
+        let mut h = UsbHost::new();
+        h.sync(&mut d, 99 * MS).unwrap();
+        assert_eq!(d.stats.bus_resets, 0, "reset before the 100 ms debounce");
+        h.sync(&mut d, 101 * MS).unwrap();
+        assert_eq!(d.stats.bus_resets, 1);
+        let mut t = 101 * MS;
+        let e = loop {
+            t += MS;
+            if let Err(e) = h.sync(&mut d, t) {
+                break e;
+            }
+            assert!(t < 2000 * MS, "no timeout");
+        };
+        assert_eq!(d.stats.setups, 1);
+        match &e {
+            HostError::TimedOut { request, limit_ms } => {
+                assert!(request.contains("GET_DESCRIPTOR(DEVICE"), "{e}");
+                assert_eq!(*limit_ms, 500);
+            }
+            _ => panic!("{e}"),
+        }
+        // Reset 100 ms + 10 ms recovery, then 500 ms for the first data.
+        let t_s = t as f64 / (1000 * MS) as f64;
+        assert!((0.61..0.63).contains(&t_s), "timed out at {t_s} s");
+    }
+
+    /// Bytes written while the device is not configured are lost (a
+    /// vanished /dev/ttyACM0), not delivered late.
+    #[test]
+    fn bytes_before_configuration_are_lost() {
+        let mut h = UsbHost::new();
+        h.send(b"hello");
+        assert_eq!(h.lost_bytes, 5);
+        assert_eq!(h.out_pending(), 0);
     }
 }
