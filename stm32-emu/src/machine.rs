@@ -21,6 +21,8 @@ use crate::periph::{
 use crate::robot::{BridgeInputs, Robot};
 
 mod link;
+mod probe;
+pub use probe::{CallStats, StepProbe};
 use unicorn_engine::unicorn_const::{uc_error, Arch, HookType, MemType, Mode, Prot};
 use unicorn_engine::{ArmCpuModel, RegisterARM, Unicorn};
 
@@ -251,38 +253,6 @@ pub struct Board {
     flash_stall_ps: u128,
     /// Instructions per call of the control step (`Controller::step`).
     pub step_probe: StepProbe,
-}
-
-/// Instructions per call of one function of the image (the control step,
-/// `controller_core::controller::Controller::step`, which bench-m4 also
-/// counts): from its entry to the first block at its return address with
-/// the entry's SP, interrupts taken meanwhile included (block granular).
-#[derive(Clone, Debug, Default)]
-pub struct StepProbe {
-    /// The function's entry (none: the image has no such symbol).
-    pub entry: Option<u32>,
-    /// A call in progress: (cycles at entry, SP, return address).
-    open: Option<(u64, u32, u32)>,
-    /// The calls measured.
-    pub calls: CallStats,
-}
-
-/// Instruction counts of the calls measured.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct CallStats {
-    /// Calls.
-    pub n: u64,
-    /// Sum of their instructions.
-    pub sum: u64,
-    /// The largest.
-    pub max: u64,
-}
-
-impl CallStats {
-    /// Mean instructions per call (0 before the first).
-    pub fn mean(&self) -> u64 {
-        self.sum.checked_div(self.n).unwrap_or(0)
-    }
 }
 
 /// Blocks kept in the failure trace.
@@ -1143,21 +1113,7 @@ impl<'a> Machine<'a> {
             .map_err(ue)?;
         }
         uc.add_block_hook(1, 0, |uc, addr, size| {
-            let ret = uc.get_data().step_probe.open.map(|o| o.2);
-            if ret == Some(addr as u32) {
-                let sp = rd(uc, RegisterARM::SP);
-                let d = uc.get_data_mut();
-                if let Some((c0, sp0, _)) = d.step_probe.open {
-                    if sp == sp0 {
-                        d.step_probe.open = None;
-                        let n = d.cycles - c0;
-                        let c = &mut d.step_probe.calls;
-                        c.n += 1;
-                        c.sum += n;
-                        c.max = c.max.max(n);
-                    }
-                }
-            }
+            probe::on_block(uc, addr as u32);
             let d = uc.get_data_mut();
             let n = count_insns(&d.code, addr, size);
             d.trace[d.trace_n % TRACE_BLOCKS] = addr as u32;
@@ -1183,24 +1139,7 @@ impl<'a> Machine<'a> {
                     .map_err(ue)?;
             }
         }
-        // The control step's entry (see StepProbe).
-        let step = image
-            .symbols
-            .iter()
-            .find(|s| {
-                s.0.contains("15controller_core10controller10Controller4step")
-            })
-            .map(|s| s.1 & !1);
-        if let Some(a) = step {
-            uc.get_data_mut().step_probe.entry = Some(a);
-            uc.add_code_hook(a as u64, a as u64, |uc, _, _| {
-                let sp = rd(uc, RegisterARM::SP);
-                let lr = rd(uc, RegisterARM::LR) & !1;
-                let d = uc.get_data_mut();
-                d.step_probe.open = Some((d.cycles, sp, lr));
-            })
-            .map_err(ue)?;
-        }
+        probe::install(&mut uc, &image).map_err(ue)?;
         uc.add_mem_hook(HookType::MEM_INVALID, 1, 0, |uc, t, addr, size, _v| {
             let pc = uc.reg_read(RegisterARM::PC).unwrap_or(0);
             let kind = match t {
