@@ -26,8 +26,19 @@
 #       (ENABLE, DIR, PWM) reads low within FAULT_CUT_US (20 µs of emulated
 #       time, measured at the register write that completes it), then the IWDG
 #       resets the chip (IWDGRSTF);
-#   (g) the F411CE image boots to USB enumeration: it reaches the executor
-#       and the first USB OTG_FS access, which is reported as unmodelled;
+#   (g) the F411CE image through USB (src/periph/otg_fs.rs, the host of
+#       src/usb_host written from USB 2.0 ch. 9 and CDC 1.2, the pty as
+#       /dev/ttyACM0): enumeration with every descriptor checked, then
+#       (a)-(f) and (k) as for the F446 (wmr status, the square within
+#       REL_TOL_RMS of hil-sim, link silence, the latch, the IWDG, the
+#       fault handlers, the stack), and USB's own: DTR low (nothing sent,
+#       no stale telemetry after it rises), a host that stops reading
+#       (ticks on time), a flooding host (OUT NAKs, nothing dropped),
+#       unplug/replug while the robot runs (LinkSilence, enumerated
+#       again, the link answers);
+#   (o) the `imu` images (F411, F446) boot, start the loop, wait the
+#       MPU-6050's power-up time and stop at their first I2C1 access
+#       (I2C1, DMA1 and the MPU-6050 are not modelled);
 #   (i) every bridge mode tracks the square: the F446 image built with
 #       BRIDGE_MODE=two-pwm and =pwm-in1-in2, run with the harness's bridge
 #       model of that mode (--bridge: the armature voltage from the pins,
@@ -138,11 +149,11 @@ fw_build() {
         --features "$1" --target "$TARGET" --target-dir target/ci-build)
 }
 FW_BUILT="$ROOT/firmware/target/ci-build/$TARGET/release/firmware"
-for chip in stm32f446re stm32f411ce; do
+for chip in stm32f446re stm32f411ce stm32f446re-imu stm32f411ce-imu; do
     elf="$ROOT/firmware/target/ci-$chip/$TARGET/release/firmware"
     if [ ! -f "$elf" ]; then
         command -v flip-link >/dev/null 2>&1 || cargo install flip-link --locked
-        fw_build "$chip"
+        fw_build "${chip/-imu/,imu}"
         mkdir -p "$(dirname "$elf")"
         cp "$FW_BUILT" "$elf"
     fi
@@ -215,7 +226,7 @@ drive() {
     rec="$(wmr record --seconds "$RECORD_S" --rate "$RATE_HZ" --out "$csv" --arm --quiet)" || fail "wmr record ($chip)"
     echo "$rec"
     step "link silence: the host stays quiet for $LINK_SILENCE_S s of robot time while the robot runs"
-    if [ "$chip" = stm32f446re ]; then
+    if [ "$chip" != sim ]; then
         # Emulated time (the log's once-a-second lines): the emulator may run
         # slower than the wall clock on a loaded machine.
         local e0 t_end=$((SECONDS + 60))
@@ -231,6 +242,7 @@ drive() {
     echo "$st"
 }
 
+declare -A F411_CUT
 json() { sed -n "s/.*\"$1\":\([-0-9.eE+a-z]*\).*/\1/p" <<<"${2:-$rec}"; }
 within_rel() { awk -v a="$1" -v b="$2" -v t="$3" 'BEGIN { d = a - b; if (d < 0) d = -d; exit !(d <= t * b) }'; }
 le() { awk -v a="$1" -v b="$2" 'BEGIN { exit !(a + 0 <= b + 0) }'; }
@@ -249,6 +261,7 @@ emu_rec="$rec"
 emu_st="$st"
 emu_t="$(emu_now)"
 cleanup
+cp "$LOG" "$OUT_DIR/emu_a.log"
 grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fail "a reset, fault or unmodelled access during the tracking run"
 boots="$(grep -c "\] boot " "$LOG" || true)"
 [ "$boots" -eq 1 ] || fail "the image booted $boots times"
@@ -313,6 +326,11 @@ min_rows=$((RECORD_S * RATE_HZ - 5))
 within_rel "$rms" "$ref_rms" "$REL_TOL_RMS" ||
     fail "RMS position error $rms m differs from hil-sim's $ref_rms m by more than $REL_TOL_RMS of it"
 echo "OK: RMS $rms m within $REL_TOL_RMS of hil-sim's $ref_rms m ($rows rows, $dropped missing)"
+# Instructions per call of the control step (Controller::step, the
+# harness's probe: entry to return, interrupts included), tracking run.
+step_line() { grep "alive.*control step" "$1" | tail -1 | sed -n 's/.*control step \([0-9]*\) instructions mean, \([0-9]*\) max, \([0-9]*\) calls.*/\1 \2 \3/p'; }
+read -r STEP446_MEAN STEP446_MAX STEP446_N < <(step_line "$OUT_DIR/emu_a.log")
+echo "control step (Controller::step) on the F446 image: $STEP446_MEAN instructions mean, $STEP446_MAX max over $STEP446_N calls"
 speed_pty="$(awk -v e="$emu_t" -v w="$t_drive" 'BEGIN { printf "%.2f", e / w }')"
 
 step "(d) a stalled loop latches (button arms the circle at 0.5 s; CPU held 10 ms at 2 s)"
@@ -366,12 +384,157 @@ for fault in hardfault busfault; do
     echo "OK: every motor pin low $cut us ($(json motors_cut_after_fault_insn "$s") instructions) after the $fault, then the IWDG reset"
 done
 
-step "(g) the F411CE image (USB CDC-ACM) boots to USB enumeration, USB unmodelled"
-s="$(headless f411 --elf "$ELF411" --chip f411ce --seconds 1)"
-echo "$s"
-grep -q "executor idle reached" "$OUT_DIR/f411.log" || fail "the F411 image did not reach the executor"
-grep -q "USB_OTG_FS" <<<"$s" || fail "the F411 image stopped elsewhere than at USB OTG_FS: $s"
-echo "OK: F411CE reached the executor and its first USB OTG_FS access ($(json error "$s" | head -c 0)$(sed -n 's/.*"error":"\([^"]*\)".*/\1/p' <<<"$s"))"
+step "(g) the F411CE image through USB (OTG_FS model, the spec-written host, the pty as /dev/ttyACM0): enumeration, wmr status, the square, link silence"
+# The host (src/usb_host) debounces, resets, enumerates and checks every
+# descriptor (USB 2.0 ch. 9, CDC 1.2), sets the line coding and DTR; then
+# the same drive as (a)-(c): wmr status, upload, record the square,
+# link silence.
+start_emu --elf "$ELF411" --chip f411ce
+wait_for_log "USB host: configured" 20
+grep "USB host: configured" "$LOG"
+PORT="$PTY"
+drive stm32f411ce "$OUT_DIR/emu411_square.csv"
+rec411="$rec"
+st411="$st"
+cleanup
+grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fail "F411: a reset, fault or unmodelled access during the tracking run"
+[ "$(grep -c "\] boot " "$LOG")" -eq 1 ] || fail "F411: the image booted more than once"
+rms411="$(json rms_pos_err_m "$rec411")"
+rows411="$(json rows "$rec411")"
+[ -n "$rms411" ] || fail "F411: no metrics in wmr record's summary"
+[ "$rows411" -ge "$min_rows" ] || fail "F411: $rows411 telemetry rows recorded, expected >= $min_rows"
+within_rel "$rms411" "$ref_rms" "$REL_TOL_RMS" ||
+    fail "F411: RMS position error $rms411 m differs from hil-sim's $ref_rms m by more than $REL_TOL_RMS of it"
+grep -q "last stop LinkSilence" <<<"$st411" || fail "F411: no link-loss stop after $LINK_SILENCE_S s of silence: $st411"
+grep -E "motors (off|driven)" "$LOG" | tail -1 | grep -q "motors off" || fail "F411: the motors are still driven after the link-loss stop"
+stack411="$(grep "alive (stack high-water" "$LOG" | tail -1)"
+read -r st411_run st411_boot st411_size < <(sed -n 's/.*stack high-water \([0-9]*\) B running, \([0-9]*\) B at boot, of \([0-9]*\) B.*/\1 \2 \3/p' <<<"$stack411")
+for used in "$st411_run" "$st411_boot"; do
+    awk -v u="$used" -v s="$st411_size" -v f="$STACK_MAX_FRACTION" 'BEGIN { exit !(u > 0 && u <= f * s) }' ||
+        fail "F411: stack high-water $used B: not within $STACK_MAX_FRACTION of the $st411_size B stack"
+done
+read -r STEP411_MEAN STEP411_MAX STEP411_N < <(step_line "$LOG")
+grep -q "bulk IN 0x82/OUT 0x01 64 B" "$LOG" || fail "F411: the CDC data endpoints are not 0x82/0x01 (firmware/src/link.rs DATA_IN_EP assumes IN 2)"
+echo "control step (Controller::step) on the F411 image: $STEP411_MEAN instructions mean, $STEP411_MAX max over $STEP411_N calls"
+echo "OK: F411 through USB: RMS $rms411 m (hil-sim $ref_rms m, F446 $rms m), $rows411 rows; LinkSilence, motors off; stack ${st411_run} B running, ${st411_boot} B at boot, of ${st411_size} B"
+
+# Negative controls of the host's descriptor checks on the real image: a
+# byte of what the image sends replaced on receipt (--usb-corrupt); the
+# run must fail naming the field (cargo test corrupts every field of a
+# specification-built configuration).
+for c in "device:7=65:bMaxPacketSize0" "config:4=3:bNumInterfaces" "config:67=65:wMaxPacketSize" "config:21=0:bNumEndpoints"; do
+    IFS=: read -r which spec field <<<"$c"
+    s="$(headless f411_corrupt --elf "$ELF411" --chip f411ce --seconds 0.3 --usb-corrupt "$which:$spec")"
+    [ "$(json ok "$s")" = false ] || fail "F411: the host accepted a corrupted $which descriptor ($spec)"
+    err="$(sed -n 's/.*"error":"\([^"]*\)".*/\1/p' <<<"$s")"
+    grep -q "$field" <<<"$err" || fail "F411: the corrupted $which descriptor ($spec) failed without naming $field: $err"
+    echo "OK: control: $which byte ${spec%=*} = ${spec#*=}: $err"
+done
+
+step "(g) F411: a stalled loop latches (CPU held 10 ms), the IWDG resets a 100 ms stall, the fault handlers cut the motors"
+s="$(headless f411_latch --elf "$ELF411" --chip f411ce --press 0.5 --stall 2.0:10 --seconds 2.3)"
+[ "$(json ok "$s")" = true ] || fail "F411 latch run failed: $s"
+[ "$(json boots "$s")" = 1 ] || fail "F411: the 10 ms stall reset the chip"
+awk '/stall ends/ { s = 1 } s && /motors off/ { f = 1 } END { exit !f }' "$OUT_DIR/f411_latch.log" ||
+    fail "F411: the motors were not cut after the 10 ms stall"
+echo "OK: F411 10 ms stall: $(awk '/stall ends/ { s = 1 } s && /motors off/ { print; exit }' "$OUT_DIR/f411_latch.log")"
+s="$(headless f411_iwdg --elf "$ELF411" --chip f411ce --press 0.5 --stall 2.0:100 --seconds 2.6)"
+[ "$(json ok "$s")" = true ] || fail "F411 IWDG run failed: $s"
+[ "$(json iwdg_resets "$s")" = 1 ] && [ "$(json iwdgrstf "$s")" = true ] && [ "$(json loop_started "$s")" = true ] ||
+    fail "F411: no IWDG reset, reboot with IWDGRSTF and loop after a 100 ms stall: $s"
+[ "$(json usb_configured "$s")" = 2 ] || fail "F411: the host did not enumerate the device again after the IWDG reset: $s"
+grep -E "IWDG expired|boot 2" "$OUT_DIR/f411_iwdg.log"
+echo "OK: F411 reset by the IWDG, rebooted with IWDGRSTF, loop running, USB enumerated again"
+for fault in hardfault busfault; do
+    s="$(headless "f411_$fault" --elf "$ELF411" --chip f411ce --press 0.5 --fault "$fault@2.0" --seconds 2.6)"
+    [ "$(json ok "$s")" = true ] || fail "F411 $fault run failed: $s"
+    grep -q "motors driven" "$OUT_DIR/f411_$fault.log" || fail "F411: the robot never ran before the $fault"
+    cut="$(json motors_cut_after_fault_us "$s")"
+    [ -n "$cut" ] || fail "F411: after the $fault the motor pins never all read low"
+    le "$cut" "$FAULT_CUT_US" || fail "F411: motor pins low only $cut us after the $fault (> $FAULT_CUT_US us)"
+    [ "$(json iwdgrstf "$s")" = true ] || fail "F411: no IWDG reset after the $fault"
+    F411_CUT[$fault]="$cut/$(json motors_cut_after_fault_insn "$s")"
+    echo "OK: F411 every motor pin low $cut us ($(json motors_cut_after_fault_insn "$s") instructions) after the $fault, then the IWDG reset"
+done
+
+step "(g) F411 USB: DTR low, a host that stops reading, a flooding host, unplug/replug while the robot runs"
+# One paced session (wmr in the loop), events at emulated times:
+#   DTR low USB_DTR_AT for 1 s: the firmware sends nothing while DTR is low
+#     (at most the one packet already in its TX FIFO), discards what it
+#     queued, and after DTR rises no telemetry from the low window arrives
+#     (the gap in the record's robot time covers it);
+#   the host stops reading (no bulk IN tokens) USB_STOP_AT for 1 s: the
+#     firmware's writes time out and drop, the loop keeps its ticks (no
+#     overrun), the link resumes;
+#   then, in hold, a flooding host (64 kB written at once): the OUT
+#     endpoint NAKs (counted by the model) while the receive pipe is full,
+#     nothing is dropped on the robot (port rx dropped 0);
+#   unplug for USB_UNPLUG_MS while the robot runs: it brakes on link
+#     silence (LinkSilence), the host enumerates it again, wmr status answers.
+USB_DTR_AT=3
+USB_STOP_AT=6
+start_emu --elf "$ELF411" --chip f411ce --usb-dtr-low "$USB_DTR_AT:1" --usb-stop-reading "$USB_STOP_AT:1"
+wait_for_log "USB host: configured" 20
+PORT="$PTY"
+wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "F411 USB: wmr upload"
+rec_usb="$(wmr record --seconds 8 --rate "$RATE_HZ" --out "$OUT_DIR/emu411_usb.csv" --arm --quiet 2>&1)" ||
+    fail "F411 USB: wmr record across DTR low and a host that stops reading: $rec_usb"
+st_usb="$(wmr status)" || fail "F411 USB: wmr status after DTR low and the reading stop"
+echo "$st_usb" | head -2
+grep -E "USB host: (DTR|stops|resumes)" "$LOG"
+b_low="$(grep "USB host: DTR low (SET_CONTROL_LINE_STATE done)" "$LOG" | sed -n 's/.*, \([0-9]*\) B received so far/\1/p' | head -1)"
+b_high="$(grep "USB host: DTR high (SET_CONTROL_LINE_STATE done)" "$LOG" | sed -n 's/.*, \([0-9]*\) B received so far/\1/p' | head -1)"
+[ -n "$b_low" ] && [ -n "$b_high" ] || fail "F411 USB: the DTR changes did not complete"
+dtr_bytes=$((b_high - b_low))
+[ "$dtr_bytes" -le 64 ] || fail "F411 USB: $dtr_bytes B received while DTR was low (at most the one packet already armed allowed)"
+# The record's robot-time gap around the DTR-low window: no stale rows.
+gap="$(awk -F, -v a="$USB_DTR_AT" 'NR > 1 && $1 + 0 > a - 0.5 && $1 + 0 < a + 1.5 { if (p != "" && $1 - p > g) g = $1 - p; p = $1 } END { printf "%.3f", g }' "$OUT_DIR/emu411_usb.csv")"
+le 0.9 "$gap" || fail "F411 USB: the telemetry gap across the 1 s of DTR low is only $gap s (stale frames delivered after DTR rose?)"
+grep -q "overruns: 0," <<<"$st_usb" || fail "F411 USB: loop overruns while the host stopped reading: $st_usb"
+echo "OK: DTR low: $dtr_bytes B sent while low (<= one armed packet), telemetry gap $gap s across the 1 s window; host stopped reading 1 s: overruns 0, link resumed"
+FLOOD_B=16384
+head -c "$FLOOD_B" /dev/zero >&3 || fail "F411 USB: the flood could not be written"
+wait_for_log "alive.*usb.*out NAKs [1-9]" 20
+st_flood="$(wmr status)" || fail "F411 USB: wmr status after the flood"
+echo "$st_flood" | grep -E "board:|counters"
+grep -q "port rx dropped 0," <<<"$st_flood" || fail "F411 USB: bytes dropped on the robot under a flooding host (USB should NAK): $st_flood"
+cleanup
+s_naks="$(grep "alive.*usb" "$LOG" | tail -1 | sed -n 's/.*out NAKs \([0-9]*\).*/\1/p')"
+grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fail "F411 USB: a reset, fault or unmodelled access"
+echo "OK: a $FLOOD_B B flood: the OUT endpoint NAKed $s_naks times, port rx dropped 0 on the robot"
+
+USB_UNPLUG_AT=3
+USB_UNPLUG_MS=1000
+start_emu --elf "$ELF411" --chip f411ce --usb-unplug "$USB_UNPLUG_AT:$USB_UNPLUG_MS"
+wait_for_log "USB host: configured" 20
+PORT="$PTY"
+wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "F411 unplug: wmr upload"
+out="$(wmr record --seconds 6 --rate "$RATE_HZ" --out "$OUT_DIR/emu411_unplug.csv" --arm --quiet 2>&1)" || true
+echo "wmr record across the unplug: $(tail -1 <<<"$out")"
+wait_for_log "USB host: configured.*" 20
+st_re="$(wmr status)" || fail "F411 unplug: the link did not come back after the re-plug"
+echo "$st_re" | head -1
+cleanup
+grep -E "USB host: (cable|device)|motors off" "$LOG"
+[ "$(grep -c "USB host: configured" "$LOG")" -eq 2 ] || fail "F411 unplug: the host did not enumerate the device again after the re-plug"
+grep -q "last stop LinkSilence" <<<"$st_re" || fail "F411 unplug: no LinkSilence stop while the cable was out: $st_re"
+grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fail "F411 unplug: a reset, fault or unmodelled access"
+unplug_t="$(grep "cable unplugged" "$LOG" | sed -n 's/^\[stm32-emu t= *\([0-9.]*\) s\].*/\1/p')"
+stop_t="$(sed -n 's/^\[stm32-emu t= *\([0-9.]*\) s\] motors off.*/\1/p' "$LOG" | awk -v u="$unplug_t" '$1 + 0 >= u + 0 { print; exit }')"
+echo "OK: unplugged at ${unplug_t} s: LinkSilence, motors off at ${stop_t:-?} s; re-enumerated and answering"
+USB_UNPLUG_STOP="$unplug_t/$stop_t"
+
+step "(o) the imu images boot, start the loop, wait the MPU-6050's power-up and stop at I2C1 (not modelled)"
+for chip in f446re f411ce; do
+    elf="$ROOT/firmware/target/ci-stm32$chip-imu/$TARGET/release/firmware"
+    s="$(headless "imu_$chip" --elf "$elf" --chip "$chip" --seconds 1)"
+    grep -q "IWDG started" "$OUT_DIR/imu_$chip.log" || fail "$chip imu: the loop did not start"
+    err="$(sed -n 's/.*"error":"\([^"]*\)".*/\1/p' <<<"$s")"
+    grep -q "I2C1 +0x0 CR1" <<<"$err" || fail "$chip imu: stopped elsewhere than at I2C1: $s"
+    t_i2c="$(json emulated_s "$s")"
+    le 0.1 "$t_i2c" || fail "$chip imu: the first I2C1 access at $t_i2c s, before the MPU-6050's 100 ms power-up"
+    echo "OK: $chip imu: loop running, first I2C1 access at $t_i2c s (after the 100 ms power-up): $err"
+done
 
 step "(i) every bridge mode tracks the square (the F446 image per BRIDGE_MODE, the harness's bridge model per mode)"
 declare -A MODE_RMS
@@ -594,6 +757,8 @@ done
 for r in paper tb6612-2kg bts7960-10kg; do
     echo "RESULT robot=$r bridge=${ROBOT_MODE[$r]} image=${IMAGE_MODE[$r]} emulated/hil-sim_rms_pos_err_m=${ROBOT_RMS[$r]} record_s=$ROBOT_RECORD_S"
 done
+echo "RESULT chip=f411ce link=usb rms_pos_err_m=$rms411 ref_rms_pos_err_m=$ref_rms rows=$rows411 stack_running_b=$st411_run stack_boot_b=$st411_boot step_insn_mean=$STEP411_MEAN step_insn_max=$STEP411_MAX fault_cut_us/insn=${F411_CUT[hardfault]}/${F411_CUT[busfault]} dtr_low_bytes=$dtr_bytes dtr_gap_s=$gap flood_out_naks=$s_naks unplug_at/stop_s=$USB_UNPLUG_STOP"
+echo "RESULT chip=f446re step_insn_mean=$STEP446_MEAN step_insn_max=$STEP446_MAX"
 echo "RESULT erase_stall_ms=2000 write_ms=$WRITE_MS watchdog_ms=8192 overruns=$overruns robot_clock_lost_ms=$lost_ms"
 echo "RESULT bridge=naive-two-pwm reverse_armature_peak_r/l=$peak_r/$peak_l (control)"
 echo "stm32-emu: all checks passed in $((SECONDS - T_START)) s (logs: $OUT_DIR)"

@@ -58,6 +58,54 @@ mod usb {
     /// A USB packet write that takes longer than this is dropped \[ms\].
     pub const USB_WRITE_TIMEOUT_MS: u64 = 20;
     const MAX_PACKET: u16 = 64;
+    /// The CDC data IN endpoint's number: embassy-usb allocates the
+    /// notification endpoint first (0x81), then the data OUT (0x01) and IN
+    /// (0x82) endpoints (the enumeration in stm32-emu/run.sh (g) prints and
+    /// checks the addresses).
+    const DATA_IN_EP: usize = 2;
+
+    /// Disables the data IN endpoint if a packet armed before a bus reset
+    /// (unplug/replug, host re-enumeration) still holds it enabled.
+    ///
+    /// The OTG core keeps DIEPCTLx.EPENA across a USB reset (only USBAEP
+    /// is cleared, RM0383 §22.16.4), and embassy-usb-synopsys-otg 0.3.3
+    /// neither disables IN endpoints on reset nor on re-enable, while its
+    /// `write` waits for EPENA to clear: every later packet timed out
+    /// (`USB_WRITE_TIMEOUT_MS`) and was dropped, so after a replug during
+    /// telemetry the board never sent again until a reset (found by
+    /// stm32-emu's unplug check; NuttX saw the same on F4/F7/H7 hardware,
+    /// apache/nuttx#4505). The endpoint disable sequence of RM0383
+    /// §22.17.7: SNAK and EPDIS, then EPDISD, cleared. Called only from the
+    /// send task, the endpoint's one writer, right after (re)configuration,
+    /// when none of its packets can be in flight. Returns whether it had to.
+    fn release_stale_in_endpoint() -> bool {
+        const OTG_FS: usize = 0x5000_0000;
+        const EPENA: u32 = 1 << 31;
+        const EPDIS: u32 = 1 << 30;
+        const SNAK: u32 = 1 << 27;
+        const EPDISD: u32 = 1 << 1;
+        let diepctl = (OTG_FS + 0x900 + 0x20 * DATA_IN_EP) as *mut u32;
+        let diepint = (OTG_FS + 0x908 + 0x20 * DATA_IN_EP) as *mut u32;
+        // SAFETY: OTG_FS's DIEPCTL2/DIEPINT2 (RM0383 §22.16.4), clocked
+        // while the USB device runs; the driver touches this endpoint only
+        // from `write` (this task) and from endpoint_set_enabled, which has
+        // just run.
+        unsafe {
+            let c = core::ptr::read_volatile(diepctl);
+            if c & EPENA == 0 {
+                return false;
+            }
+            core::ptr::write_volatile(diepctl, c | SNAK | EPDIS);
+            // The core answers within a few PHY clocks; bounded.
+            for _ in 0..100_000 {
+                if core::ptr::read_volatile(diepint) & EPDISD != 0 {
+                    break;
+                }
+            }
+            core::ptr::write_volatile(diepint, EPDISD);
+        }
+        true
+    }
 
     bind_interrupts!(struct Irqs {
         OTG_FS => embassy_stm32::usb::InterruptHandler<USB_OTG_FS>;
@@ -142,6 +190,9 @@ mod usb {
             let mut buf = [0u8; MAX_PACKET as usize - 1];
             loop {
                 tx.wait_connection().await;
+                if release_stale_in_endpoint() {
+                    defmt::warn!("USB: data IN endpoint still enabled after a bus reset: disabled");
+                }
                 loop {
                     let n = PIPES.port_next_tx(&mut buf).await;
                     if !control.dtr() {

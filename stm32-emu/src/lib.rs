@@ -10,3 +10,4 @@ pub mod elf;
 pub mod machine;
 pub mod periph;
 pub mod robot;
+pub mod usb_host;

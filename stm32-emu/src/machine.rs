@@ -19,6 +19,14 @@ use crate::periph::{
     systick::SysTick, usart::Usart, PS_PER_S,
 };
 use crate::robot::{BridgeInputs, Robot};
+
+mod bus;
+mod exceptions;
+mod link;
+mod probe;
+use bus::{mmio_read, mmio_write};
+use exceptions::{deliverable, enter_exception, intr_hook, rd};
+pub use probe::{CallStats, StepProbe};
 use unicorn_engine::unicorn_const::{uc_error, Arch, HookType, MemType, Mode, Prot};
 use unicorn_engine::{ArmCpuModel, RegisterARM, Unicorn};
 
@@ -32,6 +40,15 @@ pub enum ChipKind {
 }
 
 impl ChipKind {
+    /// The arm button's pin (port index, pin) and name: PC13 on the
+    /// Nucleo (B1), PA0 on the Black Pill (KEY) (firmware/src/board.rs).
+    pub fn button(self) -> (usize, u32, &'static str) {
+        match self {
+            Self::F446re => (2, 13, "PC13"),
+            Self::F411ce => (0, 0, "PA0"),
+        }
+    }
+
     /// HSE frequency \[Hz\].
     pub fn hse_hz(self) -> u64 {
         match self {
@@ -82,6 +99,8 @@ pub mod irq {
     pub const USART2: usize = 38;
     /// TIM5 (embassy's time driver).
     pub const TIM5: usize = 50;
+    /// USB OTG_FS global interrupt (RM0383 table 38).
+    pub const OTG_FS: usize = 67;
 }
 
 /// Something the harness records.
@@ -175,6 +194,10 @@ pub struct Board {
     pub iwdg: Iwdg,
     /// USART2 (host link on the F446).
     pub usart2: Usart,
+    /// USB OTG_FS (host link on the F411).
+    pub usb: crate::periph::otg_fs::OtgFs,
+    /// The USB host on the F411's cable (`None` on the F446).
+    pub usb_host: Option<crate::usb_host::UsbHost>,
     /// NVIC.
     pub nvic: Nvic,
     /// SCB.
@@ -232,6 +255,8 @@ pub struct Board {
     repaint_stack: bool,
     /// CPU stall a flash operation asked for, not yet applied \[ps\].
     flash_stall_ps: u128,
+    /// Instructions per call of the control step (`Controller::step`).
+    pub step_probe: StepProbe,
 }
 
 /// Blocks kept in the failure trace.
@@ -275,6 +300,8 @@ impl Board {
             tim5: Timer::new("TIM5", Kind::General, 16_000_000),
             iwdg: Iwdg::new(),
             usart2: Usart::new("USART2", 16_000_000),
+            usb: crate::periph::otg_fs::OtgFs::new(),
+            usb_host: (chip == ChipKind::F411ce).then(crate::usb_host::UsbHost::new),
             nvic: Nvic::new(chip.n_irq()),
             scb: Scb::default(),
             systick: SysTick::default(),
@@ -301,6 +328,7 @@ impl Board {
             exc_trace: std::collections::VecDeque::new(),
             repaint_stack: false,
             flash_stall_ps: 0,
+            step_probe: StepProbe::default(),
         }
     }
 
@@ -621,6 +649,9 @@ impl Board {
             self.nvic.set_line(n, u || c);
         }
         self.nvic.set_line(irq::USART2, self.usart2.irq());
+        if self.usb_host.is_some() {
+            self.nvic.set_line(irq::OTG_FS, self.usb.irq());
+        }
         if let Some(c) = self.systick.next_irq_cycles() {
             if self.cycles >= c {
                 let _ = self.systick.read(0x8, self.cycles);
@@ -641,309 +672,9 @@ impl Board {
             add(tm.next_irq_ps());
         }
         add(self.usart2.next_event_ps());
+        add(self.usb_host.as_ref().map(|h| h.next_event_ps()));
         add(self.iwdg.expiry_ps());
         t
-    }
-
-    /// Name of the peripheral at `addr`, for unmodelled accesses.
-    fn periph_name(addr: u32) -> &'static str {
-        const MAP: &[(u32, u32, &str)] = &[
-            (0x4000_0000, 0x400, "TIM2"),
-            (0x4000_1000, 0x400, "TIM6"),
-            (0x4000_1400, 0x400, "TIM7"),
-            (0x4000_2800, 0x400, "RTC"),
-            (0x4000_2C00, 0x400, "WWDG"),
-            (0x4000_3800, 0x400, "SPI2"),
-            (0x4000_3C00, 0x400, "SPI3"),
-            (0x4000_4800, 0x400, "USART3"),
-            (0x4000_4C00, 0x400, "UART4"),
-            (0x4000_5400, 0x400, "I2C1"),
-            (0x4000_5800, 0x400, "I2C2"),
-            (0x4001_1000, 0x400, "USART1"),
-            (0x4001_1400, 0x400, "USART6"),
-            (0x4001_2000, 0x400, "ADC1"),
-            (0x4001_3000, 0x400, "SPI1"),
-            (0x4001_3800, 0x400, "SYSCFG"),
-            (0x4001_3C00, 0x400, "EXTI"),
-            (0x4002_3000, 0x400, "CRC"),
-            (0x4002_6000, 0x400, "DMA1"),
-            (0x4002_6400, 0x400, "DMA2"),
-            (0x5000_0000, 0x4_0000, "USB_OTG_FS"),
-            (0xE000_0000, 0x1000, "ITM"),
-            (0xE000_2000, 0x1000, "FPB"),
-            (0xE004_0000, 0x1000, "TPIU"),
-        ];
-        MAP.iter()
-            .find(|m| addr >= m.0 && addr < m.0 + m.1)
-            .map_or("unknown peripheral", |m| m.2)
-    }
-
-    /// A clock-enable check: an access to a peripheral whose RCC clock is
-    /// off reads 0 and ignores writes on the chip: a firmware bug.
-    fn clock_on(&self, name: &str, enr: u32, bit: u32) -> Result<(), String> {
-        if self.rcc.enabled(enr, bit) {
-            Ok(())
-        } else {
-            Err(format!(
-                "{name} accessed with its clock off (RCC+0x{enr:02X} bit {bit})"
-            ))
-        }
-    }
-
-    /// A word read; `Err` names the register.
-    fn read_word(&mut self, addr: u32) -> Result<u32, String> {
-        let now = self.now_ps();
-        let off = addr & 0x3FF;
-        match addr & !0x3FF {
-            0x4002_3800 => self.rcc.read(off),
-            0x4002_3C00 => self.flash.read(off, now),
-            STORE_BASE..=0x0807_FC00 => self.flash.read_array(addr),
-            0x4000_7000 => {
-                self.clock_on("PWR", 0x40, 28)?;
-                self.pwr.read(off)
-            }
-            0x4002_0000..=0x4002_1C00 => {
-                let i = ((addr - 0x4002_0000) / 0x400) as usize;
-                self.clock_on("GPIO", 0x30, i as u32)?;
-                self.gpio[i].read(off)
-            }
-            0x4001_0000 => {
-                self.clock_on("TIM1", 0x44, 0)?;
-                self.tim1.read(off, now, 0)
-            }
-            0x4000_0400 | 0x4000_0800 => {
-                let right = addr & !0x3FF == 0x4000_0400;
-                self.clock_on(
-                    if right { "TIM3" } else { "TIM4" },
-                    0x40,
-                    if right { 1 } else { 2 },
-                )?;
-                let pos = self.encoder_pos()?;
-                if right && off == 0x24 && self.fault_on_encoder_read {
-                    self.fault_on_encoder_read = false;
-                    self.scb.cfsr |= 1 << 10; // IMPRECISERR
-                    if self.scb.shcsr & (1 << 17) != 0 {
-                        self.nvic.set_pending(exc::BUS_FAULT);
-                    } else {
-                        self.scb.hfsr |= 1 << 30; // FORCED
-                        self.nvic.set_pending(exc::HARD_FAULT);
-                    }
-                    self.fault_at = Some((now, self.cycles));
-                    self.event(
-                        "fault injected: bus error on TIM3.CNT read (imprecise BusFault)".into(),
-                    );
-                    self.stop_req = true;
-                }
-                if right {
-                    self.tim3.read(off, now, pos[0])
-                } else {
-                    self.tim4.read(off, now, pos[1])
-                }
-            }
-            0x4000_0C00 => {
-                self.clock_on("TIM5", 0x40, 3)?;
-                self.tim5.read(off, now, 0)
-            }
-            0x4000_3000 => self.iwdg.read(off),
-            0x4000_4400 => {
-                self.clock_on("USART2", 0x40, 17)?;
-                self.usart2.read(off, now)
-            }
-            _ => self.read_ppb(addr),
-        }
-    }
-
-    fn read_ppb(&mut self, addr: u32) -> Result<u32, String> {
-        match addr {
-            0xE000_1000..=0xE000_1FFF => {
-                let tr = self.scb.demcr & (1 << 24) != 0;
-                self.dwt.read(addr - 0xE000_1000, self.cycles, tr)
-            }
-            0xE000_E010..=0xE000_E01F => self.systick.read(addr - 0xE000_E010, self.cycles),
-            0xE000_E100..=0xE000_E4EF => self.nvic.read(addr - 0xE000_E000),
-            0xE000_E000..=0xE000_EFFF => {
-                let va = self.vectactive();
-                self.scb.read(addr - 0xE000_E000, &self.nvic, va)
-            }
-            0xE004_2000..=0xE004_2FFF => self.dbgmcu.read(addr - 0xE004_2000),
-            _ => Err(Self::unknown(addr)),
-        }
-    }
-
-    /// The name of an address no model covers.
-    fn unknown(addr: u32) -> String {
-        let p = Self::periph_name(addr);
-        let reg = match (p, addr & 0xFFF) {
-            ("USB_OTG_FS", 0x000) => " GOTGCTL",
-            ("USB_OTG_FS", 0x008) => " GAHBCFG",
-            ("USB_OTG_FS", 0x00C) => " GUSBCFG",
-            ("USB_OTG_FS", 0x010) => " GRSTCTL",
-            ("USB_OTG_FS", 0x014) => " GINTSTS",
-            ("USB_OTG_FS", 0x018) => " GINTMSK",
-            ("USB_OTG_FS", 0x038) => " GCCFG",
-            ("USB_OTG_FS", 0x03C) => " CID",
-            _ => "",
-        };
-        format!("{p} +0x{:X}{reg}", addr & 0xFFF)
-    }
-
-    fn vectactive(&self) -> u32 {
-        (1..16 + self.nvic.n_irq)
-            .filter(|&e| self.nvic.is_active(e))
-            .last()
-            .unwrap_or(0) as u32
-    }
-
-    /// A word write under the byte-lane `mask`.
-    fn write_word(&mut self, addr: u32, value: u32, mask: u32) -> Result<(), String> {
-        let now = self.now_ps();
-        let off = addr & 0x3FF;
-        match addr & !0x3FF {
-            0x4002_3800 => {
-                // Peripheral resets through the RSTR registers.
-                if matches!(off, 0x10 | 0x20 | 0x24) {
-                    self.peripheral_resets(off, value & mask);
-                }
-                if self.rcc.write(off, value, mask)? {
-                    self.clocks_changed()?;
-                }
-                Ok(())
-            }
-            0x4002_3C00 => {
-                self.flash.write(off, value, mask, now)?;
-                self.flash_stall();
-                Ok(())
-            }
-            STORE_BASE..=0x0807_FC00 => {
-                self.flash.write_array(addr, value, mask, now)?;
-                self.flash_stall();
-                Ok(())
-            }
-            0x4000_7000 => {
-                self.clock_on("PWR", 0x40, 28)?;
-                self.pwr.write(off, value, mask)
-            }
-            0x4002_0000..=0x4002_1C00 => {
-                let i = ((addr - 0x4002_0000) / 0x400) as usize;
-                self.clock_on("GPIO", 0x30, i as u32)?;
-                self.sync_robot()?;
-                self.gpio[i].write(off, value, mask)?;
-                self.sync_robot()
-            }
-            0x4001_0000 => {
-                self.clock_on("TIM1", 0x44, 0)?;
-                self.sync_robot()?;
-                self.tim1.write(off, value, mask, now, 0)?;
-                self.sync_robot()
-            }
-            0x4000_0400 | 0x4000_0800 => {
-                let right = addr & !0x3FF == 0x4000_0400;
-                self.clock_on(
-                    if right { "TIM3" } else { "TIM4" },
-                    0x40,
-                    if right { 1 } else { 2 },
-                )?;
-                let pos = self.encoder_pos()?;
-                if right {
-                    self.tim3.write(off, value, mask, now, pos[0])
-                } else {
-                    self.tim4.write(off, value, mask, now, pos[1])
-                }
-            }
-            0x4000_0C00 => {
-                self.clock_on("TIM5", 0x40, 3)?;
-                self.tim5.write(off, value, mask, now, 0)
-            }
-            0x4000_3000 => {
-                let was = self.iwdg.running;
-                let feeds = self.iwdg.feeds;
-                let timeout = self.iwdg.timeout_ps();
-                self.iwdg.write(off, value & mask, now)?;
-                if was && self.iwdg.timeout_ps() != timeout {
-                    let t = self.iwdg.timeout_ps() as f64 * 1e-9;
-                    self.event(format!("IWDG timeout after a feed now {t:.1} ms"));
-                }
-                if self.iwdg.feeds != feeds {
-                    self.stats.feeds += 1;
-                }
-                if !was && self.iwdg.running {
-                    self.wiring_check()?;
-                    self.loop_started = true;
-                    self.repaint_stack = true;
-                    self.stop_req = true;
-                    let t = self.iwdg.timeout_ps() as f64 * 1e-9;
-                    self.event(format!("IWDG started (timeout after a feed {t:.1} ms)"));
-                }
-                Ok(())
-            }
-            0x4000_4400 => {
-                self.clock_on("USART2", 0x40, 17)?;
-                self.usart2.write(off, value, mask, now)
-            }
-            _ => self.write_ppb(addr, value, mask),
-        }
-    }
-
-    fn write_ppb(&mut self, addr: u32, value: u32, mask: u32) -> Result<(), String> {
-        match addr {
-            0xE000_1000..=0xE000_1FFF => {
-                self.dwt.write(addr - 0xE000_1000, value, mask, self.cycles)
-            }
-            0xE000_E010..=0xE000_E01F => {
-                self.systick
-                    .write(addr - 0xE000_E010, value, mask, self.cycles)
-            }
-            0xE000_E100..=0xE000_E4EF | 0xE000_EF00 => {
-                self.nvic.write(addr - 0xE000_E000, value, mask)
-            }
-            0xE000_E000..=0xE000_EFFF => {
-                self.scb
-                    .write(addr - 0xE000_E000, value, mask, &mut self.nvic)
-            }
-            0xE004_2000..=0xE004_2FFF => self.dbgmcu.write(addr - 0xE004_2000, value, mask),
-            _ => Err(Self::unknown(addr)),
-        }
-    }
-
-    /// RCC AHB1RSTR / APB1RSTR / APB2RSTR bits: the models go back to
-    /// their reset state.
-    fn peripheral_resets(&mut self, off: u32, bits: u32) {
-        let now = self.now_ps();
-        let c = self.rcc.clocks().ok();
-        let (apb1t, apb2t, p1) = c.map_or((16_000_000, 16_000_000, 16_000_000), |c| {
-            (c.timclk_apb1_hz, c.timclk_apb2_hz, c.pclk1_hz)
-        });
-        let _ = now;
-        match off {
-            0x10 => {
-                for i in 0..8 {
-                    if bits & (1 << i) != 0 {
-                        self.gpio[i] = Port::new("ABCDEFGH".as_bytes()[i] as char);
-                    }
-                }
-            }
-            0x20 => {
-                if bits & (1 << 1) != 0 {
-                    self.tim3 = Timer::new("TIM3", Kind::General, apb1t);
-                }
-                if bits & (1 << 2) != 0 {
-                    self.tim4 = Timer::new("TIM4", Kind::General, apb1t);
-                }
-                if bits & (1 << 3) != 0 {
-                    self.tim5 = Timer::new("TIM5", Kind::General, apb1t);
-                }
-                if bits & (1 << 17) != 0 {
-                    let q = std::mem::take(&mut self.usart2.rx_queue);
-                    self.usart2 = Usart::new("USART2", p1);
-                    self.usart2.rx_queue = q;
-                }
-                if bits & (1 << 28) != 0 {
-                    self.pwr = Pwr::default();
-                }
-            }
-            0x24 if bits & 1 != 0 => self.tim1 = Timer::new("TIM1", Kind::Advanced, apb2t),
-            _ => {}
-        }
     }
 }
 
@@ -1067,6 +798,7 @@ impl<'a> Machine<'a> {
             .map_err(ue)?;
         }
         uc.add_block_hook(1, 0, |uc, addr, size| {
+            probe::on_block(uc, addr as u32);
             let d = uc.get_data_mut();
             let n = count_insns(&d.code, addr, size);
             d.trace[d.trace_n % TRACE_BLOCKS] = addr as u32;
@@ -1092,6 +824,7 @@ impl<'a> Machine<'a> {
                     .map_err(ue)?;
             }
         }
+        probe::install(&mut uc, &image).map_err(ue)?;
         uc.add_mem_hook(HookType::MEM_INVALID, 1, 0, |uc, t, addr, size, _v| {
             let pc = uc.reg_read(RegisterARM::PC).unwrap_or(0);
             let kind = match t {
@@ -1223,6 +956,7 @@ impl<'a> Machine<'a> {
             let q = std::mem::take(&mut d.usart2.rx_queue);
             d.usart2 = Usart::new("USART2", 16_000_000);
             d.usart2.rx_queue = q;
+            d.usb = crate::periph::otg_fs::OtgFs::new();
             d.nvic = Nvic::new(chip.n_irq());
             d.scb = Scb::default();
             d.systick = SysTick::default();
@@ -1344,6 +1078,7 @@ impl<'a> Machine<'a> {
             {
                 let d = self.uc.get_data_mut();
                 d.sync_robot()?;
+                d.sync_usb()?;
                 d.update_lines();
                 if d.iwdg.expiry_ps().is_some_and(|t| t <= now) {
                     d.event("IWDG expired".into());
@@ -1481,278 +1216,6 @@ impl<'a> Machine<'a> {
     }
 }
 
-/// The exception to take now, if any (reads PRIMASK/BASEPRI/FAULTMASK).
-fn deliverable(uc: &mut Unicorn<Board>) -> Option<usize> {
-    let primask = uc.reg_read(RegisterARM::PRIMASK).unwrap_or(0) & 1 != 0;
-    let basepri = uc.reg_read(RegisterARM::BASEPRI).unwrap_or(0) as u8;
-    let faultmask = uc.reg_read(RegisterARM::FAULTMASK).unwrap_or(0) & 1 != 0;
-    uc.get_data().nvic.to_take(primask, basepri, faultmask)
-}
-
-fn rd(uc: &Unicorn<Board>, r: RegisterARM) -> u32 {
-    uc.reg_read(r).unwrap_or(0) as u32
-}
-
-const FP_REGS: [RegisterARM; 16] = [
-    RegisterARM::S0,
-    RegisterARM::S1,
-    RegisterARM::S2,
-    RegisterARM::S3,
-    RegisterARM::S4,
-    RegisterARM::S5,
-    RegisterARM::S6,
-    RegisterARM::S7,
-    RegisterARM::S8,
-    RegisterARM::S9,
-    RegisterARM::S10,
-    RegisterARM::S11,
-    RegisterARM::S12,
-    RegisterARM::S13,
-    RegisterARM::S14,
-    RegisterARM::S15,
-];
-
-/// Exception entry (ARMv7-M B1.5.6): the 8-word basic frame on MSP (8-byte
-/// aligned, xPSR bit 9 marking the padding), EXC_RETURN in LR, IPSR, PC
-/// from the vector table. The FP caller-saved registers are saved by the
-/// harness (no lazy stacking: the guest sees a basic frame).
-fn enter_exception(uc: &mut Unicorn<Board>, e: usize) -> Result<(), String> {
-    let ue = |x: uc_error| format!("exception entry: {x:?}");
-    let control = rd(uc, RegisterARM::CONTROL);
-    if control & 2 != 0 {
-        return Err("exception entry from PSP (CONTROL.SPSEL = 1): not modelled".into());
-    }
-    let sp = rd(uc, RegisterARM::SP);
-    let ipsr = rd(uc, RegisterARM::IPSR) & 0x1FF;
-    let xpsr = rd(uc, RegisterARM::XPSR);
-    let pc = rd(uc, RegisterARM::PC);
-    let frame_sp = (sp - 32) & !7;
-    let pad = frame_sp != sp - 32;
-    let stacked_xpsr = (xpsr & !(1 << 9)) | (1 << 24) | ((pad as u32) << 9) | ipsr;
-    let words = [
-        rd(uc, RegisterARM::R0),
-        rd(uc, RegisterARM::R1),
-        rd(uc, RegisterARM::R2),
-        rd(uc, RegisterARM::R3),
-        rd(uc, RegisterARM::R12),
-        rd(uc, RegisterARM::LR),
-        pc & !1,
-        stacked_xpsr,
-    ];
-    let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-    let ram = RAM_BASE..RAM_BASE + uc.get_data().chip.ram_size();
-    if !ram.contains(&frame_sp) {
-        return Err(format!(
-            "exception {e} entry: stack 0x{frame_sp:08X} outside SRAM (stack overflow)"
-        ));
-    }
-    uc.mem_write(frame_sp as u64, &bytes).map_err(ue)?;
-    let mut fp = [0u64; 17];
-    for (i, r) in FP_REGS.iter().enumerate() {
-        fp[i] = uc.reg_read(*r).unwrap_or(0);
-    }
-    fp[16] = uc.reg_read(RegisterARM::FPSCR).unwrap_or(0);
-    let vtor = {
-        let d = uc.get_data_mut();
-        if xpsr & 0x0600_FC00 != 0 {
-            d.stats.taken_in_it_block += 1;
-        }
-        if d.stats.min_sp == 0 || frame_sp < d.stats.min_sp {
-            d.stats.min_sp = frame_sp;
-        }
-        d.exc_log(format!(
-            "enter {e} from IPSR {ipsr}: SP 0x{sp:08X} -> frame 0x{frame_sp:08X}, return PC 0x{pc:08X}, LR 0x{:08X}, xPSR 0x{xpsr:08X}",
-            words[5]
-        ));
-        d.fp_stack.push(fp);
-        d.nvic.activate(e);
-        d.event_reg = true;
-        *d.stats.taken.entry(e).or_default() += 1;
-        if d.scb.vtor == 0 {
-            FLASH_BASE // boot alias: address 0 is flash
-        } else {
-            d.scb.vtor
-        }
-    };
-    let mut v = [0u8; 4];
-    uc.mem_read((vtor + 4 * e as u32) as u64, &mut v)
-        .map_err(ue)?;
-    let handler = u32::from_le_bytes(v);
-    uc.reg_write(RegisterARM::SP, frame_sp as u64).map_err(ue)?;
-    // ExceptionTaken (B1.5.6) clears EPSR.IT: the interrupted code may be
-    // inside an IT block (Unicorn stops at any translation block's start,
-    // and an IT block split over a 1 KiB page is two blocks); its IT state
-    // is in the stacked xPSR and comes back on the return. Left set, the
-    // handler's first instructions would run as the block's remaining
-    // conditional slots (D104).
-    uc.reg_write(RegisterARM::EPSR, 1 << 24).map_err(ue)?;
-    uc.reg_write(
-        RegisterARM::LR,
-        if ipsr == 0 { 0xFFFF_FFF9 } else { 0xFFFF_FFF1 },
-    )
-    .map_err(ue)?;
-    uc.reg_write(RegisterARM::IPSR, e as u64).map_err(ue)?;
-    rebuild_hflags(uc).map_err(ue)?;
-    uc.reg_write(RegisterARM::PC, (handler | 1) as u64)
-        .map_err(ue)?;
-    if matches!(
-        e,
-        exc::HARD_FAULT | exc::BUS_FAULT | exc::USAGE_FAULT | exc::MEM_MANAGE | exc::NMI
-    ) {
-        let d = uc.get_data_mut();
-        d.event(format!(
-            "exception {e} entered (handler 0x{handler:08X}, return 0x{pc:08X})"
-        ));
-    }
-    Ok(())
-}
-
-/// QEMU caches the mode-dependent translation flags (`hflags`: Handler
-/// mode among them, which decides whether a branch to EXC_RETURN is an
-/// exception return) and rebuilds them only where its own code changes
-/// the mode; an IPSR write through Unicorn does not. Writing APSR.NZCV
-/// (its own value: nothing changes) makes Unicorn rebuild them, so the
-/// blocks translated next see the mode the harness just set.
-fn rebuild_hflags(uc: &mut Unicorn<Board>) -> Result<(), uc_error> {
-    let nzcv = uc.reg_read(RegisterARM::XPSR)? & 0xF000_0000;
-    uc.reg_write(RegisterARM::APSR_NZCV, nzcv)
-}
-
-/// EXC_RETURN arrives as QEMU's EXCP_EXCEPTION_EXIT (8); UDF as EXCP_UDEF (1).
-fn intr_hook(uc: &mut Unicorn<Board>, intno: u32) {
-    match intno {
-        8 => {
-            if let Err(e) = exception_return(uc) {
-                bad(uc, e);
-            }
-        }
-        _ => {
-            let pc = rd(uc, RegisterARM::PC);
-            bad(
-                uc,
-                format!("CPU exception {intno} at PC 0x{pc:08X}: not modelled"),
-            );
-        }
-    }
-}
-
-fn exception_return(uc: &mut Unicorn<Board>) -> Result<(), String> {
-    let ue = |x: uc_error| format!("exception return: {x:?}");
-    let exc_return = rd(uc, RegisterARM::PC) | 1;
-    if exc_return & 0xF != 0x9 && exc_return & 0xF != 0x1 {
-        return Err(format!(
-            "EXC_RETURN 0x{exc_return:08X}: only MSP returns are modelled"
-        ));
-    }
-    let cur = (rd(uc, RegisterARM::IPSR) & 0x1FF) as usize;
-    uc.get_data_mut().nvic.deactivate(cur)?;
-    let sp = rd(uc, RegisterARM::SP);
-    let mut b = [0u8; 32];
-    uc.mem_read(sp as u64, &mut b).map_err(ue)?;
-    let w: Vec<u32> = b
-        .chunks_exact(4)
-        .map(|c| u32::from_le_bytes(c.try_into().unwrap_or_default()))
-        .collect();
-    let xpsr = w[7];
-    let new_sp = sp + 32 + if xpsr & (1 << 9) != 0 { 4 } else { 0 };
-    let ipsr = xpsr & 0x1FF;
-    uc.get_data_mut().exc_log(format!(
-        "return from {cur} (0x{exc_return:08X}): frame 0x{sp:08X} -> SP 0x{new_sp:08X}, PC 0x{:08X}, LR 0x{:08X}, xPSR 0x{xpsr:08X}",
-        w[6], w[5]
-    ));
-    if (exc_return & 0xF == 0x9) != (ipsr == 0) {
-        return Err(format!(
-            "EXC_RETURN 0x{exc_return:08X} with stacked IPSR {ipsr}: inconsistent frame"
-        ));
-    }
-    for (r, v) in [
-        (RegisterARM::R0, w[0]),
-        (RegisterARM::R1, w[1]),
-        (RegisterARM::R2, w[2]),
-        (RegisterARM::R3, w[3]),
-        (RegisterARM::R12, w[4]),
-        (RegisterARM::LR, w[5]),
-        (RegisterARM::SP, new_sp),
-    ] {
-        uc.reg_write(r, v as u64).map_err(ue)?;
-    }
-    // NZCVQ, GE (XPSR alone leaves GE out), IT and T from the frame.
-    uc.reg_write(RegisterARM::XPSR_NZCVQG, (xpsr & !(1 << 9)) as u64)
-        .map_err(ue)?;
-    uc.reg_write(RegisterARM::IPSR, ipsr as u64).map_err(ue)?;
-    rebuild_hflags(uc).map_err(ue)?;
-    let fp = uc.get_data_mut().fp_stack.pop();
-    if let Some(fp) = fp {
-        for (i, r) in FP_REGS.iter().enumerate() {
-            uc.reg_write(*r, fp[i]).map_err(ue)?;
-        }
-        uc.reg_write(RegisterARM::FPSCR, fp[16]).map_err(ue)?;
-    }
-    uc.reg_write(RegisterARM::PC, (w[6] | 1) as u64)
-        .map_err(ue)?;
-    {
-        let d = uc.get_data_mut();
-        d.event_reg = true;
-        d.update_lines();
-    }
-    // Tail-chain (or preempt the returned-to context at once).
-    if let Some(e) = deliverable(uc) {
-        enter_exception(uc, e)?;
-    }
-    Ok(())
-}
-
-fn lane(addr: u32, size: usize) -> (u32, u32, u32) {
-    let shift = 8 * (addr & 3);
-    let mask = match size {
-        1 => 0xFF,
-        2 => 0xFFFF,
-        _ => 0xFFFF_FFFF,
-    } << shift;
-    (addr & !3, shift, mask)
-}
-
-fn mmio_read(uc: &mut Unicorn<Board>, addr: u32, size: usize) -> u64 {
-    let (word, shift, mask) = lane(addr, size);
-    let r = uc.get_data_mut().read_word(word);
-    match r {
-        Ok(v) => ((v & mask) >> shift) as u64,
-        Err(what) => {
-            let pc = rd(uc, RegisterARM::PC);
-            uc.get_data_mut().unmodelled_addr = Some(addr);
-            bad(
-                uc,
-                format!("unmodelled read of {size} B at 0x{addr:08X}: {what} (PC 0x{pc:08X})"),
-            );
-            0
-        }
-    }
-}
-
-fn mmio_write(uc: &mut Unicorn<Board>, addr: u32, size: usize, value: u32) {
-    let (word, shift, mask) = lane(addr, size);
-    let r = uc.get_data_mut().write_word(word, value << shift, mask);
-    match r {
-        Ok(()) => {
-            let d = uc.get_data_mut();
-            d.update_lines();
-            if d.nvic.highest_pending().is_some() {
-                d.stop_req = true;
-            }
-        }
-        Err(what) => {
-            let pc = rd(uc, RegisterARM::PC);
-            uc.get_data_mut().unmodelled_addr = Some(addr);
-            bad(
-                uc,
-                format!(
-                    "unmodelled write of 0x{value:X} ({size} B) at 0x{addr:08X}: {what} (PC 0x{pc:08X})"
-                ),
-            );
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1764,7 +1227,7 @@ mod tests {
         let mut b = Board::new(ChipKind::F446re, vec![0xFF; 1024]);
         let e = b.read_word(0x4000_0024).unwrap_err();
         assert!(e.contains("TIM2"), "{e}");
-        let e = b.write_word(0x5000_0010, 1, !0).unwrap_err();
+        let e = b.write_word(0x5000_0010, 1, !0).unwrap_err(); // F446: OTG_FS not modelled
         assert!(e.contains("USB_OTG_FS") && e.contains("GRSTCTL"), "{e}");
         let e = b.read_word(0x4000_0C24).unwrap_err();
         assert!(e.contains("TIM5") && e.contains("clock off"), "{e}");

@@ -55,6 +55,26 @@ struct Args {
     flash_aged: bool,
     flash_robot: Option<(String, robot_file::Robot)>,
     flash_pwm_hz: Option<u32>,
+    /// USB (F411): DTR low from AT for S seconds.
+    usb_dtr_low: Option<(f64, f64)>,
+    /// USB (F411): the host stops reading (no bulk IN tokens) from AT for S.
+    usb_stop_reading: Option<(f64, f64)>,
+    /// USB (F411): the cable out at AT for MS, then re-plugged.
+    usb_unplug: Option<(f64, f64)>,
+    /// USB (F411): a descriptor byte replaced on receipt by the host.
+    usb_corrupt: Option<stm32_emu::usb_host::Corrupt>,
+}
+
+/// `AT:DURATION` (two numbers).
+fn pair(v: &str, what: &str) -> Result<(f64, f64), String> {
+    let (a, b) = v
+        .split_once(':')
+        .ok_or_else(|| format!("{what} {v}: expected AT_S:DURATION"))?;
+    let (a, b) = (num(a, what)?, num(b, what)?);
+    if !(a >= 0.0 && b > 0.0) {
+        return Err(format!("{what} {v}: expected AT_S >= 0 and DURATION > 0"));
+    }
+    Ok((a, b))
 }
 
 fn usage() -> String {
@@ -62,6 +82,8 @@ fn usage() -> String {
      [--press AT_S] [--stall AT_S:MS] [--fault hardfault@AT_S|busfault@AT_S] \
      [--bridge pwm-dir|two-pwm|pwm-in1-in2] [--peak-from S] [--robot FILE] \
      [--flash-timing typ|max] [--flash-aged | --flash-robot FILE [--flash-pwm-hz N]] \
+     [--usb-dtr-low AT_S:S] [--usb-stop-reading AT_S:S] [--usb-unplug AT_S:MS] \
+     [--usb-corrupt device|config:OFFSET=VALUE] \
      [--summary FILE] [--quiet]"
         .into()
 }
@@ -95,6 +117,10 @@ fn parse_args() -> Result<Args, String> {
         flash_aged: false,
         flash_robot: None,
         flash_pwm_hz: None,
+        usb_dtr_low: None,
+        usb_stop_reading: None,
+        usb_unplug: None,
+        usb_corrupt: None,
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
@@ -182,6 +208,28 @@ fn parse_args() -> Result<Args, String> {
                 })
             }
             "--peak-from" => a.peak_from = num(&val()?, "--peak-from")?,
+            "--usb-dtr-low" => a.usb_dtr_low = Some(pair(&val()?, "--usb-dtr-low")?),
+            "--usb-stop-reading" => a.usb_stop_reading = Some(pair(&val()?, "--usb-stop-reading")?),
+            "--usb-unplug" => a.usb_unplug = Some(pair(&val()?, "--usb-unplug")?),
+            "--usb-corrupt" => {
+                let v = val()?;
+                let bad =
+                    || format!("--usb-corrupt {v}: expected device|config:OFFSET=VALUE (bytes)");
+                let (which, rest) = v.split_once(':').ok_or_else(bad)?;
+                let (o, x) = rest.split_once('=').ok_or_else(bad)?;
+                let device = match which {
+                    "device" => true,
+                    "config" => false,
+                    _ => return Err(bad()),
+                };
+                let offset: usize = o.parse().map_err(|_| bad())?;
+                let value: u8 = x.parse().map_err(|_| bad())?;
+                a.usb_corrupt = Some(stm32_emu::usb_host::Corrupt {
+                    device,
+                    offset,
+                    value,
+                });
+            }
             "-h" | "--help" => return Err(usage()),
             _ => return Err(format!("unknown argument {k}\n{}", usage())),
         }
@@ -191,6 +239,14 @@ fn parse_args() -> Result<Args, String> {
     }
     if a.flash_pwm_hz.is_some() && a.flash_robot.is_none() {
         return Err("--flash-pwm-hz changes the --flash-robot record: give --flash-robot".into());
+    }
+    if (a.usb_dtr_low.is_some()
+        || a.usb_stop_reading.is_some()
+        || a.usb_unplug.is_some()
+        || a.usb_corrupt.is_some())
+        && a.chip != ChipKind::F411ce
+    {
+        return Err("--usb-* need --chip f411ce (the F446 image's link is USART2)".into());
     }
     if a.elf.is_empty() {
         return Err(format!("--elf is required\n{}", usage()));
@@ -230,6 +286,9 @@ fn run() -> Result<i32, String> {
     }
     m.board().flash().timing = a.flash_timing;
     m.board().peak_from_s = a.peak_from;
+    if let Some(h) = m.board().usb_host.as_mut() {
+        h.corrupt = a.usb_corrupt;
+    }
     if !a.quiet {
         for e in &m.board().events {
             eprintln!("[stm32-emu t={:10.6} s] {}", e.t_s, e.what);
@@ -299,6 +358,7 @@ fn run() -> Result<i32, String> {
     let mut released = false;
     let mut stalled = false;
     let mut faulted: Option<u128> = None;
+    let mut usb_unplugged = false;
     let mut cut_after_fault: Option<f64> = None;
     let mut tx_pending: Vec<u8> = Vec::new();
     let mut buf = [0u8; 512];
@@ -310,6 +370,9 @@ fn run() -> Result<i32, String> {
         // Host link.
         if let Some((master, _)) = link.as_mut() {
             loop {
+                if !m.board().link_has_room() {
+                    break; // the writer blocks, as on a busy /dev/ttyACM0
+                }
                 match master.read(&mut buf) {
                     Ok(0) => break,
                     Ok(n) => {
@@ -317,7 +380,7 @@ fn run() -> Result<i32, String> {
                             let t = now as f64 / PS;
                             eprintln!("[link t={t:10.6}] host -> {n} B");
                         }
-                        m.board().usart2.host_send(&buf[..n], now)
+                        m.board().link_from_host(&buf[..n])
                     }
                     Err(e)
                         if matches!(
@@ -332,14 +395,12 @@ fn run() -> Result<i32, String> {
                     Err(_) => break, // no host: EIO while the slave is closed
                 }
             }
-            if trace && !m.board().usart2.tx_out.is_empty() {
+            let mut out = m.board().link_to_host();
+            if trace && !out.is_empty() {
                 let t = now as f64 / PS;
-                eprintln!(
-                    "[link t={t:10.6}] device -> {} B",
-                    m.board().usart2.tx_out.len()
-                );
+                eprintln!("[link t={t:10.6}] device -> {} B", out.len());
             }
-            tx_pending.append(&mut m.board().usart2.tx_out);
+            tx_pending.append(&mut out);
             if !tx_pending.is_empty() {
                 // A full pty (EAGAIN) or no host (EIO): keep the bytes for later.
                 if let Ok(n) = master.write(&tx_pending) {
@@ -351,7 +412,7 @@ fn run() -> Result<i32, String> {
                 }
             }
         } else {
-            m.board().usart2.tx_out.clear();
+            m.board().link_to_host();
         }
         // Script.
         let t_s = now as f64 / PS;
@@ -364,24 +425,79 @@ fn run() -> Result<i32, String> {
                     u.used_bytes, u.boot_bytes, u.size_bytes
                 )
             });
-            m.board().event(format!("alive{stack}"));
+            let d = m.uc.get_data();
+            let usb = d.usb_host.as_ref().map_or(String::new(), |h| {
+                let u = &d.usb.stats;
+                format!(
+                    " (usb: configured {}x, IN {} B, OUT {} B, IN NAKs {}, out NAKs {}, lost {} B)",
+                    h.configured, h.in_bytes, h.out_bytes, u.in_naks, u.out_naks, h.lost_bytes
+                )
+            });
+            let t = m.uc.get_data().step_probe.calls;
+            let ticks = if t.n > 0 {
+                format!(
+                    " (control step {} instructions mean, {} max, {} calls)",
+                    t.mean(),
+                    t.max,
+                    t.n
+                )
+            } else {
+                String::new()
+            };
+            m.board().event(format!("alive{stack}{ticks}{usb}"));
         }
         if let Some(at) = a.press {
             if !pressed && t_s >= at {
                 pressed = true;
-                m.board().gpio[2].drive(13, Some(false));
-                m.board().event("arm button PC13 pressed".into());
+                let (port, pin, name) = a.chip.button();
+                m.board().gpio[port].drive(pin, Some(false));
+                m.board().event(format!("arm button {name} pressed"));
             }
             if pressed && !released && t_s >= at + 0.1 {
                 released = true;
-                m.board().gpio[2].drive(13, None);
-                m.board().event("arm button PC13 released".into());
+                let (port, pin, name) = a.chip.button();
+                m.board().gpio[port].drive(pin, None);
+                m.board().event(format!("arm button {name} released"));
             }
         }
         if let Some((at, ms)) = a.stall {
             if !stalled && t_s >= at {
                 stalled = true;
                 m.stall((ms * 1e9) as u128);
+            }
+        }
+        if let Some(h) = m.board().usb_host.as_mut() {
+            let (mut ev, now_ps) = (Vec::new(), now);
+            if let Some((at, s)) = a.usb_dtr_low {
+                let low = t_s >= at && t_s < at + s;
+                if h.dtr == low {
+                    h.dtr = !low;
+                    ev.push(format!(
+                        "USB host: DTR {} requested (--usb-dtr-low); {} B received so far",
+                        if low { "low" } else { "high" },
+                        h.in_bytes
+                    ));
+                }
+            }
+            if let Some((at, s)) = a.usb_stop_reading {
+                let stop = t_s >= at && t_s < at + s;
+                if h.reading == stop {
+                    h.reading = !stop;
+                    ev.push(format!(
+                        "USB host: {} reading bulk IN (--usb-stop-reading); {} B received so far",
+                        if stop { "stops" } else { "resumes" },
+                        h.in_bytes
+                    ));
+                }
+            }
+            if let Some((at, ms)) = a.usb_unplug {
+                if !usb_unplugged && t_s >= at {
+                    usb_unplugged = true;
+                    h.unplug(now_ps, (ms * 1e9) as u128);
+                }
+            }
+            for e in ev {
+                m.board().event(e);
             }
         }
         if let Some((f, at)) = a.fault {
@@ -507,6 +623,19 @@ fn run() -> Result<i32, String> {
             ps as f64 * 1e-6
         );
     }
+    if let Some(h) = &d.usb_host {
+        let u = &d.usb.stats;
+        s += &format!(
+            "\"usb_configured\":{},\"usb_lost_bytes\":{},\"usb_in_bytes\":{},\"usb_out_bytes\":{},\"usb_in_naks\":{},\"usb_out_naks\":{},\"usb_setups\":{},\"usb_bus_resets\":{},\"usb_frames\":{},\"otg_irqs\":{},",
+            h.configured, h.lost_bytes, h.in_bytes, h.out_bytes, u.in_naks, u.out_naks, u.setups, u.bus_resets, h.frames, taken(16 + 67)
+        );
+    }
+    s += &format!(
+        "\"step_insn_mean\":{},\"step_insn_max\":{},\"step_calls\":{},",
+        d.step_probe.calls.mean(),
+        d.step_probe.calls.max,
+        d.step_probe.calls.n
+    );
     s += &format!("\"pose\":[{:.4},{:.4},{:.4}],", pose[0], pose[1], pose[2]);
     s += &format!(
         "\"armature_peak\":[{:.4},{:.4}],",

@@ -8,6 +8,7 @@ pub mod flash;
 pub mod gpio;
 pub mod iwdg;
 pub mod nvic;
+pub mod otg_fs;
 pub mod pwr;
 pub mod rcc;
 pub mod scb;

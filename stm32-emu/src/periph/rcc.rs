@@ -210,8 +210,27 @@ impl Rcc {
         }
     }
 
+    /// PLL48CLK, the USB clock \[Hz\]: the main PLL's Q output (its
+    /// source × PLLN / PLLM / PLLQ), 0 while the PLL is off or Q < 2.
+    pub fn pll48_hz(&self) -> u64 {
+        let cr = self.regs[0];
+        let pll = self.regs[1];
+        let src = if pll & (1 << 22) != 0 {
+            self.hse_hz.unwrap_or(0)
+        } else {
+            HSI_HZ
+        };
+        let m = (pll & 0x3F) as u64;
+        let n = ((pll >> 6) & 0x1FF) as u64;
+        let q = ((pll >> 24) & 0xF) as u64;
+        if cr & (1 << 25) == 0 || m < 2 || q < 2 {
+            return 0;
+        }
+        src * n / m / q
+    }
+
     /// True when the peripheral clock enable `bit` of the enable register
-    /// at `off` (0x30 AHB1ENR, 0x40 APB1ENR, 0x44 APB2ENR) is set.
+    /// at `off` (0x30 AHB1ENR, 0x34 AHB2ENR, 0x40 APB1ENR, 0x44 APB2ENR) is set.
     pub fn enabled(&self, off: u32, bit: u32) -> bool {
         self.regs[off as usize / 4] & (1 << bit) != 0
     }
