@@ -46,14 +46,14 @@ impl Host {
     /// One control period of the robot with the host's bytes in and its
     /// replies decoded.
     fn tick(&mut self, robot: &mut SimRobot) -> Vec<Reply> {
-        let n = robot.device().rx_free().min(self.out.len());
+        let n = robot.port_rx_room().min(self.out.len());
         if n > 0 {
             let bytes: Vec<u8> = self.out.drain(..n).collect();
-            assert_eq!(robot.device().push_rx(&bytes), n);
+            assert_eq!(robot.port_received(&bytes), n);
         }
         robot.step().unwrap();
         let mut buf = [0u8; 8192];
-        let n = robot.device().pop_tx(&mut buf);
+        let n = robot.port_take_tx(&mut buf);
         let mut replies = Vec::new();
         self.dec.feed_all::<Reply>(&buf[..n], |d| {
             if let Decoded::Frame { msg, .. } = d {
