@@ -53,6 +53,12 @@ pub trait Harness {
         None
     }
 
+    /// The plant diverged while a tick brought it up to
+    /// [`Self::tick_clock_us`] (it stays where it was from then on).
+    fn plant_diverged(&mut self, diverged: Diverged) {
+        let _ = diverged;
+    }
+
     /// The operator button (raw level); `world` as of the tick.
     fn button_pressed(&mut self, world: &World) -> bool {
         let _ = world;
@@ -252,8 +258,10 @@ impl<H: Harness> Board for SimBoard<H> {
 
     fn io(&mut self) -> BoardIo<'_, SimEncoders, SimDriver, WorldGyro, WorldPoseSource> {
         if let Some(now_us) = self.harness.tick_clock_us() {
-            // A diverged plant stays put (its sensors too); `diverged` says so.
-            let _ = self.advance_to_us(now_us);
+            // A diverged plant stays put (its sensors too).
+            if let Err(d) = self.advance_to_us(now_us) {
+                self.harness.plant_diverged(d);
+            }
         }
         let io = self.world.io();
         BoardIo {
