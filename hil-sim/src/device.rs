@@ -343,7 +343,12 @@ impl SimRobot {
     pub fn step(&mut self) -> Result<TickReport, String> {
         let step = self
             .board
-            .step(&mut self.task, &mut self.device, &self.pipes, &mut self.store)
+            .step(
+                &mut self.task,
+                &mut self.device,
+                &self.pipes,
+                &mut self.store,
+            )
             .map_err(|e| e.to_string())?;
         let rep = self
             .board

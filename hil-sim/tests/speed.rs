@@ -24,7 +24,10 @@ const RECORD_S: f64 = 10.0;
 
 /// The binary on a pty at `speed`; its pty path (the first stdout line).
 fn device(speed: f64) -> (Child, String) {
-    let scenario = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenarios/link_nominal.toml");
+    let scenario = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../scenarios/link_nominal.toml"
+    );
     let mut child = Command::new(env!("CARGO_BIN_EXE_hil-sim"))
         .args(["device", "--pty", "--speed", &speed.to_string()])
         .args(["--scenario", scenario])
@@ -79,8 +82,16 @@ fn record_at(speed: f64) -> (u64, u64) {
     child.kill().unwrap();
     child.wait().unwrap();
     result.unwrap_or_else(|e| panic!("speed {speed}: wmr record --arm: {e}"));
-    assert_eq!(status.state, RunStateMsg::Running, "speed {speed}: {status:?}");
-    assert_ne!(status.last_stop, Some(StopCode::LinkSilence), "speed {speed}");
+    assert_eq!(
+        status.state,
+        RunStateMsg::Running,
+        "speed {speed}: {status:?}"
+    );
+    assert_ne!(
+        status.last_stop,
+        Some(StopCode::LinkSilence),
+        "speed {speed}"
+    );
     let summary: serde_json::Value = serde_json::from_slice(&out).unwrap();
     let rows = summary["rows"].as_u64().unwrap();
     let dropped = summary["dropped_frames"].as_u64().unwrap();

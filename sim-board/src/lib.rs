@@ -175,8 +175,7 @@ impl<H: Harness> SimBoard<H> {
     /// The sensors at the plant's time (the encoders latch, the gyro and
     /// the pose source sample when due).
     pub fn sense(&mut self) -> Reading {
-        self.world
-            .sense(self.plant_ticks as f64 * self.period_s)
+        self.world.sense(self.plant_ticks as f64 * self.period_s)
     }
 
     /// The plant over one period with the H-bridge as the last tick left it.
@@ -226,7 +225,8 @@ impl<H: Harness> SimBoard<H> {
         if dev.pending_robot_write().is_some() {
             let written = embassy_futures::block_on(task.store_robot(self, dev, store));
             if let Some(ok) = written {
-                self.harness.event(&AppEvent::RobotWritten { ok, duration_us: 0 });
+                self.harness
+                    .event(&AppEvent::RobotWritten { ok, duration_us: 0 });
             }
             step.robot_written = written;
         }

@@ -469,7 +469,9 @@ impl<const H: usize> Handler<H> {
                 }
                 sel.velocity = VelocityCmd {
                     target: [v_mps, omega_radps],
-                    expires_us: Some(now_us.wrapping_add(self.session.host_ms_us(timeout_ms as u32))),
+                    expires_us: Some(
+                        now_us.wrapping_add(self.session.host_ms_us(timeout_ms as u32)),
+                    ),
                 };
                 Ok(None)
             }
@@ -657,9 +659,7 @@ impl<const H: usize> Handler<H> {
     pub fn wheel_test_watchdog(&mut self, framing: &mut Framing, motors: &mut impl MotorDriver) {
         let s = &self.session;
         let silent_us = s.now_us.wrapping_sub(s.last_rx_us);
-        if self.wheel_test.is_some()
-            && silent_us > s.host_ms_us(self.cfg.link.link_timeout_ms)
-        {
+        if self.wheel_test.is_some() && silent_us > s.host_ms_us(self.cfg.link.link_timeout_ms) {
             self.end_wheel_test(framing, motors, WheelTestEnd::LinkLost);
         }
     }
