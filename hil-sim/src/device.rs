@@ -1,24 +1,28 @@
 //! The simulated robot behind the host link (`hil-sim device --pty`): the
-//! link handler the firmware runs ([`wmr_device::Device`]), the firmware
-//! runtime inside it, and the scenario's simulated world (the same
-//! [`sim_robot::World`] as `hil-sim run`'s), closed tick by tick as in
-//! [`crate::hil`], and
-//! served over a pseudo-terminal so that `wmr` talks to it exactly as to a
-//! robot.
+//! firmware's application — robot-app's control task around the link
+//! handler ([`wmr_device::Device`]) and the runtime inside it — on the
+//! simulated board ([`sim_board::SimBoard`]: the scenario's
+//! [`sim_robot::World`], the same as `hil-sim run`'s, behind the board's
+//! peripherals), stepped one control period at a time, and served over a
+//! pseudo-terminal so that `wmr` talks to it exactly as to a robot.
 //!
 //! Robot time is simulated time (one control period per tick); `--speed N`
-//! paces the ticks N times faster than the wall clock.
+//! paces the ticks N times faster than the wall clock, and the durations
+//! the host gives (the link timeout, a velocity command's timeout) count
+//! the host's time ([`SimRobot::set_speed`], D140).
 
 pub use crate::closed_loop::world::Miswire;
 use crate::scenario::{Scenario, Sensing};
 use crate::sim::controller_config;
 use controller_core::estimator::EstimatorConfig;
 use controller_core::runtime::RuntimeConfig;
-use controller_core::runtime::{LoopTimer, TickReport};
+use controller_core::runtime::{ArmingButton, LoopTimer, TickReport};
 use controller_core::ControllerKind;
-use robot_app::store::{load_record, FlashRecord, RecordWriter};
+use robot_app::link::PIPE_BYTES;
+use robot_app::store::{load_record, FlashRecord};
+use robot_app::{AppConfig, AppEvent, ControlTask, LinkPipes};
 use robot_store::{validate_robot, RamFlash, RobotStore};
-use sim_robot::world::Actuation;
+use sim_board::{Harness, SimBoard};
 use sim_robot::World;
 use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -39,19 +43,50 @@ pub type SimFlash = RamFlash<{ 16 * 1024 }, { 8 * 1024 }>;
 /// The timer clock the simulated device's PWM runs from \[Hz\] (the F411's).
 pub const SIM_TIMER_CLOCK_HZ: u32 = 96_000_000;
 
-/// The link handler, the runtime and the simulated world, one tick at a time.
+/// The arm button's debounce \[ticks\] (the simulated board has no button;
+/// the control task wants one).
+const BUTTON_DEBOUNCE_TICKS: u16 = 20;
+
+/// The simulated board's harness: no button, watchdog or log; it keeps
+/// each tick's report (robot-app's [`AppEvent::Telemetry`], every tick).
+#[derive(Default)]
+struct Reports {
+    last: Option<TickReport>,
+}
+
+impl Harness for Reports {
+    const LOGS_STATUS: bool = true;
+
+    fn event(&mut self, event: &AppEvent<'_>) {
+        if let AppEvent::Telemetry(rep) = event {
+            self.last = Some(**rep);
+        }
+    }
+}
+
+/// What the control task reports: every tick's report to the harness, no
+/// status.
+const APP_CONFIG: AppConfig = AppConfig {
+    status_every_ticks: 0,
+    telemetry_every_ticks: 1,
+};
+
+/// The firmware's application on the simulated board, one tick at a time.
 pub struct SimRobot {
     device: Device,
-    timer: LoopTimer,
-    world: World,
-    period_s: f64,
-    step: u64,
+    task: ControlTask,
+    board: SimBoard<Reports>,
+    /// The host link's byte pipes (the port's side: [`Self::port_received`],
+    /// [`Self::port_take_tx`]).
+    pipes: LinkPipes,
     /// The robot store over the simulated flash (kept across reboots).
     store: FlashRecord<SimFlash>,
     /// What a boot builds the device from.
     boot: BootConfig,
     /// Reboots so far.
     reboots: u32,
+    /// Robot µs per host ms (`Device::set_host_clock`).
+    robot_us_per_host_ms: u32,
 }
 
 /// The scenario's configuration: the compiled-in robot of the simulated
@@ -63,6 +98,13 @@ struct BootConfig {
     estimator: EstimatorConfig,
     /// The compiled-in robot's record (`default_record`).
     default_record: Vec<u8>,
+}
+
+/// The control task of a device booted with `cfg` (its loop period).
+fn control_task(cfg: &RuntimeConfig) -> Result<ControlTask, String> {
+    let timer = LoopTimer::from_config(cfg).map_err(|e| format!("loop timer: {e}"))?;
+    let button = ArmingButton::new(BUTTON_DEBOUNCE_TICKS).map_err(|e| format!("button: {e:?}"))?;
+    ControlTask::new(timer, button, APP_CONFIG).map_err(|e| format!("control task: {e:?}"))
 }
 
 /// The compiled-in robot of the simulated device: the scenario's robot
@@ -199,23 +241,34 @@ impl SimRobot {
             validate: validate_robot,
         };
         let device = boot_device(&boot, &mut store)?;
-        let timer = LoopTimer::from_config(&cfg).map_err(|e| format!("loop timer: {e}"))?;
+        let task = control_task(device.control().config())?;
+        let world: World =
+            crate::closed_loop::world::hardware_world_miswired(scn, &built, None, miswire)?;
         Ok(Self {
             device,
-            timer,
-            world: crate::closed_loop::world::hardware_world_miswired(scn, &built, None, miswire)?,
-            period_s: scn.control_period_s,
-            step: 0,
+            task,
+            board: SimBoard::new(world, scn.control_period_s, Reports::default()),
+            pipes: LinkPipes::new(),
             store,
             boot,
             reboots: 0,
+            robot_us_per_host_ms: 1000,
         })
     }
 
-    /// Restarts the simulated MCU: a new device (hold, motors off) built
-    /// from the record in the simulated flash, which survives; the world
-    /// (the robot's hardware) goes on. The host's `Reboot` does this once
-    /// its acknowledgement has been sent.
+    /// The host's clock runs `speed` times slower than the robot's
+    /// (`--speed`): the durations the host gives count its own time
+    /// (`wmr_device::Device::set_host_clock`), kept across reboots.
+    pub fn set_speed(&mut self, speed: f64) {
+        self.robot_us_per_host_ms = (speed * 1000.0).round().clamp(1.0, u32::MAX as f64) as u32;
+        self.device.set_host_clock(self.robot_us_per_host_ms);
+    }
+
+    /// Restarts the simulated MCU: a new device and control task (hold,
+    /// motors off, empty link pipes) built from the record in the
+    /// simulated flash, which survives; the world (the robot's hardware)
+    /// goes on. The control task asks for this once a `Reboot`'s
+    /// acknowledgement has left.
     pub fn reboot(&mut self) -> Result<(), String> {
         // Like a power cycle: a fresh store over the same flash.
         let old = std::mem::replace(
@@ -225,8 +278,9 @@ impl SimRobot {
         self.store.store =
             RobotStore::new(old.into_flash(), 0..16 * 1024).map_err(|_| "flash range")?;
         self.device = boot_device(&self.boot, &mut self.store)?;
-        self.timer = LoopTimer::from_config(self.device.control().config())
-            .map_err(|e| format!("loop timer: {e}"))?;
+        self.device.set_host_clock(self.robot_us_per_host_ms);
+        self.task = control_task(self.device.control().config())?;
+        self.pipes = LinkPipes::new();
         self.reboots += 1;
         Ok(())
     }
@@ -241,58 +295,73 @@ impl SimRobot {
         &mut self.device
     }
 
+    /// The simulated world.
+    pub fn world(&self) -> &World {
+        self.board.world()
+    }
+
     /// The true pose of G \[x m, y m, θ rad\].
     pub fn true_pose(&self) -> [f64; 3] {
-        self.world.true_pose()
+        self.world().true_pose()
     }
 
     /// The true wheel angles φ = \[φ_R, φ_L\] \[rad\] (the plant's, which
     /// the encoders sample).
     pub fn true_wheel_angles_rad(&self) -> [f64; 2] {
-        let q = &self.world.state().q;
+        let q = &self.world().state().q;
         [q[3], q[4]]
     }
 
     /// Robot time of the next tick \[µs\] (wraps like a firmware clock).
     pub fn now_us(&self) -> u32 {
-        (self.step * self.timer.period_us() as u64) as u32
+        self.board.now_us()
     }
 
     /// Ticks run.
     pub fn ticks(&self) -> u64 {
-        self.step
+        self.board.plant_ticks()
     }
 
-    /// One control period: the world's sensors, the device tick (requests,
-    /// runtime), then the world over the period with the H-bridge held.
+    /// The port's side: bytes from the host into the receive pipe; what
+    /// does not fit is dropped and counted (the status's `port_rx_dropped`).
+    /// Returns the bytes kept.
+    pub fn port_received(&mut self, bytes: &[u8]) -> usize {
+        self.pipes.port_received(bytes)
+    }
+
+    /// Room in the receive pipe \[bytes\] (a port that holds the host off
+    /// reads no more).
+    pub fn port_rx_room(&self) -> usize {
+        PIPE_BYTES - self.pipes.rx_len()
+    }
+
+    /// The port's side: bytes for the host, up to `buf.len()`.
+    pub fn port_take_tx(&mut self, buf: &mut [u8]) -> usize {
+        self.pipes.port_try_tx(buf)
+    }
+
+    /// One control period of robot-app's loop on the simulated board
+    /// ([`SimBoard::step`]: the world's sensors, the control task's tick —
+    /// host bytes in, the device's tick, bytes out —, the world over the
+    /// period with the H-bridge held, the robot record's write and a due
+    /// reboot between two ticks); the tick's report.
     pub fn step(&mut self) -> Result<TickReport, String> {
-        let dt = self.period_s;
-        let t = self.step as f64 * dt;
-        self.world.sense(t);
-        let now_us = self.now_us();
-        let timing = self.timer.tick(now_us);
-        let io = self.world.io();
-        let rep = self.device.tick(
-            now_us,
-            io.encoders,
-            io.motors,
-            io.gyro,
-            io.pose_source,
-            timing,
-        );
-        let bridge = self.world.bridge();
-        self.world
-            .advance(Actuation::Bridge(bridge), dt)
+        let step = self
+            .board
+            .step(
+                &mut self.task,
+                &mut self.device,
+                &self.pipes,
+                &mut self.store,
+            )
             .map_err(|e| e.to_string())?;
-        self.step += 1;
-        // The robot record, between two ticks, as robot-app's control task
-        // does it (the device is in hold, motors off).
-        if let Some(record) = self.device.pending_robot_write() {
-            let record = record.to_vec();
-            let ok = embassy_futures::block_on(self.store.write(&record));
-            self.device.robot_write_done(ok);
-        }
-        if self.device.reboot_requested() && self.device.tx_len() == 0 {
+        let rep = self
+            .board
+            .harness_mut()
+            .last
+            .take()
+            .ok_or("the control task reported no tick")?;
+        if step.reboot {
             self.reboot()?;
         }
         Ok(rep)
@@ -311,17 +380,20 @@ pub fn serve(
     speed: f64,
     stop: &AtomicBool,
 ) -> Result<(), String> {
-    let period = Duration::from_secs_f64(robot.period_s / speed);
+    robot.set_speed(speed);
+    let period = Duration::from_secs_f64(robot.board.period_s() / speed);
     let start = Instant::now();
     let mut next = start;
-    let mut rx = [0u8; 512];
+    let mut rx = [0u8; PIPE_BYTES];
     let mut tx = Vec::with_capacity(4096);
     while !stop.load(Ordering::Relaxed) {
-        let room = robot.device.rx_free().min(rx.len());
+        // Only what the receive pipe has room for: the pty holds the rest
+        // (a USB port NAKs the host), nothing is dropped.
+        let room = robot.port_rx_room().min(rx.len());
         if room > 0 {
             match port.read(&mut rx[..room]) {
                 Ok(n) => {
-                    robot.device.push_rx(&rx[..n]);
+                    robot.port_received(&rx[..n]);
                 }
                 Err(e) if transient(&e) => {}
                 Err(e) => return Err(format!("pty read: {e}")),
@@ -329,8 +401,8 @@ pub fn serve(
         }
         robot.step()?;
         if tx.is_empty() {
-            let mut buf = [0u8; 4096];
-            let n = robot.device.pop_tx(&mut buf);
+            let mut buf = [0u8; PIPE_BYTES];
+            let n = robot.port_take_tx(&mut buf);
             tx.extend_from_slice(&buf[..n]);
         }
         if !tx.is_empty() {
@@ -347,7 +419,10 @@ pub fn serve(
         if next > now {
             std::thread::sleep(next - now);
         } else if now - next > Duration::from_millis(100) {
-            // Far behind (a loaded machine): do not try to catch up.
+            // Far behind (a loaded machine): do not try to catch up. The
+            // robot's clock then runs slower than `speed` times the host's,
+            // which only lengthens the host's durations in wall time
+            // (`set_speed`): safe.
             next = now;
         }
     }
@@ -437,7 +512,7 @@ mod tests {
     fn send(robot: &mut SimRobot, seq: u16, req: &Request) {
         let mut buf = [0u8; MAX_FRAME];
         let frame = wmr_protocol::encode(req, seq, &mut buf).unwrap();
-        assert_eq!(robot.device().push_rx(frame), frame.len());
+        assert_eq!(robot.port_received(frame), frame.len());
     }
 
     /// Drives `scn`'s robot behind the link at 0.3 m/s for 1 s (velocity
@@ -460,8 +535,8 @@ mod tests {
             }
             robot.step().unwrap();
             let mut out = [0u8; 4096];
-            robot.device().pop_tx(&mut out);
-            let b = robot.world.bridge();
+            robot.port_take_tx(&mut out);
+            let b = robot.world().bridge();
             driven |= robot.device().state() == RunStateMsg::Running
                 && b.enabled
                 && b.duty.iter().any(|d| d.duty > 0);

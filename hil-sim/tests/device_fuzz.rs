@@ -278,7 +278,8 @@ impl Fuzz {
     fn push_bytes(&mut self, bytes: &[u8]) {
         let mut rest = bytes;
         while !rest.is_empty() {
-            let n = self.robot.device().push_rx(rest);
+            let room = rest.len().min(self.robot.port_rx_room());
+            let n = self.robot.port_received(&rest[..room]);
             rest = &rest[n..];
             if !rest.is_empty() {
                 self.tick();
@@ -364,7 +365,7 @@ impl Fuzz {
         }
         let mut buf = [0u8; 8192];
         loop {
-            let n = self.robot.device().pop_tx(&mut buf);
+            let n = self.robot.port_take_tx(&mut buf);
             if n == 0 {
                 break;
             }

@@ -60,6 +60,8 @@ pub struct ControlTask {
     cycles: CycleStats,
     link_max: u32,
     link_ticks: u32,
+    /// Ticks left to drain the link before an acknowledged `Reboot`.
+    reboot_in: Option<u32>,
 }
 
 impl ControlTask {
@@ -82,6 +84,7 @@ impl ControlTask {
             cycles: CycleStats::new(),
             link_max: 0,
             link_ticks: 0,
+            reboot_in: None,
         })
     }
 
@@ -125,7 +128,6 @@ impl ControlTask {
         let mut ticker = Ticker::every(Duration::from_micros(self.timer.period_us() as u64));
         board.start_watchdog();
         board.event(&AppEvent::Started);
-        let mut reboot_in: Option<u32> = None;
         loop {
             ticker.next().await;
             let now_us = Instant::now().as_micros() as u32;
@@ -135,14 +137,24 @@ impl ControlTask {
                 // The ticker would fire the missed ticks back to back.
                 ticker.reset();
             }
-            if dev.reboot_requested() {
-                let left = reboot_in.get_or_insert(REBOOT_DRAIN_TICKS);
-                if (dev.tx_len() == 0 && pipes.tx_len() == 0) || *left == 0 {
-                    board.reboot();
-                }
-                *left = left.saturating_sub(1);
+            if self.reboot_due(dev, pipes) {
+                board.reboot();
             }
         }
+    }
+
+    /// After a tick: whether the board restarts now. After an acknowledged
+    /// `Reboot`, once the acknowledgement has left (the device's and the
+    /// link's send buffers empty), or [`REBOOT_DRAIN_TICKS`] after the
+    /// request at the latest; false without a request.
+    pub fn reboot_due<const H: usize>(&mut self, dev: &Device<H>, pipes: &LinkPipes) -> bool {
+        if !dev.reboot_requested() {
+            return false;
+        }
+        let left = self.reboot_in.get_or_insert(REBOOT_DRAIN_TICKS);
+        let due = (dev.tx_len() == 0 && pipes.tx_len() == 0) || *left == 0;
+        *left = left.saturating_sub(1);
+        due
     }
 
     /// Writes the device's pending robot record (the device is in hold,
@@ -158,22 +170,37 @@ impl ControlTask {
         dev: &mut Device<H>,
         store: &mut S,
     ) {
+        let t0 = Instant::now();
+        if let Some(ok) = self.store_robot(board, dev, store).await {
+            let duration_us = Instant::now().duration_since(t0).as_micros() as u32;
+            board.event(&AppEvent::RobotWritten { ok, duration_us });
+        }
+    }
+
+    /// [`Self::write_robot`] without timing it or the event (a board
+    /// without embassy's clock: the simulated board, whose flash takes no
+    /// robot time). Returns whether the record was stored and read back
+    /// equal, None when nothing was pending.
+    pub async fn store_robot<B: Board, const H: usize, S: RecordWriter>(
+        &mut self,
+        board: &mut B,
+        dev: &mut Device<H>,
+        store: &mut S,
+    ) -> Option<bool> {
         let mut record = [0u8; wmr_protocol::ROBOT_BLOB_MAX];
         let n = match dev.pending_robot_write() {
             Some(r) => {
                 record[..r.len()].copy_from_slice(r);
                 r.len()
             }
-            None => return,
+            None => return None,
         };
-        let t0 = Instant::now();
         board.flash_write_begins();
         let ok = store.write(&record[..n]).await;
         board.flash_write_ends();
         dev.robot_write_done(ok);
         self.timer.resync();
-        let duration_us = Instant::now().duration_since(t0).as_micros() as u32;
-        board.event(&AppEvent::RobotWritten { ok, duration_us });
+        Some(ok)
     }
 
     /// One period's work at robot time `now_us` (a wrapping µs clock):

@@ -46,14 +46,14 @@ impl Host {
     /// One control period of the robot with the host's bytes in and its
     /// replies decoded.
     fn tick(&mut self, robot: &mut SimRobot) -> Vec<Reply> {
-        let n = robot.device().rx_free().min(self.out.len());
+        let n = robot.port_rx_room().min(self.out.len());
         if n > 0 {
             let bytes: Vec<u8> = self.out.drain(..n).collect();
-            assert_eq!(robot.device().push_rx(&bytes), n);
+            assert_eq!(robot.port_received(&bytes), n);
         }
         robot.step().unwrap();
         let mut buf = [0u8; 8192];
-        let n = robot.device().pop_tx(&mut buf);
+        let n = robot.port_take_tx(&mut buf);
         let mut replies = Vec::new();
         self.dec.feed_all::<Reply>(&buf[..n], |d| {
             if let Decoded::Frame { msg, .. } = d {
@@ -70,6 +70,14 @@ struct Run {
     info: RobotInfo,
     telemetry_frames: usize,
 }
+
+/// The telemetry rate of the runs \[Hz\]: the highest of `wmr identify
+/// run`'s probe rates at which the firmware's link carries every group
+/// without a gap. robot-app's control task moves at most 128 bytes a tick
+/// to the port (`TX_BYTES_PER_TICK`) and a frame of every group is longer:
+/// at 1 kHz the simulated robot, running robot-app's loop (D140), delivered
+/// 48,870 of some 60,000 frames and the fit found no gap-free horizon.
+const TELEMETRY_HZ: u16 = 500;
 
 /// Drives the excitation on the simulated robot of `scn` over its link.
 fn run(scn: &Scenario, ex: &Excitation) -> Run {
@@ -94,7 +102,7 @@ fn run(scn: &Scenario, ex: &Excitation) -> Run {
     });
     host.send(&Request::SetTelemetry {
         selection: TELEMETRY_ALL,
-        rate_hz: 1000,
+        rate_hz: TELEMETRY_HZ,
     });
     host.send(&Request::TrajectoryBegin {
         total_points: pts.len() as u32,
@@ -311,7 +319,11 @@ fn identifies_the_paper_robot_with_mocap_and_gyro() {
     for (seed, ms, is) in [(1u64, 1.0, 1.0), (2, 1.3, 0.7), (3, 0.8, 1.5)] {
         let scn = scenario(ms, is, Sensing::Mocap, seed);
         let r = run(&scn, &excitation());
-        assert!(r.telemetry_frames > 55_000, "{} frames", r.telemetry_frames);
+        assert!(
+            r.telemetry_frames > 55 * TELEMETRY_HZ as usize,
+            "{} frames",
+            r.telemetry_frames
+        );
         assert_eq!(r.info.wheel_radius_m, 0.1);
         let id = identify(&r.rows, &prior_of(&scn), &FitOptions::default()).unwrap();
         let e = check(&id, &scn, true, 1.0);

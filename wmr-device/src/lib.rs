@@ -130,6 +130,20 @@ impl<const H: usize> Device<H> {
         &mut self.handler.session.board
     }
 
+    /// The host's clock against the robot's: robot µs per host ms (at
+    /// least 1). 1000, the default, on a real robot, whose clock is the
+    /// host's. A simulated robot running N times faster than real time
+    /// (`hil-sim device --speed N`) sets N·1000: the durations the host
+    /// gives and keeps in its own time (the link timeout, against which it
+    /// paces its keep-alive; a velocity command's timeout, against which
+    /// it paces the refresh) then count the host's time, so the link
+    /// watchdog sees the host's cadence as the host keeps it at any speed
+    /// (issue 32, D140). A simulation that falls behind N only lengthens
+    /// them in wall time.
+    pub fn set_host_clock(&mut self, robot_us_per_host_ms: u32) {
+        self.handler.session.robot_us_per_host_ms = robot_us_per_host_ms.max(1);
+    }
+
     /// Attaches the board's robot store (protocol 4): `record` is the
     /// robot record in force and `source` where it came from; uploads are
     /// checked as a whole with `validate` before anything is stored.

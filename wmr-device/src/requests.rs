@@ -31,6 +31,9 @@ pub(crate) struct Session {
     pub last_rx_us: u32,
     /// Robot time of this tick \[µs\].
     pub now_us: u32,
+    /// Robot µs per host ms ([`crate::Device::set_host_clock`]; 1000 on a
+    /// real robot).
+    pub robot_us_per_host_ms: u32,
     /// The host's pose measurement for the next tick.
     pub pending_pose: Option<PoseMeasurement>,
     /// The last stop's cause.
@@ -40,6 +43,16 @@ pub(crate) struct Session {
     /// What the board reports in the status (its reset cause, set once at
     /// boot, and its link port's losses, kept current by the board).
     pub board: BoardReport,
+}
+
+impl Session {
+    /// A duration the host gave in its own ms (the link timeout, a
+    /// velocity command's timeout) in robot µs, at most 2³¹ − 1 (the
+    /// wrapping clock's comparisons).
+    pub fn host_ms_us(&self, ms: u32) -> u32 {
+        ms.saturating_mul(self.robot_us_per_host_ms)
+            .min(i32::MAX as u32)
+    }
 }
 
 fn stop_code(r: StopReason) -> StopCode {
@@ -108,6 +121,7 @@ impl<const H: usize> Handler<H> {
                 host_armed: false,
                 last_rx_us: 0,
                 now_us: 0,
+                robot_us_per_host_ms: 1000,
                 pending_pose: None,
                 last_stop: None,
                 pending_cause: None,
@@ -455,7 +469,9 @@ impl<const H: usize> Handler<H> {
                 }
                 sel.velocity = VelocityCmd {
                     target: [v_mps, omega_radps],
-                    expires_us: Some(now_us.wrapping_add(timeout_ms as u32 * 1000)),
+                    expires_us: Some(
+                        now_us.wrapping_add(self.session.host_ms_us(timeout_ms as u32)),
+                    ),
                 };
                 Ok(None)
             }
@@ -540,7 +556,7 @@ impl<const H: usize> Handler<H> {
         }
         let s = &self.session;
         let silent_us = s.now_us.wrapping_sub(s.last_rx_us);
-        if s.host_armed && silent_us > self.cfg.link.link_timeout_ms.saturating_mul(1000) {
+        if s.host_armed && silent_us > s.host_ms_us(self.cfg.link.link_timeout_ms) {
             framing.send(&Reply::Event(Event::LinkLost));
             let policy = self.stop_policy();
             self.selector
@@ -643,9 +659,7 @@ impl<const H: usize> Handler<H> {
     pub fn wheel_test_watchdog(&mut self, framing: &mut Framing, motors: &mut impl MotorDriver) {
         let s = &self.session;
         let silent_us = s.now_us.wrapping_sub(s.last_rx_us);
-        if self.wheel_test.is_some()
-            && silent_us > self.cfg.link.link_timeout_ms.saturating_mul(1000)
-        {
+        if self.wheel_test.is_some() && silent_us > s.host_ms_us(self.cfg.link.link_timeout_ms) {
             self.end_wheel_test(framing, motors, WheelTestEnd::LinkLost);
         }
     }

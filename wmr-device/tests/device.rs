@@ -306,6 +306,57 @@ fn link_silence_while_running_brakes_then_holds() {
     })));
 }
 
+/// A robot whose clock runs N times the host's (`set_host_clock(N·1000)`,
+/// `hil-sim device --speed N`) counts the host's durations in the host's
+/// time: the link timeout (500 ms) lasts N·500 robot ms, a velocity
+/// command's timeout N times its robot ms, to the tick; N = 1 is the
+/// default robot's. Before, the watchdog counted robot time and a host
+/// keeping alive every fifth of the timeout on its wall clock was silent
+/// for a whole timeout at N = 5 (issue 32).
+#[test]
+fn host_durations_count_the_hosts_clock() {
+    for n in [1u32, 2, 5, 10] {
+        let mut rig = Rig::new();
+        rig.dev.set_host_clock(n * 1000);
+        rig.request(&circle(), 1);
+        rig.request(&Request::Arm, 2);
+        let timeout_ticks = (LinkConfig::DEFAULT.link_timeout_ms * n) as usize;
+        let mut k = 0;
+        while rig.dev.state() == RunStateMsg::Running {
+            rig.tick();
+            k += 1;
+            assert!(k < 2 * timeout_ticks + 10, "n = {n}: still running");
+        }
+        assert!(
+            (timeout_ticks..=timeout_ticks + 1).contains(&k),
+            "n = {n}: braking began at tick {k}, the timeout is {timeout_ticks}"
+        );
+
+        let mut rig = Rig::new();
+        rig.dev.set_host_clock(n * 1000);
+        let v = Request::Velocity {
+            v_mps: 0.2,
+            omega_radps: 0.0,
+            timeout_ms: 40,
+        };
+        rig.request(&v, 1);
+        rig.request(&Request::Arm, 2);
+        // Expires 40·n ticks after the command's tick (the arm's request
+        // took a tick or two of them).
+        let mut k = 0;
+        while rig.dev.state() == RunStateMsg::Running {
+            rig.tick();
+            k += 1;
+            assert!(k < 10_000, "n = {n}: never expired");
+        }
+        let expiry = 40 * n as usize;
+        assert!(
+            (expiry - 5..=expiry + 1).contains(&k),
+            "n = {n}: the velocity command expired after {k} ticks, its timeout {expiry}"
+        );
+    }
+}
+
 #[test]
 fn velocity_command_expires_and_the_robot_disarms() {
     let mut rig = Rig::new();

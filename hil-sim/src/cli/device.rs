@@ -15,7 +15,8 @@ pub struct DeviceArgs {
     /// the first line on stdout.
     #[arg(long, required = true)]
     pub pty: bool,
-    /// Run N times faster than real time (robot time is simulated time).
+    /// Run N times faster than real time (robot time is simulated time; the
+    /// host's durations, link_timeout_ms and velocity timeouts, count real time).
     #[arg(long, default_value_t = 1.0, value_name = "N")]
     pub speed: f64,
     /// Controller the runtime runs.

@@ -1,7 +1,8 @@
 //! The host-test rig: robot-app's real tasks on embassy's std executor
 //! (its own thread), embassy-time's mock clock advanced by the test thread,
-//! a mock board with the simulated robot (a `sim_robot::World`: the plant
-//! behind simulated encoders and H-bridge), and a minimal host speaking
+//! the simulated board (`sim_board::SimBoard`: a `sim_robot::World`, the
+//! plant behind simulated encoders and H-bridge, the board `hil-sim device`
+//! runs) with the test's probes, and a minimal host speaking
 //! wmr-protocol through the link pipes.
 //!
 //! The mock clock is global: the tests of one binary run one at a time
@@ -18,9 +19,9 @@ use embassy_executor::{Executor, Spawner};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant, MockDriver};
-use robot_app::{AppConfig, AppEvent, Board, BoardIo, ControlTask, LinkPipes, StatusSummary};
-use sim_robot::world::{Actuation, WorldGyro, WorldPoseSource};
-use sim_robot::{SimDriver, SimEncoders, World, WorldConfig};
+use robot_app::{AppConfig, AppEvent, ControlTask, LinkPipes, StatusSummary};
+use sim_board::{Harness, SimBoard};
+use sim_robot::{World, WorldConfig};
 use wmr_device::{Device, DeviceConfig};
 use wmr_protocol::{Decoded, FrameDecoder, Reply, Request, RunStateMsg, MAX_FRAME};
 
@@ -69,76 +70,54 @@ pub struct Shared {
     pub knobs: Knobs,
 }
 
-/// The mock board: the simulated world behind raw encoders and an H-bridge
-/// (no gyro, no external pose source, nothing perturbing).
-pub struct MockBoard {
+/// The mock board: the simulated board (`sim_board::SimBoard`: the world
+/// behind raw encoders and an H-bridge; no gyro, no external pose source,
+/// nothing perturbing) on embassy's mock clock, with the test's harness.
+pub type MockBoard = SimBoard<Probe>;
+
+/// The board's harness: the mock clock (each tick's peripheral access
+/// brings the world up to it), the button, the watchdog and the log, all
+/// observed by the test thread.
+pub struct Probe {
     shared: &'static Shared,
-    world: World,
-    plant_us: u64,
 }
 
-impl MockBoard {
-    fn new(shared: &'static Shared, cfg: &RuntimeConfig) -> Self {
-        let world = World::new(&WorldConfig {
-            period_s: PERIOD_US as f64 * 1e-6,
-            ..WorldConfig::of_runtime(cfg)
-        })
-        .expect("world");
-        Self {
-            shared,
-            world,
-            plant_us: 0,
-        }
-    }
-
-    /// The world up to now, the bridge held over each 1 ms step.
-    fn advance_plant(&mut self, now_us: u64) {
-        while self.plant_us + PERIOD_US <= now_us {
-            let bridge = self.world.bridge();
-            self.world
-                .advance(Actuation::Bridge(bridge), PERIOD_US as f64 * 1e-6)
-                .expect("plant diverged");
-            self.plant_us += PERIOD_US;
-        }
-        self.world.sense(self.plant_us as f64 * 1e-6);
-    }
-
+impl Probe {
     fn obs(&self) -> MutexGuard<'_, Obs> {
         self.shared.obs.lock().unwrap()
     }
 }
 
-impl Board for MockBoard {
-    type Encoders = SimEncoders;
-    type Motors = SimDriver;
-    type Gyro = WorldGyro;
-    type PoseSource = WorldPoseSource;
+fn mock_board(shared: &'static Shared, cfg: &RuntimeConfig) -> MockBoard {
+    let period_s = PERIOD_US as f64 * 1e-6;
+    let world = World::new(&WorldConfig {
+        period_s,
+        ..WorldConfig::of_runtime(cfg)
+    })
+    .expect("world");
+    SimBoard::new(world, period_s, Probe { shared })
+}
 
-    fn io(&mut self) -> BoardIo<'_, SimEncoders, SimDriver, WorldGyro, WorldPoseSource> {
+impl Harness for Probe {
+    const LOGS_STATUS: bool = true;
+
+    fn tick_clock_us(&mut self) -> Option<u64> {
         let now = Instant::now().as_micros();
-        self.advance_plant(now);
         self.obs().tick_times_us.push(now);
         let cost = self.shared.knobs.tick_cost_us.load(Ordering::SeqCst);
         if cost > 0 {
             MockDriver::get().advance(Duration::from_micros(cost as u64));
         }
-        let io = self.world.io();
-        BoardIo {
-            encoders: io.encoders,
-            motors: io.motors,
-            gyro: io.gyro,
-            pose_source: io.pose_source,
-        }
+        Some(now)
     }
 
-    fn motors(&mut self) -> &mut SimDriver {
-        self.world.io().motors
+    fn plant_diverged(&mut self, diverged: sim_robot::world::Diverged) {
+        panic!("{diverged}");
     }
 
-    fn button_pressed(&mut self) -> bool {
+    fn button_pressed(&mut self, world: &World) -> bool {
         // The bridge state as of the previous tick, published here.
-        let enabled = self.world.bridge().enabled;
-        self.obs().motors_enabled = enabled;
+        self.obs().motors_enabled = world.bridge().enabled;
         self.shared.knobs.button.load(Ordering::SeqCst)
     }
 
@@ -150,10 +129,6 @@ impl Board for MockBoard {
 
     fn feed_watchdog(&mut self) {
         self.obs().feeds += 1;
-    }
-
-    fn cycles(&mut self) -> u32 {
-        0
     }
 
     fn event(&mut self, event: &AppEvent<'_>) {
@@ -271,7 +246,7 @@ impl Rig {
             app,
         )
         .expect("task");
-        let board = leak(MockBoard::new(shared, &cfg));
+        let board = leak(mock_board(shared, &cfg));
         std::thread::spawn(move || {
             let ex: &'static mut Executor = leak(Executor::new());
             ex.run(move |sp: Spawner| {
