@@ -52,7 +52,7 @@ mod mux;
 mod server;
 
 pub use mux::{with_seq, ClientId, Mux, MuxCounters, Out, TelemetrySub};
-pub use server::{serve, serve_until, ServeSummary};
+pub use server::{serve, serve_until, ServeError, ServeSummary};
 
 use crate::link::{Link, LinkError};
 use std::io::{Read, Write};

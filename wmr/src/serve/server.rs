@@ -6,6 +6,7 @@
 use super::mux::{ClientId, Mux, MuxCounters, Note, Out, Own};
 use super::{default_socket_path, ServeArgs, MAX_SOCKET_PATH};
 use crate::link::Port;
+use crate::session::ClockSample;
 use crate::timing::LinkTiming;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -123,13 +124,6 @@ enum LinkState {
     Up,
 }
 
-#[derive(Clone, Copy, Debug)]
-struct ClockSample {
-    offset_us: i64,
-    rtt_us: u64,
-    at: Instant,
-}
-
 struct Server<'a> {
     port_path: String,
     port: Option<Box<dyn Port>>,
@@ -155,12 +149,44 @@ struct Server<'a> {
     reboot_acked: Option<Instant>,
     report_cause: bool,
     hello: Option<Reply>,
-    clock: Option<ClockSample>,
+    /// The best recent clock sample and when it was taken.
+    clock: Option<(ClockSample, Instant)>,
     fatal: Option<String>,
     held: Vec<(ClientId, u16, Request, Instant)>,
     empty_reads: u32,
     s: ServeSummary,
     stop: &'a AtomicBool,
+}
+
+/// Why `wmr serve` ended with status 1.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// `--for` or `--give-up-after` out of range.
+    #[error("--{flag} {value}: give a time in (0, 1e7] s")]
+    BadTime {
+        /// The flag.
+        flag: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// The socket could not be made (the message names it and why).
+    #[error("{0}")]
+    Socket(String),
+    /// Writing stdout failed.
+    #[error("cannot write the output: {0}")]
+    Output(String),
+    /// The link could not go on (version mismatch, refused handshake,
+    /// `--give-up-after` passed).
+    #[error("{0}")]
+    Fatal(String),
+    /// Something unexpected happened while serving.
+    #[error("{} unexpected event(s) while serving {port}: {}", .events.len(), .events.join("; "))]
+    Unexpected {
+        /// The robot's port.
+        port: String,
+        /// What happened.
+        events: Vec<String>,
+    },
 }
 
 static SIGNALLED: AtomicBool = AtomicBool::new(false);
@@ -172,7 +198,7 @@ extern "C" fn on_signal(_: libc::c_int) {
 /// `wmr serve --port PORT`: serves until Ctrl-C or SIGTERM (or `--for`);
 /// prints the socket's path first and the [`ServeSummary`] last. `Err`
 /// (exit status 1) on a fatal error or when something unexpected happened.
-pub fn serve(port: &str, a: &ServeArgs, out: &mut dyn Write) -> Result<(), String> {
+pub fn serve(port: &str, a: &ServeArgs, out: &mut dyn Write) -> Result<(), ServeError> {
     let handler = on_signal as extern "C" fn(libc::c_int);
     // SAFETY: the handler only stores to an atomic (async-signal-safe).
     unsafe {
@@ -189,29 +215,34 @@ pub fn serve_until(
     a: &ServeArgs,
     out: &mut dyn Write,
     stop: &AtomicBool,
-) -> Result<(), String> {
+) -> Result<(), ServeError> {
     let deadline = match a.for_s {
         None => None,
         Some(s) if s.is_finite() && s > 0.0 && s <= 1e7 => {
             Some(Instant::now() + Duration::from_secs_f64(s))
         }
-        Some(s) => return Err(format!("--for {s}: give a time in (0, 1e7] s")),
+        Some(value) => return Err(ServeError::BadTime { flag: "for", value }),
     };
     let give_up = match a.give_up_after {
         None => None,
         Some(s) if s.is_finite() && s > 0.0 && s <= 1e7 => Some(Duration::from_secs_f64(s)),
-        Some(s) => return Err(format!("--give-up-after {s}: give a time in (0, 1e7] s")),
+        Some(value) => {
+            return Err(ServeError::BadTime {
+                flag: "give-up-after",
+                value,
+            })
+        }
     };
     let (sock, default_dir) = match &a.socket {
         Some(p) => (p.clone(), false),
         None => (default_socket_path(port), true),
     };
-    let listener = bind(&sock, default_dir)?;
+    let listener = bind(&sock, default_dir).map_err(ServeError::Socket)?;
     let shown = sock.display().to_string();
-    let w = |out: &mut dyn Write, s: &str| -> Result<(), String> {
+    let w = |out: &mut dyn Write, s: &str| -> Result<(), ServeError> {
         writeln!(out, "{s}")
             .and_then(|_| out.flush())
-            .map_err(|e| e.to_string())
+            .map_err(|e| ServeError::Output(e.to_string()))
     };
     if let Err(e) = w(out, &shown) {
         let _ = std::fs::remove_file(&sock);
@@ -267,21 +298,20 @@ pub fn serve_until(
     let mut summary = server.s.clone();
     summary.seconds = server.t0.elapsed().as_secs_f64();
     summary.routing = server.mux.counters;
-    if let Some(c) = server.clock {
-        summary.clock_offset_us = Some(c.offset_us);
+    if let Some((c, _)) = server.clock {
+        summary.clock_offset_us = Some(c.offset_us());
         summary.clock_rtt_us = Some(c.rtt_us);
     }
-    let json = serde_json::to_string(&summary).map_err(|e| e.to_string())?;
+    let json = serde_json::to_string(&summary).map_err(|e| ServeError::Output(e.to_string()))?;
     w(out, &json)?;
-    r?;
+    r.map_err(ServeError::Fatal)?;
     if summary.unexpected.is_empty() {
         Ok(())
     } else {
-        Err(format!(
-            "{} unexpected event(s) while serving {port}: {}",
-            summary.unexpected.len(),
-            summary.unexpected.join("; ")
-        ))
+        Err(ServeError::Unexpected {
+            port: port.to_string(),
+            events: summary.unexpected,
+        })
     }
 }
 
@@ -891,29 +921,25 @@ impl Server<'_> {
                     ..
                 },
             ) => {
-                let recv = self.host_us();
-                let Some(rtt_us) = recv.checked_sub(host_time_us) else {
+                let Some(sample) =
+                    ClockSample::of_exchange(host_time_us, self.host_us(), robot_time_us)
+                else {
                     return;
-                };
-                let mid = (host_time_us + recv) / 2;
-                let sample = ClockSample {
-                    offset_us: robot_time_us as i64 - mid as i64,
-                    rtt_us,
-                    at: Instant::now(),
                 };
                 // The best round trip of the last 10 s (its midpoint is
                 // the best estimate of when the robot read its clock).
-                let better = self.clock.is_none_or(|c| {
-                    sample.rtt_us <= c.rtt_us || c.at.elapsed() > Duration::from_secs(10)
+                let better = self.clock.is_none_or(|(c, at)| {
+                    sample.rtt_us <= c.rtt_us || at.elapsed() > Duration::from_secs(10)
                 });
                 if self.clock.is_none() {
                     self.log(&format!(
-                        "clock: robot − host {} µs (round trip {rtt_us} µs)",
-                        sample.offset_us
+                        "clock: robot − host {} µs (round trip {} µs)",
+                        sample.offset_us(),
+                        sample.rtt_us
                     ));
                 }
                 if better {
-                    self.clock = Some(sample);
+                    self.clock = Some((sample, Instant::now()));
                 }
             }
             _ => {}
@@ -934,8 +960,8 @@ impl Server<'_> {
     fn timers(&mut self, give_up: Option<Duration>) {
         let now = Instant::now();
         if matches!(self.link, LinkState::Up) {
-            let every =
-                RESEND_EVERY.max(4 * Duration::from_micros(self.clock.map_or(0, |c| c.rtt_us)));
+            let every = RESEND_EVERY
+                .max(4 * Duration::from_micros(self.clock.map_or(0, |(c, _)| c.rtt_us)));
             let outs = self.mux.resends(now, every, RESENDS);
             self.dispatch(outs);
         }
