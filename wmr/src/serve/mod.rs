@@ -48,6 +48,7 @@
 //! lost port, the link up at the end), 1 otherwise and at once when the port
 //! stays lost beyond `--give-up-after`.
 
+mod core;
 mod mux;
 mod server;
 
