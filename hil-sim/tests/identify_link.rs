@@ -64,7 +64,8 @@ fn identify_run_then_fit_over_the_pty() {
     let fit = wmr::identify::FitArgs {
         log,
         robot: None,
-        timer_clock_hz: 96_000_000,
+        // The log says its board's clock (`identify run` wrote it).
+        timer_clock_hz: None,
         out: Some(out_toml.clone()),
         filter_window: 0.15,
         pose_measured: false,

@@ -500,6 +500,10 @@ def main(mcap_path):
         fail(f"/tf {t.header.frame_id!r} -> {t.child_frame_id!r}")
     robot, bridge = ros.bridge_values()
     d = float(bridge["com_offset_m"])
+    want_d = os.environ.get("EXPECT_COM_OFFSET_M")
+    # d travels as f32 (0.02 reads back as 0.0199999995)
+    if want_d is not None and abs(d - float(want_d)) > 1e-6:
+        fail(f"the bridge's d is {d} m; the robot on the link says {want_d} m (body.com_offset_m)")
     limits = {k: float(bridge[k]) for k in ("max_speed_mps", "max_yaw_rate_radps", "accel_mps2", "ang_accel_radps2", "brake_decel_mps2", "path_limit_fraction")}
     cmd_timeout_s = float(bridge["cmd_timeout_ms"]) * 1e-3
     log(f"discovered: /odom at {ros.pose()}, robot {robot['state']}, d {d} m, limits {limits}, cmd timeout {cmd_timeout_s} s")

@@ -35,7 +35,14 @@ cleanup() {
     stop_pid "$DEV_PID"
 }
 trap cleanup EXIT
-start_device "$OUT" --scenario wmr-ros2/check/scenario.toml --for-s 120
+# A robot whose d (body.com_offset_m) is not the paper's 0.05 m: the bridge
+# must take d from the robot on the link (issue 32), and interop.py checks
+# every /odom against the telemetry's G moved back by that d.
+ROBOT_FILE=robots/tb6612-2kg.toml
+EXPECT_COM_OFFSET_M="$(awk -F'=' '/^com_offset_m/ {gsub(/[ \t]|#.*/, "", $2); print $2; exit}' "$ROBOT_FILE")"
+[ -n "$EXPECT_COM_OFFSET_M" ] || fail "no com_offset_m in $ROBOT_FILE"
+export EXPECT_COM_OFFSET_M
+start_device "$OUT" --scenario wmr-ros2/check/scenario.toml --robot "$ROBOT_FILE" --for-s 120
 "$ROOT/target/release/wmr-ros2" --port "$DEV_PTY" --service-mapping cyclone --cmd-timeout-ms 500 --mcap "$OUT/bridge.mcap" \
     --for-s 110 2>"$OUT/bridge.err" &
 BRIDGE_PID=$!

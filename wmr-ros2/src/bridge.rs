@@ -25,9 +25,11 @@ use crate::msg::{Path, PoseWithCovarianceStamped};
 use crate::profile;
 use ros_mcap::msg::{DiagnosticStatus, KeyValue, Twist};
 use ros_mcap::{Geometry, LogFrame, RosFrames, RosMessages, TimeMap};
-use std::collections::VecDeque;
 use std::time::{Duration, Instant};
-use wmr::cli::{clock_sync, ClockSample, PoseClock, PoseTally};
+use wmr::session::{
+    self, telemetry_gap, ClockTracker, ComOffset, Motion, PoseTally, Pump, SegmentStream,
+    StreamError, TELEMETRY_SILENCE,
+};
 use wmr::{Link, LinkError};
 use wmr_protocol::{
     ErrorCode, Event, ModeMsg, ParamId, Reply, Request, RunStateMsg, StopCode, Telemetry,
@@ -41,8 +43,10 @@ pub struct Config {
     pub rate_hz: u16,
     /// Timeout of each forwarded `cmd_vel` on the robot \[ms\] (1..=5000).
     pub cmd_timeout_ms: u16,
-    /// d, G ahead of the axle \[m\] (the link's handshake does not carry it).
-    pub com_offset_m: f64,
+    /// d, G ahead of the axle \[m\], when given (`--com-offset-m`); `None`:
+    /// the robot's own (`body.com_offset_m` of the robot file it runs,
+    /// [`wmr::session::com_offset_m`]).
+    pub com_offset_m: Option<f64>,
     /// Fraction of the robot's speed and acceleration limits a path's
     /// profile uses, in (0, 1] (the rest is the controller's margin).
     pub path_limit_fraction: f64,
@@ -57,38 +61,44 @@ pub const DEFAULT_CMD_TIMEOUT_MS: u16 = 300;
 pub const DEFAULT_RATE_HZ: u16 = 50;
 /// Default [`Config::path_limit_fraction`].
 pub const DEFAULT_PATH_LIMIT_FRACTION: f64 = 0.8;
-/// No telemetry frame for this long: the link is dead.
-pub const TELEMETRY_SILENCE: Duration = Duration::from_secs(2);
 /// Clock-sync samples kept; the shortest round trip among them sets the
 /// offset.
 const SYNC_WINDOW: usize = 16;
-/// Wait before re-sending a segment the robot's full buffer refused.
-const SEGMENT_RETRY: Duration = Duration::from_millis(50);
+
+/// Why the bridge's settings are refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    /// The telemetry rate.
+    #[error("rate {0} Hz is not in 1..=1000 Hz")]
+    Rate(u16),
+    /// The cmd_vel timeout.
+    #[error("cmd_vel timeout {0} ms is not in 1..=5000 ms (the robot's range)")]
+    CmdTimeout(u16),
+    /// The path limit fraction.
+    #[error("path limit fraction {0} is not in (0, 1]")]
+    PathLimitFraction(f64),
+}
 
 impl Config {
     /// Checked settings.
     pub fn new(
         rate_hz: u16,
         cmd_timeout_ms: u16,
-        com_offset_m: f64,
+        com_offset_m: Option<f64>,
         path_limit_fraction: f64,
         enable: bool,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, ConfigError> {
         if !(1..=1000).contains(&rate_hz) {
-            return Err(format!("rate {rate_hz} Hz is not in 1..=1000 Hz"));
+            return Err(ConfigError::Rate(rate_hz));
         }
         if !(1..=5000).contains(&cmd_timeout_ms) {
-            return Err(format!(
-                "cmd_vel timeout {cmd_timeout_ms} ms is not in 1..=5000 ms (the robot's range)"
-            ));
+            return Err(ConfigError::CmdTimeout(cmd_timeout_ms));
         }
         if !(path_limit_fraction.is_finite()
             && path_limit_fraction > 0.0
             && path_limit_fraction <= 1.0)
         {
-            return Err(format!(
-                "path limit fraction {path_limit_fraction} is not in (0, 1]"
-            ));
+            return Err(ConfigError::PathLimitFraction(path_limit_fraction));
         }
         Ok(Self {
             rate_hz,
@@ -174,11 +184,8 @@ pub struct Stats {
 /// A path being uploaded (and streamed while it runs).
 #[derive(Clone, Debug)]
 struct UploadState {
-    segs: Vec<Request>,
-    next: usize,
-    points: usize,
+    stream: SegmentStream,
     armed: bool,
-    retry_at: Option<Instant>,
 }
 
 /// The bridge.
@@ -186,16 +193,12 @@ pub struct Bridge {
     link: Link,
     cfg: Config,
     geometry: Geometry,
+    com_offset: ComOffset,
     limits: Limits,
     frames: RosFrames,
-    t0: Instant,
-    unix_t0_ns: u64,
-    syncs: VecDeque<ClockSample>,
-    clock: PoseClock,
+    clock: ClockTracker,
     time_map: TimeMap,
-    period_s: f32,
     brake_decel_mps2: f64,
-    last_sync: Instant,
     last_frame: Instant,
     last_seq: Option<u32>,
     state: RunStateMsg,
@@ -212,17 +215,7 @@ pub struct Bridge {
 }
 
 fn param(link: &mut Link, id: ParamId) -> Result<f32, Fatal> {
-    match link.command(&Request::GetParam(id))? {
-        Reply::Param { value, .. } => Ok(value),
-        r => Err(Fatal::Link(LinkError::Unexpected(format!("{r:?}")))),
-    }
-}
-
-fn status(link: &mut Link) -> Result<wmr_protocol::StatusMsg, Fatal> {
-    match link.command(&Request::GetStatus)? {
-        Reply::Status { status, .. } => Ok(status),
-        r => Err(Fatal::Link(LinkError::Unexpected(format!("{r:?}")))),
-    }
+    Ok(session::get_param(link, id)?)
 }
 
 /// A command stamped at `stamp_ns` is stale at `now_ns` when older than
@@ -256,14 +249,13 @@ impl Bridge {
     /// constants and limits, syncs the clocks, turns telemetry on.
     pub fn connect(mut link: Link, cfg: Config) -> Result<Self, Fatal> {
         let hello = link.hello()?;
-        let lt = param(&mut link, ParamId::LinkTimeoutMs)?;
-        if lt.is_finite() && lt >= 1.0 {
-            link.set_link_timeout_ms(lt as u32);
-        }
+        session::adopt_link_timeout(&mut link)?;
+        // d from the robot file the robot runs unless given.
+        let com_offset = session::com_offset_m(&mut link, cfg.com_offset_m)?;
         let geometry = Geometry::new(
             hello.robot.wheel_radius_m as f64,
             hello.robot.half_track_m as f64,
-            cfg.com_offset_m,
+            com_offset.com_offset_m,
         )
         .map_err(|e| Fatal::Robot(e.to_string()))?;
         let limits = Limits::new(
@@ -274,30 +266,23 @@ impl Bridge {
         )
         .map_err(Fatal::Robot)?;
         let brake_decel_mps2 = param(&mut link, ParamId::BrakeDecelMps2)? as f64;
-        let t0 = Instant::now();
-        let unix_t0_ns = ros_mcap::unix_now_ns();
-        let sync = clock_sync(&mut link, t0, 5)?;
-        let st = status(&mut link)?;
+        let clock = ClockTracker::start(&mut link, hello.robot.control_period_s, SYNC_WINDOW)?;
+        let st = session::status(&mut link)?;
         link.command(&Request::SetTelemetry {
             selection: TELEMETRY_ALL,
             rate_hz: cfg.rate_hz,
         })?;
-        let period_s = hello.robot.control_period_s;
         let enabled = cfg.enable;
         Ok(Self {
-            clock: PoseClock::from_sync(sync, unix_t0_ns, period_s),
-            time_map: TimeMap::new(sync.robot_us as u32, unix_t0_ns + sync.host_mid_us * 1000),
-            syncs: VecDeque::from([sync]),
+            time_map: clock.time_map(),
+            clock,
             link,
             cfg,
             geometry,
+            com_offset,
             limits,
             frames: RosFrames::new(geometry),
-            t0,
-            unix_t0_ns,
-            period_s,
             brake_decel_mps2,
-            last_sync: Instant::now(),
             last_frame: Instant::now(),
             last_seq: None,
             state: st.state,
@@ -312,9 +297,15 @@ impl Bridge {
         })
     }
 
-    /// The robot's geometry (d from the settings).
+    /// The robot's geometry (r and h from the handshake, d as
+    /// [`Self::com_offset`] says).
     pub fn geometry(&self) -> Geometry {
         self.geometry
+    }
+
+    /// d and where it came from (given, the robot's file, the paper's).
+    pub fn com_offset(&self) -> &ComOffset {
+        &self.com_offset
     }
 
     /// The robot's limits read at connection.
@@ -334,37 +325,21 @@ impl Bridge {
 
     /// Host time since the bridge's t0 \[µs\].
     pub fn host_us(&self) -> u64 {
-        self.t0.elapsed().as_micros() as u64
+        self.clock.host_us()
     }
 
     /// Robot − host clock offset \[µs\] and the round trip it was measured with.
     pub fn clock_offset(&self) -> (i64, u64) {
-        let b = self.best_sync();
+        let b = self.clock.best();
         (b.offset_us(), b.rtt_us)
     }
 
-    fn best_sync(&self) -> ClockSample {
-        *self
-            .syncs
-            .iter()
-            .min_by_key(|s| s.rtt_us)
-            .expect("at least one sync")
-    }
-
     fn resync(&mut self) -> Result<(), Fatal> {
-        let s = clock_sync(&mut self.link, self.t0, 1)?;
-        self.syncs.push_back(s);
-        while self.syncs.len() > SYNC_WINDOW {
-            self.syncs.pop_front();
-        }
-        let b = self.best_sync();
-        self.clock = PoseClock::from_sync(b, self.unix_t0_ns, self.period_s);
+        self.clock.resync(&mut self.link)?;
         // Stamps follow the robot's clock as it drifts against the host's
         // (50 ppm is 0.18 s an hour): the map is re-anchored at the best
-        // recent sync (recent: within the clock's half range of 35 min,
-        // so its wrap count starts right).
-        self.time_map = TimeMap::new(b.robot_us as u32, self.unix_t0_ns + b.host_mid_us * 1000);
-        self.last_sync = Instant::now();
+        // recent sync.
+        self.time_map = self.clock.time_map();
         Ok(())
     }
 
@@ -377,7 +352,7 @@ impl Bridge {
     /// path segments, and returns the messages of each telemetry frame
     /// (with the bridge's own status on `/diagnostics`).
     pub fn poll(&mut self, wait: Duration) -> Result<Vec<RosMessages>, Fatal> {
-        if self.last_sync.elapsed() >= self.link.timing().keep_alive {
+        if self.clock.last_sync().elapsed() >= self.link.timing().keep_alive {
             self.resync()?;
         }
         self.stream_segments()?;
@@ -435,7 +410,7 @@ impl Bridge {
         self.last_frame = Instant::now();
         self.stats.frames += 1;
         if let Some(s) = self.last_seq {
-            self.stats.frames_dropped += t.seq.wrapping_sub(s).saturating_sub(1) as u64;
+            self.stats.frames_dropped += telemetry_gap(s, t.seq);
         }
         self.last_seq = Some(t.seq);
         if t.state != self.state {
@@ -506,9 +481,9 @@ impl Bridge {
                 None => "none".into(),
                 Some(u) => format!(
                     "{} of {} segments sent ({} waypoints), {}",
-                    u.next,
-                    u.segs.len(),
-                    u.points,
+                    u.stream.segments_sent(),
+                    u.stream.segment_count(),
+                    u.stream.points(),
                     if u.armed { "running" } else { "loaded" }
                 ),
             },
@@ -636,7 +611,7 @@ impl Bridge {
         if self.state == RunStateMsg::Hold {
             self.mode = ModeMsg::Velocity;
             self.upload = None;
-            match self.link.command(&Request::Arm) {
+            match Motion::Arm.send(&mut self.link) {
                 Ok(_) => self.state = RunStateMsg::Running,
                 Err(e) => {
                     return match nack_reason(&e) {
@@ -692,21 +667,19 @@ impl Bridge {
         pts: Vec<wmr_protocol::Waypoint>,
     ) -> Result<Result<String, Refusal>, Fatal> {
         let n = pts.len();
-        if let Err(e) = self.link.command(&Request::TrajectoryBegin {
-            total_points: n as u32,
-        }) {
-            return match nack_reason(&e) {
-                Some(c) => Ok(self.refuse(Refusal::Robot(c.reason().into()))),
-                None => Err(e.into()),
-            };
-        }
+        let stream = match SegmentStream::begin(&mut self.link, &pts) {
+            Ok(s) => s,
+            Err(e) => {
+                return match nack_reason(&e) {
+                    Some(c) => Ok(self.refuse(Refusal::Robot(c.reason().into()))),
+                    None => Err(e.into()),
+                }
+            }
+        };
         self.mode = ModeMsg::Trajectory;
         self.upload = Some(UploadState {
-            segs: wmr::upload::segments(&pts),
-            next: 0,
-            points: n,
+            stream,
             armed: false,
-            retry_at: None,
         });
         self.stream_segments()?;
         if self.enabled {
@@ -719,12 +692,12 @@ impl Bridge {
     }
 
     fn arm_upload(&mut self) -> Result<Result<String, Refusal>, Fatal> {
-        match self.link.command(&Request::Arm) {
+        match Motion::Arm.send(&mut self.link) {
             Ok(_) => {
                 self.state = RunStateMsg::Running;
                 if let Some(u) = &mut self.upload {
                     u.armed = true;
-                    if u.next == u.segs.len() {
+                    if u.stream.done() {
                         self.stats.paths_uploaded += 1;
                     }
                 }
@@ -737,37 +710,23 @@ impl Bridge {
         }
     }
 
-    /// Sends the pending segments until the robot's buffer is full.
+    /// Sends the pending segments until the robot's buffer is full (the
+    /// session's streamer, pumped from the poll loop).
     fn stream_segments(&mut self) -> Result<(), Fatal> {
         let Some(u) = &mut self.upload else {
             return Ok(());
         };
-        if u.retry_at.is_some_and(|t| Instant::now() < t) {
+        if u.stream.done() {
             return Ok(());
         }
-        u.retry_at = None;
-        while u.next < u.segs.len() {
-            match self.link.request(&u.segs[u.next])? {
-                Reply::TrajectoryAck { .. } => {
-                    u.next += 1;
-                    if u.next == u.segs.len() && u.armed {
-                        self.stats.paths_uploaded += 1;
-                    }
-                }
-                Reply::Nack {
-                    error: ErrorCode::BufferFull,
-                    ..
-                } => {
-                    u.retry_at = Some(Instant::now() + SEGMENT_RETRY);
-                    break;
-                }
-                Reply::Nack { error, .. } => {
-                    self.upload = None;
-                    self.stats.paths_refused += 1;
-                    self.stats.last_refusal = format!("path segment refused: {}", error.reason());
-                    return Ok(());
-                }
-                r => return Err(Fatal::Link(LinkError::Unexpected(format!("{r:?}")))),
+        match u.stream.pump_when_due(&mut self.link) {
+            Ok(Some(Pump::Done)) if u.armed => self.stats.paths_uploaded += 1,
+            Ok(_) => {}
+            Err(StreamError::Link(e)) => return Err(e.into()),
+            Err(e) => {
+                self.upload = None;
+                self.stats.paths_refused += 1;
+                self.stats.last_refusal = format!("path segment refused: {e}");
             }
         }
         Ok(())
@@ -778,9 +737,10 @@ impl Bridge {
     pub fn localiser_pose(&mut self, p: &PoseWithCovarianceStamped) -> Outcome {
         let arrival = self.host_us();
         let cov = p.covariance();
+        let clock = self.clock.pose_clock();
         let req = match external_pose_request(
             &self.geometry,
-            &self.clock,
+            &clock,
             &p.pose.pose,
             &cov,
             p.header.stamp.to_ns(),
@@ -902,7 +862,7 @@ impl Bridge {
         self.enabled = false;
         self.queued_path = None;
         if matches!(self.state, RunStateMsg::Running | RunStateMsg::Stopping) {
-            let r = self.simple(Request::Disarm, "disarmed; motion disabled")?;
+            let r = self.simple(Motion::Disarm.request(), "disarmed; motion disabled")?;
             if r.is_ok() {
                 self.state = RunStateMsg::Hold;
                 self.upload = None;
@@ -920,7 +880,7 @@ impl Bridge {
         self.queued_path = None;
         self.upload = None;
         let r = self.simple(
-            Request::EmergencyStop,
+            Motion::EmergencyStop.request(),
             "emergency stop latched; motion disabled (clear_stop, then arm)",
         )?;
         if r.is_ok() {
@@ -932,7 +892,7 @@ impl Bridge {
 
     /// The clear-stop service: clears a latched stop (back to hold).
     pub fn clear_stop(&mut self) -> Outcome {
-        let r = self.simple(Request::ClearStop, "stop cleared: hold")?;
+        let r = self.simple(Motion::ClearStop.request(), "stop cleared: hold")?;
         if r.is_ok() {
             self.state = RunStateMsg::Hold;
         }
@@ -943,7 +903,7 @@ impl Bridge {
     /// bridge ends on purpose).
     pub fn shutdown(&mut self) {
         if matches!(self.state, RunStateMsg::Running) {
-            let _ = self.link.command(&Request::Disarm);
+            let _ = Motion::Disarm.send(&mut self.link);
         }
         let _ = self.link.command(&Request::SetTelemetry {
             selection: TELEMETRY_ALL,
@@ -970,11 +930,11 @@ mod tests {
 
     #[test]
     fn settings_are_checked() {
-        assert!(Config::new(50, 300, 0.05, 0.8, false).is_ok());
-        assert!(Config::new(0, 300, 0.05, 0.8, false).is_err());
-        assert!(Config::new(50, 0, 0.05, 0.8, false).is_err());
-        assert!(Config::new(50, 6000, 0.05, 0.8, false).is_err());
-        assert!(Config::new(50, 300, 0.05, 0.0, false).is_err());
-        assert!(Config::new(50, 300, 0.05, f64::NAN, false).is_err());
+        assert!(Config::new(50, 300, Some(0.05), 0.8, false).is_ok());
+        assert!(Config::new(0, 300, Some(0.05), 0.8, false).is_err());
+        assert!(Config::new(50, 0, Some(0.05), 0.8, false).is_err());
+        assert!(Config::new(50, 6000, Some(0.05), 0.8, false).is_err());
+        assert!(Config::new(50, 300, Some(0.05), 0.0, false).is_err());
+        assert!(Config::new(50, 300, Some(0.05), f64::NAN, false).is_err());
     }
 }

@@ -6,7 +6,7 @@
 
 use ros_mcap::msg::{Pose, Quaternion};
 use ros_mcap::Geometry;
-use wmr::cli::{Capture, PoseClock};
+use wmr::session::{Capture, PoseClock};
 use wmr_protocol::{PoseMsg, Request};
 
 /// Why a message was not forwarded to the robot.
@@ -455,7 +455,7 @@ mod tests {
     #[test]
     fn localiser_stamp_is_converted_to_robot_time() {
         let g = geo();
-        let sync = wmr::cli::ClockSample {
+        let sync = wmr::session::ClockSample {
             robot_us: 5_000_000,
             host_mid_us: 1_000_000,
             rtt_us: 200,

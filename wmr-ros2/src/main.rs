@@ -71,7 +71,7 @@ struct Args {
     /// Topic of a localiser's poses (geometry_msgs/PoseWithCovarianceStamped), fused by the robot's estimator at their stamps.
     #[arg(long, default_value = topics::DEFAULT_LOCALISER)]
     localiser_topic: String,
-    /// d, G ahead of the axle midpoint [m] (the link does not carry it) [default: the paper robot's].
+    /// d, G ahead of the axle midpoint [m] [default: body.com_offset_m of the robot file the robot runs, read from its store; the paper robot's 0.05 when it cannot tell].
     #[arg(long)]
     com_offset_m: Option<f64>,
     /// Fraction of the robot's speed and acceleration limits a path's profile uses.
@@ -347,11 +347,11 @@ fn run(a: &Args) -> Result<(), String> {
     let cfg = Config::new(
         a.rate_hz,
         a.cmd_timeout_ms,
-        a.com_offset_m
-            .unwrap_or_else(ros_mcap::default_com_offset_m),
+        a.com_offset_m,
         a.path_limit_fraction,
         a.enable,
-    )?;
+    )
+    .map_err(|e| e.to_string())?;
     if let Some(s) = a.for_s {
         if !(s.is_finite() && s > 0.0) {
             return Err(format!("--for-s {s}: must be > 0"));
@@ -423,11 +423,11 @@ fn run(a: &Args) -> Result<(), String> {
     let param_servers = ParamServers::new(&mut node, mapping, &a.node_name)?;
     let limits = b.limits();
     eprintln!(
-        "wmr-ros2: bridging {via} on DDS domain {}: robot r {:.4} m, h {:.4} m, d {:.4} m; limits {:.2} m/s, {:.2} rad/s; motion {}",
+        "wmr-ros2: bridging {via} on DDS domain {}: robot r {:.4} m, h {:.4} m, {}; limits {:.2} m/s, {:.2} rad/s; motion {}",
         a.domain_id,
         b.geometry().wheel_radius_m,
         b.geometry().half_track_m,
-        b.geometry().com_offset_m,
+        b.com_offset(),
         limits.max_speed_mps,
         limits.max_yaw_rate_radps,
         if a.enable { "enabled" } else { "disabled until the arm service" }

@@ -10,13 +10,14 @@
 //! Every wait is bounded.
 
 use crate::link::{Link, LinkError};
+use crate::session::{Motion, Pump, SegmentStream};
 use clap::{Args, Subcommand};
 use robot_identify::excitation::{check, waypoints};
 use robot_identify::{identify, read_id_csv, write_id_csv, FitOptions, IdRow, Prior, RowBuilder};
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-use wmr_protocol::{ErrorCode, Event, Reply, Request, RunStateMsg, StopCode, TELEMETRY_ALL};
+use wmr_protocol::{Event, Reply, Request, RunStateMsg, StopCode, TELEMETRY_ALL};
 
 /// `identify` options.
 #[derive(Debug, Args)]
@@ -81,9 +82,11 @@ pub struct FitArgs {
     #[arg(long, value_name = "PRIOR.toml")]
     pub robot: Option<PathBuf>,
     /// PWM timer clock of the robot's board [Hz] (with a robot file: the
-    /// duty's full scale is clock / bridge.pwm_frequency_hz).
-    #[arg(long, default_value_t = 96_000_000)]
-    pub timer_clock_hz: u32,
+    /// duty's full scale is clock / bridge.pwm_frequency_hz) [default: the
+    /// log's, which `wmr identify run` writes from the board the robot
+    /// names in its handshake].
+    #[arg(long)]
+    pub timer_clock_hz: Option<u32>,
     /// Write the identified robot: the prior's robot file with the
     /// identified values (the report in its header comment); a flat TOML
     /// with a flat prior.
@@ -146,67 +149,151 @@ pub fn prior_from_toml(text: &str, origin: &str) -> Result<Prior, String> {
     Ok(p)
 }
 
+/// Why `identify fit` failed.
+#[derive(Debug, thiserror::Error)]
+pub enum FitError {
+    /// A file could not be read or written.
+    #[error("cannot {what} {path}: {err}")]
+    File {
+        /// "read" or "write".
+        what: &'static str,
+        /// The file.
+        path: String,
+        /// Why.
+        err: String,
+    },
+    /// The log, the prior or the fit refused (the message names the file).
+    #[error("{0}")]
+    Input(String),
+    /// `--filter-window` not positive.
+    #[error("--filter-window must be > 0 s (got {0})")]
+    FilterWindow(f64),
+    /// A duty log without its board's timer clock.
+    #[error(
+        "{log}: the log does not say its board's PWM timer clock (logs of `wmr identify run` \
+         do, for a board it knows): give --timer-clock-hz ({known})"
+    )]
+    NoTimerClock {
+        /// The log.
+        log: String,
+        /// The clocks of the boards wmr knows.
+        known: String,
+    },
+    /// Writing the report.
+    #[error("cannot write the report: {0}")]
+    Output(String),
+}
+
+/// The comment key of the timer clock in an identification log.
+const TIMER_CLOCK_KEY: &str = "timer_clock_hz = ";
+
+/// The timer clock a log's comment lines give (`# ... timer_clock_hz = N`).
+pub fn timer_clock_of_log(text: &str) -> Option<u32> {
+    text.lines()
+        .take_while(|l| l.starts_with('#') || l.trim().is_empty())
+        .find_map(|l| {
+            let rest = &l[l.find(TIMER_CLOCK_KEY)? + TIMER_CLOCK_KEY.len()..];
+            rest.split(|c: char| !c.is_ascii_digit())
+                .next()?
+                .parse()
+                .ok()
+        })
+}
+
 /// `identify fit`: the report on `out`, the robot file with `-o`.
-pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), String> {
-    // The prior: a robot file (the usual case), or the flat keys.
-    let (prior, base) = match &a.robot {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-            let origin = path.display().to_string();
-            let is_file = text
-                .parse::<toml::Table>()
-                .is_ok_and(|t| t.contains_key("format") || t.contains_key("body"));
-            if is_file {
-                let robot = robot_file::Robot::from_toml_str(&text)
-                    .map_err(|e| format!("{origin}: {e}"))?;
-                let p = Prior::from_robot(&robot, a.timer_clock_hz)
-                    .map_err(|e| format!("{origin}: {e}"))?;
-                (p, Some(robot))
-            } else {
-                (prior_from_toml(&text, &origin)?, None)
-            }
-        }
-        None => {
-            let robot = robot_file::Robot::paper();
-            (Prior::from_robot(&robot, a.timer_clock_hz)?, Some(robot))
-        }
-    };
-    let file =
-        std::fs::File::open(&a.log).map_err(|e| format!("cannot read {}: {e}", a.log.display()))?;
+pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), FitError> {
     let origin = a.log.display().to_string();
-    let text = std::io::read_to_string(file).map_err(|e| format!("{origin}: {e}"))?;
+    let text = std::fs::read_to_string(&a.log).map_err(|e| FitError::File {
+        what: "read",
+        path: origin.clone(),
+        err: e.to_string(),
+    })?;
     let is_trace = text
         .lines()
         .find(|l| !l.trim().is_empty() && !l.starts_with('#'))
         .is_some_and(|l| l.trim_end() == track_log::csv::CSV_HEADER);
+    // The board's timer clock (the duty's full scale): given, else the
+    // log's; a trace has no duties, so it does not enter.
+    let clock = || -> Result<u32, FitError> {
+        match a.timer_clock_hz.or_else(|| timer_clock_of_log(&text)) {
+            Some(c) => Ok(c),
+            None if is_trace => Ok(robot_file::SUPPORTED_TIMER_CLOCKS_HZ[0]),
+            None => Err(FitError::NoTimerClock {
+                log: origin.clone(),
+                known: "96000000 for an STM32F411 or hil-sim's device, 168000000 for an STM32F446"
+                    .into(),
+            }),
+        }
+    };
+    // The prior: a robot file (the usual case), or the flat keys.
+    let (prior, base) = match &a.robot {
+        Some(path) => {
+            let prior_text = std::fs::read_to_string(path).map_err(|e| FitError::File {
+                what: "read",
+                path: path.display().to_string(),
+                err: e.to_string(),
+            })?;
+            let po = path.display().to_string();
+            let is_file = prior_text
+                .parse::<toml::Table>()
+                .is_ok_and(|t| t.contains_key("format") || t.contains_key("body"));
+            if is_file {
+                let robot = robot_file::Robot::from_toml_str(&prior_text)
+                    .map_err(|e| FitError::Input(format!("{po}: {e}")))?;
+                let p = Prior::from_robot(&robot, clock()?)
+                    .map_err(|e| FitError::Input(format!("{po}: {e}")))?;
+                (p, Some(robot))
+            } else {
+                (
+                    prior_from_toml(&prior_text, &po).map_err(FitError::Input)?,
+                    None,
+                )
+            }
+        }
+        None => {
+            let robot = robot_file::Robot::paper();
+            (
+                Prior::from_robot(&robot, clock()?).map_err(FitError::Input)?,
+                Some(robot),
+            )
+        }
+    };
+    let w = |e: std::io::Error| FitError::Output(e.to_string());
     let rows = if is_trace {
         writeln!(
             out,
             "{origin}: a trace CSV (no duties): the torque form, wheel rates from η with the prior's r and h"
         )
-        .map_err(|e| e.to_string())?;
-        let trace = track_log::csv::read_trace_csv(text.as_bytes(), &origin)?;
+        .map_err(w)?;
+        let trace =
+            track_log::csv::read_trace_csv(text.as_bytes(), &origin).map_err(FitError::Input)?;
         robot_identify::log::rows_from_trace(&trace, &prior.robot, a.pose_measured)
     } else {
-        read_id_csv(text.as_bytes(), &origin)?
+        read_id_csv(text.as_bytes(), &origin).map_err(FitError::Input)?
     };
     let opts = FitOptions {
         filter_window_s: a.filter_window,
         ..FitOptions::default()
     };
     if !(opts.filter_window_s.is_finite() && opts.filter_window_s > 0.0) {
-        return Err("--filter-window must be > 0 s".into());
+        return Err(FitError::FilterWindow(opts.filter_window_s));
     }
-    let id = identify(&rows, &prior, &opts).map_err(|e| format!("{}: {e}", a.log.display()))?;
-    write!(out, "{}", robot_identify::report::text(&id, &prior)).map_err(|e| e.to_string())?;
+    let id =
+        identify(&rows, &prior, &opts).map_err(|e| FitError::Input(format!("{origin}: {e}")))?;
+    write!(out, "{}", robot_identify::report::text(&id, &prior)).map_err(w)?;
     if let Some(path) = &a.out {
         let text = match &base {
-            Some(robot) => robot_identify::report::robot_file(&id, &prior, robot)?,
+            Some(robot) => {
+                robot_identify::report::robot_file(&id, &prior, robot).map_err(FitError::Input)?
+            }
             None => robot_identify::report::robot_toml(&id, &prior),
         };
-        std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-        writeln!(out, "robot written to {}", path.display()).map_err(|e| e.to_string())?;
+        std::fs::write(path, text).map_err(|e| FitError::File {
+            what: "write",
+            path: path.display().to_string(),
+            err: e.to_string(),
+        })?;
+        writeln!(out, "robot written to {}", path.display()).map_err(w)?;
     }
     Ok(())
 }
@@ -266,11 +353,8 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     if a.rate.is_some_and(|r| r == 0 || r > 1000) {
         return Err(LinkError::Io("--rate must be in 1..=1000 Hz".into()));
     }
-    let info = match link.last_hello.clone() {
-        Some(h) => h,
-        None => link.hello()?,
-    }
-    .robot;
+    let hello = crate::session::hello(link)?;
+    let info = hello.robot;
     let ex = controller_core::trajectory::Excitation {
         v_amp_mps: a.v_amp,
         omega_amp_radps: a.w_amp,
@@ -334,10 +418,7 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
         crate::upload::check_waypoints(&pts, r)
             .map_err(|e| LinkError::Io(format!("excitation: {e}")))?;
     }
-    let segs: Vec<Request> = crate::upload::segments(&pts);
-    link.command(&Request::TrajectoryBegin {
-        total_points: pts.len() as u32,
-    })?;
+    let mut stream = SegmentStream::begin(link, &pts)?;
     writeln!(
         out,
         "excitation: {} waypoints over {:.0} s, peaks {:.2} m/s, {:.2} rad/s, {:.2} N·m (model), within {:.2} m",
@@ -350,7 +431,6 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     )
     .map_err(io)?;
     // Fill the buffer, arm, stream the rest while recording.
-    let mut next = 0usize;
     let mut armed = false;
     let mut rows: Vec<IdRow> = Vec::new();
     let mut builder = RowBuilder::new(info);
@@ -359,38 +439,25 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     let mut ended: Option<(RunStateMsg, Option<StopCode>)> = None;
     let keep_alive = link.timing().keep_alive;
     let mut last_tx = Instant::now();
-    let mut last_try = Instant::now() - Duration::from_secs(1);
     let mut last_frame = Instant::now();
     let deadline = Instant::now() + Duration::from_secs_f64(ex.duration_s as f64 + 30.0);
     loop {
-        if next < segs.len() && last_try.elapsed() >= Duration::from_millis(50) {
-            last_try = Instant::now();
-            match link.request(&segs[next])? {
-                Reply::TrajectoryAck { .. } => {
-                    next += 1;
-                    last_try -= Duration::from_millis(50);
+        // Fill the buffer (again each SEGMENT_RETRY while it is full);
+        // arm once it is full or the excitation is all in.
+        if !stream.done() {
+            if let Some(p) = stream.pump_when_due(link)? {
+                last_tx = Instant::now();
+                if !armed {
+                    Motion::Arm.send(link)?;
+                    armed = true;
                 }
-                Reply::Nack {
-                    error: ErrorCode::BufferFull,
-                    ..
-                } => {
-                    // The robot's buffer is full: arm, the rest streams.
-                    if !armed {
-                        link.command(&Request::Arm)?;
-                        armed = true;
-                    }
+                if p == Pump::Done {
+                    continue;
                 }
-                Reply::Nack { error, .. } => {
-                    return Err(LinkError::Nack("TrajectorySegment".into(), error))
-                }
-                r => return Err(LinkError::Unexpected(format!("{r:?}"))),
             }
-            last_tx = Instant::now();
-            if !armed && next == segs.len() {
-                link.command(&Request::Arm)?;
-                armed = true;
-            }
-            continue;
+        } else if !armed {
+            Motion::Arm.send(link)?;
+            armed = true;
         }
         if last_tx.elapsed() >= keep_alive {
             link.send(&Request::ClockSync { host_time_us: 0 })?;
@@ -401,7 +468,7 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
                 last_frame = Instant::now();
                 frames += 1;
                 if let Some(s) = last_seq {
-                    dropped += t.seq.wrapping_sub(s).saturating_sub(1) as u64;
+                    dropped += crate::session::telemetry_gap(s, t.seq);
                 }
                 last_seq = Some(t.seq);
                 seen_running |= t.state == RunStateMsg::Running;
@@ -433,7 +500,7 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
         selection: TELEMETRY_ALL,
         rate_hz: 0,
     });
-    let comments = vec![
+    let mut comments = vec![
         format!(
             "wmr identify run: robot r = {} m, h = {} m, m = {} kg, period {} s, torque limit {} N·m",
             info.wheel_radius_m,
@@ -447,6 +514,14 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
             ex.v_amp_mps, ex.omega_amp_radps, ex.w_radps, ex.duration_s, rate
         ),
     ];
+    // The board's timer clock (the duty's full scale) for `identify fit`.
+    match crate::session::timer_clock_of_chip(&hello.chip) {
+        Some(hz) => comments.push(format!("board \"{}\": {TIMER_CLOCK_KEY}{hz}", hello.chip)),
+        None => eprintln!(
+            "note: board \"{}\" is not one wmr knows the PWM timer clock of: give `identify fit` --timer-clock-hz",
+            hello.chip
+        ),
+    }
     write_id_csv(std::io::BufWriter::new(file), &comments, &rows)
         .map_err(|e| LinkError::Io(format!("cannot write {}: {e}", a.out.display())))?;
     writeln!(
@@ -503,19 +578,21 @@ mod tests {
         let args = |log: PathBuf| FitArgs {
             log,
             robot: None,
-            timer_clock_hz: 96_000_000,
+            timer_clock_hz: Some(96_000_000),
             out: None,
             filter_window: 0.15,
             pose_measured: false,
         };
         let mut out = Vec::new();
-        let e = fit(&args("/no/such/log.csv".into()), &mut out).unwrap_err();
+        let e = fit(&args("/no/such/log.csv".into()), &mut out)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("cannot read /no/such/log.csv"), "{e}");
         let dir = std::env::temp_dir().join(format!("wmr-identify-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let f = dir.join("trace.csv");
         std::fs::write(&f, "t,x\n1,2\n").unwrap();
-        let e = fit(&args(f.clone()), &mut out).unwrap_err();
+        let e = fit(&args(f.clone()), &mut out).unwrap_err().to_string();
         assert!(e.contains("not an identification log"), "{e}");
         std::fs::write(
             &f,
@@ -525,7 +602,48 @@ mod tests {
             ),
         )
         .unwrap();
-        let e = fit(&args(f.clone()), &mut out).unwrap_err();
+        let e = fit(&args(f.clone()), &mut out).unwrap_err().to_string();
+        assert!(e.contains("at least 100"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// The log's timer clock is the one `identify run` wrote for its
+    /// board; a duty log without one is refused, naming the flag, and the
+    /// flag overrides the log.
+    #[test]
+    fn the_timer_clock_comes_from_the_log() {
+        let log = format!(
+            "# wmr identify run: robot r = 0.1 m\n# board \"stm32f446re\": timer_clock_hz = 168000000\n{}\n",
+            robot_identify::log::ID_CSV_HEADER
+        );
+        assert_eq!(timer_clock_of_log(&log), Some(168_000_000));
+        assert_eq!(
+            crate::session::timer_clock_of_chip("stm32f446re"),
+            Some(168_000_000)
+        );
+        let bare = format!(
+            "{}\n0,0,0,0,0,0,0,0,0,0,0,0\n",
+            robot_identify::log::ID_CSV_HEADER
+        );
+        assert_eq!(timer_clock_of_log(&bare), None);
+        let dir = std::env::temp_dir().join(format!("wmr-identify-clock-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("id.csv");
+        std::fs::write(&f, &bare).unwrap();
+        let mut a = FitArgs {
+            log: f.clone(),
+            robot: None,
+            timer_clock_hz: None,
+            out: None,
+            filter_window: 0.15,
+            pose_measured: false,
+        };
+        let e = fit(&a, &mut Vec::new()).unwrap_err();
+        assert!(matches!(e, FitError::NoTimerClock { .. }), "{e}");
+        assert!(e.to_string().contains("--timer-clock-hz"), "{e}");
+        // Given: past the clock, to the log's own (too short) contents.
+        a.timer_clock_hz = Some(96_000_000);
+        let e = fit(&a, &mut Vec::new()).unwrap_err().to_string();
         assert!(e.contains("at least 100"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }

@@ -27,11 +27,16 @@
 
 pub mod cli;
 pub mod commission;
+pub mod drive;
 pub mod identify;
 pub mod link;
+pub mod params;
+pub mod pose_feed;
 pub mod record;
 pub mod robot;
 pub mod serve;
+pub mod session;
+pub mod status;
 pub mod timing;
 pub mod upload;
 pub mod watch;

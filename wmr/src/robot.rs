@@ -2,14 +2,70 @@
 //! (protocol 4, docs/protocol.md "The robot record").
 
 use crate::link::{Link, LinkError};
+use crate::session::{has_store, status};
+pub use crate::session::{read_record, record_crc32};
+use clap::{Args, Subcommand};
 use robot_file::Robot;
 use std::io::Write;
 use std::path::Path;
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
-use wmr_protocol::{
-    Reply, Request, RobotFault, RobotSource, StatusMsg, CAP_ROBOT_STORE, ROBOT_BLOB_MAX,
-    ROBOT_CHUNK,
-};
+use wmr_protocol::{Reply, Request, RobotFault, RobotSource, ROBOT_BLOB_MAX, ROBOT_CHUNK};
+
+/// `robot` options.
+#[derive(Debug, Args)]
+pub struct RobotArgs {
+    /// push, pull, diff or check.
+    #[command(subcommand)]
+    pub op: RobotOp,
+}
+
+/// `robot` operations.
+#[derive(Debug, Subcommand)]
+pub enum RobotOp {
+    /// Validate FILE locally, store it in the robot's flash (hold only),
+    /// read it back and compare, then reboot the robot into it.
+    Push {
+        /// Robot file (TOML, docs/robot.md).
+        file: PathBuf,
+        /// Store only: the robot runs it from its next boot.
+        #[arg(long)]
+        no_reboot: bool,
+        /// Skip the local validation (to see the robot's own refusal).
+        #[arg(long, hide = true)]
+        no_local_check: bool,
+    },
+    /// Read the robot's stored record and print it as a robot file.
+    Pull {
+        /// Write it to this file instead of stdout.
+        #[arg(short = 'o', long = "out")]
+        out: Option<PathBuf>,
+    },
+    /// Field-by-field differences between FILE and the robot's record.
+    Diff {
+        /// Robot file (TOML).
+        file: PathBuf,
+    },
+    /// Validate FILE offline (no robot needed) and print derived values.
+    Check {
+        /// Robot file (TOML).
+        file: PathBuf,
+    },
+}
+
+/// Runs one `robot` operation (`check` needs no link: [`check`]).
+pub fn robot(op: &RobotOp, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
+    match op {
+        RobotOp::Push {
+            file,
+            no_reboot,
+            no_local_check,
+        } => push(link, file, !no_local_check, *no_reboot, out),
+        RobotOp::Pull { out: file } => pull(link, file.as_deref(), out),
+        RobotOp::Diff { file } => diff(link, file, out),
+        RobotOp::Check { file } => check(file, out),
+    }
+}
 
 /// How long `push` waits for the robot's answer to the commit (the flash
 /// write: an F4 sector erase takes up to 2 s at 3.3 V, 4 s at x8
@@ -44,15 +100,6 @@ pub fn encode(robot: &Robot) -> Result<Vec<u8>, LinkError> {
         .encode(&mut buf)
         .map_err(|e| err(format!("cannot encode the robot: {e}")))?;
     Ok(buf[..n].to_vec())
-}
-
-/// The record's own CRC-32 (its last four bytes).
-pub fn record_crc32(record: &[u8]) -> u32 {
-    let n = record.len();
-    if n < 4 {
-        return 0;
-    }
-    u32::from_le_bytes([record[n - 4], record[n - 3], record[n - 2], record[n - 1]])
 }
 
 /// A refusal from the robot as one line.
@@ -109,59 +156,13 @@ pub fn check(path: &Path, out: &mut dyn Write) -> Result<(), LinkError> {
     Ok(())
 }
 
-fn status(link: &mut Link) -> Result<StatusMsg, LinkError> {
-    match link.command(&Request::GetStatus)? {
-        Reply::Status { status, .. } => Ok(status),
-        r => Err(LinkError::Unexpected(format!("{r:?}"))),
-    }
-}
-
-fn need_store(link: &mut Link) -> Result<(), LinkError> {
-    let caps = match &link.last_hello {
-        Some(h) => h.capabilities,
-        None => link.hello()?.capabilities,
-    };
-    if caps & CAP_ROBOT_STORE == 0 {
+/// Uploads and commits `rec`; returns when the robot has written it.
+fn write_record(link: &mut Link, rec: &[u8]) -> Result<(), LinkError> {
+    if !has_store(link)? {
         return Err(err(
             "this robot has no robot store (protocol 4 CAP_ROBOT_STORE)",
         ));
     }
-    Ok(())
-}
-
-/// Reads the stored record.
-pub fn read_record(link: &mut Link) -> Result<Vec<u8>, LinkError> {
-    need_store(link)?;
-    let mut rec = Vec::new();
-    for _ in 0..=ROBOT_BLOB_MAX / ROBOT_CHUNK + 1 {
-        let req = Request::RobotRead {
-            offset: rec.len() as u16,
-        };
-        match link.command(&req)? {
-            Reply::RobotData {
-                total_len,
-                offset,
-                data,
-                ..
-            } if offset as usize == rec.len() => {
-                rec.extend_from_slice(&data);
-                if rec.len() >= total_len as usize {
-                    rec.truncate(total_len as usize);
-                    return Ok(rec);
-                }
-                if data.is_empty() {
-                    break;
-                }
-            }
-            r => return Err(LinkError::Unexpected(format!("{r:?}"))),
-        }
-    }
-    Err(err("the robot's record did not end"))
-}
-
-/// Uploads and commits `rec`; returns when the robot has written it.
-fn write_record(link: &mut Link, rec: &[u8]) -> Result<(), LinkError> {
-    need_store(link)?;
     link.command(&Request::RobotBegin {
         total_len: rec.len() as u16,
     })?;

@@ -23,7 +23,13 @@
 //! omega_radps = 0.0
 //! ```
 
-use wmr_protocol::{named_shape, BuiltinReference, PoseMsg, Request, Waypoint, SEGMENT_POINTS};
+use crate::link::{Link, LinkError};
+use crate::session::{expect_cause, io, until_rest, Motion, Pump, SegmentStream, Watch};
+use clap::Args;
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use wmr_protocol::{named_shape, BuiltinReference, PoseMsg, Request, StopCode, Waypoint};
 
 /// What a file asks the robot to drive.
 #[derive(Clone, Debug, PartialEq)]
@@ -229,16 +235,136 @@ pub fn check_waypoints(points: &[Waypoint], robot: &robot_file::Robot) -> Result
     Ok(())
 }
 
-/// The segments of a waypoint upload, in order (first index, request).
-pub fn segments(points: &[Waypoint]) -> Vec<Request> {
-    points
-        .chunks(SEGMENT_POINTS)
-        .enumerate()
-        .map(|(k, c)| Request::TrajectorySegment {
-            first_index: (k * SEGMENT_POINTS) as u32,
-            points: c.iter().copied().collect(),
-        })
-        .collect()
+/// `upload` options.
+#[derive(Debug, Args)]
+pub struct UploadArgs {
+    /// Reference file (TOML).
+    #[arg(value_name = "FILE.toml")]
+    pub file: PathBuf,
+    /// Arm after loading, stream waypoints beyond the robot's buffer while
+    /// running, and keep the link alive until the run ends (Ctrl-C: the robot
+    /// brakes to a stop after link_timeout_ms).
+    #[arg(long)]
+    pub arm: bool,
+    /// The robot's file: check every waypoint and the curve between each
+    /// two against its limits before sending (the robot checks them too,
+    /// but its refusal cannot say which limit).
+    #[arg(long, value_name = "ROBOT.toml")]
+    pub robot: Option<PathBuf>,
+}
+
+/// `upload`: loads a built-in reference or streams waypoints (with
+/// `--arm`, the rest while running), then keeps the link alive until the
+/// run ends.
+pub fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
+    let text = std::fs::read_to_string(&a.file)
+        .map_err(|e| LinkError::Io(format!("cannot read {}: {e}", a.file.display())))?;
+    let (up, ignored) =
+        parse_upload(&text, &a.file.display().to_string()).map_err(LinkError::Io)?;
+    if !ignored.is_empty() {
+        eprintln!(
+            "note: {} keys describe the simulated world and were ignored: {}",
+            ignored.len(),
+            ignored.join(", ")
+        );
+    }
+    match up {
+        Upload::Builtin(r) => {
+            link.command(&Request::SetReference(r))?;
+            writeln!(out, "reference loaded: {:?}", r.shape).map_err(io)?;
+            if a.arm {
+                Motion::Arm.send(link)?;
+                writeln!(
+                    out,
+                    "armed; the robot runs while wmr runs (Ctrl-C: it brakes to a stop)"
+                )
+                .map_err(io)?;
+                keep_alive_until_stop(link, out)?;
+            }
+        }
+        Upload::Waypoints(pts) => {
+            if let Some(path) = &a.robot {
+                let robot = crate::robot::read_file(path)?;
+                crate::upload::check_waypoints(&pts, &robot)
+                    .map_err(|e| LinkError::Io(format!("{}: {e}", a.file.display())))?;
+            }
+            let mut stream = SegmentStream::begin(link, &pts)?;
+            stream.pump(link)?;
+            writeln!(
+                out,
+                "{} of {} waypoints loaded",
+                stream.points_sent(),
+                pts.len()
+            )
+            .map_err(io)?;
+            if !stream.done() && !a.arm {
+                return Err(LinkError::Io(
+                    "the trajectory is longer than the robot's buffer: use --arm to stream the rest while running".into(),
+                ));
+            }
+            if a.arm {
+                Motion::Arm.send(link)?;
+                writeln!(out, "armed").map_err(io)?;
+                // The buffer drains as waypoints pass: stream the rest.
+                let patience = Duration::from_secs_f64(
+                    (pts.last().map_or(0.0, |w| w.t_s) as f64).max(1.0) + 5.0,
+                );
+                if !stream_waiting(link, &mut stream, patience)? {
+                    return Err(LinkError::NoAnswer(
+                        "the trajectory stream (buffer stayed full)".into(),
+                    ));
+                }
+                writeln!(out, "all {} waypoints streamed", pts.len()).map_err(io)?;
+                keep_alive_until_stop(link, out)?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Pumps `stream` until every segment is acknowledged, waiting (up to
+/// `patience` without progress) while the robot's buffer is full, the
+/// link kept alive meanwhile; `false` when the buffer stayed full.
+fn stream_waiting(
+    link: &mut Link,
+    stream: &mut SegmentStream,
+    patience: Duration,
+) -> Result<bool, LinkError> {
+    let mut watch = Watch::new(link);
+    let mut progress = (stream.points_sent(), Instant::now());
+    loop {
+        if stream.pump(link)? == Pump::Done {
+            return Ok(true);
+        }
+        if stream.points_sent() != progress.0 {
+            progress = (stream.points_sent(), Instant::now());
+        }
+        if progress.1.elapsed() >= patience {
+            return Ok(false);
+        }
+        // Waiting for the buffer to drain: a robot that stopped
+        // meanwhile never drains it.
+        let period = watch.timing().keep_alive;
+        if let Some(s) = watch.step(link, None, period)?.stopped {
+            return Err(LinkError::UnexpectedStop(format!(
+                "{s} while streaming waypoints"
+            )));
+        }
+    }
+}
+
+/// Keeps the link alive until the robot is at rest and prints why; only the
+/// trajectory's end and a deliberate disarm (`wmr disarm`, the button) are a
+/// success (a stop for any other cause, or silence beyond the link timing's
+/// limit, is an error).
+fn keep_alive_until_stop(link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
+    let stop = until_rest(link)?;
+    writeln!(out, "stopped: {stop}").map_err(io)?;
+    expect_cause(
+        stop,
+        &[StopCode::TrajectoryEnd, StopCode::Disarmed],
+        "the run",
+    )
 }
 
 #[cfg(test)]
@@ -331,7 +457,7 @@ mod tests {
         assert!(ignored.is_empty());
         assert_eq!(p.len(), 45);
         assert_eq!(p.last().unwrap().pose.x_m, 0.0);
-        assert_eq!(segments(&p).len(), 6);
+        assert_eq!(crate::session::segments(&p).len(), 6);
     }
 
     #[test]
@@ -341,7 +467,7 @@ mod tests {
         let (u, _) = parse_upload(text, "w").unwrap();
         let Upload::Waypoints(p) = u else { panic!() };
         assert_eq!(p.len(), 2);
-        assert_eq!(segments(&p).len(), 1);
+        assert_eq!(crate::session::segments(&p).len(), 1);
         let e = parse_upload("trajectory = \"paper-tangent\"\n", "x.toml").unwrap_err();
         assert!(e.contains("not available"), "{e}");
         let e = parse_upload("trajectory = \"circle\"\nbetta = 1\n", "x.toml").unwrap_err();

@@ -1,171 +1,62 @@
-//! Waiting on a moving robot without hanging: keep-alive frames on the
-//! link's schedule, a status request every [`LinkTiming::status_every`] (a
-//! lost stop event is found by the next status), stop events read as they
-//! come, and an error once nothing at all has arrived for
-//! [`LinkTiming::silence_limit`]. `upload --arm` and `drive` wait through it.
-//! [`LiveStatus`] is `wmr watch`'s one-line view of a telemetry frame.
+//! `wmr watch`: one compact status line per telemetry frame at `--rate`
+//! ([`LiveStatus`]), the link kept alive meanwhile by the session's
+//! telemetry stream.
 
 use crate::link::{Link, LinkError};
-use crate::timing::LinkTiming;
-use std::time::{Duration, Instant};
-use wmr_protocol::{Event, Reply, Request, RunStateMsg, StopCode};
+use crate::session::{self, TelemetryStream};
+use clap::Args;
+use std::io::Write;
+use wmr_protocol::{Event, Reply, StopCode};
 
-/// A stop the robot reported: its state (hold or latched stop) and cause.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Stop {
-    /// `Hold` or `Stopped`.
-    pub state: RunStateMsg,
-    /// Why (the event's cause, or the status's last stop).
-    pub cause: Option<StopCode>,
+/// `watch` options.
+#[derive(Debug, Args)]
+pub struct WatchArgs {
+    /// Lines per second.
+    #[arg(long, default_value_t = 5)]
+    pub rate: u16,
+    /// Stop after this much robot time [s] (default: until Ctrl-C).
+    #[arg(long, value_name = "S")]
+    pub seconds: Option<f64>,
 }
 
-impl std::fmt::Display for Stop {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self.cause {
-            Some(c) => write!(f, "{:?} ({c:?})", self.state),
-            None => write!(f, "{:?} (-)", self.state),
+/// `watch`: one status line per telemetry frame at `--rate`, the link
+/// kept alive meanwhile; ends after `--seconds` of robot time.
+pub fn watch(a: &WatchArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
+    if a.rate == 0 || a.rate > 100 {
+        return Err(LinkError::Io("--rate must be in 1..=100 lines/s".into()));
+    }
+    if let Some(s) = a.seconds {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(LinkError::Io("--seconds must be > 0".into()));
         }
     }
-}
-
-/// What one [`Watch::step`] saw.
-#[derive(Debug, Default)]
-pub struct Step {
-    /// Answers other than status (acks and nacks of what the caller sent).
-    pub answers: Vec<(u16, Reply)>,
-    /// The robot is braking (a controlled stop has begun).
-    pub stopping: bool,
-    /// The robot is at rest in hold or a latched stop.
-    pub stopped: Option<Stop>,
-}
-
-/// The schedule of keep-alives and status requests of one wait.
-pub struct Watch {
-    timing: LinkTiming,
-    t0: Instant,
-    last_keep: Option<Instant>,
-    last_status: Option<Instant>,
-    /// Sequence numbers this watch sent (recent first out): answers to
-    /// anything else (a late answer to an earlier request) are ignored.
-    sent: std::collections::VecDeque<u16>,
-}
-
-impl Watch {
-    /// A watch on `link`'s timing; the first step sends a status request.
-    pub fn new(link: &Link) -> Self {
-        Self {
-            timing: link.timing(),
-            t0: Instant::now(),
-            last_keep: None,
-            last_status: None,
-            sent: std::collections::VecDeque::new(),
-        }
-    }
-
-    /// The link's timing.
-    pub fn timing(&self) -> LinkTiming {
-        self.timing
-    }
-
-    /// One round: sends `keep` (or, with `None`, a clock-sync keep-alive) when
-    /// `period` has passed since the last one, a status request when due,
-    /// reads for up to 20 ms. Fails when no frame has arrived for the
-    /// silence limit.
-    pub fn step(
-        &mut self,
-        link: &mut Link,
-        keep: Option<&Request>,
-        period: Duration,
-    ) -> Result<Step, LinkError> {
-        let now = Instant::now();
-        if self.last_keep.is_none_or(|t| now - t >= period) {
-            let seq = match keep {
-                Some(r) => link.send(r)?,
-                None => link.send(&Request::ClockSync {
-                    host_time_us: self.t0.elapsed().as_micros() as u64,
-                })?,
-            };
-            self.remember(seq);
-            self.last_keep = Some(now);
-        }
-        if self
-            .last_status
-            .is_none_or(|t| now - t >= self.timing.status_every)
-        {
-            let seq = link.send(&Request::GetStatus)?;
-            self.remember(seq);
-            self.last_status = Some(now);
-        }
-        let mut step = Step::default();
-        for (seq, r) in link.receive(Duration::from_millis(20))? {
-            if !self.sent.contains(&seq) {
-                continue;
+    let mut stream = TelemetryStream::start(link, a.rate)?;
+    let mut first_us: Option<u32> = None;
+    let mut status = LiveStatus::default();
+    // Through `wmr serve` telemetry comes at the highest rate any client
+    // asked for: one line per 1/rate of robot time (half a tick's slack).
+    let line_us = 1_000_000 / a.rate as u32;
+    let mut last_line_us: Option<u32> = None;
+    loop {
+        match stream.next(link)? {
+            Some(Reply::Telemetry(t)) => {
+                let first = *first_us.get_or_insert(t.t_robot_us);
+                if last_line_us.is_none_or(|l| t.t_robot_us.wrapping_sub(l) + 500 >= line_us) {
+                    writeln!(out, "{}", status.line(&t)).map_err(session::io)?;
+                    last_line_us = Some(t.t_robot_us);
+                }
+                if a.seconds
+                    .is_some_and(|s| t.t_robot_us.wrapping_sub(first) as f64 * 1e-6 >= s)
+                {
+                    break;
+                }
             }
-            match r {
-                Reply::Status { status, .. } => match status.state {
-                    RunStateMsg::Hold | RunStateMsg::Stopped => {
-                        step.stopped = Some(Stop {
-                            state: status.state,
-                            cause: status.last_stop,
-                        })
-                    }
-                    RunStateMsg::Stopping => step.stopping = true,
-                    RunStateMsg::Running => {}
-                },
-                // Keep-alive answers: nothing to do.
-                Reply::ClockSync { .. } => {}
-                r => step.answers.push((seq, r)),
-            }
-        }
-        while let Some(r) = link.stream.pop_front() {
-            match r {
-                Reply::Event(Event::StateChanged {
-                    state: state @ (RunStateMsg::Hold | RunStateMsg::Stopped),
-                    cause,
-                }) => step.stopped = Some(Stop { state, cause }),
-                Reply::Event(Event::StateChanged {
-                    state: RunStateMsg::Stopping,
-                    ..
-                })
-                | Reply::Event(Event::LinkLost) => step.stopping = true,
-                _ => {}
-            }
-        }
-        let silent = link.last_rx().elapsed();
-        if step.stopped.is_none() && silent > self.timing.silence_limit {
-            return Err(LinkError::NoAnswer(format!(
-                "anything for {:.1} s (line down or robot off; a moving robot brakes to a stop after its {} ms link timeout)",
-                silent.as_secs_f64(),
-                self.timing.link_timeout.as_millis()
-            )));
-        }
-        Ok(step)
-    }
-
-    fn remember(&mut self, seq: u16) {
-        if self.sent.len() >= 64 {
-            self.sent.pop_front();
-        }
-        self.sent.push_back(seq);
-    }
-
-    /// Steps (clock-sync keep-alives) until the robot is at rest, for at
-    /// most `within`.
-    pub fn until_stopped(&mut self, link: &mut Link, within: Duration) -> Result<Stop, LinkError> {
-        let end = Instant::now() + within;
-        let period = self.timing.keep_alive;
-        loop {
-            if let Some(s) = self.step(link, None, period)?.stopped {
-                return Ok(s);
-            }
-            if Instant::now() >= end {
-                return Err(LinkError::NoAnswer(format!(
-                    "a stop within {:.1} s (the robot still reports it is moving)",
-                    within.as_secs_f64()
-                )));
-            }
+            Some(Reply::Event(e)) => status.event(&e),
+            _ => {}
         }
     }
+    stream.stop(link);
+    Ok(())
 }
 
 /// `wmr watch`'s compact status line of each telemetry frame, and the
@@ -250,7 +141,7 @@ impl LiveStatus {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wmr_protocol::{Counters, PoseMsg, Telemetry, TrackingTelemetry};
+    use wmr_protocol::{Counters, PoseMsg, RunStateMsg, Telemetry, TrackingTelemetry};
 
     #[test]
     fn live_line_shows_state_pose_error_health_stop_and_counters() {

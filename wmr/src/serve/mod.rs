@@ -48,11 +48,12 @@
 //! lost port, the link up at the end), 1 otherwise and at once when the port
 //! stays lost beyond `--give-up-after`.
 
+mod core;
 mod mux;
 mod server;
 
 pub use mux::{with_seq, ClientId, Mux, MuxCounters, Out, TelemetrySub};
-pub use server::{serve, serve_until, ServeSummary};
+pub use server::{serve, serve_until, ServeError, ServeSummary};
 
 use crate::link::{Link, LinkError};
 use std::io::{Read, Write};

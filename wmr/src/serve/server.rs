@@ -3,9 +3,11 @@
 //! non-blocking; a client that does not read its frames loses them
 //! (counted), never the robot or the other clients.
 
+use super::core::{BestClock, Held, KeepAlive, ResetWatch};
 use super::mux::{ClientId, Mux, MuxCounters, Note, Out, Own};
 use super::{default_socket_path, ServeArgs, MAX_SOCKET_PATH};
 use crate::link::Port;
+use crate::session::ClockSample;
 use crate::timing::LinkTiming;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -38,8 +40,6 @@ const HELLO_EVERY: Duration = Duration::from_millis(50);
 const STATUS_EVERY: Duration = Duration::from_millis(250);
 /// A reset this soon after an acknowledged `Reboot` is the reboot.
 const REBOOT_WINDOW: Duration = Duration::from_secs(10);
-/// The robot's clock going back by more than this is a reset \[µs\].
-const RESET_MARGIN_US: i32 = 10_000;
 /// The port's read timeout: the loop's pace.
 const PORT_READ: Duration = Duration::from_millis(2);
 /// Empty reads in a row that mean the port hung up.
@@ -123,13 +123,6 @@ enum LinkState {
     Up,
 }
 
-#[derive(Clone, Copy, Debug)]
-struct ClockSample {
-    offset_us: i64,
-    rtt_us: u64,
-    at: Instant,
-}
-
 struct Server<'a> {
     port_path: String,
     port: Option<Box<dyn Port>>,
@@ -144,23 +137,52 @@ struct Server<'a> {
     t0: Instant,
     last_tx: Instant,
     last_rx: Instant,
-    last_keep: Option<Instant>,
-    last_status: Option<Instant>,
+    keep: KeepAlive,
     last_client_rx: Option<Instant>,
     last_expire: Instant,
     silent_since: Option<Instant>,
     robot_state: Option<RunStateMsg>,
-    last_robot_us: Option<(u32, Instant)>,
-    last_ticks: Option<u32>,
+    resets: ResetWatch,
     reboot_acked: Option<Instant>,
     report_cause: bool,
     hello: Option<Reply>,
-    clock: Option<ClockSample>,
+    clock: BestClock,
     fatal: Option<String>,
-    held: Vec<(ClientId, u16, Request, Instant)>,
+    held: Held,
     empty_reads: u32,
     s: ServeSummary,
     stop: &'a AtomicBool,
+}
+
+/// Why `wmr serve` ended with status 1.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// `--for` or `--give-up-after` out of range.
+    #[error("--{flag} {value}: give a time in (0, 1e7] s")]
+    BadTime {
+        /// The flag.
+        flag: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// The socket could not be made (the message names it and why).
+    #[error("{0}")]
+    Socket(String),
+    /// Writing stdout failed.
+    #[error("cannot write the output: {0}")]
+    Output(String),
+    /// The link could not go on (version mismatch, refused handshake,
+    /// `--give-up-after` passed).
+    #[error("{0}")]
+    Fatal(String),
+    /// Something unexpected happened while serving.
+    #[error("{} unexpected event(s) while serving {port}: {}", .events.len(), .events.join("; "))]
+    Unexpected {
+        /// The robot's port.
+        port: String,
+        /// What happened.
+        events: Vec<String>,
+    },
 }
 
 static SIGNALLED: AtomicBool = AtomicBool::new(false);
@@ -172,7 +194,7 @@ extern "C" fn on_signal(_: libc::c_int) {
 /// `wmr serve --port PORT`: serves until Ctrl-C or SIGTERM (or `--for`);
 /// prints the socket's path first and the [`ServeSummary`] last. `Err`
 /// (exit status 1) on a fatal error or when something unexpected happened.
-pub fn serve(port: &str, a: &ServeArgs, out: &mut dyn Write) -> Result<(), String> {
+pub fn serve(port: &str, a: &ServeArgs, out: &mut dyn Write) -> Result<(), ServeError> {
     let handler = on_signal as extern "C" fn(libc::c_int);
     // SAFETY: the handler only stores to an atomic (async-signal-safe).
     unsafe {
@@ -189,29 +211,34 @@ pub fn serve_until(
     a: &ServeArgs,
     out: &mut dyn Write,
     stop: &AtomicBool,
-) -> Result<(), String> {
+) -> Result<(), ServeError> {
     let deadline = match a.for_s {
         None => None,
         Some(s) if s.is_finite() && s > 0.0 && s <= 1e7 => {
             Some(Instant::now() + Duration::from_secs_f64(s))
         }
-        Some(s) => return Err(format!("--for {s}: give a time in (0, 1e7] s")),
+        Some(value) => return Err(ServeError::BadTime { flag: "for", value }),
     };
     let give_up = match a.give_up_after {
         None => None,
         Some(s) if s.is_finite() && s > 0.0 && s <= 1e7 => Some(Duration::from_secs_f64(s)),
-        Some(s) => return Err(format!("--give-up-after {s}: give a time in (0, 1e7] s")),
+        Some(value) => {
+            return Err(ServeError::BadTime {
+                flag: "give-up-after",
+                value,
+            })
+        }
     };
     let (sock, default_dir) = match &a.socket {
         Some(p) => (p.clone(), false),
         None => (default_socket_path(port), true),
     };
-    let listener = bind(&sock, default_dir)?;
+    let listener = bind(&sock, default_dir).map_err(ServeError::Socket)?;
     let shown = sock.display().to_string();
-    let w = |out: &mut dyn Write, s: &str| -> Result<(), String> {
+    let w = |out: &mut dyn Write, s: &str| -> Result<(), ServeError> {
         writeln!(out, "{s}")
             .and_then(|_| out.flush())
-            .map_err(|e| e.to_string())
+            .map_err(|e| ServeError::Output(e.to_string()))
     };
     if let Err(e) = w(out, &shown) {
         let _ = std::fs::remove_file(&sock);
@@ -236,20 +263,18 @@ pub fn serve_until(
         t0: now,
         last_tx: now,
         last_rx: now,
-        last_keep: None,
-        last_status: None,
+        keep: KeepAlive::default(),
         last_client_rx: None,
         last_expire: now,
         silent_since: None,
         robot_state: None,
-        last_robot_us: None,
-        last_ticks: None,
+        resets: ResetWatch::default(),
         reboot_acked: None,
         report_cause: false,
         hello: None,
-        clock: None,
+        clock: BestClock::default(),
         fatal: None,
-        held: Vec::new(),
+        held: Held::new(HOLD_FOR, HOLD_MAX),
         empty_reads: 0,
         s: ServeSummary {
             port: port.to_string(),
@@ -267,21 +292,20 @@ pub fn serve_until(
     let mut summary = server.s.clone();
     summary.seconds = server.t0.elapsed().as_secs_f64();
     summary.routing = server.mux.counters;
-    if let Some(c) = server.clock {
-        summary.clock_offset_us = Some(c.offset_us);
+    if let Some(c) = server.clock.best() {
+        summary.clock_offset_us = Some(c.offset_us());
         summary.clock_rtt_us = Some(c.rtt_us);
     }
-    let json = serde_json::to_string(&summary).map_err(|e| e.to_string())?;
+    let json = serde_json::to_string(&summary).map_err(|e| ServeError::Output(e.to_string()))?;
     w(out, &json)?;
-    r?;
+    r.map_err(ServeError::Fatal)?;
     if summary.unexpected.is_empty() {
         Ok(())
     } else {
-        Err(format!(
-            "{} unexpected event(s) while serving {port}: {}",
-            summary.unexpected.len(),
-            summary.unexpected.join("; ")
-        ))
+        Err(ServeError::Unexpected {
+            port: port.to_string(),
+            events: summary.unexpected,
+        })
     }
 }
 
@@ -516,12 +540,7 @@ impl Server<'_> {
                     let outs = self.mux.from_client(id, seq, msg, now);
                     self.dispatch(outs);
                 } else {
-                    self.held.retain(|h| now.duration_since(h.3) < HOLD_FOR);
-                    if self.held.len() >= HOLD_MAX {
-                        self.held.remove(0);
-                        self.s.requests_dropped_link_down += 1;
-                    }
-                    self.held.push((id, seq, msg, now));
+                    self.s.requests_dropped_link_down += self.held.hold(id, seq, msg, now);
                 }
             }
             // A client of another version: the robot's hello (so that it
@@ -704,25 +723,10 @@ impl Server<'_> {
         }
     }
 
-    /// The robot's clock at `robot_us`: back by more than the margin is a
-    /// reset (u32 µs wraps after 71 min: only compared within 30 min).
-    fn clock_went_back(&self, robot_us: u32) -> Option<String> {
-        let (last, at) = self.last_robot_us?;
-        let back = robot_us.wrapping_sub(last) as i32;
-        (back < -RESET_MARGIN_US && at.elapsed() < Duration::from_secs(1800)).then(|| {
-            format!(
-                "its clock went back from {:.3} s to {:.3} s",
-                last as f64 * 1e-6,
-                robot_us as f64 * 1e-6
-            )
-        })
-    }
-
     fn observe_clock(&mut self, robot_us: u32) {
-        if let Some(why) = self.clock_went_back(robot_us) {
+        if let Some(why) = self.resets.clock(robot_us, Instant::now()) {
             self.reset(why);
         }
-        self.last_robot_us = Some((robot_us, Instant::now()));
     }
 
     fn reset(&mut self, why: String) {
@@ -737,7 +741,7 @@ impl Server<'_> {
             self.s.resets += 1;
             self.unexpected(format!("robot reset: {why}"));
         }
-        self.last_ticks = None;
+        self.resets.forget_ticks();
         self.robot_state = Some(RunStateMsg::Hold);
         self.report_cause = true;
         // It forgot its telemetry setting and any link timeout set.
@@ -757,21 +761,12 @@ impl Server<'_> {
             }
             Reply::ClockSync { robot_time_us, .. } => self.observe_clock(*robot_time_us),
             Reply::Status { status, .. } => {
-                let why = self.clock_went_back(status.t_robot_us).or_else(|| {
-                    self.last_ticks
-                        .filter(|&l| status.counters.ticks < l)
-                        .map(|l| {
-                            format!(
-                                "its tick count went back from {l} to {}",
-                                status.counters.ticks
-                            )
-                        })
-                });
-                if let Some(why) = why {
+                let ticks = status.counters.ticks;
+                if let Some(why) = self.resets.status(status.t_robot_us, ticks, Instant::now()) {
                     self.reset(why);
+                    // This status is the restarted robot's.
+                    self.resets.status(status.t_robot_us, ticks, Instant::now());
                 }
-                self.last_robot_us = Some((status.t_robot_us, Instant::now()));
-                self.last_ticks = Some(status.counters.ticks);
                 self.robot_state = Some(status.state);
                 if std::mem::take(&mut self.report_cause) {
                     self.log(&format!(
@@ -863,16 +858,15 @@ impl Server<'_> {
                 self.dispatch(vec![o]);
                 self.own(Own::LinkTimeout, Request::GetParam(ParamId::LinkTimeoutMs));
                 self.own(Own::Status, Request::GetStatus);
-                self.last_status = Some(Instant::now());
+                self.keep.status_sent(Instant::now());
                 // Requests that came meanwhile, if their clients still wait.
                 let now = Instant::now();
-                for (id, seq, req, at) in std::mem::take(&mut self.held) {
-                    if now.duration_since(at) < HOLD_FOR && self.clients.contains_key(&id) {
-                        let outs = self.mux.from_client(id, seq, req, now);
-                        self.dispatch(outs);
-                    } else {
-                        self.s.requests_dropped_link_down += 1;
-                    }
+                let clients = &self.clients;
+                let (fresh, dropped) = self.held.release(now, |id| clients.contains_key(&id));
+                self.s.requests_dropped_link_down += dropped;
+                for (id, seq, req) in fresh {
+                    let outs = self.mux.from_client(id, seq, req, now);
+                    self.dispatch(outs);
                 }
             }
             (Own::Hello, Reply::Nack { error, .. }) => {
@@ -891,29 +885,17 @@ impl Server<'_> {
                     ..
                 },
             ) => {
-                let recv = self.host_us();
-                let Some(rtt_us) = recv.checked_sub(host_time_us) else {
+                let Some(sample) =
+                    ClockSample::of_exchange(host_time_us, self.host_us(), robot_time_us)
+                else {
                     return;
                 };
-                let mid = (host_time_us + recv) / 2;
-                let sample = ClockSample {
-                    offset_us: robot_time_us as i64 - mid as i64,
-                    rtt_us,
-                    at: Instant::now(),
-                };
-                // The best round trip of the last 10 s (its midpoint is
-                // the best estimate of when the robot read its clock).
-                let better = self.clock.is_none_or(|c| {
-                    sample.rtt_us <= c.rtt_us || c.at.elapsed() > Duration::from_secs(10)
-                });
-                if self.clock.is_none() {
+                if self.clock.offer(sample, Instant::now()) {
                     self.log(&format!(
-                        "clock: robot − host {} µs (round trip {rtt_us} µs)",
-                        sample.offset_us
+                        "clock: robot − host {} µs (round trip {} µs)",
+                        sample.offset_us(),
+                        sample.rtt_us
                     ));
-                }
-                if better {
-                    self.clock = Some(sample);
                 }
             }
             _ => {}
@@ -934,8 +916,8 @@ impl Server<'_> {
     fn timers(&mut self, give_up: Option<Duration>) {
         let now = Instant::now();
         if matches!(self.link, LinkState::Up) {
-            let every =
-                RESEND_EVERY.max(4 * Duration::from_micros(self.clock.map_or(0, |c| c.rtt_us)));
+            let every = RESEND_EVERY
+                .max(4 * Duration::from_micros(self.clock.best().map_or(0, |c| c.rtt_us)));
             let outs = self.mux.resends(now, every, RESENDS);
             self.dispatch(outs);
         }
@@ -1034,31 +1016,20 @@ impl Server<'_> {
     /// moving; silence otherwise, so that the robot's link-silence stop
     /// fires when nobody drives it (a probe after twice its link timeout).
     fn keep_alive(&mut self, now: Instant, give_up: Option<Duration>) {
-        let lt = self.timing.link_timeout;
-        let client_alive = self
-            .last_client_rx
-            .is_some_and(|t| now.duration_since(t) < lt);
-        let moving = matches!(
+        let due = self.keep.due(
+            now,
+            &self.timing,
+            STATUS_EVERY,
+            self.last_client_rx,
+            self.last_tx,
             self.robot_state,
-            Some(RunStateMsg::Running | RunStateMsg::Stopping)
         );
-        let probe = now.duration_since(self.last_tx) >= 2 * lt;
-        if client_alive || !moving || probe {
-            if self
-                .last_keep
-                .is_none_or(|t| now.duration_since(t) >= self.timing.keep_alive)
-            {
-                let host_time_us = self.host_us();
-                self.own(Own::KeepAlive, Request::ClockSync { host_time_us });
-                self.last_keep = Some(now);
-            }
-            if self
-                .last_status
-                .is_none_or(|t| now.duration_since(t) >= STATUS_EVERY)
-            {
-                self.own(Own::Status, Request::GetStatus);
-                self.last_status = Some(now);
-            }
+        if due.keep_alive {
+            let host_time_us = self.host_us();
+            self.own(Own::KeepAlive, Request::ClockSync { host_time_us });
+        }
+        if due.status {
+            self.own(Own::Status, Request::GetStatus);
         }
         let silent = now.duration_since(self.last_rx);
         if silent > self.timing.silence_limit && now.duration_since(self.last_tx) < silent {

@@ -1,0 +1,173 @@
+//! The robot on the link: the robot file it runs, read from its store
+//! (protocol 4), and what the host takes from it that the handshake does
+//! not carry — the centre-of-mass offset d of `base_link` (`/odom`, the
+//! MCAP log) and the board's PWM timer clock.
+
+use crate::link::{Link, LinkError};
+use robot_file::Robot;
+use wmr_protocol::{Reply, Request, CAP_ROBOT_STORE, ROBOT_BLOB_MAX, ROBOT_CHUNK};
+
+/// The record's own CRC-32 (its last four bytes).
+pub fn record_crc32(record: &[u8]) -> u32 {
+    let n = record.len();
+    if n < 4 {
+        return 0;
+    }
+    u32::from_le_bytes([record[n - 4], record[n - 3], record[n - 2], record[n - 1]])
+}
+
+/// Whether the robot has a robot store (`CAP_ROBOT_STORE`).
+pub fn has_store(link: &mut Link) -> Result<bool, LinkError> {
+    Ok(super::hello(link)?.capabilities & CAP_ROBOT_STORE != 0)
+}
+
+/// Reads the stored record.
+pub fn read_record(link: &mut Link) -> Result<Vec<u8>, LinkError> {
+    if !has_store(link)? {
+        return Err(LinkError::Io(
+            "this robot has no robot store (protocol 4 CAP_ROBOT_STORE)".into(),
+        ));
+    }
+    let mut rec = Vec::new();
+    for _ in 0..=ROBOT_BLOB_MAX / ROBOT_CHUNK + 1 {
+        let req = Request::RobotRead {
+            offset: rec.len() as u16,
+        };
+        match link.command(&req)? {
+            Reply::RobotData {
+                total_len,
+                offset,
+                data,
+                ..
+            } if offset as usize == rec.len() => {
+                rec.extend_from_slice(&data);
+                if rec.len() >= total_len as usize {
+                    rec.truncate(total_len as usize);
+                    return Ok(rec);
+                }
+                if data.is_empty() {
+                    break;
+                }
+            }
+            r => return Err(LinkError::Unexpected(format!("{r:?}"))),
+        }
+    }
+    Err(LinkError::Io("the robot's record did not end".into()))
+}
+
+/// Why the robot in force is not known.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum NotKnown {
+    /// No robot store: the firmware's compiled-in robot is not readable.
+    #[error("the robot has no robot store (its compiled-in robot is not readable over the link)")]
+    NoStore,
+    /// A record was stored but the robot has not rebooted into it.
+    #[error(
+        "the robot's stored record (CRC-32 {stored:08x}) is not the one in force ({active:08x}): \
+         it runs after a reboot (`wmr robot push` reboots)"
+    )]
+    NotInForce {
+        /// CRC-32 of the stored record.
+        stored: u32,
+        /// CRC-32 of the record in force.
+        active: u32,
+    },
+    /// The stored record does not decode.
+    #[error("the robot's record does not decode: {0}")]
+    Undecodable(String),
+}
+
+/// The robot file the robot runs: its stored record when that is the
+/// record in force (the status's `active_crc32`); `Ok(Err(why))` when the
+/// robot cannot tell.
+pub fn robot_in_force(link: &mut Link) -> Result<Result<Robot, NotKnown>, LinkError> {
+    if !has_store(link)? {
+        return Ok(Err(NotKnown::NoStore));
+    }
+    let active = super::status(link)?.robot.active_crc32;
+    let rec = read_record(link)?;
+    let stored = record_crc32(&rec);
+    if stored != active {
+        return Ok(Err(NotKnown::NotInForce { stored, active }));
+    }
+    Ok(Robot::decode(&rec).map_err(|e| NotKnown::Undecodable(e.to_string())))
+}
+
+/// Where the d in use came from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ComOffsetSource {
+    /// Given by the user (`--com-offset-m`).
+    Given,
+    /// The robot file the robot runs (`body.com_offset_m`), by name.
+    Robot(String),
+    /// The paper robot's, because the robot could not tell (why).
+    PaperDefault(NotKnown),
+}
+
+/// d, G ahead of the axle midpoint \[m\], and where it came from.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ComOffset {
+    /// d \[m\].
+    pub com_offset_m: f64,
+    /// Its source.
+    pub source: ComOffsetSource,
+}
+
+impl std::fmt::Display for ComOffset {
+    /// `d = 0.005 m (robot "x"'s body.com_offset_m)` and the like.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let d = self.com_offset_m;
+        match &self.source {
+            ComOffsetSource::Given => write!(f, "d = {d} m (--com-offset-m)"),
+            ComOffsetSource::Robot(n) => {
+                write!(
+                    f,
+                    "d = {d} m (body.com_offset_m of robot \"{n}\" on the link)"
+                )
+            }
+            ComOffsetSource::PaperDefault(why) => write!(
+                f,
+                "d = {d} m, the paper robot's: {why}; give --com-offset-m for another robot"
+            ),
+        }
+    }
+}
+
+/// d for `base_link`: `given` when the user gave it, else the robot's own
+/// (`body.com_offset_m` of [`robot_in_force`]), else the paper robot's
+/// (the reason in the source).
+pub fn com_offset_m(link: &mut Link, given: Option<f64>) -> Result<ComOffset, LinkError> {
+    if let Some(d) = given {
+        return Ok(ComOffset {
+            com_offset_m: d,
+            source: ComOffsetSource::Given,
+        });
+    }
+    Ok(match robot_in_force(link)? {
+        Ok(r) => ComOffset {
+            com_offset_m: r.body.com_offset_m as f64,
+            source: ComOffsetSource::Robot(r.name.as_str().to_string()),
+        },
+        Err(why) => ComOffset {
+            com_offset_m: ros_mcap::default_com_offset_m(),
+            source: ComOffsetSource::PaperDefault(why),
+        },
+    })
+}
+
+/// The PWM timer clock \[Hz\] of the board a handshake names (`chip`):
+/// the firmware's `TIM1_CLOCK_HZ` for each chip feature and the simulated
+/// device's `SIM_TIMER_CLOCK_HZ`, each one of robot-file's
+/// `SUPPORTED_TIMER_CLOCKS_HZ`. `None` for a board wmr does not know.
+pub fn timer_clock_of_chip(chip: &str) -> Option<u32> {
+    let [f411, f405] = robot_file::SUPPORTED_TIMER_CLOCKS_HZ;
+    match chip {
+        // F411: APB2 96 MHz, timers ×1.
+        "stm32f411ce" => Some(f411),
+        // F446 at SYSCLK 168 MHz: APB2 84 MHz, timers ×2.
+        "stm32f446re" => Some(f405),
+        // hil-sim's device runs the F411's timer.
+        "sim" => Some(f411),
+        _ => None,
+    }
+}
