@@ -486,3 +486,26 @@ fn telemetry_finiteness_checks_every_float() {
         assert!(!t.is_finite(), "{t:?}");
     }
 }
+
+/// The wire ids are the parameter table's wire order (issue 32): a new
+/// parameter or a reorder cannot change an id on the link.
+#[test]
+fn param_ids_are_the_tables_wire_order() {
+    use controller_core::runtime::param_table::WIRE;
+    assert_eq!(ParamId::ALL.len(), WIRE.len());
+    for (i, id) in ParamId::ALL.into_iter().enumerate() {
+        assert!(core::ptr::eq(id.param(), WIRE[i]), "{id:?}");
+        assert_eq!(id.param().wire, Some(i as u8));
+        // postcard writes the variant index: the wire id.
+        let mut buf = [0u8; 4];
+        let bytes = postcard::to_slice(&id, &mut buf).unwrap();
+        assert_eq!(bytes, &[i as u8]);
+        assert_eq!(ParamId::from_name(id.name()), Some(id));
+    }
+    assert_eq!(
+        ParamId::from_old_name("torque_limit_nm"),
+        Some(ParamId::TorqueLimitNm)
+    );
+    assert_eq!(ParamId::TorqueLimitNm.name(), "limits.torque_nm");
+    assert_eq!(ParamId::AccelMps2.name(), "limits.max_accel_mps2");
+}

@@ -36,6 +36,7 @@
 
 mod arming;
 pub mod bounds;
+pub mod param_table;
 mod bridge;
 mod config;
 mod control_loop;
