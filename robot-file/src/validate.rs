@@ -434,9 +434,9 @@ fn validate_gains(kind: ControllerKind, g: &GainSet, b: &RobotBounds) -> Result<
             gain_path!(kind, "kinematic.large_error_m"),
             k.large_error_m,
         ),
-        (&GAINS_OBSERVER_L, gain_path!(kind, "observer.l_v"), o.l_v),
+        (&GAINS_OBSERVER_L_V, gain_path!(kind, "observer.l_v"), o.l_v),
         (
-            &GAINS_OBSERVER_L,
+            &GAINS_OBSERVER_L_OMEGA,
             gain_path!(kind, "observer.l_omega"),
             o.l_omega,
         ),
@@ -485,39 +485,38 @@ fn validate_gains(kind: ControllerKind, g: &GainSet, b: &RobotBounds) -> Result<
             rho_min,
             rho_max,
         } => {
-            let a = &GAINS_SWITCHING_ADAPTIVE;
             check(
-                a,
+                &GAINS_ADAPTIVE_GAMMA,
                 gain_path!(kind, "sliding.switching.adaptive.gamma"),
                 gamma,
                 b,
             )?;
             check(
-                &GAINS_SWITCHING_DEAD_ZONE,
+                &GAINS_ADAPTIVE_DEAD_ZONE,
                 gain_path!(kind, "sliding.switching.adaptive.dead_zone"),
                 dead_zone,
                 b,
             )?;
             check(
-                a,
+                &GAINS_ADAPTIVE_LEAKAGE,
                 gain_path!(kind, "sliding.switching.adaptive.leakage"),
                 leakage,
                 b,
             )?;
             check(
-                a,
+                &GAINS_ADAPTIVE_RHO0,
                 gain_path!(kind, "sliding.switching.adaptive.rho0"),
                 rho0,
                 b,
             )?;
             check(
-                a,
+                &GAINS_ADAPTIVE_RHO_MIN,
                 gain_path!(kind, "sliding.switching.adaptive.rho_min"),
                 rho_min,
                 b,
             )?;
             check(
-                a,
+                &GAINS_ADAPTIVE_RHO_MAX,
                 gain_path!(kind, "sliding.switching.adaptive.rho_max"),
                 rho_max,
                 b,

@@ -18,6 +18,8 @@ use wmr_ros2::bridge::{self, Bridge, Config, Fatal, Outcome};
 use wmr_ros2::msg::{
     Path, PoseWithCovarianceStamped, TriggerRequest, TriggerResponse, TwistStamped,
 };
+use controller_core::runtime::param_table::RobotBounds;
+use wmr_protocol::ParamId;
 use wmr_ros2::params;
 use wmr_ros2::topics::{self, TopicSpec};
 
@@ -234,13 +236,18 @@ impl ParamServers {
             let mut results = Vec::new();
             for q in &req.parameter {
                 let r = match params::find(&q.name) {
-                    None => Err(format!(
-                        "{}: no such parameter (wmr_ros2 offers the robot's: {})",
-                        q.name,
-                        params::list(&[]).join(", ")
-                    )),
-                    Some(p) => match p.robot_value(&q.value) {
-                        Err(e) => Err(e),
+                    None => Err(match ParamId::from_old_name(&q.name) {
+                        Some(id) => format!("{} was renamed to {}", q.name, id.name()),
+                        None => format!(
+                            "{}: no such parameter (wmr_ros2 offers the robot's: {})",
+                            q.name,
+                            params::list(&[], 0).names.join(", ")
+                        ),
+                    }),
+                    // The table's range for any robot (the robot checks
+                    // its own robot-dependent bound).
+                    Some(p) => match p.robot_value(&q.value, &RobotBounds::ABSOLUTE) {
+                        Err(e) => Err(e.to_string()),
                         Ok(v) => match b.set_param(p.id, v)? {
                             Ok(_) => Ok(()),
                             Err(refusal) => Err(format!("{} = {v}: {refusal}", q.name)),
@@ -263,9 +270,10 @@ impl ParamServers {
                 .is_err() as u32;
         }
         while let Ok(Some((id, req))) = self.list.receive_request() {
+            let l = params::list(&req.prefixes, req.depth);
             let result = rcl::ListParametersResult {
-                names: params::list(&req.prefixes),
-                prefixes: Vec::new(),
+                names: l.names,
+                prefixes: l.prefixes,
             };
             unsent += self
                 .list
@@ -277,7 +285,7 @@ impl ParamServers {
                 .names
                 .iter()
                 .map(|n| match params::find(n) {
-                    Some(p) => p.descriptor(),
+                    Some(p) => p.descriptor(None),
                     None => ros2_client::parameters::raw::ParameterDescriptor {
                         name: n.clone(),
                         r#type: ParameterType::NOT_SET,

@@ -11,7 +11,7 @@ use std::io::{BufRead, Write};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use wmr_protocol::{
-    ErrorCode, Event, ParamId, Reply, Request, RunStateMsg, StatusMsg, StopCode, TELEMETRY_ALL,
+    ErrorCode, Event, Reply, Request, RunStateMsg, StatusMsg, StopCode, TELEMETRY_ALL,
 };
 
 /// Host tool for the trajectory-tracking robot (and `hil-sim device --pty`).
@@ -209,7 +209,7 @@ pub struct ParamsArgs {
 pub enum ParamsOp {
     /// Print one parameter, or all.
     Get {
-        /// Parameter name (docs/protocol.md); all when omitted.
+        /// Parameter name (docs/parameters.md); all when omitted.
         name: Option<String>,
     },
     /// Write one parameter.
@@ -671,43 +671,16 @@ fn drive(a: &DriveArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     expect_cause(stop, &[StopCode::VelocityTimeout], "drive")
 }
 
-fn param_id(name: &str) -> Result<ParamId, LinkError> {
-    ParamId::from_name(name).ok_or_else(|| {
-        let names: Vec<&str> = ParamId::ALL.iter().map(|p| p.name()).collect();
-        LinkError::Io(format!(
-            "unknown parameter {name:?} (one of: {})",
-            names.join(", ")
-        ))
-    })
-}
-
 fn params(op: &ParamsOp, link: &mut Link, out: &mut dyn Write) -> Result<(), LinkError> {
+    use crate::params::{get, set, ParamsError};
     match op {
-        ParamsOp::Get { name } => {
-            let ids = match name {
-                Some(n) => vec![param_id(n)?],
-                None => ParamId::ALL.to_vec(),
-            };
-            for id in ids {
-                match link.command(&Request::GetParam(id))? {
-                    Reply::Param { value, .. } => {
-                        writeln!(out, "{} = {value}", id.name()).map_err(io)?
-                    }
-                    r => return Err(LinkError::Unexpected(format!("{r:?}"))),
-                }
-            }
-        }
-        ParamsOp::Set { name, value } => {
-            let id = param_id(name)?;
-            link.command(&Request::SetParam { id, value: *value })
-                .map_err(|e| match e {
-                    LinkError::Nack(_, c) => LinkError::Nack(format!("{name} = {value}"), c),
-                    e => e,
-                })?;
-            writeln!(out, "{name} = {value}").map_err(io)?;
-        }
+        ParamsOp::Get { name } => get(name.as_deref(), link, out, &mut std::io::stderr()),
+        ParamsOp::Set { name, value } => set(name, *value, link, out, &mut std::io::stderr()),
     }
-    Ok(())
+    .map_err(|e| match e {
+        ParamsError::Link(e) => e,
+        e => LinkError::Io(e.to_string()),
+    })
 }
 
 fn host_us(t0: Instant) -> u64 {

@@ -29,6 +29,7 @@ pub mod cli;
 pub mod commission;
 pub mod identify;
 pub mod link;
+pub mod params;
 pub mod record;
 pub mod robot;
 pub mod serve;

@@ -130,6 +130,30 @@ impl Bound {
     }
 }
 
+impl Bound {
+    /// Its symbol in the docs' tables: the number, or `τ_stall`, `v_top`,
+    /// `ω_top`, `R`, `(R/v_top)²` ([`Bound::describe`] says what each is).
+    pub fn write(self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
+        match self {
+            Bound::Value(x) => write!(out, "{x}"),
+            Bound::StallTorque => out.write_str("τ_stall"),
+            Bound::TopSpeed => out.write_str("v_top"),
+            Bound::TopYawRate => out.write_str("ω_top"),
+            Bound::GainRate => out.write_str("R"),
+            Bound::MaxKy => out.write_str("(R/v_top)²"),
+        }
+    }
+
+    /// Every robot-dependent bound, for the docs' legend.
+    pub const ROBOT: [Bound; 5] = [
+        Bound::StallTorque,
+        Bound::TopSpeed,
+        Bound::TopYawRate,
+        Bound::GainRate,
+        Bound::MaxKy,
+    ];
+}
+
 /// Who may change a parameter, and when.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -409,6 +433,80 @@ impl Param {
     }
 }
 
+impl Param {
+    /// Its range as the docs write it: `[0.01, τ_stall]`, `50..=10000`
+    /// for a whole number.
+    pub fn write_range(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
+        if self.integer {
+            self.min.write(out)?;
+            out.write_str("..=")?;
+            self.max.write(out)
+        } else {
+            out.write_str("[")?;
+            self.min.write(out)?;
+            out.write_str(", ")?;
+            self.max.write(out)?;
+            out.write_str("]")
+        }
+    }
+
+    /// Its default as the docs write it.
+    pub fn write_default(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
+        match self.default {
+            DefaultValue::Required => out.write_str("required"),
+            DefaultValue::Value(x) => write!(out, "{x}"),
+            DefaultValue::Derived(f) => out.write_str(f.describe()),
+        }
+    }
+}
+
+/// The reference table of every parameter, in Markdown (docs/parameters.md
+/// holds it; robot-file's test `params_doc` fails when they differ).
+#[cfg(feature = "describe")]
+pub fn write_reference(out: &mut dyn core::fmt::Write) -> core::fmt::Result {
+    out.write_str(
+        "| name | in the robot file | unit | default | range | changed | link id | was |\n\
+         |---|---|---|---|---|---|---|---|\n",
+    )?;
+    for p in ALL.iter() {
+        write!(out, "| `{}` | ", p.name)?;
+        match p.in_file {
+            InFile::Yes => write!(out, "`{}`", p.name)?,
+            InFile::PerController => {
+                out.write_str("`")?;
+                p.write_file_path("<kind>", out)?;
+                out.write_str("`")?;
+            }
+            InFile::No => out.write_str("–")?,
+        }
+        let unit = if p.unit.is_empty() { "–" } else { p.unit };
+        write!(out, " | {unit} | ")?;
+        p.write_default(out)?;
+        out.write_str(" | ")?;
+        p.write_range(out)?;
+        write!(out, " | {} | ", p.access.describe())?;
+        match p.wire {
+            Some(w) => write!(out, "{w}")?,
+            None => out.write_str("–")?,
+        }
+        match p.old_name {
+            Some(o) => write!(out, " | `{o}` |\n")?,
+            None => out.write_str(" | – |\n")?,
+        }
+    }
+    out.write_str("\n| name | description |\n|---|---|\n")?;
+    for p in ALL.iter() {
+        writeln!(out, "| `{}` | {} |", p.name, p.description)?;
+    }
+    out.write_str("\n| bound | what |\n|---|---|\n")?;
+    for b in Bound::ROBOT {
+        out.write_str("| ")?;
+        b.write(out)?;
+        writeln!(out, " | {} |", b.describe())?;
+    }
+    Ok(())
+}
+
 /// The control period every board runs at \[s\] (robot-file
 /// `CONTROL_PERIOD_S`).
 pub const CONTROL_PERIOD_S: f32 =
@@ -612,10 +710,17 @@ pub static GAINS_LARGE_ERROR_M: Param = param! {
     default: DefaultValue::Derived(Formula::PaperGains), access: File,
     in_file: InFile::PerController, integer: false, wire: None, old_name: None,
 };
-/// `gains.<kind>.observer.l_v` and `l_omega`.
-pub static GAINS_OBSERVER_L: Param = param! {
-    description: "fault-observer gains l_v, l_omega of eq. (13)",
-    name: "gains.observer.l", unit: "1/s", min: v(P), max: v(MAX_GAIN),
+/// `gains.<kind>.observer.l_v`.
+pub static GAINS_OBSERVER_L_V: Param = param! {
+    description: "fault-observer gain l_v of eq. (13)",
+    name: "gains.observer.l_v", unit: "1/s", min: v(P), max: v(MAX_GAIN),
+    default: DefaultValue::Derived(Formula::PaperGains), access: File,
+    in_file: InFile::PerController, integer: false, wire: None, old_name: None,
+};
+/// `gains.<kind>.observer.l_omega`.
+pub static GAINS_OBSERVER_L_OMEGA: Param = param! {
+    description: "fault-observer gain l_ω of eq. (13)",
+    name: "gains.observer.l_omega", unit: "1/s", min: v(P), max: v(MAX_GAIN),
     default: DefaultValue::Derived(Formula::PaperGains), access: File,
     in_file: InFile::PerController, integer: false, wire: None, old_name: None,
 };
@@ -682,15 +787,43 @@ pub static GAINS_SWITCHING_FIXED_K: Param = param! {
     default: DefaultValue::Derived(Formula::PaperGains), access: File,
     in_file: InFile::PerController, integer: false, wire: None, old_name: None,
 };
-/// `gains.<kind>.sliding.switching.adaptive.{gamma, leakage, rho0, rho_min, rho_max}`.
-pub static GAINS_SWITCHING_ADAPTIVE: Param = param! {
-    description: "adaptive switching gain of eqs. (22)-(24): gamma, leakage [1/s], rho0, rho_min, rho_max; rho_min ≤ rho0 ≤ rho_max",
-    name: "gains.sliding.switching.adaptive", unit: "", min: v(0.0), max: v(MAX_GAIN),
+/// `gains.<kind>.sliding.switching.adaptive.gamma`.
+pub static GAINS_ADAPTIVE_GAMMA: Param = param! {
+    description: "adaptation gain γ of eq. (22)",
+    name: "gains.sliding.switching.adaptive.gamma", unit: "", min: v(0.0), max: v(MAX_GAIN),
+    default: DefaultValue::Derived(Formula::PaperGains), access: File,
+    in_file: InFile::PerController, integer: false, wire: None, old_name: None,
+};
+/// `gains.<kind>.sliding.switching.adaptive.leakage`.
+pub static GAINS_ADAPTIVE_LEAKAGE: Param = param! {
+    description: "leakage of the adaptation, eq. (22)",
+    name: "gains.sliding.switching.adaptive.leakage", unit: "1/s", min: v(0.0), max: v(MAX_GAIN),
+    default: DefaultValue::Derived(Formula::PaperGains), access: File,
+    in_file: InFile::PerController, integer: false, wire: None, old_name: None,
+};
+/// `gains.<kind>.sliding.switching.adaptive.rho0`.
+pub static GAINS_ADAPTIVE_RHO0: Param = param! {
+    description: "initial switching gain ρ̂(0); rho_min ≤ rho0 ≤ rho_max",
+    name: "gains.sliding.switching.adaptive.rho0", unit: "", min: v(0.0), max: v(MAX_GAIN),
+    default: DefaultValue::Derived(Formula::PaperGains), access: File,
+    in_file: InFile::PerController, integer: false, wire: None, old_name: None,
+};
+/// `gains.<kind>.sliding.switching.adaptive.rho_min`.
+pub static GAINS_ADAPTIVE_RHO_MIN: Param = param! {
+    description: "least switching gain ρ̂",
+    name: "gains.sliding.switching.adaptive.rho_min", unit: "", min: v(0.0), max: v(MAX_GAIN),
+    default: DefaultValue::Derived(Formula::PaperGains), access: File,
+    in_file: InFile::PerController, integer: false, wire: None, old_name: None,
+};
+/// `gains.<kind>.sliding.switching.adaptive.rho_max`.
+pub static GAINS_ADAPTIVE_RHO_MAX: Param = param! {
+    description: "largest switching gain ρ̂",
+    name: "gains.sliding.switching.adaptive.rho_max", unit: "", min: v(0.0), max: v(MAX_GAIN),
     default: DefaultValue::Derived(Formula::PaperGains), access: File,
     in_file: InFile::PerController, integer: false, wire: None, old_name: None,
 };
 /// `gains.<kind>.sliding.switching.adaptive.dead_zone`.
-pub static GAINS_SWITCHING_DEAD_ZONE: Param = param! {
+pub static GAINS_ADAPTIVE_DEAD_ZONE: Param = param! {
     description: "dead zone of the adaptation, eq. (23)",
     name: "gains.sliding.switching.adaptive.dead_zone", unit: "", min: v(0.0), max: v(100.0),
     default: DefaultValue::Derived(Formula::PaperGains), access: File,
@@ -743,7 +876,7 @@ pub static CONTROL_PERIOD: Param = param! {
 
 /// Every parameter: the file's in file order, then those only the link
 /// sets.
-pub static ALL: [&Param; 44] = [
+pub static ALL: [&Param; 49] = [
     &BODY_MASS_KG,
     &BODY_INERTIA_KGM2,
     &BODY_WHEEL_INERTIA_KGM2,
@@ -770,7 +903,8 @@ pub static ALL: [&Param; 44] = [
     &GAINS_K_Y,
     &GAINS_K_TH,
     &GAINS_LARGE_ERROR_M,
-    &GAINS_OBSERVER_L,
+    &GAINS_OBSERVER_L_V,
+    &GAINS_OBSERVER_L_OMEGA,
     &GAINS_OBSERVER_MAX_ESTIMATE_V,
     &GAINS_OBSERVER_MAX_ESTIMATE_OMEGA,
     &GAINS_ESO_LAMBDA,
@@ -780,8 +914,12 @@ pub static ALL: [&Param; 44] = [
     &GAINS_ESO_MAX_DISTURBANCE_OMEGA,
     &GAINS_K_S,
     &GAINS_SWITCHING_FIXED_K,
-    &GAINS_SWITCHING_ADAPTIVE,
-    &GAINS_SWITCHING_DEAD_ZONE,
+    &GAINS_ADAPTIVE_GAMMA,
+    &GAINS_ADAPTIVE_DEAD_ZONE,
+    &GAINS_ADAPTIVE_LEAKAGE,
+    &GAINS_ADAPTIVE_RHO0,
+    &GAINS_ADAPTIVE_RHO_MIN,
+    &GAINS_ADAPTIVE_RHO_MAX,
     &STALL_TORQUE_NM,
     &STALL_TICKS,
     &TELEMETRY_RATE_HZ,
