@@ -434,9 +434,13 @@ mod tests {
                 "gains.sliding.k_s"
             ]
         );
-        // Under "gains" at depth 1: none (each is two levels down).
-        assert!(list(&["gains".into()], 1).names.is_empty());
-        assert_eq!(list(&["limits".into()], 1).names.len(), 5);
+        // rclcpp counts the dots after the prefix, its own separator
+        // included: "limits.torque_nm" is at depth 2 under "limits",
+        // "gains.kinematic.k_x" at depth 3 under "gains".
+        assert!(list(&["limits".into()], 1).names.is_empty());
+        assert_eq!(list(&["limits".into()], 2).names.len(), 5);
+        assert!(list(&["gains".into()], 2).names.is_empty());
+        assert_eq!(list(&["gains".into()], 3).names.len(), 4);
     }
 
     #[test]

@@ -230,7 +230,6 @@ pub enum InFile {
 
 /// One parameter, declared once.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Param {
     /// Its name: the file's path (see [`InFile`]), on the link, in
     /// `wmr params` and as a ROS parameter.
