@@ -187,13 +187,21 @@ impl Robot {
         let br = &self.bridge;
         let fields: [(&Param, &'static str, f32); 20] = [
             (&table::BODY_MASS_KG, "body.mass_kg", b.mass_kg),
-            (&table::BODY_INERTIA_KGM2, "body.inertia_kgm2", b.inertia_kgm2),
+            (
+                &table::BODY_INERTIA_KGM2,
+                "body.inertia_kgm2",
+                b.inertia_kgm2,
+            ),
             (
                 &table::BODY_WHEEL_INERTIA_KGM2,
                 "body.wheel_inertia_kgm2",
                 b.wheel_inertia_kgm2,
             ),
-            (&table::BODY_COM_OFFSET_M, "body.com_offset_m", b.com_offset_m),
+            (
+                &table::BODY_COM_OFFSET_M,
+                "body.com_offset_m",
+                b.com_offset_m,
+            ),
             (
                 &table::BODY_WHEEL_RADIUS_M,
                 "body.wheel_radius_m[0]",
@@ -450,9 +458,21 @@ fn validate_gains(kind: ControllerKind, g: &GainSet, b: &RobotBounds) -> Result<
             gain_path!(kind, "observer.max_estimate[1]"),
             o.max_estimate[1],
         ),
-        (&GAINS_ESO_LAMBDA, gain_path!(kind, "eso.lambda[0]"), e.lambda[0]),
-        (&GAINS_ESO_LAMBDA, gain_path!(kind, "eso.lambda[1]"), e.lambda[1]),
-        (&GAINS_ESO_LAMBDA, gain_path!(kind, "eso.lambda[2]"), e.lambda[2]),
+        (
+            &GAINS_ESO_LAMBDA,
+            gain_path!(kind, "eso.lambda[0]"),
+            e.lambda[0],
+        ),
+        (
+            &GAINS_ESO_LAMBDA,
+            gain_path!(kind, "eso.lambda[1]"),
+            e.lambda[1],
+        ),
+        (
+            &GAINS_ESO_LAMBDA,
+            gain_path!(kind, "eso.lambda[2]"),
+            e.lambda[2],
+        ),
         (&GAINS_ESO_ZETA, gain_path!(kind, "eso.zeta"), e.zeta),
         (&GAINS_ESO_ALPHA, gain_path!(kind, "eso.alpha"), e.alpha),
         (

@@ -63,7 +63,10 @@ fn the_table_covers_every_numeric_field_of_the_file() {
             continue;
         }
         let path = format!("gains.{f}");
-        assert!(in_table(&path), "gains.<kind>.{f} is not in the parameter table");
+        assert!(
+            in_table(&path),
+            "gains.<kind>.{f} is not in the parameter table"
+        );
     }
     for p in ALL.iter() {
         let found = match p.in_file {
@@ -76,6 +79,10 @@ fn the_table_covers_every_numeric_field_of_the_file() {
             }),
             InFile::No => !robot_file::FIELDS.iter().any(|f| strip(f) == p.name),
         };
-        assert!(found, "{}: its InFile ({:?}) disagrees with the file", p.name, p.in_file);
+        assert!(
+            found,
+            "{}: its InFile ({:?}) disagrees with the file",
+            p.name, p.in_file
+        );
     }
 }

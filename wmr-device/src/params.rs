@@ -45,11 +45,11 @@ impl LinkConfig {
     pub const DEFAULT: Self = Self {
         link_timeout_ms: 500,
         accel_mps2: 1.0,
-        ang_accel_radps2: table::ANG_ACCEL_RADPS2.default_value(),
-        brake_decel_mps2: table::BRAKE_DECEL_MPS2.default_value(),
+        ang_accel_radps2: 3.0,
+        brake_decel_mps2: 1.0,
         max_speed_mps: 1.0,
         max_yaw_rate_radps: 3.0,
-        telemetry_rate_hz: table::TELEMETRY_RATE_HZ.default_value() as u16,
+        telemetry_rate_hz: 0,
         telemetry_selection: TELEMETRY_ALL,
     };
 
@@ -333,6 +333,20 @@ mod robot_tests {
     #[test]
     fn paper_robot_has_the_default_link() {
         assert_eq!(LinkConfig::of_robot(&Robot::paper()), LinkConfig::DEFAULT);
+    }
+
+    /// The link's own settings default to the parameter table's defaults
+    /// (the table keeps its defaults on the host: the firmware links
+    /// these numbers, and this checks they agree).
+    #[test]
+    fn link_defaults_are_the_tables() {
+        let d = LinkConfig::DEFAULT;
+        assert_eq!(d.ang_accel_radps2, table::ANG_ACCEL_RADPS2.default_value());
+        assert_eq!(d.brake_decel_mps2, table::BRAKE_DECEL_MPS2.default_value());
+        assert_eq!(
+            d.telemetry_rate_hz as f32,
+            table::TELEMETRY_RATE_HZ.default_value()
+        );
     }
 
     /// Each example robot's device configuration passes the device's own

@@ -772,7 +772,10 @@ fn braking_settings_below_the_physical_minimum_are_refused() {
     let Err(wmr_device::DeviceConfigError::OutOfRange(e)) = slow.validate() else {
         panic!("{:?}", slow.validate())
     };
-    assert_eq!((e.field, e.value, e.limit()), ("brake_decel_mps2", 1e-45, 0.25));
+    assert_eq!(
+        (e.field, e.value, e.limit()),
+        ("brake_decel_mps2", 1e-45, 0.25)
+    );
     let err = wmr_device::DeviceConfigError::OutOfRange(e).to_string();
     assert!(
         err.contains("brake_decel_mps2: 0.000000000000000000000000000000000000000000001 m/s² is below its limit 0.25 m/s²"),
@@ -1494,15 +1497,25 @@ fn a_range_is_refused_identically_by_the_file_and_the_device() {
             96_000_000,
         )
         .unwrap();
-    let dev = Device::new(DeviceConfig::of_robot(&paper, "test", CAP_VELOCITY, None), rt).unwrap();
+    let dev = Device::new(
+        DeviceConfig::of_robot(&paper, "test", CAP_VELOCITY, None),
+        rt,
+    )
+    .unwrap();
     let mut rig = Rig::with(dev);
     let lim = RobotLimits::of(rig.dev.control().config());
     let stall = paper.stall_torque_nm();
     type Set = fn(&mut Robot, f32);
     let cases: [(ParamId, f32, f32, Set); 3] = [
-        (ParamId::AccelMps2, 25.0, 20.0, |r, v| r.limits.max_accel_mps2 = v),
-        (ParamId::TorqueLimitNm, 30.0, stall, |r, v| r.limits.torque_nm = v),
-        (ParamId::MaxSpeedMps, 5.0, lim.top_speed_mps, |r, v| r.limits.max_speed_mps = v),
+        (ParamId::AccelMps2, 25.0, 20.0, |r, v| {
+            r.limits.max_accel_mps2 = v
+        }),
+        (ParamId::TorqueLimitNm, 30.0, stall, |r, v| {
+            r.limits.torque_nm = v
+        }),
+        (ParamId::MaxSpeedMps, 5.0, lim.top_speed_mps, |r, v| {
+            r.limits.max_speed_mps = v
+        }),
     ];
     for (seq, (id, value, limit, set)) in cases.into_iter().enumerate() {
         let mut bad = paper.clone();
@@ -1516,10 +1529,14 @@ fn a_range_is_refused_identically_by_the_file_and_the_device() {
         };
         assert_eq!(file, device, "{id:?}");
         assert_eq!((fe.field, device.field), (id.name(), id.name()));
-        assert_eq!((device.value, device.limit(), device.beyond), (value, limit, Beyond::Max));
+        assert_eq!(
+            (device.value, device.limit(), device.beyond),
+            (value, limit, Beyond::Max)
+        );
         assert_eq!(fe.to_string(), device.to_string());
         assert!(
-            fe.to_string().contains(&format!("is above its limit {limit}")),
+            fe.to_string()
+                .contains(&format!("is above its limit {limit}")),
             "{fe}"
         );
         assert!(fe.to_string().contains(": set a value in [0.01, "), "{fe}");

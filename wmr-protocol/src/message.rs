@@ -3,9 +3,9 @@
 //! [`Reply`] (answers, telemetry and events). Units are in the field names;
 //! `docs/protocol.md` documents every variant and field.
 
+use controller_core::runtime::param_table::Param;
 use heapless::Vec;
 use serde::{Deserialize, Serialize};
-use controller_core::runtime::param_table::Param;
 
 /// Waypoints per [`Request::TrajectorySegment`] (bounded so a frame stays
 /// below [`MAX_BODY`](crate::MAX_BODY)).
@@ -989,14 +989,6 @@ impl ParamId {
     /// The parameter of a [`Self::name`].
     pub fn from_name(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|p| p.name() == name)
-    }
-
-    /// The parameter that had the name `old` before issue 32
-    /// (`torque_limit_nm` is `limits.torque_nm`).
-    pub fn from_old_name(old: &str) -> Option<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|p| p.param().old_name == Some(old))
     }
 }
 

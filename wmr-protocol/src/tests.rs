@@ -502,10 +502,6 @@ fn param_ids_are_the_tables_wire_order() {
         assert_eq!(bytes, &[i as u8]);
         assert_eq!(ParamId::from_name(id.name()), Some(id));
     }
-    assert_eq!(
-        ParamId::from_old_name("torque_limit_nm"),
-        Some(ParamId::TorqueLimitNm)
-    );
     assert_eq!(ParamId::TorqueLimitNm.name(), "limits.torque_nm");
     assert_eq!(ParamId::AccelMps2.name(), "limits.max_accel_mps2");
 }
@@ -519,7 +515,9 @@ fn param_table_in_the_docs() {
     const END: &str = "<!-- wire-params end -->";
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/protocol.md");
     let doc = std::fs::read_to_string(path).unwrap();
-    let mut t = String::from("| id | `ParamId` | name | unit | write | range | was |\n|---|---|---|---|---|---|---|\n");
+    let mut t = String::from(
+        "| id | `ParamId` | name | unit | write | range | was |\n|---|---|---|---|---|---|---|\n",
+    );
     for (i, id) in ParamId::ALL.into_iter().enumerate() {
         let p = id.param();
         let mut range = String::new();

@@ -3,6 +3,7 @@
 //! and [`wmr_ros2::Bridge`].
 
 use clap::{Parser, ValueEnum};
+use controller_core::runtime::param_table::RobotBounds;
 use ros2_client::parameters::raw::{ParameterType, SetParametersResult};
 use ros2_client::rcl_interfaces as rcl;
 use ros2_client::{
@@ -18,8 +19,6 @@ use wmr_ros2::bridge::{self, Bridge, Config, Fatal, Outcome};
 use wmr_ros2::msg::{
     Path, PoseWithCovarianceStamped, TriggerRequest, TriggerResponse, TwistStamped,
 };
-use controller_core::runtime::param_table::RobotBounds;
-use wmr_protocol::ParamId;
 use wmr_ros2::params;
 use wmr_ros2::topics::{self, TopicSpec};
 
@@ -236,7 +235,7 @@ impl ParamServers {
             let mut results = Vec::new();
             for q in &req.parameter {
                 let r = match params::find(&q.name) {
-                    None => Err(match ParamId::from_old_name(&q.name) {
+                    None => Err(match wmr::params::from_old_name(&q.name) {
                         Some(id) => format!("{} was renamed to {}", q.name, id.name()),
                         None => format!(
                             "{}: no such parameter (wmr_ros2 offers the robot's: {})",

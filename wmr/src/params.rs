@@ -4,7 +4,7 @@
 //! the value, the limit and what to do.
 
 use crate::link::{Link, LinkError};
-use controller_core::runtime::param_table::{Access, Param, RangeError, RobotBounds};
+use controller_core::runtime::param_table::{self, Access, Param, RangeError, RobotBounds};
 use std::io::Write;
 use wmr_protocol::{ErrorCode, ParamId, Reply, Request};
 
@@ -53,7 +53,12 @@ impl std::fmt::Display for ParamsError {
             }
             Self::Range(e) => write!(f, "{e}"),
             Self::Refused { id, value, code } => {
-                write!(f, "the robot refused {} = {value}: {}", id.name(), code.reason())?;
+                write!(
+                    f,
+                    "the robot refused {} = {value}: {}",
+                    id.name(),
+                    code.reason()
+                )?;
                 if *code == ErrorCode::InvalidValue {
                     write!(f, "; {}", robot_range(id.param()))?;
                 }
@@ -84,14 +89,20 @@ pub fn robot_range(p: &Param) -> String {
     if !p.unit.is_empty() {
         let _ = write!(f, " {}", p.unit);
     }
-    for b in [p.min, p.max] {
-        if b.fixed().is_none() {
-            f += " (";
-            let _ = b.write(&mut f);
-            let _ = write!(f, ": {})", b.describe());
-        }
+    if p.max.fixed().is_none() {
+        f += " (";
+        let _ = p.max.write(&mut f);
+        let _ = write!(f, ": {})", p.max.describe());
     }
     f + ": set a value within it"
+}
+
+/// The parameter that had the name `old` before issue 32
+/// (`torque_limit_nm` is `limits.torque_nm`; the parameter table's
+/// `find_old`).
+pub fn from_old_name(old: &str) -> Option<ParamId> {
+    let w = param_table::find_old(old)?.wire?;
+    ParamId::ALL.get(w as usize).copied()
 }
 
 /// The parameter named `name` (the table's name, or its name before
@@ -100,7 +111,7 @@ pub fn resolve(name: &str) -> Result<Resolved, ParamsError> {
     if let Some(id) = ParamId::from_name(name) {
         return Ok(Resolved { id, note: None });
     }
-    match ParamId::from_old_name(name) {
+    match from_old_name(name) {
         Some(id) => Ok(Resolved {
             id,
             note: Some(format!(

@@ -36,7 +36,6 @@
 
 mod arming;
 pub mod bounds;
-pub mod param_table;
 mod bridge;
 mod config;
 mod control_loop;
@@ -46,6 +45,7 @@ mod error;
 mod hardware;
 mod motor;
 mod odometry;
+pub mod param_table;
 mod state;
 mod stats;
 #[cfg(any(test, feature = "test-doubles"))]

@@ -236,33 +236,71 @@ pub struct Param {
     pub name: &'static str,
     /// Its unit (empty: dimensionless).
     pub unit: &'static str,
-    /// Smallest value accepted.
-    pub min: Bound,
+    /// Smallest value accepted (no parameter's depends on the robot).
+    pub min: f32,
     /// Largest value accepted.
     pub max: Bound,
-    /// Its default.
-    pub default: DefaultValue,
     /// Who may change it when.
     pub access: Access,
-    /// Where the file holds it.
-    pub in_file: InFile,
     /// A whole number.
     pub integer: bool,
     /// Its id on the link (wmr-protocol `ParamId`, wire order), when the
     /// robot takes it over the link.
     pub wire: Option<u8>,
+    /// Its default (host only).
+    #[cfg(feature = "describe")]
+    pub default: DefaultValue,
+    /// Where the file holds it (host only).
+    #[cfg(feature = "describe")]
+    pub in_file: InFile,
     /// The name it had before issue 32 (`wmr params` takes it with a
-    /// "renamed to" note).
+    /// "renamed to" note; host only).
+    #[cfg(feature = "describe")]
     pub old_name: Option<&'static str>,
     /// What it is (host only).
     #[cfg(feature = "describe")]
     pub description: &'static str,
 }
 
+/// The number of a [`Bound::Value`] (the table's least values).
+const fn num(b: Bound) -> f32 {
+    match b {
+        Bound::Value(x) => x,
+        _ => panic!("a least value is a number"),
+    }
+}
+
+// The firmware links the range and access of each parameter it checks;
+// the default, the file's place, the old name and the description are
+// the host's (feature `describe`).
 macro_rules! param {
-    (description: $d:literal, $($field:ident: $value:expr),* $(,)?) => {
+    (
+        description: $d:literal,
+        name: $name:expr,
+        unit: $unit:expr,
+        min: $min:expr,
+        max: $max:expr,
+        default: $default:expr,
+        access: $access:expr,
+        in_file: $in_file:expr,
+        integer: $integer:expr,
+        wire: $wire:expr,
+        old_name: $old:expr $(,)?
+    ) => {
         Param {
-            $($field: $value,)*
+            name: $name,
+            unit: $unit,
+            min: num($min),
+            max: $max,
+            access: $access,
+            integer: $integer,
+            wire: $wire,
+            #[cfg(feature = "describe")]
+            default: $default,
+            #[cfg(feature = "describe")]
+            in_file: $in_file,
+            #[cfg(feature = "describe")]
+            old_name: $old,
             #[cfg(feature = "describe")]
             description: $d,
         }
@@ -365,18 +403,19 @@ impl core::fmt::Display for RangeError {
 impl Param {
     /// Its range \[min, max\] for the robot `b`, in its unit.
     pub fn range(&self, b: &RobotBounds) -> (f32, f32) {
-        (self.min.eval(b), self.max.eval(b))
+        (self.min, self.max.eval(b))
     }
 
     /// Its range when it depends on no robot.
     pub const fn fixed_range(&self) -> Option<(f32, f32)> {
-        match (self.min.fixed(), self.max.fixed()) {
-            (Some(lo), Some(hi)) => Some((lo, hi)),
-            _ => None,
+        match self.max.fixed() {
+            Some(hi) => Some((self.min, hi)),
+            None => None,
         }
     }
 
-    /// Its default number ([`DefaultValue::Value`]; 0 otherwise), for consts.
+    /// Its default number ([`DefaultValue::Value`]; 0 otherwise).
+    #[cfg(feature = "describe")]
     pub const fn default_value(&self) -> f32 {
         match self.default {
             DefaultValue::Value(x) => x,
@@ -402,7 +441,7 @@ impl Param {
         let (beyond, bound) = if !value.is_finite() {
             (Beyond::NotFinite, self.max)
         } else if value < min {
-            (Beyond::Min, self.min)
+            (Beyond::Min, Bound::Value(self.min))
         } else if value > max {
             (Beyond::Max, self.max)
         } else if self.integer && value != libm::truncf(value) {
@@ -421,10 +460,15 @@ impl Param {
         })
     }
 
+    #[cfg(feature = "describe")]
     /// The file's path for the controller section `section`
     /// (`proposed`, `smc`, `asmc`) when it is [`InFile::PerController`];
     /// its name otherwise. Host only (allocates nothing, writes `out`).
-    pub fn write_file_path(&self, section: &str, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
+    pub fn write_file_path(
+        &self,
+        section: &str,
+        out: &mut dyn core::fmt::Write,
+    ) -> core::fmt::Result {
         match (self.in_file, self.name.strip_prefix("gains.")) {
             (InFile::PerController, Some(rest)) => write!(out, "gains.{section}.{rest}"),
             _ => out.write_str(self.name),
@@ -437,19 +481,17 @@ impl Param {
     /// for a whole number.
     pub fn write_range(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
         if self.integer {
-            self.min.write(out)?;
-            out.write_str("..=")?;
+            write!(out, "{}..=", self.min)?;
             self.max.write(out)
         } else {
-            out.write_str("[")?;
-            self.min.write(out)?;
-            out.write_str(", ")?;
+            write!(out, "[{}, ", self.min)?;
             self.max.write(out)?;
             out.write_str("]")
         }
     }
 
     /// Its default as the docs write it.
+    #[cfg(feature = "describe")]
     pub fn write_default(&self, out: &mut dyn core::fmt::Write) -> core::fmt::Result {
         match self.default {
             DefaultValue::Required => out.write_str("required"),
@@ -521,6 +563,7 @@ const fn v(x: f32) -> Bound {
 }
 
 use Access::{File, Hold, Live, ReadOnly};
+#[cfg_attr(not(feature = "describe"), allow(unused_imports))]
 use DefaultValue::{Required, Value};
 
 // ---- [body] ----
@@ -953,6 +996,7 @@ pub fn find(name: &str) -> Option<&'static Param> {
 }
 
 /// The parameter that had the name `old` before issue 32.
+#[cfg(feature = "describe")]
 pub fn find_old(old: &str) -> Option<&'static Param> {
     WIRE.iter().copied().find(|p| p.old_name == Some(old))
 }
@@ -971,8 +1015,14 @@ mod tests {
             if let Some(w) = p.wire {
                 assert!(core::ptr::eq(WIRE[w as usize], *p), "{}", p.name);
             }
-            assert_eq!(ALL.iter().filter(|q| q.name == p.name).count(), 1, "{}", p.name);
+            assert_eq!(
+                ALL.iter().filter(|q| q.name == p.name).count(),
+                1,
+                "{}",
+                p.name
+            );
             assert!(core::ptr::eq(find(p.name).unwrap(), *p));
+            #[cfg(feature = "describe")]
             if let Some(o) = p.old_name {
                 assert!(core::ptr::eq(find_old(o).unwrap(), *p));
                 assert!(find(o).is_none(), "{o} is both an old and a new name");
@@ -986,6 +1036,7 @@ mod tests {
         for p in ALL.iter() {
             let (lo, hi) = p.range(&b);
             assert!(lo <= hi, "{}", p.name);
+            #[cfg(feature = "describe")]
             if let DefaultValue::Value(x) = p.default {
                 assert!(p.check(x, &b).is_ok(), "{}", p.name);
             }
@@ -996,7 +1047,10 @@ mod tests {
     fn a_refusal_names_the_field_value_limit_and_what_to_do() {
         let b = RobotBounds::of(0.53, 4.0, 0.1, 1e-3);
         let e = LIMITS_TORQUE_NM.check(0.6, &b).unwrap_err();
-        assert_eq!((e.field, e.value, e.limit()), ("limits.torque_nm", 0.6, 0.53));
+        assert_eq!(
+            (e.field, e.value, e.limit()),
+            ("limits.torque_nm", 0.6, 0.53)
+        );
         assert_eq!(e.beyond, Beyond::Max);
         let s = std::format!("{e}");
         assert_eq!(
