@@ -531,7 +531,7 @@ pub fn write_reference(out: &mut dyn core::fmt::Write) -> core::fmt::Result {
             None => out.write_str("–")?,
         }
         match p.old_name {
-            Some(o) => write!(out, " | `{o}` |\n")?,
+            Some(o) => writeln!(out, " | `{o}` |")?,
             None => out.write_str(" | – |\n")?,
         }
     }
