@@ -239,10 +239,10 @@ impl Rig {
         self.wait_for("running", |s| s.running_delivered);
     }
 
-    /// `wmr params set link_timeout_ms MS` (the robot's link timeout).
+    /// `wmr params set limits.link_timeout_ms MS` (the robot's link timeout).
     fn set_link_timeout_ms(&self, ms: u32) {
         let (r, out) = finish(
-            &self.wmr(&["params", "set", "link_timeout_ms", &ms.to_string()]),
+            &self.wmr(&["params", "set", "limits.link_timeout_ms", &ms.to_string()]),
             "params set",
         );
         r.unwrap_or_else(|e| panic!("{e}\n{out}"));

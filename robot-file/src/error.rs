@@ -1,6 +1,7 @@
 //! Validation errors: the field by its TOML path and the reason.
 
 use controller_core::error::ConfigError;
+use controller_core::runtime::param_table::RangeError;
 use controller_core::runtime::RuntimeConfigError;
 
 /// Why a field is refused.
@@ -20,6 +21,10 @@ pub enum Reason {
         /// Unit of the three numbers.
         unit: &'static str,
     },
+    /// Outside its range in the parameter table (controller-core
+    /// `param_table`): the value, the limit broken, the range; the same
+    /// refusal the device and the ROS bridge give.
+    Range(RangeError),
     /// Inconsistent with another field (`with`, a TOML path): `why`.
     Inconsistent {
         /// The other field.
@@ -69,6 +74,7 @@ impl core::fmt::Display for RobotError {
                     "{value} {unit} is outside the physical range [{min}, {max}] {unit}"
                 )
             }
+            Reason::Range(e) => write!(f, "{}", e.reason()),
             Reason::Inconsistent { with, why } => write!(f, "inconsistent with {with}: {why}"),
             Reason::UnsupportedFormat { found } => write!(
                 f,

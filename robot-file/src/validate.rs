@@ -1,15 +1,13 @@
-//! [`Robot::validate`]: every field against its physical range, then the
-//! fields against each other, then the gains through controller-core's own
-//! validation. Ranges and their reasons: docs/robot.md.
+//! [`Robot::validate`]: every field against its physical range (the
+//! parameter table, controller-core `param_table`: the ranges the device
+//! and the ROS bridge check, D144), then the fields against each other,
+//! then the gains through controller-core's own validation. Ranges and
+//! their reasons: docs/robot.md, docs/parameters.md.
 
 use crate::derive::CONTROL_PERIOD_S;
 use crate::error::{Reason, RobotError};
 use crate::sections::{GainSet, Robot, SwitchingGain, FORMAT};
-use controller_core::runtime::bounds::{
-    max_gain_rate_per_s, max_ky, top_speed_mps, MAX_ACCEL_MPS2, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS,
-    MIN_ACCEL_MPS2, MIN_COMMAND_LIMIT, MIN_GAIN, MIN_TORQUE_NM,
-};
-use controller_core::runtime::{BridgeParams, MAX_SPEED_WINDOW};
+use controller_core::runtime::param_table::{self as table, Param, RobotBounds};
 use controller_core::ControllerKind;
 
 /// Timer clocks of the supported boards' PWM timers \[Hz\] (STM32F411 at
@@ -106,37 +104,18 @@ pub const GAIN_FIELDS: &[&str] = &[
     "sliding.switching.adaptive.rho_max",
 ];
 
-/// Farthest start position from the origin \[m\] (`control.initial_x_m`,
-/// `initial_y_m`): odometry's frame is the robot's own, a kilometre is
-/// beyond any run of a small robot and keeps f32 positions at 0.1 mm.
-pub const MAX_INITIAL_POSITION_M: f32 = 1000.0;
-
 /// Largest gain accepted (any unit): beyond it a 1 kHz discrete loop is
 /// far past stability; tuning stays well inside.
-pub const MAX_GAIN: f32 = 1.0e4;
+pub use controller_core::runtime::param_table::MAX_GAIN;
 
-fn range(
-    field: &'static str,
-    x: f32,
-    min: f32,
-    max: f32,
-    unit: &'static str,
-) -> Result<(), RobotError> {
+/// Checks field `field` (parameter `p`, or an element of it) against its
+/// range in the parameter table for the robot `b`.
+fn check(p: &Param, field: &'static str, x: f32, b: &RobotBounds) -> Result<(), RobotError> {
     if !x.is_finite() {
         return Err(RobotError::new(field, Reason::NotFinite));
     }
-    if x < min || x > max {
-        return Err(RobotError::new(
-            field,
-            Reason::OutOfRange {
-                value: x,
-                min,
-                max,
-                unit,
-            },
-        ));
-    }
-    Ok(())
+    p.check_as(field, x, b)
+        .map_err(|e| RobotError::new(field, Reason::Range(e)))
 }
 
 fn consistent(
@@ -161,10 +140,10 @@ impl Robot {
         self.validate_ranges()?;
         self.validate_consistency()?;
         self.validate_control()?;
+        let b = self.bounds();
         for kind in ControllerKind::ALL {
             if let Some(g) = self.gains.of(kind) {
-                validate_gains(kind, g)?;
-                self.validate_gain_rates(kind, g)?;
+                validate_gains(kind, g, &b)?;
             }
             self.controller_config(kind)
                 .validate()
@@ -173,59 +152,33 @@ impl Robot {
         Ok(())
     }
 
-    /// The gains the device's loop can follow (controller-core `bounds`,
-    /// the same numbers as wmr-device's parameter ranges, so a file the
-    /// device would refuse at boot is refused here, issue 31 item 3): k_x,
-    /// k_θ, k_s at most half the control rate, k_y at most
-    /// (rate/top speed)², each at least [`MIN_GAIN`].
-    fn validate_gain_rates(&self, kind: ControllerKind, g: &GainSet) -> Result<(), RobotError> {
-        let rate = max_gain_rate_per_s(CONTROL_PERIOD_S);
-        let top = top_speed_mps(self.mean_wheel_radius_m(), self.no_load_wheel_speed_radps());
-        let k = &g.kinematic;
-        range(
-            gain_path!(kind, "kinematic.k_x"),
-            k.k_x,
-            MIN_GAIN,
-            rate,
-            "1/s",
-        )?;
-        range(
-            gain_path!(kind, "kinematic.k_y"),
-            k.k_y,
-            MIN_GAIN,
-            max_ky(CONTROL_PERIOD_S, top),
-            "rad/m²",
-        )?;
-        range(
-            gain_path!(kind, "kinematic.k_th"),
-            k.k_th,
-            MIN_GAIN,
-            rate,
-            "1/s",
-        )?;
-        range(
-            gain_path!(kind, "sliding.k_s"),
-            g.sliding.k_s,
-            MIN_GAIN,
-            rate,
-            "1/s",
+    /// The numbers of the parameter table's robot-dependent bounds for
+    /// this robot (its stall torque, top speed and yaw rate at the mean
+    /// wheel radius, the control rate), by the formulas the device uses
+    /// (wmr-device `RobotLimits::bounds`): a file the device would refuse
+    /// at boot is refused here (issue 31 item 3).
+    pub fn bounds(&self) -> RobotBounds {
+        RobotBounds::of(
+            self.stall_torque_nm(),
+            self.no_load_wheel_speed_radps() * self.mean_wheel_radius_m(),
+            0.5 * self.body.track_m,
+            CONTROL_PERIOD_S,
         )
     }
 
-    /// `[control]`: the start pose within [`MAX_INITIAL_POSITION_M`] of
-    /// the origin and the heading within ±π.
+    /// `[control]`: the start pose through the parameter table
+    /// (`control.initial_*`: within 1 km of the origin, the heading within
+    /// ±π).
     fn validate_control(&self) -> Result<(), RobotError> {
         let c = &self.control;
-        let p = MAX_INITIAL_POSITION_M;
-        range("control.initial_x_m", c.initial_x_m, -p, p, "m")?;
-        range("control.initial_y_m", c.initial_y_m, -p, p, "m")?;
-        let pi = core::f32::consts::PI;
-        range(
+        let ab = RobotBounds::ABSOLUTE;
+        check(&table::CONTROL_INITIAL_X_M, "control.initial_x_m", c.initial_x_m, &ab)?;
+        check(&table::CONTROL_INITIAL_Y_M, "control.initial_y_m", c.initial_y_m, &ab)?;
+        check(
+            &table::CONTROL_INITIAL_HEADING_RAD,
             "control.initial_heading_rad",
             c.initial_heading_rad,
-            -pi,
-            pi,
-            "rad",
+            &ab,
         )
     }
 
@@ -248,148 +201,119 @@ impl Robot {
                 Reason::UnsupportedFormat { found: self.format },
             ));
         }
+        // Ranges that depend on no robot first (in file order), then
+        // [limits] against the robot they bound.
+        let ab = RobotBounds::ABSOLUTE;
         let b = &self.body;
-        range("body.mass_kg", b.mass_kg, 0.1, 500.0, "kg")?;
-        range("body.inertia_kgm2", b.inertia_kgm2, 1e-5, 500.0, "kg·m²")?;
-        range(
-            "body.wheel_inertia_kgm2",
-            b.wheel_inertia_kgm2,
-            0.0,
-            1.0,
-            "kg·m²",
-        )?;
-        range("body.com_offset_m", b.com_offset_m, 0.0, 2.0, "m")?;
-        range(
-            "body.wheel_radius_m[0]",
-            b.wheel_radius_m[0],
-            0.005,
-            0.5,
-            "m",
-        )?;
-        range(
-            "body.wheel_radius_m[1]",
-            b.wheel_radius_m[1],
-            0.005,
-            0.5,
-            "m",
-        )?;
-        range("body.track_m", b.track_m, 0.03, 2.0, "m")?;
         let m = &self.motors;
-        range(
-            "motors.torque_constant_nm_per_a",
-            m.torque_constant_nm_per_a,
-            1e-4,
-            5.0,
-            "N·m/A",
-        )?;
-        range("motors.resistance_ohm", m.resistance_ohm, 0.01, 1000.0, "Ω")?;
-        range("motors.gear_ratio", m.gear_ratio, 1.0, 1000.0, "")?;
-        range("motors.gear_efficiency", m.gear_efficiency, 0.1, 1.0, "")?;
-        range(
-            "motors.supply_voltage_v",
-            m.supply_voltage_v,
-            1.0,
-            60.0,
-            "V",
-        )?;
-        range(
-            "motors.viscous_friction_nms_per_rad[0]",
-            m.viscous_friction_nms_per_rad[0],
-            0.0,
-            10.0,
-            "N·m·s/rad",
-        )?;
-        range(
-            "motors.viscous_friction_nms_per_rad[1]",
-            m.viscous_friction_nms_per_rad[1],
-            0.0,
-            10.0,
-            "N·m·s/rad",
-        )?;
-        range(
-            "motors.coulomb_friction_nm[0]",
-            m.coulomb_friction_nm[0],
-            0.0,
-            100.0,
-            "N·m",
-        )?;
-        range(
-            "motors.coulomb_friction_nm[1]",
-            m.coulomb_friction_nm[1],
-            0.0,
-            100.0,
-            "N·m",
-        )?;
         let e = &self.encoders;
-        range(
-            "encoders.counts_per_wheel_rev",
-            e.counts_per_wheel_rev,
-            4.0,
-            1.0e6,
-            "counts",
-        )?;
-        range(
-            "encoders.speed_window_ticks",
-            e.speed_window_ticks as f32,
-            1.0,
-            MAX_SPEED_WINDOW as f32,
-            "ticks",
-        )?;
         let br = &self.bridge;
-        let (lo, hi) = BridgeParams::PWM_FREQUENCY_RANGE_HZ;
-        range(
-            "bridge.pwm_frequency_hz",
-            br.pwm_frequency_hz as f32,
-            lo as f32,
-            hi as f32,
-            "Hz",
-        )?;
-        range(
-            "bridge.max_duty_fraction",
-            br.max_duty_fraction,
-            0.05,
-            1.0,
-            "",
-        )?;
+        let fields: [(&Param, &'static str, f32); 20] = [
+            (&table::BODY_MASS_KG, "body.mass_kg", b.mass_kg),
+            (
+                &table::BODY_INERTIA_KGM2,
+                "body.inertia_kgm2",
+                b.inertia_kgm2,
+            ),
+            (
+                &table::BODY_WHEEL_INERTIA_KGM2,
+                "body.wheel_inertia_kgm2",
+                b.wheel_inertia_kgm2,
+            ),
+            (
+                &table::BODY_COM_OFFSET_M,
+                "body.com_offset_m",
+                b.com_offset_m,
+            ),
+            (
+                &table::BODY_WHEEL_RADIUS_M,
+                "body.wheel_radius_m[0]",
+                b.wheel_radius_m[0],
+            ),
+            (
+                &table::BODY_WHEEL_RADIUS_M,
+                "body.wheel_radius_m[1]",
+                b.wheel_radius_m[1],
+            ),
+            (&table::BODY_TRACK_M, "body.track_m", b.track_m),
+            (
+                &table::MOTORS_TORQUE_CONSTANT,
+                "motors.torque_constant_nm_per_a",
+                m.torque_constant_nm_per_a,
+            ),
+            (
+                &table::MOTORS_RESISTANCE_OHM,
+                "motors.resistance_ohm",
+                m.resistance_ohm,
+            ),
+            (&table::MOTORS_GEAR_RATIO, "motors.gear_ratio", m.gear_ratio),
+            (
+                &table::MOTORS_GEAR_EFFICIENCY,
+                "motors.gear_efficiency",
+                m.gear_efficiency,
+            ),
+            (
+                &table::MOTORS_SUPPLY_VOLTAGE_V,
+                "motors.supply_voltage_v",
+                m.supply_voltage_v,
+            ),
+            (
+                &table::MOTORS_VISCOUS_FRICTION,
+                "motors.viscous_friction_nms_per_rad[0]",
+                m.viscous_friction_nms_per_rad[0],
+            ),
+            (
+                &table::MOTORS_VISCOUS_FRICTION,
+                "motors.viscous_friction_nms_per_rad[1]",
+                m.viscous_friction_nms_per_rad[1],
+            ),
+            (
+                &table::MOTORS_COULOMB_FRICTION_NM,
+                "motors.coulomb_friction_nm[0]",
+                m.coulomb_friction_nm[0],
+            ),
+            (
+                &table::MOTORS_COULOMB_FRICTION_NM,
+                "motors.coulomb_friction_nm[1]",
+                m.coulomb_friction_nm[1],
+            ),
+            (
+                &table::ENCODERS_COUNTS_PER_WHEEL_REV,
+                "encoders.counts_per_wheel_rev",
+                e.counts_per_wheel_rev,
+            ),
+            (
+                &table::ENCODERS_SPEED_WINDOW_TICKS,
+                "encoders.speed_window_ticks",
+                e.speed_window_ticks as f32,
+            ),
+            (
+                &table::BRIDGE_PWM_FREQUENCY_HZ,
+                "bridge.pwm_frequency_hz",
+                br.pwm_frequency_hz as f32,
+            ),
+            (
+                &table::BRIDGE_MAX_DUTY_FRACTION,
+                "bridge.max_duty_fraction",
+                br.max_duty_fraction,
+            ),
+        ];
+        for (p, field, x) in fields {
+            check(p, field, x, &ab)?;
+        }
+        // [limits]: the device's parameter ranges for this robot (the
+        // body and motors above are valid, so its bounds are numbers).
+        let rb = self.bounds();
         let l = &self.limits;
-        // The device's parameter ranges (controller-core `bounds`, shared
-        // with wmr-device's limits): a file the device would refuse at
-        // boot is refused here (issue 31 item 3).
-        range(
-            "limits.torque_nm",
-            l.torque_nm,
-            MIN_TORQUE_NM,
-            1000.0,
-            "N·m",
-        )?;
-        range(
-            "limits.max_speed_mps",
-            l.max_speed_mps,
-            MIN_COMMAND_LIMIT,
-            MAX_SPEED_MPS,
-            "m/s",
-        )?;
-        range(
-            "limits.max_yaw_rate_radps",
-            l.max_yaw_rate_radps,
-            MIN_COMMAND_LIMIT,
-            MAX_YAW_RATE_RADPS,
-            "rad/s",
-        )?;
-        range(
-            "limits.max_accel_mps2",
-            l.max_accel_mps2,
-            MIN_ACCEL_MPS2,
-            MAX_ACCEL_MPS2,
-            "m/s²",
-        )?;
-        range(
-            "limits.link_timeout_ms",
-            l.link_timeout_ms as f32,
-            50.0,
-            10_000.0,
-            "ms",
-        )?;
+        for (p, x) in [
+            (&table::LIMITS_TORQUE_NM, l.torque_nm),
+            (&table::LIMITS_MAX_SPEED_MPS, l.max_speed_mps),
+            (&table::LIMITS_MAX_YAW_RATE_RADPS, l.max_yaw_rate_radps),
+            (&table::LIMITS_MAX_ACCEL_MPS2, l.max_accel_mps2),
+            (&table::LIMITS_LINK_TIMEOUT_MS, l.link_timeout_ms as f32),
+        ] {
+            check(p, p.name, x, &rb)?;
+        }
         Ok(())
     }
 
@@ -463,13 +387,8 @@ impl Robot {
                 "more than half the stall torque",
             )?;
         }
+        // limits.torque_nm ≤ the stall torque: its range (validate_ranges).
         let l = &self.limits;
-        consistent(
-            l.torque_nm <= stall,
-            "limits.torque_nm",
-            "motors (stall torque η·N·k·V/R at the wheel)",
-            "above what the motor gives at stall",
-        )?;
         consistent(
             l.max_speed_mps <= self.no_load_speed_mps(),
             "limits.max_speed_mps",
@@ -531,101 +450,75 @@ fn gain_section(kind: ControllerKind) -> &'static str {
     }
 }
 
-fn validate_gains(kind: ControllerKind, g: &GainSet) -> Result<(), RobotError> {
-    const P: f32 = 1e-6;
+fn validate_gains(kind: ControllerKind, g: &GainSet, b: &RobotBounds) -> Result<(), RobotError> {
+    use table::*;
     let k = &g.kinematic;
-    range(gain_path!(kind, "kinematic.k_x"), k.k_x, P, MAX_GAIN, "1/s")?;
-    range(
-        gain_path!(kind, "kinematic.k_y"),
-        k.k_y,
-        P,
-        MAX_GAIN,
-        "rad/m²",
-    )?;
-    range(
-        gain_path!(kind, "kinematic.k_th"),
-        k.k_th,
-        P,
-        MAX_GAIN,
-        "1/s",
-    )?;
-    range(
-        gain_path!(kind, "kinematic.large_error_m"),
-        k.large_error_m,
-        0.0,
-        100.0,
-        "m",
-    )?;
     let o = &g.observer;
-    range(gain_path!(kind, "observer.l_v"), o.l_v, P, MAX_GAIN, "1/s")?;
-    range(
-        gain_path!(kind, "observer.l_omega"),
-        o.l_omega,
-        P,
-        MAX_GAIN,
-        "1/s",
-    )?;
-    range(
-        gain_path!(kind, "observer.max_estimate[0]"),
-        o.max_estimate[0],
-        P,
-        100.0,
-        "m/s",
-    )?;
-    range(
-        gain_path!(kind, "observer.max_estimate[1]"),
-        o.max_estimate[1],
-        P,
-        100.0,
-        "rad/s",
-    )?;
     let e = &g.eso;
-    range(
-        gain_path!(kind, "eso.lambda[0]"),
-        e.lambda[0],
-        P,
-        MAX_GAIN,
-        "",
-    )?;
-    range(
-        gain_path!(kind, "eso.lambda[1]"),
-        e.lambda[1],
-        P,
-        MAX_GAIN,
-        "",
-    )?;
-    range(
-        gain_path!(kind, "eso.lambda[2]"),
-        e.lambda[2],
-        P,
-        MAX_GAIN,
-        "",
-    )?;
-    range(gain_path!(kind, "eso.zeta"), e.zeta, P, 100.0, "")?;
-    range(gain_path!(kind, "eso.alpha"), e.alpha, P, 1.0 - 1e-6, "")?;
-    range(
-        gain_path!(kind, "eso.max_disturbance[0]"),
-        e.max_disturbance[0],
-        P,
-        1000.0,
-        "m/s²",
-    )?;
-    range(
-        gain_path!(kind, "eso.max_disturbance[1]"),
-        e.max_disturbance[1],
-        P,
-        1000.0,
-        "rad/s²",
-    )?;
     let s = &g.sliding;
-    range(gain_path!(kind, "sliding.k_s"), s.k_s, P, MAX_GAIN, "1/s")?;
+    let fields: [(&Param, &'static str, f32); 16] = [
+        (&GAINS_K_X, gain_path!(kind, "kinematic.k_x"), k.k_x),
+        (&GAINS_K_Y, gain_path!(kind, "kinematic.k_y"), k.k_y),
+        (&GAINS_K_TH, gain_path!(kind, "kinematic.k_th"), k.k_th),
+        (
+            &GAINS_LARGE_ERROR_M,
+            gain_path!(kind, "kinematic.large_error_m"),
+            k.large_error_m,
+        ),
+        (&GAINS_OBSERVER_L_V, gain_path!(kind, "observer.l_v"), o.l_v),
+        (
+            &GAINS_OBSERVER_L_OMEGA,
+            gain_path!(kind, "observer.l_omega"),
+            o.l_omega,
+        ),
+        (
+            &GAINS_OBSERVER_MAX_ESTIMATE_V,
+            gain_path!(kind, "observer.max_estimate[0]"),
+            o.max_estimate[0],
+        ),
+        (
+            &GAINS_OBSERVER_MAX_ESTIMATE_OMEGA,
+            gain_path!(kind, "observer.max_estimate[1]"),
+            o.max_estimate[1],
+        ),
+        (
+            &GAINS_ESO_LAMBDA,
+            gain_path!(kind, "eso.lambda[0]"),
+            e.lambda[0],
+        ),
+        (
+            &GAINS_ESO_LAMBDA,
+            gain_path!(kind, "eso.lambda[1]"),
+            e.lambda[1],
+        ),
+        (
+            &GAINS_ESO_LAMBDA,
+            gain_path!(kind, "eso.lambda[2]"),
+            e.lambda[2],
+        ),
+        (&GAINS_ESO_ZETA, gain_path!(kind, "eso.zeta"), e.zeta),
+        (&GAINS_ESO_ALPHA, gain_path!(kind, "eso.alpha"), e.alpha),
+        (
+            &GAINS_ESO_MAX_DISTURBANCE_V,
+            gain_path!(kind, "eso.max_disturbance[0]"),
+            e.max_disturbance[0],
+        ),
+        (
+            &GAINS_ESO_MAX_DISTURBANCE_OMEGA,
+            gain_path!(kind, "eso.max_disturbance[1]"),
+            e.max_disturbance[1],
+        ),
+        (&GAINS_K_S, gain_path!(kind, "sliding.k_s"), s.k_s),
+    ];
+    for (p, field, x) in fields {
+        check(p, field, x, b)?;
+    }
     match s.switching {
-        SwitchingGain::Fixed { k } => range(
+        SwitchingGain::Fixed { k } => check(
+            &GAINS_SWITCHING_FIXED_K,
             gain_path!(kind, "sliding.switching.fixed.k"),
             k,
-            0.0,
-            MAX_GAIN,
-            "",
+            b,
         )?,
         SwitchingGain::Adaptive {
             gamma,
@@ -635,47 +528,41 @@ fn validate_gains(kind: ControllerKind, g: &GainSet) -> Result<(), RobotError> {
             rho_min,
             rho_max,
         } => {
-            range(
+            check(
+                &GAINS_ADAPTIVE_GAMMA,
                 gain_path!(kind, "sliding.switching.adaptive.gamma"),
                 gamma,
-                0.0,
-                MAX_GAIN,
-                "",
+                b,
             )?;
-            range(
+            check(
+                &GAINS_ADAPTIVE_DEAD_ZONE,
                 gain_path!(kind, "sliding.switching.adaptive.dead_zone"),
                 dead_zone,
-                0.0,
-                100.0,
-                "",
+                b,
             )?;
-            range(
+            check(
+                &GAINS_ADAPTIVE_LEAKAGE,
                 gain_path!(kind, "sliding.switching.adaptive.leakage"),
                 leakage,
-                0.0,
-                MAX_GAIN,
-                "1/s",
+                b,
             )?;
-            range(
+            check(
+                &GAINS_ADAPTIVE_RHO0,
                 gain_path!(kind, "sliding.switching.adaptive.rho0"),
                 rho0,
-                0.0,
-                MAX_GAIN,
-                "",
+                b,
             )?;
-            range(
+            check(
+                &GAINS_ADAPTIVE_RHO_MIN,
                 gain_path!(kind, "sliding.switching.adaptive.rho_min"),
                 rho_min,
-                0.0,
-                MAX_GAIN,
-                "",
+                b,
             )?;
-            range(
+            check(
+                &GAINS_ADAPTIVE_RHO_MAX,
                 gain_path!(kind, "sliding.switching.adaptive.rho_max"),
                 rho_max,
-                0.0,
-                MAX_GAIN,
-                "",
+                b,
             )?;
             consistent(
                 rho_min <= rho0 && rho0 <= rho_max,

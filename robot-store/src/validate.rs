@@ -11,6 +11,7 @@ pub fn robot_fault(e: &RobotError) -> RobotFault {
     let (kind, range) = match e.reason {
         Reason::NotFinite => (RobotFaultKind::NotFinite, None),
         Reason::OutOfRange { min, max, .. } => (RobotFaultKind::OutOfRange, Some([min, max])),
+        Reason::Range(e) => (RobotFaultKind::OutOfRange, Some([e.min, e.max])),
         Reason::Inconsistent { .. } => (RobotFaultKind::Inconsistent, None),
         Reason::UnsupportedFormat { .. } => (RobotFaultKind::UnsupportedFormat, None),
         _ => (RobotFaultKind::Refused, None),

@@ -66,7 +66,9 @@ use wmr_protocol::{
 };
 
 pub use framing::{RX_BYTES_PER_TICK, RX_CAPACITY, TX_CAPACITY};
-pub use params::{DeviceConfig, DeviceConfigError, LinkConfig, MAX_VELOCITY_TIMEOUT_MS};
+pub use params::{
+    check_set, DeviceConfig, DeviceConfigError, LinkConfig, SetParamError, MAX_VELOCITY_TIMEOUT_MS,
+};
 
 /// The pose source of one tick: the host's measurement if one arrived
 /// (first), then the board's.

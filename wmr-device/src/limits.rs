@@ -8,22 +8,15 @@
 //! reference faster than the motors can drive, no controlled stop that
 //! takes longer than [`RobotLimits::stop_bound_s`].
 
-use controller_core::runtime::bounds::{max_gain_rate_per_s, max_ky, top_speed_mps};
+use controller_core::runtime::bounds::max_gain_rate_per_s;
 pub use controller_core::runtime::bounds::{
-    MAX_ACCEL_MPS2, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS, MIN_ACCEL_MPS2, MIN_COMMAND_LIMIT, MIN_GAIN,
-    MIN_TORQUE_NM,
+    MAX_ACCEL_MPS2, MAX_ANG_ACCEL_RADPS2, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS, MIN_ACCEL_MPS2,
+    MIN_ANG_ACCEL_RADPS2, MIN_BRAKE_DECEL_MPS2, MIN_COMMAND_LIMIT, MIN_GAIN, MIN_TORQUE_NM,
 };
+use controller_core::runtime::param_table::{Access, Param, RangeError, RobotBounds};
 use controller_core::runtime::RuntimeConfig;
 use wmr_protocol::ParamId;
 
-/// Least deceleration of a controlled stop \[m/s²\]: the gentlest stop
-/// the device makes (a walking-pace robot at 1 m/s stops within 4 s).
-pub const MIN_BRAKE_DECEL_MPS2: f32 = 0.25;
-/// Least angular acceleration of velocity commands and of the braking
-/// profile \[rad/s²\].
-pub const MIN_ANG_ACCEL_RADPS2: f32 = 1.0;
-/// Largest angular acceleration \[rad/s²\].
-pub const MAX_ANG_ACCEL_RADPS2: f32 = 50.0;
 /// Smallest and largest length of a built-in shape (radius, amplitude)
 /// \[m\].
 pub const SHAPE_LENGTH_M: (f32, f32) = (0.01, 1000.0);
@@ -130,15 +123,23 @@ impl RobotLimits {
         let m = &rt.motor;
         let r = &rt.controller.robot;
         let wheel_radps = m.supply_voltage_v / (m.torque_constant_nm_per_a * m.gear_ratio);
-        let top_speed_mps = top_speed_mps(r.wheel_radius_m, wheel_radps);
         let stall_torque_nm =
             m.gear_efficiency * m.gear_ratio * m.torque_constant_nm_per_a * m.supply_voltage_v
                 / m.winding_resistance_ohm;
+        // The parameter table's bounds, by the formulas the robot file
+        // uses (`RobotBounds::of`).
+        let b = RobotBounds::of(
+            stall_torque_nm,
+            wheel_radps * r.wheel_radius_m,
+            r.half_track_m,
+            rt.controller.period_s,
+        );
+        let top_speed_mps = b.top_speed_mps;
         let rw = r.wheel_radius_m;
         let m_eff = r.mass_kg + 2.0 * r.wheel_inertia_kgm2 / (rw * rw);
         Self {
             top_speed_mps,
-            top_yaw_rate_radps: (top_speed_mps / r.half_track_m).min(MAX_YAW_RATE_RADPS),
+            top_yaw_rate_radps: b.top_yaw_rate_radps,
             stall_torque_nm,
             top_accel_mps2: 2.0 * stall_torque_nm / (rw * m_eff),
             max_rate_per_s: max_gain_rate_per_s(rt.controller.period_s),
@@ -151,32 +152,37 @@ impl RobotLimits {
         }
     }
 
+    /// The numbers of the parameter table's robot-dependent bounds
+    /// (controller-core `param_table`).
+    pub fn bounds(&self) -> RobotBounds {
+        RobotBounds {
+            stall_torque_nm: self.stall_torque_nm,
+            top_speed_mps: self.top_speed_mps,
+            top_yaw_rate_radps: self.top_yaw_rate_radps,
+            period_s: self.period_s,
+        }
+    }
+
     /// The physical range \[min, max\] of a writable parameter, in its
-    /// unit; `None` for the integer and read-only ones (checked apart).
+    /// unit, from the parameter table (controller-core `param_table`);
+    /// `None` for the integer and read-only ones (checked apart).
     ///
     /// The gains bound the closed loop's rates by half the control rate
     /// `R`: k_x, k_θ, k_s ≤ R \[1/s\]; the lateral mode of eq. (14)
     /// linearised about the reference, ë_y + k_θ·ė_y + k_y·v²·e_y = 0, has
     /// the rate v·√k_y ≤ R at top speed, so k_y ≤ (R/v_top)² \[rad/m²\].
     pub fn range(&self, id: ParamId) -> Option<(f32, f32)> {
-        let r = self.max_rate_per_s;
-        let k_y = max_ky(self.period_s, self.top_speed_mps);
-        Some(match id {
-            ParamId::TorqueLimitNm | ParamId::StallTorqueNm => {
-                (MIN_TORQUE_NM, self.stall_torque_nm)
-            }
-            ParamId::Kx | ParamId::Ktheta | ParamId::Ks => (MIN_GAIN, r),
-            ParamId::Ky => (MIN_GAIN, k_y),
-            ParamId::AccelMps2 => (MIN_ACCEL_MPS2, MAX_ACCEL_MPS2),
-            ParamId::BrakeDecelMps2 => (MIN_BRAKE_DECEL_MPS2, MAX_ACCEL_MPS2),
-            ParamId::AngAccelRadps2 => (MIN_ANG_ACCEL_RADPS2, MAX_ANG_ACCEL_RADPS2),
-            ParamId::MaxSpeedMps => (MIN_COMMAND_LIMIT, self.top_speed_mps),
-            ParamId::MaxYawRateRadps => (MIN_COMMAND_LIMIT, self.top_yaw_rate_radps),
-            ParamId::StallTicks
-            | ParamId::TelemetryRateHz
-            | ParamId::LinkTimeoutMs
-            | ParamId::ControlPeriodS => return None,
-        })
+        let p = id.param();
+        if p.integer || p.access == Access::ReadOnly {
+            return None;
+        }
+        Some(p.range(&self.bounds()))
+    }
+
+    /// Checks `value` of parameter `p` against its range for this robot:
+    /// the refusal names the field, the value and the limit.
+    pub fn check(&self, p: &Param, value: f32) -> Result<(), RangeError> {
+        p.check(value, &self.bounds())
     }
 
     /// Checks one reference sample against the robot's limits: |v| within
@@ -211,10 +217,10 @@ impl RobotLimits {
         })
     }
 
-    /// `value` lies in the range of `id` (false for NaN).
+    /// `value` lies in the range of `id` (false for NaN; the integer and
+    /// read-only ones are checked apart).
     pub fn allows(&self, id: ParamId, value: f32) -> bool {
-        self.range(id)
-            .is_none_or(|(lo, hi)| value >= lo && value <= hi)
+        self.range(id).is_none() || self.check(id.param(), value).is_ok()
     }
 
     /// The longest braking ramp with deceleration `decel_mps2` and angular

@@ -1,11 +1,9 @@
 //! Parameters: the device's configuration ([`DeviceConfig`], [`LinkConfig`]),
 //! its validation, and the [`ParamId`]s the host reads and writes.
 
-use crate::limits::{
-    RobotLimits, MAX_ACCEL_MPS2, MAX_ANG_ACCEL_RADPS2, MAX_SPEED_MPS, MAX_YAW_RATE_RADPS,
-    MIN_ACCEL_MPS2, MIN_ANG_ACCEL_RADPS2, MIN_BRAKE_DECEL_MPS2, MIN_COMMAND_LIMIT,
-};
+use crate::limits::RobotLimits;
 use crate::reference::PlacedReference;
+use controller_core::runtime::param_table::{self as table, Access, RangeError, RobotBounds};
 use controller_core::runtime::{
     ControlLoop, ReconfigureError, RunState, RuntimeConfig, RuntimeConfigError,
 };
@@ -20,14 +18,15 @@ pub const MAX_VELOCITY_TIMEOUT_MS: u16 = 5000;
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LinkConfig {
     /// Controlled stop after this long without a valid frame while running
-    /// under host control \[ms\] (50..=10000).
+    /// under host control \[ms\] ([`table::LIMITS_LINK_TIMEOUT_MS`]).
     pub link_timeout_ms: u32,
-    /// Acceleration limit of velocity commands \[m/s²\] ([`MIN_ACCEL_MPS2`]..=[`MAX_ACCEL_MPS2`]).
+    /// Acceleration limit of velocity commands \[m/s²\]
+    /// ([`table::LIMITS_MAX_ACCEL_MPS2`]).
     pub accel_mps2: f32,
     /// Angular acceleration of velocity commands and of the braking
-    /// profile \[rad/s²\] ([`MIN_ANG_ACCEL_RADPS2`]..=[`MAX_ANG_ACCEL_RADPS2`]).
+    /// profile \[rad/s²\] ([`table::ANG_ACCEL_RADPS2`]).
     pub ang_accel_radps2: f32,
-    /// Deceleration of a controlled stop \[m/s²\] ([`MIN_BRAKE_DECEL_MPS2`]..=[`MAX_ACCEL_MPS2`]).
+    /// Deceleration of a controlled stop \[m/s²\] ([`table::BRAKE_DECEL_MPS2`]).
     pub brake_decel_mps2: f32,
     /// Largest |v| of a velocity command \[m/s\] (up to the robot's top speed).
     pub max_speed_mps: f32,
@@ -54,62 +53,33 @@ impl LinkConfig {
         telemetry_selection: TELEMETRY_ALL,
     };
 
-    /// Checks every field against the fixed ranges of [`crate::limits`]
-    /// (the robot-derived ones are checked by the [`Device`](crate::Device));
-    /// the error names the first field out of range.
+    /// Checks every field against its range in the parameter table
+    /// (controller-core `param_table`; the robot-dependent ends at their
+    /// largest, [`RobotBounds::ABSOLUTE`]: the [`Device`](crate::Device)
+    /// checks them against its robot); the error names the first field
+    /// out of range, its value and the limit.
     pub fn validate(self) -> Result<Self, DeviceConfigError> {
-        use ParamId as P;
-        let ranges = [
-            (
-                P::AccelMps2,
-                self.accel_mps2,
-                MIN_ACCEL_MPS2,
-                MAX_ACCEL_MPS2,
-            ),
-            (
-                P::AngAccelRadps2,
-                self.ang_accel_radps2,
-                MIN_ANG_ACCEL_RADPS2,
-                MAX_ANG_ACCEL_RADPS2,
-            ),
-            (
-                P::BrakeDecelMps2,
-                self.brake_decel_mps2,
-                MIN_BRAKE_DECEL_MPS2,
-                MAX_ACCEL_MPS2,
-            ),
-            (
-                P::MaxSpeedMps,
-                self.max_speed_mps,
-                MIN_COMMAND_LIMIT,
-                MAX_SPEED_MPS,
-            ),
-            (
-                P::MaxYawRateRadps,
-                self.max_yaw_rate_radps,
-                MIN_COMMAND_LIMIT,
-                MAX_YAW_RATE_RADPS,
-            ),
+        let b = RobotBounds::ABSOLUTE;
+        let checks = [
+            (&table::LIMITS_MAX_ACCEL_MPS2, self.accel_mps2),
+            (&table::ANG_ACCEL_RADPS2, self.ang_accel_radps2),
+            (&table::BRAKE_DECEL_MPS2, self.brake_decel_mps2),
+            (&table::LIMITS_MAX_SPEED_MPS, self.max_speed_mps),
+            (&table::LIMITS_MAX_YAW_RATE_RADPS, self.max_yaw_rate_radps),
+            (&table::LIMITS_LINK_TIMEOUT_MS, self.link_timeout_ms as f32),
+            (&table::TELEMETRY_RATE_HZ, self.telemetry_rate_hz as f32),
         ];
-        for (param, x, lo, hi) in ranges {
-            // false for NaN
-            if !(x >= lo && x <= hi) {
-                return Err(DeviceConfigError::OutOfRange(param));
-            }
-        }
-        if !LINK_TIMEOUT_MS.contains(&self.link_timeout_ms) {
-            return Err(DeviceConfigError::OutOfRange(P::LinkTimeoutMs));
-        }
-        if self.telemetry_rate_hz > MAX_TELEMETRY_RATE_HZ {
-            return Err(DeviceConfigError::OutOfRange(P::TelemetryRateHz));
+        for (p, x) in checks {
+            p.check(x, &b).map_err(DeviceConfigError::OutOfRange)?;
         }
         Ok(self)
     }
 }
 
-/// Range of the link timeout \[ms\].
+/// Range of the link timeout \[ms\] (the parameter table's
+/// `limits.link_timeout_ms`).
 pub const LINK_TIMEOUT_MS: core::ops::RangeInclusive<u32> = 50..=10_000;
-/// Largest telemetry rate \[Hz\].
+/// Largest telemetry rate \[Hz\] (the parameter table's `telemetry_rate_hz`).
 pub const MAX_TELEMETRY_RATE_HZ: u16 = 1000;
 
 /// Everything a [`Device`](crate::Device) is built from besides the runtime.
@@ -176,15 +146,16 @@ impl DeviceConfig {
 }
 
 /// A device configuration rejected at construction.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum DeviceConfigError {
     /// The runtime configuration.
     Runtime(RuntimeConfigError),
     /// A parameter (a link setting, a gain, a torque) is outside its
-    /// physical range ([`RobotLimits::range`], docs/protocol.md).
-    OutOfRange(ParamId),
+    /// physical range (the parameter table, [`RobotLimits::check`]): the
+    /// field, the value, the limit.
+    OutOfRange(RangeError),
     /// The chip name is longer than 16 bytes.
     ChipName,
     /// The button reference is invalid.
@@ -195,7 +166,7 @@ impl core::fmt::Display for DeviceConfigError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
             Self::Runtime(e) => write!(f, "runtime: {e}"),
-            Self::OutOfRange(p) => write!(f, "{} out of its physical range", p.name()),
+            Self::OutOfRange(e) => write!(f, "{e}"),
             Self::ChipName => f.write_str("chip name longer than 16 bytes"),
             Self::ButtonReference => f.write_str("invalid button reference"),
         }
@@ -234,8 +205,9 @@ pub(crate) fn check_physical(
     lim: &RobotLimits,
 ) -> Result<(), DeviceConfigError> {
     for id in ParamId::ALL {
-        if !lim.allows(id, read(rt, link, id)) {
-            return Err(DeviceConfigError::OutOfRange(id));
+        if lim.range(id).is_some() {
+            lim.check(id.param(), read(rt, link, id))
+                .map_err(DeviceConfigError::OutOfRange)?;
         }
     }
     Ok(())
@@ -249,6 +221,52 @@ pub(crate) fn in_hold(state: RunState) -> Result<(), ErrorCode> {
     }
 }
 
+/// Why the device refused a `SetParam` ([`check_set`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SetParamError {
+    /// The parameter cannot be written (`control_period_s`).
+    ReadOnly,
+    /// The value is outside the parameter's range for this robot (the
+    /// parameter table): the field, the value, the limit.
+    Range(RangeError),
+}
+
+impl SetParamError {
+    /// Its code on the link.
+    pub fn code(self) -> ErrorCode {
+        match self {
+            Self::ReadOnly => ErrorCode::ReadOnly,
+            Self::Range(_) => ErrorCode::InvalidValue,
+        }
+    }
+}
+
+impl core::fmt::Display for SetParamError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::ReadOnly => f.write_str(ErrorCode::ReadOnly.reason()),
+            Self::Range(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+/// The device's check of a `SetParam` before anything changes: finite,
+/// writable, and within the parameter's range for the robot `lim` (the
+/// parameter table's [`Param::check`](table::Param::check), the check the
+/// robot file and the ROS bridge make).
+pub fn check_set(lim: &RobotLimits, id: ParamId, value: f32) -> Result<(), SetParamError> {
+    let p = id.param();
+    let range = |e| SetParamError::Range(e);
+    if !value.is_finite() {
+        return Err(range(lim.check(p, value).unwrap_err()));
+    }
+    if p.access == Access::ReadOnly {
+        return Err(SetParamError::ReadOnly);
+    }
+    lim.check(p, value).map_err(range)
+}
+
 /// Writes parameter `id` (telemetry and the link timeout in any state,
 /// the rest in hold only); nothing changes when it is refused.
 // Out of line: one copy (smaller firmware; the call costs nothing here).
@@ -260,26 +278,15 @@ pub(crate) fn write<const H: usize>(
     id: ParamId,
     value: f32,
 ) -> Result<(), ErrorCode> {
-    if !value.is_finite() || !lim.allows(id, value) {
-        return Err(ErrorCode::InvalidValue);
-    }
-    let as_int = |hi: f32| -> Result<u32, ErrorCode> {
-        if value >= 0.0 && value <= hi && value == (value as u32) as f32 {
-            Ok(value as u32)
-        } else {
-            Err(ErrorCode::InvalidValue)
-        }
-    };
-    // Any state: telemetry and the link timeout.
+    check_set(lim, id, value).map_err(SetParamError::code)?;
+    // In range and whole (integers): the casts are exact.
     match id {
         ParamId::TelemetryRateHz => {
-            link.telemetry_rate_hz = as_int(MAX_TELEMETRY_RATE_HZ as f32)? as u16;
+            link.telemetry_rate_hz = value as u16;
             return Ok(());
         }
         ParamId::LinkTimeoutMs => {
-            let mut l = *link;
-            l.link_timeout_ms = as_int(u32::MAX as f32)?;
-            *link = l.validate().map_err(|_| ErrorCode::InvalidValue)?;
+            link.link_timeout_ms = value as u32;
             return Ok(());
         }
         ParamId::ControlPeriodS => return Err(ErrorCode::ReadOnly),
@@ -295,7 +302,7 @@ pub(crate) fn write<const H: usize>(
         ParamId::Ktheta => c.kinematic.k_th = value,
         ParamId::Ks => c.sliding.k_s = value,
         ParamId::StallTorqueNm => s.stall_torque_nm = value,
-        ParamId::StallTicks => s.stall_ticks = as_int(u16::MAX as f32)? as u16,
+        ParamId::StallTicks => s.stall_ticks = value as u16,
         ParamId::AccelMps2 => l.accel_mps2 = value,
         ParamId::AngAccelRadps2 => l.ang_accel_radps2 = value,
         ParamId::BrakeDecelMps2 => l.brake_decel_mps2 = value,
@@ -303,7 +310,6 @@ pub(crate) fn write<const H: usize>(
         ParamId::MaxYawRateRadps => l.max_yaw_rate_radps = value,
         ParamId::TelemetryRateHz | ParamId::LinkTimeoutMs | ParamId::ControlPeriodS => {}
     }
-    let l = l.validate().map_err(|_| ErrorCode::InvalidValue)?;
     // A value bad by construction is InvalidValue in any state (issue 31
     // item 6: stall_ticks beyond 16 bits while moving was Busy); a good
     // one waits for hold.
@@ -327,6 +333,20 @@ mod robot_tests {
     #[test]
     fn paper_robot_has_the_default_link() {
         assert_eq!(LinkConfig::of_robot(&Robot::paper()), LinkConfig::DEFAULT);
+    }
+
+    /// The link's own settings default to the parameter table's defaults
+    /// (the table keeps its defaults on the host: the firmware links
+    /// these numbers, and this checks they agree).
+    #[test]
+    fn link_defaults_are_the_tables() {
+        let d = LinkConfig::DEFAULT;
+        assert_eq!(d.ang_accel_radps2, table::ANG_ACCEL_RADPS2.default_value());
+        assert_eq!(d.brake_decel_mps2, table::BRAKE_DECEL_MPS2.default_value());
+        assert_eq!(
+            d.telemetry_rate_hz as f32,
+            table::TELEMETRY_RATE_HZ.default_value()
+        );
     }
 
     /// Each example robot's device configuration passes the device's own

@@ -26,12 +26,18 @@ struct Rig {
 
 impl Rig {
     fn new() -> Self {
-        Self {
-            dev: Device::new(
+        Self::with(
+            Device::new(
                 device_config(CAP_TRAJECTORY | CAP_VELOCITY | CAP_EXTERNAL_POSE),
                 quiet_runtime(),
             )
             .unwrap(),
+        )
+    }
+
+    fn with(dev: Device) -> Self {
+        Self {
+            dev,
             enc: [ScriptedEncoder(0); 2],
             drv: RecordingDriver::default(),
             now_us: 0,
@@ -814,14 +820,18 @@ fn braking_settings_below_the_physical_minimum_are_refused() {
         brake_decel_mps2: 1e-45,
         ..LinkConfig::DEFAULT
     };
+    let Err(wmr_device::DeviceConfigError::OutOfRange(e)) = slow.validate() else {
+        panic!("{:?}", slow.validate())
+    };
     assert_eq!(
-        slow.validate(),
-        Err(wmr_device::DeviceConfigError::OutOfRange(
-            ParamId::BrakeDecelMps2
-        ))
+        (e.field, e.value, e.limit()),
+        ("brake_decel_mps2", 1e-45, 0.25)
     );
-    let err = wmr_device::DeviceConfigError::OutOfRange(ParamId::AngAccelRadps2).to_string();
-    assert!(err.contains("ang_accel_radps2"), "{err}");
+    let err = wmr_device::DeviceConfigError::OutOfRange(e).to_string();
+    assert!(
+        err.contains("brake_decel_mps2: 0.000000000000000000000000000000000000000000001 m/s² is below its limit 0.25 m/s²"),
+        "{err}"
+    );
 }
 
 /// Issue 31 item 1: each waypoint within the limits is not enough, the
@@ -1512,4 +1522,84 @@ fn bad_values_while_running_and_set_pose_keeps_the_refusal_counters() {
     };
     assert_eq!(nack(&rig.request(&ok, 9)), Some(ErrorCode::Busy));
     assert_eq!(nack(&rig.request(&set, 10)), Some(ErrorCode::Busy));
+}
+
+// ---- Issue 32: one parameter table ---------------------------------------
+
+/// Issue 32: a parameter's range is refused identically — the same bound,
+/// the error naming the field, the value and the limit — by the robot
+/// file and by the device's set-param path (and by the ROS bridge's
+/// parameter service: wmr-ros2 `tests/param_range.rs`), one fixed bound
+/// and two of the robot's own (its stall torque, its top speed). The
+/// device refuses on the link and keeps the value.
+#[test]
+fn a_range_is_refused_identically_by_the_file_and_the_device() {
+    use controller_core::runtime::param_table::Beyond;
+    use robot_file::{Reason, Robot};
+    use wmr_device::limits::RobotLimits;
+    use wmr_device::{check_set, DeviceConfig, SetParamError};
+    let paper = Robot::paper();
+    let kind = controller_core::ControllerKind::Proposed;
+    let rt = paper
+        .runtime_config(
+            kind,
+            controller_core::runtime::RuntimeConfig::example(kind).reference,
+            controller_core::Pose::default(),
+            96_000_000,
+        )
+        .unwrap();
+    let dev = Device::new(
+        DeviceConfig::of_robot(&paper, "test", CAP_VELOCITY, None),
+        rt,
+    )
+    .unwrap();
+    let mut rig = Rig::with(dev);
+    let lim = RobotLimits::of(rig.dev.control().config());
+    let stall = paper.stall_torque_nm();
+    type Set = fn(&mut Robot, f32);
+    let cases: [(ParamId, f32, f32, Set); 3] = [
+        (ParamId::AccelMps2, 25.0, 20.0, |r, v| {
+            r.limits.max_accel_mps2 = v
+        }),
+        (ParamId::TorqueLimitNm, 30.0, stall, |r, v| {
+            r.limits.torque_nm = v
+        }),
+        (ParamId::MaxSpeedMps, 5.0, lim.top_speed_mps, |r, v| {
+            r.limits.max_speed_mps = v
+        }),
+    ];
+    for (seq, (id, value, limit, set)) in cases.into_iter().enumerate() {
+        let mut bad = paper.clone();
+        set(&mut bad, value);
+        let fe = bad.validate().unwrap_err();
+        let Reason::Range(file) = fe.reason else {
+            panic!("{id:?}: {fe}")
+        };
+        let Err(SetParamError::Range(device)) = check_set(&lim, id, value) else {
+            panic!("{id:?}: {:?}", check_set(&lim, id, value))
+        };
+        assert_eq!(file, device, "{id:?}");
+        assert_eq!((fe.field, device.field), (id.name(), id.name()));
+        assert_eq!(
+            (device.value, device.limit(), device.beyond),
+            (value, limit, Beyond::Max)
+        );
+        assert_eq!(fe.to_string(), device.to_string());
+        assert!(
+            fe.to_string()
+                .contains(&format!("is above its limit {limit}")),
+            "{fe}"
+        );
+        assert!(fe.to_string().contains(": set a value in [0.01, "), "{fe}");
+        // The set-param path: refused on the link, the value kept.
+        let get = |rig: &mut Rig, seq| match rig.request(&Request::GetParam(id), seq) {
+            Reply::Param { value, .. } => value,
+            r => panic!("{r:?}"),
+        };
+        let before = get(&mut rig, 100 + seq as u16);
+        let r = rig.request(&Request::SetParam { id, value }, 200 + seq as u16);
+        assert_eq!(nack(&r), Some(ErrorCode::InvalidValue), "{id:?}");
+        assert_eq!(get(&mut rig, 300 + seq as u16), before);
+    }
+    assert!(paper.limits.torque_nm < stall);
 }

@@ -3,6 +3,7 @@
 //! [`Reply`] (answers, telemetry and events). Units are in the field names;
 //! `docs/protocol.md` documents every variant and field.
 
+use controller_core::runtime::param_table::Param;
 use heapless::Vec;
 use serde::{Deserialize, Serialize};
 
@@ -92,7 +93,10 @@ pub struct Waypoint {
     pub omega_radps: f32,
 }
 
-/// A parameter the host can read and (where marked) write.
+/// A parameter the host can read and (where marked) write. Its name,
+/// unit, range and who may change it when are in controller-core's
+/// parameter table ([`ParamId::param`]); the variants are the wire ids, in
+/// the table's wire order (`param_table::WIRE`; a test checks both).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ParamId {
@@ -953,25 +957,33 @@ impl ParamId {
         Self::ControlPeriodS,
     ];
 
-    /// The name the host tool uses (`wmr params get NAME`).
-    pub const fn name(self) -> &'static str {
+    /// Its declaration in the parameter table (controller-core
+    /// `param_table`): name, unit, range, access.
+    pub fn param(self) -> &'static Param {
+        use controller_core::runtime::param_table as t;
         match self {
-            Self::TorqueLimitNm => "torque_limit_nm",
-            Self::Kx => "k_x",
-            Self::Ky => "k_y",
-            Self::Ktheta => "k_theta",
-            Self::Ks => "k_s",
-            Self::StallTorqueNm => "stall_torque_nm",
-            Self::StallTicks => "stall_ticks",
-            Self::TelemetryRateHz => "telemetry_rate_hz",
-            Self::LinkTimeoutMs => "link_timeout_ms",
-            Self::AccelMps2 => "accel_mps2",
-            Self::AngAccelRadps2 => "ang_accel_radps2",
-            Self::BrakeDecelMps2 => "brake_decel_mps2",
-            Self::MaxSpeedMps => "max_speed_mps",
-            Self::MaxYawRateRadps => "max_yaw_rate_radps",
-            Self::ControlPeriodS => "control_period_s",
+            Self::TorqueLimitNm => &t::LIMITS_TORQUE_NM,
+            Self::Kx => &t::GAINS_K_X,
+            Self::Ky => &t::GAINS_K_Y,
+            Self::Ktheta => &t::GAINS_K_TH,
+            Self::Ks => &t::GAINS_K_S,
+            Self::StallTorqueNm => &t::STALL_TORQUE_NM,
+            Self::StallTicks => &t::STALL_TICKS,
+            Self::TelemetryRateHz => &t::TELEMETRY_RATE_HZ,
+            Self::LinkTimeoutMs => &t::LIMITS_LINK_TIMEOUT_MS,
+            Self::AccelMps2 => &t::LIMITS_MAX_ACCEL_MPS2,
+            Self::AngAccelRadps2 => &t::ANG_ACCEL_RADPS2,
+            Self::BrakeDecelMps2 => &t::BRAKE_DECEL_MPS2,
+            Self::MaxSpeedMps => &t::LIMITS_MAX_SPEED_MPS,
+            Self::MaxYawRateRadps => &t::LIMITS_MAX_YAW_RATE_RADPS,
+            Self::ControlPeriodS => &t::CONTROL_PERIOD,
         }
+    }
+
+    /// The name the host tool uses (`wmr params get NAME`): the robot
+    /// file's path (the parameter table's).
+    pub fn name(self) -> &'static str {
+        self.param().name
     }
 
     /// The parameter of a [`Self::name`].

@@ -486,3 +486,61 @@ fn telemetry_finiteness_checks_every_float() {
         assert!(!t.is_finite(), "{t:?}");
     }
 }
+
+/// The wire ids are the parameter table's wire order (issue 32): a new
+/// parameter or a reorder cannot change an id on the link.
+#[test]
+fn param_ids_are_the_tables_wire_order() {
+    use controller_core::runtime::param_table::WIRE;
+    assert_eq!(ParamId::ALL.len(), WIRE.len());
+    for (i, id) in ParamId::ALL.into_iter().enumerate() {
+        assert!(core::ptr::eq(id.param(), WIRE[i]), "{id:?}");
+        assert_eq!(id.param().wire, Some(i as u8));
+        // postcard writes the variant index: the wire id.
+        let mut buf = [0u8; 4];
+        let bytes = postcard::to_slice(&id, &mut buf).unwrap();
+        assert_eq!(bytes, &[i as u8]);
+        assert_eq!(ParamId::from_name(id.name()), Some(id));
+    }
+    assert_eq!(ParamId::TorqueLimitNm.name(), "limits.torque_nm");
+    assert_eq!(ParamId::AccelMps2.name(), "limits.max_accel_mps2");
+}
+
+/// docs/protocol.md's parameter table is the parameter table's wire
+/// part (issue 32, D144). `WMR_WRITE_PARAMS_DOC=1` rewrites it.
+#[test]
+fn param_table_in_the_docs() {
+    const BEGIN: &str =
+        "<!-- wire-params begin: generated from the parameter table, do not edit -->\n";
+    const END: &str = "<!-- wire-params end -->";
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/protocol.md");
+    let doc = std::fs::read_to_string(path).unwrap();
+    let mut t = String::from(
+        "| id | `ParamId` | name | unit | write | range | was |\n|---|---|---|---|---|---|---|\n",
+    );
+    for (i, id) in ParamId::ALL.into_iter().enumerate() {
+        let p = id.param();
+        let mut range = String::new();
+        p.write_range(&mut range).unwrap();
+        let unit = if p.unit.is_empty() { "–" } else { p.unit };
+        let was = p.old_name.map_or("–".into(), |o| format!("`{o}`"));
+        t += &format!(
+            "| {i} | `ParamId::{}` | `{}` | {unit} | {} | {range} | {was} |\n",
+            variant_name(&id),
+            p.name,
+            p.access.describe()
+        );
+    }
+    let (head, rest) = doc.split_once(BEGIN).expect("begin marker");
+    let (_, tail) = rest.split_once(END).expect("end marker");
+    let want = format!("{head}{BEGIN}{t}{END}{tail}");
+    if std::env::var_os("WMR_WRITE_PARAMS_DOC").is_some() {
+        std::fs::write(path, &want).unwrap();
+        return;
+    }
+    assert!(
+        doc == want,
+        "docs/protocol.md's parameter table differs from the parameter table: run \
+         WMR_WRITE_PARAMS_DOC=1 cargo test --release -p wmr-protocol param_table_in_the_docs"
+    );
+}

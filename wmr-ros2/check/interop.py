@@ -731,29 +731,32 @@ def params_check(ros, limits):
     """The robot's parameters as ROS parameters of the bridge's node: read
     from the robot, set through the link, the robot's refusals with its
     reason, and the bridge's own limits follow a set."""
+    # The parameter table's names (D144): the robot file's paths.
+    K_X, MAX_SPEED = "gains.kinematic.k_x", "limits.max_speed_mps"
+
     def rel(a, b):
         return abs(a - b) <= 1e-6 * max(abs(a), abs(b))  # f32 on the link
 
-    ms, kx, period = ros.get_params("max_speed_mps", "k_x", "control_period_s")
+    ms, kx, period = ros.get_params(MAX_SPEED, K_X, "control_period_s")
     if ms.ptype != PARAMETER_DOUBLE or not rel(ms.double_value, limits["max_speed_mps"]):
         fail(f"get_parameters max_speed_mps = {ms}: not the robot's {limits['max_speed_mps']} (/diagnostics)")
     k0, v0 = kx.double_value, ms.double_value
     if not (kx.ptype == PARAMETER_DOUBLE and k0 > 0 and period.double_value > 0):
         fail(f"get_parameters k_x = {kx}, control_period_s = {period}")
     k1 = 1.25 * k0
-    r = ros.set_param("k_x", k1)
+    r = ros.set_param(K_X, k1)
     if not r.successful:
         fail(f"set_parameters k_x = {k1}: refused: {r.reason}")
-    (got,) = ros.get_params("k_x")
+    (got,) = ros.get_params(K_X)
     if not rel(got.double_value, k1):
         fail(f"k_x set to {k1}, the robot reads back {got.double_value}")
     # beyond half the control rate (wmr-device's physical range of a gain)
     big = 2.0 / period.double_value
-    r = ros.set_param("k_x", big)
+    r = ros.set_param(K_X, big)
     if r.successful or "outside its physical range" not in r.reason:
         fail(f"set_parameters k_x = {big}: {r} (want the robot's refusal)")
     refusal = r.reason
-    (got,) = ros.get_params("k_x")
+    (got,) = ros.get_params(K_X)
     if not rel(got.double_value, k1):
         fail(f"a refused k_x changed it: {got.double_value}, not {k1}")
     r = ros.set_param("control_period_s", 0.002)
@@ -761,16 +764,16 @@ def params_check(ros, limits):
         fail(f"set_parameters control_period_s: {r} (read only)")
     # a limit: the robot takes it and the bridge's own limits follow
     v1 = 0.9 * v0
-    r = ros.set_param("max_speed_mps", v1)
+    r = ros.set_param(MAX_SPEED, v1)
     if not r.successful:
         fail(f"set_parameters max_speed_mps = {v1}: refused: {r.reason}")
     _, bridge = ros.fresh_values()
     if not rel(float(bridge["max_speed_mps"]), v1):
         fail(f"max_speed_mps set to {v1}: the bridge's /diagnostics say {bridge['max_speed_mps']}")
-    for name, x in (("k_x", k0), ("max_speed_mps", v0)):
+    for name, x in ((K_X, k0), (MAX_SPEED, v0)):
         if not ros.set_param(name, x).successful:
             fail(f"set_parameters {name} back to {x}: refused")
-    got = ros.get_params("k_x", "max_speed_mps")
+    got = ros.get_params(K_X, MAX_SPEED)
     if not (rel(got[0].double_value, k0) and rel(got[1].double_value, v0)):
         fail(f"k_x, max_speed_mps not restored: {got[0].double_value}, {got[1].double_value}")
     log(f"ROS parameters: k_x {k0} -> {k1} read back from the robot; k_x = {big} refused ({refusal!r}); control_period_s read only; max_speed_mps {v0} -> {v1} in the bridge's limits; both restored")

@@ -815,7 +815,20 @@ impl Bridge {
     /// bridge uses (speed, yaw rate, accelerations, braking) takes effect
     /// in the bridge too: cmd_vel scaling, path profiles, `/diagnostics`.
     pub fn set_param(&mut self, id: ParamId, value: f32) -> Outcome {
-        let r = self.simple(Request::SetParam { id, value }, "set")?;
+        let r = match self.link.command(&Request::SetParam { id, value }) {
+            Ok(_) => Ok("set".to_string()),
+            Err(e) => match nack_reason(&e) {
+                // The link carries only the code: say the range (the
+                // parameter table's, as `wmr params set` does).
+                Some(c @ ErrorCode::InvalidValue) => self.refuse(Refusal::Robot(format!(
+                    "{}; {}",
+                    c.reason(),
+                    wmr::params::robot_range(id.param())
+                ))),
+                Some(c) => self.refuse(Refusal::Robot(c.reason().into())),
+                None => return Err(e.into()),
+            },
+        };
         if r.is_ok() {
             let v = value as f64;
             let mut new = self.limits;

@@ -3,6 +3,7 @@
 //! and [`wmr_ros2::Bridge`].
 
 use clap::{Parser, ValueEnum};
+use controller_core::runtime::param_table::RobotBounds;
 use ros2_client::parameters::raw::{ParameterType, SetParametersResult};
 use ros2_client::rcl_interfaces as rcl;
 use ros2_client::{
@@ -234,13 +235,18 @@ impl ParamServers {
             let mut results = Vec::new();
             for q in &req.parameter {
                 let r = match params::find(&q.name) {
-                    None => Err(format!(
-                        "{}: no such parameter (wmr_ros2 offers the robot's: {})",
-                        q.name,
-                        params::list(&[]).join(", ")
-                    )),
-                    Some(p) => match p.robot_value(&q.value) {
-                        Err(e) => Err(e),
+                    None => Err(match wmr::params::from_old_name(&q.name) {
+                        Some(id) => format!("{} was renamed to {}", q.name, id.name()),
+                        None => format!(
+                            "{}: no such parameter (wmr_ros2 offers the robot's: {})",
+                            q.name,
+                            params::list(&[], 0).names.join(", ")
+                        ),
+                    }),
+                    // The table's range for any robot (the robot checks
+                    // its own robot-dependent bound).
+                    Some(p) => match p.robot_value(&q.value, &RobotBounds::ABSOLUTE) {
+                        Err(e) => Err(e.to_string()),
                         Ok(v) => match b.set_param(p.id, v)? {
                             Ok(_) => Ok(()),
                             Err(refusal) => Err(format!("{} = {v}: {refusal}", q.name)),
@@ -263,9 +269,10 @@ impl ParamServers {
                 .is_err() as u32;
         }
         while let Ok(Some((id, req))) = self.list.receive_request() {
+            let l = params::list(&req.prefixes, req.depth);
             let result = rcl::ListParametersResult {
-                names: params::list(&req.prefixes),
-                prefixes: Vec::new(),
+                names: l.names,
+                prefixes: l.prefixes,
             };
             unsent += self
                 .list
@@ -277,7 +284,7 @@ impl ParamServers {
                 .names
                 .iter()
                 .map(|n| match params::find(n) {
-                    Some(p) => p.descriptor(),
+                    Some(p) => p.descriptor(None),
                     None => ros2_client::parameters::raw::ParameterDescriptor {
                         name: n.clone(),
                         r#type: ParameterType::NOT_SET,

@@ -39,7 +39,7 @@ fn wait_running(sock: &std::path::Path) -> Done {
 /// stop the robot). The server and every later client follow it.
 fn long_link_timeout(sock: &std::path::Path) {
     let c = finish(
-        client(sock, &["params", "set", "link_timeout_ms", "10000"]),
+        client(sock, &["params", "set", "limits.link_timeout_ms", "10000"]),
         BOUND,
         "params set",
     );
@@ -308,7 +308,7 @@ fn drive_record_and_pose_feed_at_byte_faults_lose_nothing_unaccounted() {
     let mut robot = Robot::start(&quiet(), true);
     let (sock, server) = robot.serve(&[]);
     let c = finish(
-        client(&sock, &["params", "set", "link_timeout_ms", "2500"]),
+        client(&sock, &["params", "set", "limits.link_timeout_ms", "2500"]),
         BOUND,
         "params set",
     );

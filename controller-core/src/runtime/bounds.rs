@@ -2,7 +2,8 @@
 //! numbers (issue 31 item 3): the robot file's validation (robot-file), the
 //! device's limits and parameter ranges (wmr-device `limits`, D41), and so
 //! the store's commit and the board's boot. A robot the file accepts is a
-//! robot the device accepts.
+//! robot the device accepts. Each parameter's range is declared once in
+//! [`super::param_table`] from these.
 
 /// Largest speed any command or reference may ask \[m/s\].
 pub const MAX_SPEED_MPS: f32 = 10.0;
@@ -17,6 +18,14 @@ pub const MIN_ACCEL_MPS2: f32 = 0.01;
 pub const MIN_COMMAND_LIMIT: f32 = 0.01;
 /// Least torque limit and stall torque \[N·m\].
 pub const MIN_TORQUE_NM: f32 = 0.01;
+/// Least deceleration of a controlled stop \[m/s²\]: the gentlest stop
+/// the device makes (a walking-pace robot at 1 m/s stops within 4 s).
+pub const MIN_BRAKE_DECEL_MPS2: f32 = 0.25;
+/// Least angular acceleration of velocity commands and of the braking
+/// profile \[rad/s²\].
+pub const MIN_ANG_ACCEL_RADPS2: f32 = 1.0;
+/// Largest angular acceleration \[rad/s²\].
+pub const MAX_ANG_ACCEL_RADPS2: f32 = 50.0;
 /// Least controller gain (k_x, k_y, k_θ, k_s in their units): a smaller one
 /// corrects nothing within a run.
 pub const MIN_GAIN: f32 = 1e-3;

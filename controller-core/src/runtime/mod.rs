@@ -45,6 +45,7 @@ mod error;
 mod hardware;
 mod motor;
 mod odometry;
+pub mod param_table;
 mod state;
 mod stats;
 #[cfg(any(test, feature = "test-doubles"))]
