@@ -172,8 +172,18 @@ impl Robot {
     fn validate_control(&self) -> Result<(), RobotError> {
         let c = &self.control;
         let ab = RobotBounds::ABSOLUTE;
-        check(&table::CONTROL_INITIAL_X_M, "control.initial_x_m", c.initial_x_m, &ab)?;
-        check(&table::CONTROL_INITIAL_Y_M, "control.initial_y_m", c.initial_y_m, &ab)?;
+        check(
+            &table::CONTROL_INITIAL_X_M,
+            "control.initial_x_m",
+            c.initial_x_m,
+            &ab,
+        )?;
+        check(
+            &table::CONTROL_INITIAL_Y_M,
+            "control.initial_y_m",
+            c.initial_y_m,
+            &ab,
+        )?;
         check(
             &table::CONTROL_INITIAL_HEADING_RAD,
             "control.initial_heading_rad",

@@ -44,6 +44,9 @@ fn the_table_covers_every_numeric_field_of_the_file() {
         "bridge.motor_inverted",
         "imu.yaw_axis",
         "kinematic.printed_2ey_term",
+        "control.controller",
+        "control.clean_start",
+        "control.governor",
     ];
     // An array's elements share one entry (`body.wheel_radius_m`) unless
     // their units differ (`gains.observer.max_estimate[0]`).

@@ -1540,14 +1540,13 @@ fn a_range_is_refused_identically_by_the_file_and_the_device() {
     use wmr_device::{check_set, DeviceConfig, SetParamError};
     let paper = Robot::paper();
     let kind = controller_core::ControllerKind::Proposed;
+    let board = robot_file::BoardFacts::of_timer(&paper, 96_000_000).unwrap();
     let rt = paper
-        .runtime_config(
-            kind,
+        .derive(
+            &board,
             controller_core::runtime::RuntimeConfig::example(kind).reference,
-            controller_core::Pose::default(),
-            96_000_000,
         )
-        .unwrap();
+        .runtime;
     let dev = Device::new(
         DeviceConfig::of_robot(&paper, "test", CAP_VELOCITY, None),
         rt,

@@ -21,14 +21,13 @@ fn double(x: f64) -> ParameterValue {
 
 fn device_limits(robot: &Robot) -> RobotLimits {
     let kind = controller_core::ControllerKind::Proposed;
+    let board = robot_file::BoardFacts::of_timer(robot, 96_000_000).unwrap();
     let rt = robot
-        .runtime_config(
-            kind,
+        .derive(
+            &board,
             controller_core::runtime::RuntimeConfig::example(kind).reference,
-            controller_core::Pose::default(),
-            96_000_000,
         )
-        .unwrap();
+        .runtime;
     RobotLimits::of(&rt)
 }
 
