@@ -55,7 +55,10 @@ pub fn check_within_robot(s: &Scenario) -> Result<(), String> {
         let r = reference.sample(t_s as f32);
         if let Err(e) = lim.check_sample(&r, false) {
             let excess = e.value.abs() / e.limit;
-            if worst.as_ref().is_none_or(|w| !(w.0 >= excess)) {
+            if worst
+                .as_ref()
+                .is_none_or(|w| excess > w.0 || excess.is_nan())
+            {
                 worst = Some((excess, t_s, e));
             }
         }

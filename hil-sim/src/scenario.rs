@@ -334,7 +334,7 @@ pub struct SensingPart {
 
 /// `[controller]`: overrides of the controller's configuration (Table 2
 /// gains otherwise).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, clap::Args)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(default, deny_unknown_fields)]
 pub struct ControllerPart {
     /// Override of the kinematic gain k_y (None = controller default).
@@ -348,18 +348,9 @@ pub struct ControllerPart {
     pub clean_start: Option<bool>,
 }
 
-impl Default for ControllerPart {
-    fn default() -> Self {
-        Self {
-            k_y: None,
-            clean_start: None,
-        }
-    }
-}
-
 /// `[governor]`: the reference governor and health machine
 /// (`controller_core::pacer`), beyond the paper.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, clap::Args)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(default, deny_unknown_fields)]
 pub struct GovernorPart {
     /// Governor and health machine on (None = the robot file's
@@ -368,12 +359,6 @@ pub struct GovernorPart {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[arg(long = "governor", value_name = "BOOL", action = clap::ArgAction::Set)]
     pub enabled: Option<bool>,
-}
-
-impl Default for GovernorPart {
-    fn default() -> Self {
-        Self { enabled: None }
-    }
 }
 
 /// The parts of a scenario, as the TOML tables of a version-2 file.
