@@ -234,7 +234,7 @@ impl Robot {
     ///   the period ([`Self::safety_limits`]) and pacing
     ///   (`control.governor`);
     /// - the pose estimator's tuning: controller-core's example with the
-    ///   board's gyro saturation.
+    ///   file's `[estimator]` noises and the board's gyro saturation.
     ///
     /// Nothing else builds a `RuntimeConfig` from robot values: the
     /// firmware, firmware-emu, hil-sim (which first edits a copy of the
@@ -267,6 +267,7 @@ impl Robot {
             },
         };
         let mut estimator = EstimatorConfig::EXAMPLE;
+        self.estimator.apply(&mut estimator);
         if let Some(s) = board.gyro_saturation_radps {
             estimator.gyro_saturation_radps = s;
         }

@@ -36,8 +36,8 @@ pub use derive::{
 };
 pub use error::{Reason, RobotError};
 pub use sections::{
-    Body, Bridge, Control, Encoders, Eso, GainSet, Gains, Imu, Kinematic, Limits, Motors, Name,
-    Observer, Robot, Sliding, SwitchingGain, YawAxis, FORMAT, NAME_MAX_LEN,
+    Body, Bridge, Control, Encoders, Eso, Estimator, GainSet, Gains, Imu, Kinematic, Limits,
+    Motors, Name, Observer, Robot, Sliding, SwitchingGain, YawAxis, FORMAT, NAME_MAX_LEN,
 };
 #[cfg(feature = "std")]
 pub use text::{field_paths, json_schema, RobotFileError};

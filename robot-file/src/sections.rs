@@ -51,6 +51,57 @@ pub struct Robot {
     /// pose (absent = the defaults of [`Control::default`]).
     #[serde(default)]
     pub control: Control,
+    /// The sensors' noise the pose estimator assumes (absent = the
+    /// estimator example's, a MEMS gyro and hobby encoders).
+    #[serde(default)]
+    pub estimator: Estimator,
+}
+
+/// `[estimator]`: what differs between robots in the pose estimator's
+/// tuning: the noise of its sensors (controller-core `EstimatorConfig`;
+/// the gates, counts and smoothing are the estimator's own). Every field is
+/// optional, default the example's (D145). Continuous-time densities: over
+/// a tick of dt the variance added is density²·dt.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "std", derive(schemars::JsonSchema))]
+#[serde(default, deny_unknown_fields)]
+pub struct Estimator {
+    /// Gyro angle random walk \[rad/s/√Hz\] (the data sheet's rate noise
+    /// density: MPU-6050 0.005 °/s/√Hz = 8.7e-5).
+    pub gyro_noise_density: f32,
+    /// Gyro bias random walk \[rad/s/√s\].
+    pub gyro_bias_walk: f32,
+    /// White noise on the wheel-derived speed \[m/s/√Hz\].
+    pub speed_noise_mps_per_sqrt_hz: f32,
+    /// Relative wheel-odometry error from slip and faults (a fraction of
+    /// the speed and wheel yaw rate, as a density per √s).
+    pub slip_fraction: f32,
+    /// White noise on the wheel yaw rate used without a gyro \[rad/s/√Hz\].
+    pub wheel_yaw_noise: f32,
+}
+
+impl Default for Estimator {
+    fn default() -> Self {
+        let e = controller_core::estimator::EstimatorConfig::EXAMPLE;
+        Self {
+            gyro_noise_density: e.gyro_noise_density,
+            gyro_bias_walk: e.gyro_bias_walk,
+            speed_noise_mps_per_sqrt_hz: e.speed_noise_mps_per_sqrt_hz,
+            slip_fraction: e.slip_fraction,
+            wheel_yaw_noise: e.wheel_yaw_noise,
+        }
+    }
+}
+
+impl Estimator {
+    /// `base` with these noises.
+    pub fn apply(&self, base: &mut controller_core::estimator::EstimatorConfig) {
+        base.gyro_noise_density = self.gyro_noise_density;
+        base.gyro_bias_walk = self.gyro_bias_walk;
+        base.speed_noise_mps_per_sqrt_hz = self.speed_noise_mps_per_sqrt_hz;
+        base.slip_fraction = self.slip_fraction;
+        base.wheel_yaw_noise = self.wheel_yaw_noise;
+    }
 }
 
 #[derive(Serialize, Deserialize)]
@@ -600,6 +651,7 @@ impl Robot {
             limits: Limits::paper(),
             gains: Gains::default(),
             control: Control::default(),
+            estimator: Estimator::default(),
         }
     }
 }

@@ -350,6 +350,9 @@ impl Robot {
             if self.control == crate::Control::default() {
                 t.remove("control");
             }
+            if self.estimator == crate::Estimator::default() {
+                t.remove("estimator");
+            }
         }
         toml::to_string(&v).expect("a TOML value serializes")
     }

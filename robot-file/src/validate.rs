@@ -63,6 +63,11 @@ pub const FIELDS: &[&str] = &[
     "control.initial_x_m",
     "control.initial_y_m",
     "control.initial_heading_rad",
+    "estimator.gyro_noise_density",
+    "estimator.gyro_bias_walk",
+    "estimator.speed_noise_mps_per_sqrt_hz",
+    "estimator.slip_fraction",
+    "estimator.wheel_yaw_noise",
     // gains.<kind>.*: GAIN_FIELDS under each kind (`field_paths`).
 ];
 
@@ -166,7 +171,8 @@ impl Robot {
         )
     }
 
-    /// `[control]`: the start pose through the parameter table
+    /// `[control]` and `[estimator]`: the start pose and the sensors'
+    /// noises through the parameter table
     /// (`control.initial_*`: within 1 km of the origin, the heading within
     /// ±π).
     fn validate_control(&self) -> Result<(), RobotError> {
@@ -189,7 +195,39 @@ impl Robot {
             "control.initial_heading_rad",
             c.initial_heading_rad,
             &ab,
-        )
+        )?;
+        let e = &self.estimator;
+        let fields: [(&Param, &'static str, f32); 5] = [
+            (
+                &table::ESTIMATOR_GYRO_NOISE_DENSITY,
+                "estimator.gyro_noise_density",
+                e.gyro_noise_density,
+            ),
+            (
+                &table::ESTIMATOR_GYRO_BIAS_WALK,
+                "estimator.gyro_bias_walk",
+                e.gyro_bias_walk,
+            ),
+            (
+                &table::ESTIMATOR_SPEED_NOISE,
+                "estimator.speed_noise_mps_per_sqrt_hz",
+                e.speed_noise_mps_per_sqrt_hz,
+            ),
+            (
+                &table::ESTIMATOR_SLIP_FRACTION,
+                "estimator.slip_fraction",
+                e.slip_fraction,
+            ),
+            (
+                &table::ESTIMATOR_WHEEL_YAW_NOISE,
+                "estimator.wheel_yaw_noise",
+                e.wheel_yaw_noise,
+            ),
+        ];
+        for (p, field, x) in fields {
+            check(p, field, x, &ab)?;
+        }
+        Ok(())
     }
 
     fn validate_ranges(&self) -> Result<(), RobotError> {

@@ -30,6 +30,7 @@ fn full() -> Robot {
     // Not the defaults, so that the written file has every `[control]` key.
     r.control.controller = ControllerKind::Asmc;
     r.control.initial_x_m = 0.25;
+    r.estimator.gyro_noise_density = 8.7e-5;
     r
 }
 
@@ -286,8 +287,9 @@ fn every_field_missing_names_it() {
     for path in all_fields() {
         // An array element cannot be missing; the whole array can.
         let path = path.split('[').next().unwrap().to_string();
-        // `[control]` is optional field by field (its defaults: below).
-        if path.starts_with("control.") {
+        // `[control]` and `[estimator]` are optional field by field (their
+        // defaults: below).
+        if path.starts_with("control.") || path.starts_with("estimator.") {
             continue;
         }
         let mut d = doc(&full());
@@ -355,6 +357,53 @@ fn control_fields_default_one_by_one() {
             .kinematic
             .large_error_m
     );
+}
+
+#[test]
+fn estimator_fields_default_one_by_one_and_reach_the_estimator() {
+    let e = controller_core::estimator::EstimatorConfig::EXAMPLE;
+    let mut r = full();
+    r.estimator = robot_file::Estimator {
+        gyro_noise_density: 1e-4,
+        gyro_bias_walk: 2e-5,
+        speed_noise_mps_per_sqrt_hz: 0.01,
+        slip_fraction: 0.05,
+        wheel_yaw_noise: 0.2,
+    };
+    for key in FIELDS.iter().filter_map(|f| f.strip_prefix("estimator.")) {
+        let mut d = doc(&r);
+        at(&mut d, "estimator").as_table_mut().unwrap().remove(key);
+        let back = parse(&d).unwrap_or_else(|err| panic!("{key}: {err}"));
+        let (got, want) = match key {
+            "gyro_noise_density" => (back.estimator.gyro_noise_density, e.gyro_noise_density),
+            "gyro_bias_walk" => (back.estimator.gyro_bias_walk, e.gyro_bias_walk),
+            "speed_noise_mps_per_sqrt_hz" => (
+                back.estimator.speed_noise_mps_per_sqrt_hz,
+                e.speed_noise_mps_per_sqrt_hz,
+            ),
+            "slip_fraction" => (back.estimator.slip_fraction, e.slip_fraction),
+            "wheel_yaw_noise" => (back.estimator.wheel_yaw_noise, e.wheel_yaw_noise),
+            _ => panic!("an [estimator] field this test does not know: {key}"),
+        };
+        assert_eq!(got, want, "{key}");
+    }
+    // The derivation gives the estimator the file's noises, the board's
+    // gyro saturation and the example's gates and counts.
+    let mut board = BoardFacts::of_timer(&r, 96_000_000).unwrap();
+    board.gyro_saturation_radps = Some(8.5);
+    let d = r.derive(
+        &board,
+        RuntimeConfig::example(ControllerKind::Proposed).reference,
+    );
+    assert_eq!(d.estimator.gyro_noise_density, 1e-4);
+    assert_eq!(d.estimator.wheel_yaw_noise, 0.2);
+    assert_eq!(d.estimator.gyro_saturation_radps, 8.5);
+    assert_eq!(d.estimator.chi2_gate_2dof, e.chi2_gate_2dof);
+    d.estimator.validate().unwrap();
+    // A noise outside the table's range is refused naming the field.
+    r.estimator.slip_fraction = -0.1;
+    let err = r.validate().unwrap_err();
+    assert_eq!(err.field, "estimator.slip_fraction");
 }
 
 #[test]

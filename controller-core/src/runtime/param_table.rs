@@ -944,9 +944,45 @@ pub static CONTROL_INITIAL_HEADING_RAD: Param = param! {
     access: File, in_file: InFile::Yes, integer: false, wire: None, old_name: None,
 };
 
+/// `estimator.gyro_noise_density`.
+pub static ESTIMATOR_GYRO_NOISE_DENSITY: Param = param! {
+    description: "gyro angle random walk the pose estimator assumes (the data sheet's rate noise density; MPU-6050: 8.7e-5); above 0.1 rad/s/√Hz is no gyro worth fusing",
+    name: "estimator.gyro_noise_density", unit: "rad/s/√Hz", min: v(1e-7), max: v(0.1),
+    default: Value(0.001),
+    access: File, in_file: InFile::Yes, integer: false, wire: None, old_name: None,
+};
+/// `estimator.gyro_bias_walk`.
+pub static ESTIMATOR_GYRO_BIAS_WALK: Param = param! {
+    description: "gyro bias random walk the pose estimator assumes",
+    name: "estimator.gyro_bias_walk", unit: "rad/s/√s", min: v(1e-8), max: v(0.1),
+    default: Value(0.0005),
+    access: File, in_file: InFile::Yes, integer: false, wire: None, old_name: None,
+};
+/// `estimator.speed_noise_mps_per_sqrt_hz`.
+pub static ESTIMATOR_SPEED_NOISE: Param = param! {
+    description: "white noise on the wheel-derived speed the pose estimator assumes",
+    name: "estimator.speed_noise_mps_per_sqrt_hz", unit: "m/s/√Hz", min: v(1e-6), max: v(1.0),
+    default: Value(0.02),
+    access: File, in_file: InFile::Yes, integer: false, wire: None, old_name: None,
+};
+/// `estimator.slip_fraction`.
+pub static ESTIMATOR_SLIP_FRACTION: Param = param! {
+    description: "relative wheel-odometry error from slip and faults, a density per √s (0: wheels that never slip)",
+    name: "estimator.slip_fraction", unit: "1/√s", min: v(0.0), max: v(1.0),
+    default: Value(0.02),
+    access: File, in_file: InFile::Yes, integer: false, wire: None, old_name: None,
+};
+/// `estimator.wheel_yaw_noise`.
+pub static ESTIMATOR_WHEEL_YAW_NOISE: Param = param! {
+    description: "white noise on the wheels' yaw rate, used without a gyro",
+    name: "estimator.wheel_yaw_noise", unit: "rad/s/√Hz", min: v(1e-6), max: v(10.0),
+    default: Value(0.05),
+    access: File, in_file: InFile::Yes, integer: false, wire: None, old_name: None,
+};
+
 /// Every parameter: the file's in file order, then those only the link
 /// sets.
-pub static ALL: [&Param; 52] = [
+pub static ALL: [&Param; 57] = [
     &BODY_MASS_KG,
     &BODY_INERTIA_KGM2,
     &BODY_WHEEL_INERTIA_KGM2,
@@ -972,6 +1008,11 @@ pub static ALL: [&Param; 52] = [
     &CONTROL_INITIAL_X_M,
     &CONTROL_INITIAL_Y_M,
     &CONTROL_INITIAL_HEADING_RAD,
+    &ESTIMATOR_GYRO_NOISE_DENSITY,
+    &ESTIMATOR_GYRO_BIAS_WALK,
+    &ESTIMATOR_SPEED_NOISE,
+    &ESTIMATOR_SLIP_FRACTION,
+    &ESTIMATOR_WHEEL_YAW_NOISE,
     &GAINS_K_X,
     &GAINS_K_Y,
     &GAINS_K_TH,
