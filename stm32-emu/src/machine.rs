@@ -22,6 +22,7 @@ use crate::robot::{BridgeInputs, Robot};
 
 mod bus;
 mod exceptions;
+mod i2c_bus;
 mod link;
 mod probe;
 use bus::{mmio_read, mmio_write};
@@ -101,6 +102,14 @@ pub mod irq {
     pub const TIM5: usize = 50;
     /// USB OTG_FS global interrupt (RM0383 table 38).
     pub const OTG_FS: usize = 67;
+    /// DMA1 stream 0 (I2C1_RX).
+    pub const DMA1_STREAM0: usize = 11;
+    /// DMA1 stream 6 (I2C1_TX).
+    pub const DMA1_STREAM6: usize = 17;
+    /// I2C1 event.
+    pub const I2C1_EV: usize = 31;
+    /// I2C1 error.
+    pub const I2C1_ER: usize = 32;
 }
 
 /// Something the harness records.
@@ -198,6 +207,13 @@ pub struct Board {
     pub usb: crate::periph::otg_fs::OtgFs,
     /// The USB host on the F411's cable (`None` on the F446).
     pub usb_host: Option<crate::usb_host::UsbHost>,
+    /// I2C1 (the IMU's bus on the `imu` images).
+    pub i2c1: crate::periph::i2c::I2c,
+    /// DMA1 (I2C1's streams 0 and 6).
+    pub dma1: crate::periph::dma::Dma,
+    /// The MPU-6050 on I2C1 (PB8 SCL, PB9 SDA); powered with the board,
+    /// not reset with the MCU.
+    pub mpu: crate::mpu6050::Mpu6050,
     /// NVIC.
     pub nvic: Nvic,
     /// SCB.
@@ -302,6 +318,9 @@ impl Board {
             usart2: Usart::new("USART2", 16_000_000),
             usb: crate::periph::otg_fs::OtgFs::new(),
             usb_host: (chip == ChipKind::F411ce).then(crate::usb_host::UsbHost::new),
+            i2c1: crate::periph::i2c::I2c::new(16_000_000),
+            dma1: crate::periph::dma::Dma::default(),
+            mpu: crate::mpu6050::Mpu6050::new(2, false),
             nvic: Nvic::new(chip.n_irq()),
             scb: Scb::default(),
             systick: SysTick::default(),
@@ -424,6 +443,7 @@ impl Board {
             t.set_clock(now, c.timclk_apb1_hz);
         }
         self.usart2.set_clock(c.pclk1_hz);
+        self.i2c1.set_clock(c.pclk1_hz);
         Ok(())
     }
 
@@ -652,6 +672,10 @@ impl Board {
         if self.usb_host.is_some() {
             self.nvic.set_line(irq::OTG_FS, self.usb.irq());
         }
+        self.nvic.set_line(irq::I2C1_EV, self.i2c1.irq_ev());
+        self.nvic.set_line(irq::I2C1_ER, self.i2c1.irq_er());
+        self.nvic.set_line(irq::DMA1_STREAM0, self.dma1.irq(0));
+        self.nvic.set_line(irq::DMA1_STREAM6, self.dma1.irq(6));
         if let Some(c) = self.systick.next_irq_cycles() {
             if self.cycles >= c {
                 let _ = self.systick.read(0x8, self.cycles);
@@ -674,6 +698,7 @@ impl Board {
         add(self.usart2.next_event_ps());
         add(self.usb_host.as_ref().map(|h| h.next_event_ps()));
         add(self.iwdg.expiry_ps());
+        add(self.i2c_next_event_ps());
         t
     }
 }
@@ -916,6 +941,11 @@ impl<'a> Machine<'a> {
         self.image.symbol(name)
     }
 
+    /// The address of the first symbol starting with `prefix`.
+    pub fn symbol_prefix(&self, prefix: &str) -> Option<u32> {
+        self.image.symbol_prefix(prefix)
+    }
+
     /// The board.
     pub fn board(&mut self) -> &mut Board {
         self.uc.get_data_mut()
@@ -957,6 +987,10 @@ impl<'a> Machine<'a> {
             d.usart2 = Usart::new("USART2", 16_000_000);
             d.usart2.rx_queue = q;
             d.usb = crate::periph::otg_fs::OtgFs::new();
+            let stats = d.i2c1.stats;
+            d.i2c1 = crate::periph::i2c::I2c::new(16_000_000);
+            d.i2c1.stats = stats;
+            d.dma1 = crate::periph::dma::Dma::default();
             d.nvic = Nvic::new(chip.n_irq());
             d.scb = Scb::default();
             d.systick = SysTick::default();
@@ -1079,6 +1113,10 @@ impl<'a> Machine<'a> {
                 let d = self.uc.get_data_mut();
                 d.sync_robot()?;
                 d.sync_usb()?;
+            }
+            self.sync_i2c()?;
+            {
+                let d = self.uc.get_data_mut();
                 d.update_lines();
                 if d.iwdg.expiry_ps().is_some_and(|t| t <= now) {
                     d.event("IWDG expired".into());
