@@ -92,7 +92,7 @@ fn usage() -> String {
      [--usb-dtr-low AT_S:S] [--usb-stop-reading AT_S:S] [--usb-unplug AT_S:MS] \
      [--usb-corrupt device|config:OFFSET=VALUE] \
      [--imu-nack AT_S:N] [--imu-stuck-sda AT_S:CLOCKS] [--imu-asleep AT_S] \
-     [--imu-frozen AT_S:MS] [--imu-implausible AT_S:MS] [--imu-absent AT_S:MS] \
+     [--imu-frozen AT_S:MS] [--imu-implausible AT_S:MS[:RADPS]] [--imu-absent AT_S:MS] \
      [--summary FILE] [--quiet]"
         .into()
 }
@@ -259,8 +259,23 @@ fn parse_args() -> Result<Args, String> {
                 a.imu.frozen = Some((ps(t), ps(ms * 1e-3)));
             }
             "--imu-implausible" => {
-                let (t, ms) = pair(&val()?, "--imu-implausible")?;
+                // AT_S:MS or AT_S:MS:RADPS.
+                let v = val()?;
+                let (tm, rate) = match v.rsplit_once(':') {
+                    Some((tm, r)) if tm.contains(':') => {
+                        let r: f64 = r.parse().map_err(|_| {
+                            format!("--imu-implausible {v}: RADPS `{r}` is not a number")
+                        })?;
+                        if !r.is_finite() {
+                            return Err(format!("--imu-implausible {v}: RADPS must be finite"));
+                        }
+                        (tm.to_string(), Some(r))
+                    }
+                    _ => (v.clone(), None),
+                };
+                let (t, ms) = pair(&tm, "--imu-implausible")?;
                 a.imu.implausible = Some((ps(t), ps(ms * 1e-3)));
+                a.imu.implausible_radps = rate;
             }
             "--imu-absent" => {
                 let (t, ms) = pair(&val()?, "--imu-absent")?;

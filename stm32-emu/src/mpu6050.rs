@@ -58,7 +58,7 @@ const SLEEP: u8 = 0x40;
 pub const NOISE_DENSITY_DPS_PER_SQRT_HZ: f64 = 0.005;
 
 /// The faults `--imu-*` inject (times in ps of emulated time).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Faults {
     /// From this time the next `n` address phases are not acknowledged.
     pub nack: Option<(u128, u32)>,
@@ -72,8 +72,12 @@ pub struct Faults {
     /// From this time for this long the output registers stop updating.
     pub frozen: Option<(u128, u128)>,
     /// From this time for this long the yaw axis reads +32 767 counts (full
-    /// scale: a saturated or corrupted reading).
+    /// scale: a saturated or corrupted reading), or, with a rate \[rad/s\],
+    /// that rate (a plausible but wrong reading: the control that shows
+    /// the estimator uses the gyro).
     pub implausible: Option<(u128, u128)>,
+    /// The rate the yaw axis reads during `implausible` (None: full scale).
+    pub implausible_radps: Option<f64>,
     /// From this time for this long the chip is gone (no acknowledge);
     /// then it is powered again: its reset state, answering after its
     /// start-up time.
@@ -218,9 +222,10 @@ impl Mpu6050 {
                 self.absent_state = 2;
                 self.powered_ps = t + d;
                 self.reset_registers(false);
-                self.events.push(
-                    "MPU-6050: back (--imu-absent), powered up in its reset state (asleep)".into(),
-                );
+                self.events.push(format!(
+                    "MPU-6050: back since {:.6} s (--imu-absent), powered up in its reset state (asleep), answering after its start-up time",
+                    (t + d) as f64 * 1e-12
+                ));
             }
         }
         if let Some((t, _)) = self.faults.nack {
@@ -397,7 +402,12 @@ impl Mpu6050 {
             *o = v.round().clamp(-32768.0, 32767.0) as i16;
         }
         if Self::in_window(self.faults.implausible, now) {
-            out[self.yaw_axis.0] = i16::MAX;
+            out[self.yaw_axis.0] = match self.faults.implausible_radps {
+                None => i16::MAX,
+                Some(r) => (self.yaw_axis.1 * r.to_degrees() * lsb)
+                    .round()
+                    .clamp(-32768.0, 32767.0) as i16,
+            };
         }
         for (i, v) in out.iter().enumerate() {
             let b = v.to_be_bytes();

@@ -251,7 +251,7 @@ impl Dma {
             st.cr &= !cr::EN;
             self.set_flag(s, TCIF);
         }
-        if moved * 2 == total || (ndtr == 0 && total == 1) {
+        if moved == total.div_ceil(2) {
             self.set_flag(s, HTIF);
         }
     }
