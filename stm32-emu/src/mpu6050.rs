@@ -327,7 +327,7 @@ impl Mpu6050 {
                     PWR_MGMT_1 if b & DEVICE_RESET != 0 => {
                         self.stats.resets += 1;
                         self.reset_registers(false);
-                        self.events.push("MPU-6050: DEVICE_RESET".into());
+                        self.events.push("MPU-6050: reset by PWR_MGMT_1 bit 7 (device reset)".into());
                     }
                     PWR_MGMT_1 => {
                         let was_asleep = self.regs[PWR_MGMT_1 as usize] & SLEEP != 0;
