@@ -1273,6 +1273,26 @@ mod tests {
         assert!(b.read_word(0x4000_0C24).is_ok());
         let e = b.read_word(0x4000_0C4C).unwrap_err();
         assert!(e.contains("DMAR"), "{e}");
+        // I2C1 and DMA1: gated by I2C1EN (APB1ENR bit 21) and DMA1EN
+        // (AHB1ENR bit 21); their unknown offsets fail.
+        let e = b.read_word(0x4000_5400).unwrap_err();
+        assert!(e.contains("I2C1") && e.contains("clock off"), "{e}");
+        let e = b.read_word(0x4002_6000).unwrap_err();
+        assert!(e.contains("DMA1") && e.contains("clock off"), "{e}");
+        b.write_word(0x4002_3840, (1 << 3) | (1 << 21), !0).unwrap();
+        b.write_word(0x4002_3830, 1 << 21, !0).unwrap();
+        assert_eq!(b.read_word(0x4000_5420).unwrap(), 2, "TRISE resets to 2");
+        assert!(b.read_word(0x4000_5428).is_err());
+        assert_eq!(
+            b.read_word(0x4002_6024).unwrap(),
+            0x21,
+            "S0FCR resets to 0x21"
+        );
+        assert!(b.read_word(0x4002_60D0).is_err());
+        // START with PB8/PB9 not on AF4 open drain: the wiring is wrong.
+        b.write_word(0x4000_5400, 1, !0).unwrap();
+        let e = b.write_word(0x4000_5400, 1 | (1 << 8), !0).unwrap_err();
+        assert!(e.contains("SCL PB8"), "{e}");
     }
 
     /// Pins at their reset state (PA8 an input) fail the wiring check by

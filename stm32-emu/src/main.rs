@@ -813,7 +813,12 @@ impl GyroWatch {
         let spans: Vec<String> = self
             .empty
             .iter()
-            .map(|(a, b)| format!("[{a:.4},{}]", b.map_or("null".into(), |b| format!("{b:.4}"))))
+            .map(|(a, b)| {
+                format!(
+                    "[{a:.4},{}]",
+                    b.map_or("null".into(), |b| format!("{b:.4}"))
+                )
+            })
             .collect();
         format!(
             "\"gyro_polls\":{},\"gyro_valid_polls\":{},\"gyro_first_valid_s\":{},\"gyro_empty_spans\":[{}],\"gyro_fresh_samples\":{},\"gyro_err_mean_radps\":{:.6},\"gyro_max_abs_radps\":{:.4},",

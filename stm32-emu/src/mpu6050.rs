@@ -327,7 +327,8 @@ impl Mpu6050 {
                     PWR_MGMT_1 if b & DEVICE_RESET != 0 => {
                         self.stats.resets += 1;
                         self.reset_registers(false);
-                        self.events.push("MPU-6050: reset by PWR_MGMT_1 bit 7 (device reset)".into());
+                        self.events
+                            .push("MPU-6050: reset by PWR_MGMT_1 bit 7 (device reset)".into());
                     }
                     PWR_MGMT_1 => {
                         let was_asleep = self.regs[PWR_MGMT_1 as usize] & SLEEP != 0;
@@ -494,7 +495,10 @@ mod tests {
     #[test]
     fn reset_values_and_start_up() {
         let mut m = Mpu6050::new(2, false);
-        assert!(!m.address(ADDRESS, false, AWAKE - 1, 0.0), "NACK during start-up");
+        assert!(
+            !m.address(ADDRESS, false, AWAKE - 1, 0.0),
+            "NACK during start-up"
+        );
         assert_eq!(read(&mut m, 0x75, 1, AWAKE, 0.0), [0x68]);
         assert_eq!(read(&mut m, 0x6B, 1, AWAKE, 0.0), [0x40]);
         assert_eq!(read(&mut m, 0x19, 3, AWAKE, 0.0), [0, 0, 0]);

@@ -347,7 +347,10 @@ impl I2c {
 
     /// A TxE DMA request (DMAEN and TxE while transmitting).
     pub fn tx_request(&self) -> bool {
-        self.cr2 & cr2::DMAEN != 0 && self.sr1 & sr1::TXE != 0 && self.msl && self.tra
+        self.cr2 & cr2::DMAEN != 0
+            && self.sr1 & sr1::TXE != 0
+            && self.msl
+            && self.tra
             && self.dr_tx.is_none()
     }
 
@@ -415,7 +418,13 @@ impl I2c {
         Ok(false)
     }
 
-    fn complete(&mut self, a: Action, t: u128, bus: &mut dyn Bus, rx_dma_left: u32) -> Result<(), String> {
+    fn complete(
+        &mut self,
+        a: Action,
+        t: u128,
+        bus: &mut dyn Bus,
+        rx_dma_left: u32,
+    ) -> Result<(), String> {
         match a {
             Action::Start => {
                 self.stats.starts += 1;
@@ -515,7 +524,8 @@ mod tests {
             self.seen.push("P".into());
         }
         fn address(&mut self, a: u8, read: bool, _t: u128) -> bool {
-            self.seen.push(format!("A{a:02X}{}", if read { 'R' } else { 'W' }));
+            self.seen
+                .push(format!("A{a:02X}{}", if read { 'R' } else { 'W' }));
             a == 0x68 && !self.nack
         }
         fn write_byte(&mut self, b: u8, _t: u128) -> Result<bool, String> {
@@ -555,7 +565,14 @@ mod tests {
     #[test]
     fn reset_values_and_bit_time() {
         let mut i = I2c::new(PCLK1);
-        for (off, v) in [(0x00, 0), (0x04, 0), (0x14, 0), (0x18, 0), (0x1C, 0), (0x20, 2)] {
+        for (off, v) in [
+            (0x00, 0),
+            (0x04, 0),
+            (0x14, 0),
+            (0x18, 0),
+            (0x1C, 0),
+            (0x20, 2),
+        ] {
             assert_eq!(i.read(off, 0).unwrap(), v, "+0x{off:02X}");
         }
         let i = enabled();
@@ -582,7 +599,11 @@ mod tests {
         assert_eq!(now - t0, 9 * 2_500_000, "address: 9 clocks");
         assert_eq!(i.read(0x14, now).unwrap() & sr1::ADDR, sr1::ADDR, "EV6");
         assert_eq!(i.read(0x18, now).unwrap() & 4, 4, "TRA");
-        assert_eq!(i.read(0x14, now).unwrap() & (sr1::ADDR | sr1::TXE), sr1::TXE, "EV8_1");
+        assert_eq!(
+            i.read(0x14, now).unwrap() & (sr1::ADDR | sr1::TXE),
+            sr1::TXE,
+            "EV8_1"
+        );
         i.write(0x10, 0x6B, !0, now).unwrap();
         i.write(0x10, 0x01, !0, now).unwrap();
         assert_eq!(i.read(0x14, now).unwrap() & sr1::TXE, 0, "DR full");
@@ -603,7 +624,8 @@ mod tests {
         i.write(0x04, 42 | cr2::DMAEN | cr2::LAST, !0, 0).unwrap();
         let mut bus = Log::default();
         let mut now = 0;
-        i.write(0x00, cr1::PE | cr1::ACK | cr1::START, !0, now).unwrap();
+        i.write(0x00, cr1::PE | cr1::ACK | cr1::START, !0, now)
+            .unwrap();
         run(&mut i, &mut bus, &mut now, 3);
         i.write(0x10, (0x68 << 1) | 1, !0, now).unwrap();
         run(&mut i, &mut bus, &mut now, 3);
@@ -627,7 +649,11 @@ mod tests {
                 left -= 1;
             }
         }
-        assert_eq!(bus.seen.iter().filter(|s| *s == "R").count(), 3, "no fourth byte clocked");
+        assert_eq!(
+            bus.seen.iter().filter(|s| *s == "R").count(),
+            3,
+            "no fourth byte clocked"
+        );
         assert_eq!(got, [0x5A; 3]);
         assert_eq!(acks, [true, true, false], "NACK on the last byte");
         // Address NACK.
