@@ -637,9 +637,9 @@ ABSENT_MS=500
 # attempt at or after the chip's return + its start-up time succeeds.
 absent_end="$(awk -v l="$FAIL_MS" -v p="$P" -v r="$R" -v m="$M" -v d="$ABSENT_MS" 'BEGIN { t = l; w = p; do { t += w; w *= 2 } while (t < d + 100); print t + r + m }')"
 for chip in f446re f411ce; do
-    imu_fault "$chip" stuck_sda "--imu-stuck-sda $IMU_AT:7" $((BUS_TIMEOUT_MS + M)) $((BUS_TIMEOUT_MS + P + R + M)) ""
+    imu_fault "$chip" stuck_sda "--imu-stuck-sda $IMU_AT:9" $((BUS_TIMEOUT_MS + M)) $((BUS_TIMEOUT_MS + P + R + M)) ""
     clocks="$(json mpu_recovery_clocks "$s")"
-    [ "$clocks" = 7 ] || fail "$chip imu stuck SDA: $clocks SCL clocks reached the chip, expected the 7 it needed"
+    [ "$clocks" = 9 ] || fail "$chip imu stuck SDA: $clocks SCL clocks reached the chip, expected the 9 it needed (the recovery's maximum)"
     imu_fault "$chip" absent "--imu-absent $IMU_AT:$ABSENT_MS" $((FAIL_MS + M)) "$absent_end" " (gone $ABSENT_MS ms)"
     [ "$chip" = f411ce ] && break
     imu_fault "$chip" nack5 "--imu-nack $IMU_AT:5" none none
