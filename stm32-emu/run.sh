@@ -659,7 +659,7 @@ imu_square() {
     rec="$(wmr record --seconds "$RECORD_S" --rate "$RATE_HZ" --out "$OUT_DIR/imu_square_$1.csv" --arm --quiet)" || fail "wmr record ($1 imu)"
     echo "$rec"
 }
-declare -A IMU_RMS
+declare -A IMU_RMS IMU_STEP
 start_hilsim --scenario reference-imu.toml
 imu_square sim
 cleanup
@@ -682,7 +682,15 @@ for chip in f446re f411ce; do
     IMU_RMS[$chip]="$(json rms_pos_err_m "$rec")"
     within_rel "${IMU_RMS[$chip]}" "${IMU_RMS[sim]}" "$REL_TOL_RMS" ||
         fail "$chip imu: RMS ${IMU_RMS[$chip]} m differs from hil-sim's with a gyro (${IMU_RMS[sim]} m) by more than $REL_TOL_RMS of it"
-    echo "OK: $chip imu: the square with the gyro, RMS ${IMU_RMS[$chip]} m (hil-sim with a gyro ${IMU_RMS[sim]} m, without $ref_rms m)"
+    read -r m_mean m_max m_n < <(step_line "$LOG")
+    st_line="$(grep "alive (stack high-water" "$LOG" | tail -1 | sed -n 's/.*stack high-water \([0-9]*\) B running, \([0-9]*\) B at boot, of \([0-9]*\) B.*/\1 \2 \3/p')"
+    read -r s_run s_boot s_size <<<"$st_line"
+    for used in "$s_run" "$s_boot"; do
+        awk -v u="$used" -v s="$s_size" -v f="$STACK_MAX_FRACTION" 'BEGIN { exit !(u > 0 && u <= f * s) }' ||
+            fail "$chip imu: stack high-water $used B: not within $STACK_MAX_FRACTION of the $s_size B stack"
+    done
+    IMU_STEP[$chip]="step_insn_mean/max=$m_mean/$m_max stack_running/boot/size_b=$s_run/$s_boot/$s_size"
+    echo "OK: $chip imu: the square with the gyro, RMS ${IMU_RMS[$chip]} m (hil-sim with a gyro ${IMU_RMS[sim]} m, without $ref_rms m); control step $m_mean instructions mean, $m_max max; stack $s_run B running, $s_boot B at boot, of $s_size B"
 done
 
 step "(i) every bridge mode tracks the square (the F446 image per BRIDGE_MODE, the harness's bridge model per mode)"
@@ -911,5 +919,6 @@ echo "RESULT chip=f446re step_insn_mean=$STEP446_MEAN step_insn_max=$STEP446_MAX
 echo "RESULT erase_stall_ms=2000 write_ms=$WRITE_MS watchdog_ms=8192 overruns=$overruns robot_clock_lost_ms=$lost_ms"
 echo "RESULT bridge=naive-two-pwm reverse_armature_peak_r/l=$peak_r/$peak_l (control)"
 echo "RESULT imu rms_pos_err_m f446re/f411ce/hil-sim=${IMU_RMS[f446re]}/${IMU_RMS[f411ce]}/${IMU_RMS[sim]} boot_f446re=\"${IMU_BOOT[f446re]}\" boot_f411ce=\"${IMU_BOOT[f411ce]}\""
+for chip in f446re f411ce; do echo "RESULT imu chip=$chip ${IMU_STEP[$chip]}"; done
 for k in "${!IMU_FAULT[@]}"; do echo "RESULT imu fault=$k withdrawn/back_ms_after=${IMU_FAULT[$k]}"; done
 echo "stm32-emu: all checks passed in $((SECONDS - T_START)) s (logs: $OUT_DIR)"

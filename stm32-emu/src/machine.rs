@@ -1297,6 +1297,49 @@ mod tests {
 
     /// Pins at their reset state (PA8 an input) fail the wiring check by
     /// name; configured as board.rs does, they pass.
+    /// Bus recovery through the GPIOs (UM10204 §3.1.16): with the MPU-6050
+    /// holding SDA, PB9 as an open-drain output driven high reads low
+    /// (wired-AND); each rising edge of PB8 as an output is one SCL clock,
+    /// and SDA reads high after the clocks the chip needed.
+    #[test]
+    fn sda_held_reads_low_until_clocked_free() {
+        let mut b = Board::new(ChipKind::F446re, vec![0xFF; 1024]);
+        b.write_word(0x4002_3830, 1 << 1, !0).unwrap(); // GPIOBEN
+        b.mpu.faults.stuck_sda = Some((0, 3));
+        b.mpu.stop(crate::mpu6050::START_UP_PS);
+        let gpiob = 0x4002_0400;
+        // PB8, PB9: open drain, high, then outputs (as embassy's
+        // OutputOpenDrain::new(Level::High): no edge on the lines).
+        b.write_word(gpiob + 0x04, 3 << 8, !0).unwrap();
+        b.write_word(gpiob + 0x18, 3 << 8, !0).unwrap();
+        b.write_word(gpiob, (1 << 16) | (1 << 18), 0xF << 16)
+            .unwrap();
+        let sda = |b: &mut Board| b.read_word(gpiob + 0x10).unwrap() & (1 << 9) != 0;
+        assert!(!sda(&mut b), "held low by the slave");
+        for i in 0..3 {
+            assert!(!sda(&mut b), "still held before clock {}", i + 1);
+            b.write_word(gpiob + 0x18, 1 << (16 + 8), !0).unwrap(); // SCL low
+            b.write_word(gpiob + 0x18, 1 << 8, !0).unwrap(); // SCL high
+        }
+        assert!(sda(&mut b), "released after 3 clocks");
+        assert_eq!(b.mpu.stats.recovery_clocks, 3);
+        // Output low from an input (the pulled-up line falls) and back
+        // high is a clock too; staying an output high is none.
+        b.mpu = {
+            let mut m = crate::mpu6050::Mpu6050::new(2, false);
+            m.faults.stuck_sda = Some((0, 2));
+            m.stop(crate::mpu6050::START_UP_PS);
+            m
+        };
+        b.write_word(gpiob + 0x18, 1 << 8, !0).unwrap();
+        assert_eq!(b.mpu.stats.recovery_clocks, 0, "high to high: no clock");
+        b.write_word(gpiob, 0, 3 << 16).unwrap(); // PB8 input: high (pull-up)
+        b.write_word(gpiob + 0x18, 1 << (16 + 8), !0).unwrap(); // ODR low
+        b.write_word(gpiob, 1 << 16, 3 << 16).unwrap(); // output: falls
+        b.write_word(gpiob + 0x18, 1 << 8, !0).unwrap(); // rises
+        assert_eq!(b.mpu.stats.recovery_clocks, 1);
+    }
+
     #[test]
     fn wiring_check_names_the_pin() {
         let mut b = Board::new(ChipKind::F446re, vec![0xFF; 1024]);

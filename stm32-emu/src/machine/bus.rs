@@ -213,7 +213,7 @@ impl Board {
                 let i = ((addr - 0x4002_0000) / 0x400) as usize;
                 self.clock_on("GPIO", 0x30, i as u32)?;
                 self.sync_robot()?;
-                let scl = self.scl_gpio_high();
+                let scl = self.scl_line();
                 self.gpio[i].write(off, value, mask)?;
                 if i == 1 {
                     self.gpio_b_written(scl);

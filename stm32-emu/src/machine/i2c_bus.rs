@@ -90,22 +90,23 @@ impl Board {
         Ok(())
     }
 
-    /// A GPIOB write: SCL clocked as a GPIO output (bus recovery) reaches
-    /// the slave; SDA reads what the slave leaves of it.
+    /// A GPIOB write: SCL clocked as a GPIO (bus recovery) reaches the
+    /// slave (a rising edge of the line); SDA reads what the slave leaves
+    /// of it.
     pub(super) fn gpio_b_written(&mut self, scl_before: bool) {
-        let b = &self.gpio[1];
-        let scl_now = b.mode(SCL_PIN) == gpio::Mode::Output && b.level(SCL_PIN);
-        if !scl_before && scl_now {
+        if !scl_before && self.scl_line() {
             self.mpu.scl_clock();
         }
         self.sda_line();
         self.drain_mpu_events();
     }
 
-    /// SCL as a GPIO output, high (for [`Self::gpio_b_written`]).
-    pub(super) fn scl_gpio_high(&self) -> bool {
+    /// The SCL line's level: PB8's ODR as a GPIO output (open drain), else
+    /// high (the pull-ups; the I2C peripheral's own clocking is its bus
+    /// model's, and it never clocks while a slave holds SDA).
+    pub(super) fn scl_line(&self) -> bool {
         let b = &self.gpio[1];
-        b.mode(SCL_PIN) == gpio::Mode::Output && b.level(SCL_PIN)
+        b.mode(SCL_PIN) != gpio::Mode::Output || b.odr_bit(SCL_PIN)
     }
 
     /// PB9 reads low while the slave holds SDA.
