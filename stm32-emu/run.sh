@@ -49,6 +49,8 @@
 #       above READ_FAILURES_LOST, --imu-asleep, --imu-frozen on the F446)
 #       withdraws the gyro and brings it back within the bounds
 #       firmware/src/imu.rs documents (its constants, read from the source);
+#       an IWDG reset while the chip holds SDA: the gyro back within the
+#       power-up and reset waits (the bus clocked free before the first probe);
 #   (i) every bridge mode tracks the square: the F446 image built with
 #       BRIDGE_MODE=two-pwm and =pwm-in1-in2, run with the harness's bridge
 #       model of that mode (--bridge: the armature voltage from the pins,
@@ -637,10 +639,25 @@ ABSENT_MS=500
 # attempt at or after the chip's return + its start-up time succeeds.
 absent_end="$(awk -v l="$FAIL_MS" -v p="$P" -v r="$R" -v m="$M" -v d="$ABSENT_MS" 'BEGIN { t = l; w = p; do { t += w; w *= 2 } while (t < d + 100); print t + r + m }')"
 for chip in f446re f411ce; do
+    elf_chip="$ELF446IMU"
+    [ "$chip" = f411ce ] && elf_chip="$ELF411IMU"
     imu_fault "$chip" stuck_sda "--imu-stuck-sda $IMU_AT:9" $((BUS_TIMEOUT_MS + M)) $((BUS_TIMEOUT_MS + P + R + M)) ""
     clocks="$(json mpu_recovery_clocks "$s")"
     [ "$clocks" = 9 ] || fail "$chip imu stuck SDA: $clocks SCL clocks reached the chip, expected the 9 it needed (the recovery's maximum)"
     imu_fault "$chip" absent "--imu-absent $IMU_AT:$ABSENT_MS" $((FAIL_MS + M)) "$absent_end" " (gone $ABSENT_MS ms)"
+    # The MCU reset (the IWDG: the CPU held 100 ms) while the chip holds
+    # SDA (it is not reset with the MCU): the firmware clocks the bus free
+    # before its first probe, so the gyro is back within the power-up and
+    # reset waits after the reboot (before D140's fix the first probe timed
+    # out: 409 ms).
+    s="$(headless "imu_reset_held_$chip" --elf "$elf_chip" --chip "$chip" --press 0.5 --seconds 3 --imu-stuck-sda "$IMU_AT:9" --stall "$(awk -v t="$IMU_AT" 'BEGIN { print t + 0.001 }'):100")"
+    [ "$(json ok "$s")" = true ] && [ "$(json iwdg_resets "$s")" = 1 ] || fail "$chip imu: the reset-while-held run failed or did not reset: $s"
+    t_reset="$(sed -n 's/^\[stm32-emu t= *\([0-9.]*\) s\] RESET (Iwdg).*/\1/p' "$OUT_DIR/imu_reset_held_$chip.log")"
+    back="$(awk -v s="$(spans "$s")" -v r="$t_reset" 'BEGIN { gsub(/[][]/, "", s); n = split(s, x, ","); printf "%.1f", (x[n] == "null" ? 1e9 : (x[n] - r) * 1000) }')"
+    [ "$(json mpu_recovery_clocks "$s")" = 9 ] || fail "$chip imu: the held SDA was not clocked free after the reset: $s"
+    le "$back" $((P + R + M)) || fail "$chip imu: after a reset with SDA held the gyro came back $back ms after the reset, beyond $((P + R + M)) ms (the bus not cleared before the first probe?)"
+    IMU_FAULT[reset_held.$chip]="back ${back} ms after the reset"
+    echo "OK: $chip reset while SDA held: the bus clocked free at boot, the gyro back $back ms after the reset (<= $((P + R + M)))"
     [ "$chip" = f411ce ] && break
     imu_fault "$chip" nack5 "--imu-nack $IMU_AT:5" none none
     imu_fault "$chip" nack21 "--imu-nack $IMU_AT:$((READ_FAILURES_LOST + 1))" $((FAIL_MS + M)) $((FAIL_MS + P + 2 * P + R + M)) ""
