@@ -36,9 +36,21 @@
 #       (ticks on time), a flooding host (OUT NAKs, nothing dropped),
 #       unplug/replug while the robot runs (LinkSilence, enumerated
 #       again, the link answers);
-#   (o) the `imu` images (F411, F446) boot, start the loop, wait the
-#       MPU-6050's power-up time and stop at their first I2C1 access
-#       (I2C1, DMA1 and the MPU-6050 are not modelled);
+#   (o) the `imu` images (F446, F411) with the MPU-6050 on I2C1 (DMA1,
+#       src/periph/i2c.rs, dma.rs, src/mpu6050.rs): boot and the first gyro
+#       sample in the firmware's gyro cell within the power-up + reset
+#       waits, the published rate within IMU_ERR_MAX_RADPS of the robot's
+#       yaw rate; the estimator uses the gyro (a wrong 1 rad/s reading for
+#       300 ms moves the robot: the control) and falls back to the wheels
+#       on a full-scale one (the robot's pose unchanged); the square through
+#       the link within REL_TOL_RMS of hil-sim's runtime path with a gyro
+#       (reference-imu.toml), the gyro never withdrawn; each injected fault
+#       (--imu-stuck-sda, --imu-absent on both chips; --imu-nack below and
+#       above READ_FAILURES_LOST, --imu-asleep, --imu-frozen on the F446)
+#       withdraws the gyro and brings it back within the bounds
+#       firmware/src/imu.rs documents (its constants, read from the source);
+#       an IWDG reset while the chip holds SDA: the gyro back within the
+#       power-up and reset waits (the bus clocked free before the first probe);
 #   (i) every bridge mode tracks the square: the F446 image built with
 #       BRIDGE_MODE=two-pwm and =pwm-in1-in2, run with the harness's bridge
 #       model of that mode (--bridge: the armature voltage from the pins,
@@ -83,6 +95,7 @@
 # Env:   OUT_DIR=<dir>  RECORD_S=10  REL_TOL_RMS=0.10  MAX_DROPPED_FRAMES=10
 #        FAULT_CUT_US=20  LINK_SILENCE_S=1.5  RATE_HZ=50  REVERSE_MAX_FRACTION=0.25
 #        STACK_MAX_FRACTION=0.75  ROBOT_RECORD_S=4  REL_TOL_ROBOT=0.05
+#        IMU_MARGIN_MS=15  IMU_ERR_MAX_RADPS=0.002
 set -euo pipefail
 cd "$(dirname "$0")"
 ROOT="$(cd .. && pwd)"
@@ -524,16 +537,177 @@ stop_t="$(sed -n 's/^\[stm32-emu t= *\([0-9.]*\) s\] motors off.*/\1/p' "$LOG" |
 echo "OK: unplugged at ${unplug_t} s: LinkSilence, motors off at ${stop_t:-?} s; re-enumerated and answering"
 USB_UNPLUG_STOP="$unplug_t/$stop_t"
 
-step "(o) the imu images boot, start the loop, wait the MPU-6050's power-up and stop at I2C1 (not modelled)"
+step "(o) the imu images: the MPU-6050 on I2C1 (DMA), the gyro in the estimator, the square against hil-sim with a gyro, injected I2C faults"
+# The firmware's documented bounds, read from its sources (one place for
+# each value): firmware/src/imu.rs and config.rs.
+fw_const() { sed -n "s/.*const $1: [a-z0-9]* = \([0-9_]*\);.*/\1/p" "$ROOT/firmware/src/$2" | tr -d _ | head -1; }
+POWER_UP_MS="$(fw_const POWER_UP_MS imu.rs)"
+RESET_WAIT_MS="$(fw_const RESET_WAIT_MS imu.rs)"
+BUS_TIMEOUT_MS="$(fw_const BUS_TIMEOUT_MS imu.rs)"
+READ_FAILURES_LOST="$(fw_const READ_FAILURES_LOST imu.rs)"
+AWAKE_CHECK_EVERY="$(fw_const AWAKE_CHECK_EVERY imu.rs)"
+SAMPLE_PERIOD_US="$(fw_const SAMPLE_PERIOD_US imu.rs)"
+FROZEN_AFTER="$(sed -n 's/.*frozen_after: \([0-9]*\),.*/\1/p' "$ROOT/firmware/src/config.rs" | head -1)"
+for v in POWER_UP_MS RESET_WAIT_MS BUS_TIMEOUT_MS READ_FAILURES_LOST AWAKE_CHECK_EVERY SAMPLE_PERIOD_US FROZEN_AFTER; do
+    [ -n "${!v}" ] || fail "imu: $v not found in firmware/src (renamed?)"
+done
+# Slack on every bound: the polls (100 µs), the bring-up's transfers (a few
+# 0.1 ms), a control tick.
+IMU_MARGIN_MS="${IMU_MARGIN_MS:-15}"
+# Mean |published rate - the plant's yaw rate| a working gyro path stays
+# within: the model's noise (0.005 °/s/√Hz over 98 Hz: 3.2 counts, 8.5e-4
+# rad/s RMS; mean |.| 6.8e-4) with room, far below a wrong axis, sign or scale
+# on the circle's 0.4 rad/s.
+IMU_ERR_MAX_RADPS="${IMU_ERR_MAX_RADPS:-0.002}"
+echo "bounds from the firmware: power-up ${POWER_UP_MS} ms, reset wait ${RESET_WAIT_MS} ms, bus timeout ${BUS_TIMEOUT_MS} ms, lost after ${READ_FAILURES_LOST} failed reads, PWR_MGMT_1 every ${AWAKE_CHECK_EVERY} samples, frozen after ${FROZEN_AFTER} samples of ${SAMPLE_PERIOD_US} us; margin ${IMU_MARGIN_MS} ms"
+ELF446IMU="$ROOT/firmware/target/ci-stm32f446re-imu/$TARGET/release/firmware"
+ELF411IMU="$ROOT/firmware/target/ci-stm32f411ce-imu/$TARGET/release/firmware"
+spans() { sed -n 's/.*"gyro_empty_spans":\[\(.*\)\],"gyro_fresh.*/\1/p' <<<"$1"; }
+pose() { sed -n 's/.*"pose":\[\([^]]*\)\].*/\1/p' <<<"$1"; }
+IMU_AT=1.5
+declare -A IMU_BOOT IMU_FAULT
 for chip in f446re f411ce; do
-    elf="$ROOT/firmware/target/ci-stm32$chip-imu/$TARGET/release/firmware"
-    s="$(headless "imu_$chip" --elf "$elf" --chip "$chip" --seconds 1)"
-    grep -q "IWDG started" "$OUT_DIR/imu_$chip.log" || fail "$chip imu: the loop did not start"
-    err="$(sed -n 's/.*"error":"\([^"]*\)".*/\1/p' <<<"$s")"
-    grep -q "I2C1 +0x0 CR1" <<<"$err" || fail "$chip imu: stopped elsewhere than at I2C1: $s"
-    t_i2c="$(json emulated_s "$s")"
-    le 0.1 "$t_i2c" || fail "$chip imu: the first I2C1 access at $t_i2c s, before the MPU-6050's 100 ms power-up"
-    echo "OK: $chip imu: loop running, first I2C1 access at $t_i2c s (after the 100 ms power-up): $err"
+    elf="$ELF446IMU"
+    [ "$chip" = f411ce ] && elf="$ELF411IMU"
+    s="$(headless "imu_$chip" --elf "$elf" --chip "$chip" --press 0.5 --seconds 3)"
+    [ "$(json ok "$s")" = true ] || fail "$chip imu: the run failed: $s"
+    first="$(json gyro_first_valid_s "$s")"
+    [ -n "$first" ] && [ "$first" != null ] || fail "$chip imu: the gyro cell never held a sample: $s"
+    le "$first" "$(awk -v a="$POWER_UP_MS" -v b="$RESET_WAIT_MS" -v m="$IMU_MARGIN_MS" 'BEGIN { print (a + b + m) / 1000 }')" ||
+        fail "$chip imu: the first gyro sample at $first s, later than the power-up wait + the reset wait"
+    [ -z "$(spans "$s")" ] || fail "$chip imu: the gyro cell emptied without a fault: $(spans "$s")"
+    grep -q '"mpu_regs":"PWR_MGMT_1 0x01, CONFIG 0x02, GYRO_CONFIG 0x08, SMPLRT_DIV 0"' <<<"$s" ||
+        fail "$chip imu: the MPU-6050 is not configured as imu.rs writes it: $s"
+    err="$(json gyro_err_mean_radps "$s")"
+    le "$err" "$IMU_ERR_MAX_RADPS" || fail "$chip imu: the published rate differs from the robot's yaw rate by $err rad/s on average"
+    IMU_BOOT[$chip]="first sample ${first} s, |rate - yaw| ${err} rad/s, $(json mpu_gyro_reads "$s") reads, $(json i2c_bytes "$s") bytes by DMA"
+    echo "OK: $chip imu: ${IMU_BOOT[$chip]}; the circle runs"
+done
+clean_pose="$(pose "$(cat "$OUT_DIR/imu_f446re.json")")"
+
+# Whether the estimator uses the gyro, seen from outside: a wrong but
+# plausible rate (1 rad/s on the yaw axis for 300 ms while the robot runs
+# the circle) must move the robot (the estimator believed it); a full-scale
+# one (32767 counts: saturated) must not (the estimator uses the wheels for
+# a saturated reading, firmware/README "How it runs").
+pose_diff() { awk -v a="$1" -v b="$2" 'BEGIN { split(a, p, ","); split(b, q, ","); d = 0; for (i = 1; i <= 3; i++) { x = p[i] - q[i]; if (x < 0) x = -x; if (x > d) d = x } printf "%.4f", d }'; }
+s="$(headless imu_wrong_rate --elf "$ELF446IMU" --press 0.5 --seconds 3 --imu-implausible "$IMU_AT:300:1.0")"
+[ "$(json ok "$s")" = true ] || fail "imu wrong-rate run failed: $s"
+d_wrong="$(pose_diff "$(pose "$s")" "$clean_pose")"
+le 0.05 "$d_wrong" || fail "imu: a wrong gyro rate for 300 ms moved the robot by only $d_wrong (m or rad): is the gyro used?"
+echo "OK: control: 1 rad/s read for 300 ms moved the robot's final pose by $d_wrong (m/rad): the estimator uses the gyro"
+s="$(headless imu_implausible --elf "$ELF446IMU" --press 0.5 --seconds 3 --imu-implausible "$IMU_AT:300")"
+[ "$(json ok "$s")" = true ] || fail "imu implausible run failed: $s"
+le 8.55 "$(json gyro_max_abs_radps "$s")" || fail "imu: the full-scale reading never reached the gyro cell: $s"
+d_sat="$(pose_diff "$(pose "$s")" "$clean_pose")"
+le "$d_sat" 0.002 || fail "imu: full-scale readings for 300 ms moved the robot by $d_sat: the estimator did not fall back to the wheels"
+IMU_FAULT[implausible]="pose moved $d_sat (control $d_wrong)"
+echo "OK: full scale (32767 counts) for 300 ms: published $(json gyro_max_abs_radps "$s") rad/s, final pose within $d_sat of the clean run: the estimator used the wheels"
+
+# Each fault at IMU_AT while the circle runs: the gyro cell (what the
+# estimator gets) empties within the detection bound and holds a sample
+# again within the recovery bound (ms after the fault), as imu.rs documents.
+imu_fault() {
+    local chip="$1" name="$2" opt="$3" start_max="$4" end_max="$5" elf="$ELF446IMU"
+    [ "$chip" = f411ce ] && elf="$ELF411IMU"
+    s="$(headless "imu_${name}_$chip" --elf "$elf" --chip "$chip" --press 0.5 --seconds 3 $opt)"
+    [ "$(json ok "$s")" = true ] || fail "$chip imu $name: the run failed: $s"
+    local sp
+    sp="$(spans "$s")"
+    if [ "$start_max" = none ]; then
+        [ -z "$sp" ] || fail "$chip imu $name: the gyro was withdrawn ($sp), the firmware keeps it for fewer than $READ_FAILURES_LOST failed reads"
+        IMU_FAULT[$name.$chip]="kept"
+        echo "OK: $chip $name ($opt): the gyro kept (no withdrawal), $(json i2c_address_nacks "$s") NACKs"
+        return
+    fi
+    read -r a b < <(awk -v s="$sp" -v t="$IMU_AT" 'BEGIN { gsub(/[][]/, "", s); split(s, x, ","); printf "%.1f %s\n", (x[1] - t) * 1000, (x[2] == "null" ? "null" : sprintf("%.1f", (x[2] - t) * 1000)) }')
+    [ -n "$a" ] || fail "$chip imu $name: the gyro was never withdrawn: $s"
+    [ "$b" != null ] || fail "$chip imu $name: the gyro never came back (withdrawn at +$a ms)"
+    le "$a" "$start_max" || fail "$chip imu $name: withdrawn $a ms after the fault, beyond $start_max ms"
+    le "$b" "$end_max" || fail "$chip imu $name: back $b ms after the fault, beyond $end_max ms"
+    IMU_FAULT[$name.$chip]="$a/$b"
+    echo "OK: $chip $name ($opt): withdrawn +$a ms (<= $start_max), back +$b ms (<= $end_max)$6"
+}
+M="$IMU_MARGIN_MS"
+P="$POWER_UP_MS"
+R="$RESET_WAIT_MS"
+FAIL_MS=$((READ_FAILURES_LOST * SAMPLE_PERIOD_US / 1000))
+AWAKE_MS=$((AWAKE_CHECK_EVERY * SAMPLE_PERIOD_US / 1000))
+FROZEN_MS=$((FROZEN_AFTER * SAMPLE_PERIOD_US / 1000))
+ABSENT_MS=500
+# The retry schedule after the loss (Backoff: P, 2P, 4P, ...): the first
+# attempt at or after the chip's return + its start-up time succeeds.
+absent_end="$(awk -v l="$FAIL_MS" -v p="$P" -v r="$R" -v m="$M" -v d="$ABSENT_MS" 'BEGIN { t = l; w = p; do { t += w; w *= 2 } while (t < d + 100); print t + r + m }')"
+for chip in f446re f411ce; do
+    elf_chip="$ELF446IMU"
+    [ "$chip" = f411ce ] && elf_chip="$ELF411IMU"
+    imu_fault "$chip" stuck_sda "--imu-stuck-sda $IMU_AT:9" $((BUS_TIMEOUT_MS + M)) $((BUS_TIMEOUT_MS + P + R + M)) ""
+    clocks="$(json mpu_recovery_clocks "$s")"
+    [ "$clocks" = 9 ] || fail "$chip imu stuck SDA: $clocks SCL clocks reached the chip, expected the 9 it needed (the recovery's maximum)"
+    imu_fault "$chip" absent "--imu-absent $IMU_AT:$ABSENT_MS" $((FAIL_MS + M)) "$absent_end" " (gone $ABSENT_MS ms)"
+    # The MCU reset (the IWDG: the CPU held 100 ms) while the chip holds
+    # SDA (it is not reset with the MCU): the firmware clocks the bus free
+    # before its first probe, so the gyro is back within the power-up and
+    # reset waits after the reboot (before D146's fix the first probe timed
+    # out: 409 ms).
+    s="$(headless "imu_reset_held_$chip" --elf "$elf_chip" --chip "$chip" --press 0.5 --seconds 3 --imu-stuck-sda "$IMU_AT:9" --stall "$(awk -v t="$IMU_AT" 'BEGIN { print t + 0.001 }'):100")"
+    [ "$(json ok "$s")" = true ] && [ "$(json iwdg_resets "$s")" = 1 ] || fail "$chip imu: the reset-while-held run failed or did not reset: $s"
+    t_reset="$(sed -n 's/^\[stm32-emu t= *\([0-9.]*\) s\] RESET (Iwdg).*/\1/p' "$OUT_DIR/imu_reset_held_$chip.log")"
+    back="$(awk -v s="$(spans "$s")" -v r="$t_reset" 'BEGIN { gsub(/[][]/, "", s); n = split(s, x, ","); printf "%.1f", (x[n] == "null" ? 1e9 : (x[n] - r) * 1000) }')"
+    [ "$(json mpu_recovery_clocks "$s")" = 9 ] || fail "$chip imu: the held SDA was not clocked free after the reset: $s"
+    le "$back" $((P + R + M)) || fail "$chip imu: after a reset with SDA held the gyro came back $back ms after the reset, beyond $((P + R + M)) ms (the bus not cleared before the first probe?)"
+    IMU_FAULT[reset_held.$chip]="back ${back} ms after the reset"
+    echo "OK: $chip reset while SDA held: the bus clocked free at boot, the gyro back $back ms after the reset (<= $((P + R + M)))"
+    [ "$chip" = f411ce ] && break
+    imu_fault "$chip" nack5 "--imu-nack $IMU_AT:5" none none
+    imu_fault "$chip" nack21 "--imu-nack $IMU_AT:$((READ_FAILURES_LOST + 1))" $((FAIL_MS + M)) $((FAIL_MS + P + 2 * P + R + M)) ""
+    imu_fault "$chip" asleep "--imu-asleep $IMU_AT" $((AWAKE_MS + M)) $((AWAKE_MS + P + R + M)) ""
+    imu_fault "$chip" frozen "--imu-frozen $IMU_AT:200" $((FROZEN_MS + M)) $((FROZEN_MS + P + R + M)) " (frozen 200 ms)"
+done
+
+# The square with the gyro, paced through the link as in (b)/(g): both imu
+# images and hil-sim's runtime path with a gyro of the model's noise
+# (reference-imu.toml), the same wmr commands; the gyro cell never empty.
+imu_square() {
+    step "wmr status, upload, record the square ($1 imu)"
+    st="$(wmr status)" || fail "wmr status: no answer ($1 imu)"
+    grep -q "state Hold" <<<"$st" || fail "$1 imu did not boot in hold"
+    wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "wmr upload ($1 imu)"
+    rec="$(wmr record --seconds "$RECORD_S" --rate "$RATE_HZ" --out "$OUT_DIR/imu_square_$1.csv" --arm --quiet)" || fail "wmr record ($1 imu)"
+    echo "$rec"
+}
+declare -A IMU_RMS IMU_STEP
+start_hilsim --scenario reference-imu.toml
+imu_square sim
+cleanup
+IMU_RMS[sim]="$(json rms_pos_err_m "$rec")"
+for chip in f446re f411ce; do
+    if [ "$chip" = f446re ]; then
+        start_emu --elf "$ELF446IMU"
+        wait_for_log "IWDG started" 20
+    else
+        start_emu --elf "$ELF411IMU" --chip f411ce
+        wait_for_log "USB host: configured" 20
+    fi
+    PORT="$PTY"
+    imu_square "$chip"
+    cleanup
+    cp "$LOG" "$OUT_DIR/imu_square_$chip.log"
+    grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fail "$chip imu: a reset, fault or unmodelled access during the square"
+    grep -q "gyro cell: first sample" "$LOG" || fail "$chip imu: no gyro sample during the square"
+    grep -q "gyro cell: empty" "$LOG" && fail "$chip imu: the gyro was withdrawn during the square: $(grep "gyro cell: empty" "$LOG" | head -1)"
+    IMU_RMS[$chip]="$(json rms_pos_err_m "$rec")"
+    within_rel "${IMU_RMS[$chip]}" "${IMU_RMS[sim]}" "$REL_TOL_RMS" ||
+        fail "$chip imu: RMS ${IMU_RMS[$chip]} m differs from hil-sim's with a gyro (${IMU_RMS[sim]} m) by more than $REL_TOL_RMS of it"
+    read -r m_mean m_max m_n < <(step_line "$LOG")
+    st_line="$(grep "alive (stack high-water" "$LOG" | tail -1 | sed -n 's/.*stack high-water \([0-9]*\) B running, \([0-9]*\) B at boot, of \([0-9]*\) B.*/\1 \2 \3/p')"
+    read -r s_run s_boot s_size <<<"$st_line"
+    for used in "$s_run" "$s_boot"; do
+        awk -v u="$used" -v s="$s_size" -v f="$STACK_MAX_FRACTION" 'BEGIN { exit !(u > 0 && u <= f * s) }' ||
+            fail "$chip imu: stack high-water $used B: not within $STACK_MAX_FRACTION of the $s_size B stack"
+    done
+    IMU_STEP[$chip]="step_insn_mean/max=$m_mean/$m_max stack_running/boot/size_b=$s_run/$s_boot/$s_size"
+    echo "OK: $chip imu: the square with the gyro, RMS ${IMU_RMS[$chip]} m (hil-sim with a gyro ${IMU_RMS[sim]} m, without $ref_rms m); control step $m_mean instructions mean, $m_max max; stack $s_run B running, $s_boot B at boot, of $s_size B"
 done
 
 step "(i) every bridge mode tracks the square (the F446 image per BRIDGE_MODE, the harness's bridge model per mode)"
@@ -761,4 +935,7 @@ echo "RESULT chip=f411ce link=usb rms_pos_err_m=$rms411 ref_rms_pos_err_m=$ref_r
 echo "RESULT chip=f446re step_insn_mean=$STEP446_MEAN step_insn_max=$STEP446_MAX"
 echo "RESULT erase_stall_ms=2000 write_ms=$WRITE_MS watchdog_ms=8192 overruns=$overruns robot_clock_lost_ms=$lost_ms"
 echo "RESULT bridge=naive-two-pwm reverse_armature_peak_r/l=$peak_r/$peak_l (control)"
+echo "RESULT imu rms_pos_err_m f446re/f411ce/hil-sim=${IMU_RMS[f446re]}/${IMU_RMS[f411ce]}/${IMU_RMS[sim]} boot_f446re=\"${IMU_BOOT[f446re]}\" boot_f411ce=\"${IMU_BOOT[f411ce]}\""
+for chip in f446re f411ce; do echo "RESULT imu chip=$chip ${IMU_STEP[$chip]}"; done
+for k in "${!IMU_FAULT[@]}"; do echo "RESULT imu fault=$k withdrawn/back_ms_after=${IMU_FAULT[$k]}"; done
 echo "stm32-emu: all checks passed in $((SECONDS - T_START)) s (logs: $OUT_DIR)"

@@ -27,7 +27,9 @@
 //!   is clocked free as GPIOs (`recover_bus`: up to nine SCL pulses, then
 //!   a STOP) and the peripheral is created again (reset by its RCC bit):
 //!   a transfer cancelled by the timeout leaves neither the slave nor the
-//!   peripheral mid-byte.
+//!   peripheral mid-byte; the bus is clocked free before the first
+//!   attempt after boot too (a reset of the MCU mid-read leaves the chip,
+//!   which is not reset with it, holding SDA).
 
 use controller_core::estimator::GyroSample;
 use defmt::{error, info, warn};
@@ -321,7 +323,12 @@ async fn imu_task(mut p: ImuPeripherals, yaw: YawMapping) {
         return;
     };
     let mut backoff = Backoff::new(POWER_UP_MS, RETRY_MAX_MS);
-    let mut recover = false;
+    // The bus is clocked free before the first attempt too: a reset of
+    // the MCU (the IWDG, the button) can cut a gyro read mid-byte and leave
+    // the chip holding SDA, and the chip is not reset with the MCU. Without
+    // this the first probe timed out and the gyro came 205 ms later than
+    // necessary (stm32-emu run.sh (o), a reset while SDA is held; D146).
+    let mut recover = true;
     let mut ever_up = false;
     let mut losses = 0u32;
     let mut recoveries = 0u32;
@@ -329,8 +336,11 @@ async fn imu_task(mut p: ImuPeripherals, yaw: YawMapping) {
         let wait_ms = backoff.next_wait_ms();
         Timer::after_millis(wait_ms as u64).await;
         if recover {
+            let at_boot = !ever_up && recoveries == 0;
             recoveries += 1;
             match bus_recovery(&mut p) {
+                // The usual boot: nothing held the bus.
+                Recovery::Freed { pulses: 0 } if at_boot => {}
                 Recovery::Freed { pulses } => warn!(
                     "gyro: bus recovery {=u32}: SDA free after {=u8} SCL pulses, STOP sent",
                     recoveries, pulses

@@ -46,6 +46,15 @@ impl Image {
         Ok(Self { segments, symbols })
     }
 
+    /// The address of the first symbol whose name starts with `prefix`
+    /// (a Rust static's mangled name without its hash).
+    pub fn symbol_prefix(&self, prefix: &str) -> Option<u32> {
+        self.symbols
+            .iter()
+            .find(|s| s.0.starts_with(prefix))
+            .map(|s| s.1 & !1)
+    }
+
     /// The address of symbol `name` (thumb bit cleared).
     pub fn symbol(&self, name: &str) -> Option<u32> {
         self.symbols.iter().find(|s| s.0 == name).map(|s| s.1 & !1)

@@ -8,6 +8,7 @@
 pub mod bridge;
 pub mod elf;
 pub mod machine;
+pub mod mpu6050;
 pub mod periph;
 pub mod robot;
 pub mod usb_host;

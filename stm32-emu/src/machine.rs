@@ -22,6 +22,7 @@ use crate::robot::{BridgeInputs, Robot};
 
 mod bus;
 mod exceptions;
+mod i2c_bus;
 mod link;
 mod probe;
 use bus::{mmio_read, mmio_write};
@@ -101,6 +102,14 @@ pub mod irq {
     pub const TIM5: usize = 50;
     /// USB OTG_FS global interrupt (RM0383 table 38).
     pub const OTG_FS: usize = 67;
+    /// DMA1 stream 0 (I2C1_RX).
+    pub const DMA1_STREAM0: usize = 11;
+    /// DMA1 stream 6 (I2C1_TX).
+    pub const DMA1_STREAM6: usize = 17;
+    /// I2C1 event.
+    pub const I2C1_EV: usize = 31;
+    /// I2C1 error.
+    pub const I2C1_ER: usize = 32;
 }
 
 /// Something the harness records.
@@ -198,6 +207,13 @@ pub struct Board {
     pub usb: crate::periph::otg_fs::OtgFs,
     /// The USB host on the F411's cable (`None` on the F446).
     pub usb_host: Option<crate::usb_host::UsbHost>,
+    /// I2C1 (the IMU's bus on the `imu` images).
+    pub i2c1: crate::periph::i2c::I2c,
+    /// DMA1 (I2C1's streams 0 and 6).
+    pub dma1: crate::periph::dma::Dma,
+    /// The MPU-6050 on I2C1 (PB8 SCL, PB9 SDA); powered with the board,
+    /// not reset with the MCU.
+    pub mpu: crate::mpu6050::Mpu6050,
     /// NVIC.
     pub nvic: Nvic,
     /// SCB.
@@ -302,6 +318,9 @@ impl Board {
             usart2: Usart::new("USART2", 16_000_000),
             usb: crate::periph::otg_fs::OtgFs::new(),
             usb_host: (chip == ChipKind::F411ce).then(crate::usb_host::UsbHost::new),
+            i2c1: crate::periph::i2c::I2c::new(16_000_000),
+            dma1: crate::periph::dma::Dma::default(),
+            mpu: crate::mpu6050::Mpu6050::new(2, false),
             nvic: Nvic::new(chip.n_irq()),
             scb: Scb::default(),
             systick: SysTick::default(),
@@ -424,6 +443,7 @@ impl Board {
             t.set_clock(now, c.timclk_apb1_hz);
         }
         self.usart2.set_clock(c.pclk1_hz);
+        self.i2c1.set_clock(c.pclk1_hz);
         Ok(())
     }
 
@@ -652,6 +672,10 @@ impl Board {
         if self.usb_host.is_some() {
             self.nvic.set_line(irq::OTG_FS, self.usb.irq());
         }
+        self.nvic.set_line(irq::I2C1_EV, self.i2c1.irq_ev());
+        self.nvic.set_line(irq::I2C1_ER, self.i2c1.irq_er());
+        self.nvic.set_line(irq::DMA1_STREAM0, self.dma1.irq(0));
+        self.nvic.set_line(irq::DMA1_STREAM6, self.dma1.irq(6));
         if let Some(c) = self.systick.next_irq_cycles() {
             if self.cycles >= c {
                 let _ = self.systick.read(0x8, self.cycles);
@@ -674,6 +698,7 @@ impl Board {
         add(self.usart2.next_event_ps());
         add(self.usb_host.as_ref().map(|h| h.next_event_ps()));
         add(self.iwdg.expiry_ps());
+        add(self.i2c_next_event_ps());
         t
     }
 }
@@ -916,6 +941,11 @@ impl<'a> Machine<'a> {
         self.image.symbol(name)
     }
 
+    /// The address of the first symbol starting with `prefix`.
+    pub fn symbol_prefix(&self, prefix: &str) -> Option<u32> {
+        self.image.symbol_prefix(prefix)
+    }
+
     /// The board.
     pub fn board(&mut self) -> &mut Board {
         self.uc.get_data_mut()
@@ -957,6 +987,10 @@ impl<'a> Machine<'a> {
             d.usart2 = Usart::new("USART2", 16_000_000);
             d.usart2.rx_queue = q;
             d.usb = crate::periph::otg_fs::OtgFs::new();
+            let stats = d.i2c1.stats;
+            d.i2c1 = crate::periph::i2c::I2c::new(16_000_000);
+            d.i2c1.stats = stats;
+            d.dma1 = crate::periph::dma::Dma::default();
             d.nvic = Nvic::new(chip.n_irq());
             d.scb = Scb::default();
             d.systick = SysTick::default();
@@ -1079,6 +1113,10 @@ impl<'a> Machine<'a> {
                 let d = self.uc.get_data_mut();
                 d.sync_robot()?;
                 d.sync_usb()?;
+            }
+            self.sync_i2c()?;
+            {
+                let d = self.uc.get_data_mut();
                 d.update_lines();
                 if d.iwdg.expiry_ps().is_some_and(|t| t <= now) {
                     d.event("IWDG expired".into());
@@ -1235,10 +1273,73 @@ mod tests {
         assert!(b.read_word(0x4000_0C24).is_ok());
         let e = b.read_word(0x4000_0C4C).unwrap_err();
         assert!(e.contains("DMAR"), "{e}");
+        // I2C1 and DMA1: gated by I2C1EN (APB1ENR bit 21) and DMA1EN
+        // (AHB1ENR bit 21); their unknown offsets fail.
+        let e = b.read_word(0x4000_5400).unwrap_err();
+        assert!(e.contains("I2C1") && e.contains("clock off"), "{e}");
+        let e = b.read_word(0x4002_6000).unwrap_err();
+        assert!(e.contains("DMA1") && e.contains("clock off"), "{e}");
+        b.write_word(0x4002_3840, (1 << 3) | (1 << 21), !0).unwrap();
+        b.write_word(0x4002_3830, 1 << 21, !0).unwrap();
+        assert_eq!(b.read_word(0x4000_5420).unwrap(), 2, "TRISE resets to 2");
+        assert!(b.read_word(0x4000_5428).is_err());
+        assert_eq!(
+            b.read_word(0x4002_6024).unwrap(),
+            0x21,
+            "S0FCR resets to 0x21"
+        );
+        assert!(b.read_word(0x4002_60D0).is_err());
+        // START with PB8/PB9 not on AF4 open drain: the wiring is wrong.
+        b.write_word(0x4000_5400, 1, !0).unwrap();
+        let e = b.write_word(0x4000_5400, 1 | (1 << 8), !0).unwrap_err();
+        assert!(e.contains("SCL PB8"), "{e}");
     }
 
     /// Pins at their reset state (PA8 an input) fail the wiring check by
     /// name; configured as board.rs does, they pass.
+    /// Bus recovery through the GPIOs (UM10204 §3.1.16): with the MPU-6050
+    /// holding SDA, PB9 as an open-drain output driven high reads low
+    /// (wired-AND); each rising edge of PB8 as an output is one SCL clock,
+    /// and SDA reads high after the clocks the chip needed.
+    #[test]
+    fn sda_held_reads_low_until_clocked_free() {
+        let mut b = Board::new(ChipKind::F446re, vec![0xFF; 1024]);
+        b.write_word(0x4002_3830, 1 << 1, !0).unwrap(); // GPIOBEN
+        b.mpu.faults.stuck_sda = Some((0, 3));
+        b.mpu.stop(crate::mpu6050::START_UP_PS);
+        let gpiob = 0x4002_0400;
+        // PB8, PB9: open drain, high, then outputs (as embassy's
+        // OutputOpenDrain::new(Level::High): no edge on the lines).
+        b.write_word(gpiob + 0x04, 3 << 8, !0).unwrap();
+        b.write_word(gpiob + 0x18, 3 << 8, !0).unwrap();
+        b.write_word(gpiob, (1 << 16) | (1 << 18), 0xF << 16)
+            .unwrap();
+        let sda = |b: &mut Board| b.read_word(gpiob + 0x10).unwrap() & (1 << 9) != 0;
+        assert!(!sda(&mut b), "held low by the slave");
+        for i in 0..3 {
+            assert!(!sda(&mut b), "still held before clock {}", i + 1);
+            b.write_word(gpiob + 0x18, 1 << (16 + 8), !0).unwrap(); // SCL low
+            b.write_word(gpiob + 0x18, 1 << 8, !0).unwrap(); // SCL high
+        }
+        assert!(sda(&mut b), "released after 3 clocks");
+        assert_eq!(b.mpu.stats.recovery_clocks, 3);
+        // Output low from an input (the pulled-up line falls) and back
+        // high is a clock too; staying an output high is none.
+        b.mpu = {
+            let mut m = crate::mpu6050::Mpu6050::new(2, false);
+            m.faults.stuck_sda = Some((0, 2));
+            m.stop(crate::mpu6050::START_UP_PS);
+            m
+        };
+        b.write_word(gpiob + 0x18, 1 << 8, !0).unwrap();
+        assert_eq!(b.mpu.stats.recovery_clocks, 0, "high to high: no clock");
+        b.write_word(gpiob, 0, 3 << 16).unwrap(); // PB8 input: high (pull-up)
+        b.write_word(gpiob + 0x18, 1 << (16 + 8), !0).unwrap(); // ODR low
+        b.write_word(gpiob, 1 << 16, 3 << 16).unwrap(); // output: falls
+        b.write_word(gpiob + 0x18, 1 << 8, !0).unwrap(); // rises
+        assert_eq!(b.mpu.stats.recovery_clocks, 1);
+    }
+
     #[test]
     fn wiring_check_names_the_pin() {
         let mut b = Board::new(ChipKind::F446re, vec![0xFF; 1024]);

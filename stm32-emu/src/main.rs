@@ -63,6 +63,13 @@ struct Args {
     usb_unplug: Option<(f64, f64)>,
     /// USB (F411): a descriptor byte replaced on receipt by the host.
     usb_corrupt: Option<stm32_emu::usb_host::Corrupt>,
+    /// The MPU-6050's injected faults.
+    imu: stm32_emu::mpu6050::Faults,
+}
+
+/// Seconds to ps.
+fn ps(s: f64) -> u128 {
+    (s * PS) as u128
 }
 
 /// `AT:DURATION` (two numbers).
@@ -84,6 +91,8 @@ fn usage() -> String {
      [--flash-timing typ|max] [--flash-aged | --flash-robot FILE [--flash-pwm-hz N]] \
      [--usb-dtr-low AT_S:S] [--usb-stop-reading AT_S:S] [--usb-unplug AT_S:MS] \
      [--usb-corrupt device|config:OFFSET=VALUE] \
+     [--imu-nack AT_S:N] [--imu-stuck-sda AT_S:CLOCKS] [--imu-asleep AT_S] \
+     [--imu-frozen AT_S:MS] [--imu-implausible AT_S:MS[:RADPS]] [--imu-absent AT_S:MS] \
      [--summary FILE] [--quiet]"
         .into()
 }
@@ -121,6 +130,7 @@ fn parse_args() -> Result<Args, String> {
         usb_stop_reading: None,
         usb_unplug: None,
         usb_corrupt: None,
+        imu: Default::default(),
     };
     let mut it = std::env::args().skip(1);
     while let Some(k) = it.next() {
@@ -230,6 +240,47 @@ fn parse_args() -> Result<Args, String> {
                     value,
                 });
             }
+            "--imu-nack" => {
+                let (t, n) = pair(&val()?, "--imu-nack")?;
+                a.imu.nack = Some((ps(t), n as u32));
+            }
+            "--imu-stuck-sda" => {
+                let (t, n) = pair(&val()?, "--imu-stuck-sda")?;
+                if n > 9.0 {
+                    return Err(format!(
+                        "--imu-stuck-sda clocks {n}: at most 9 (a byte and its acknowledge)"
+                    ));
+                }
+                a.imu.stuck_sda = Some((ps(t), n as u8));
+            }
+            "--imu-asleep" => a.imu.asleep = Some(ps(num(&val()?, "--imu-asleep")?)),
+            "--imu-frozen" => {
+                let (t, ms) = pair(&val()?, "--imu-frozen")?;
+                a.imu.frozen = Some((ps(t), ps(ms * 1e-3)));
+            }
+            "--imu-implausible" => {
+                // AT_S:MS or AT_S:MS:RADPS.
+                let v = val()?;
+                let (tm, rate) = match v.rsplit_once(':') {
+                    Some((tm, r)) if tm.contains(':') => {
+                        let r: f64 = r.parse().map_err(|_| {
+                            format!("--imu-implausible {v}: RADPS `{r}` is not a number")
+                        })?;
+                        if !r.is_finite() {
+                            return Err(format!("--imu-implausible {v}: RADPS must be finite"));
+                        }
+                        (tm.to_string(), Some(r))
+                    }
+                    _ => (v.clone(), None),
+                };
+                let (t, ms) = pair(&tm, "--imu-implausible")?;
+                a.imu.implausible = Some((ps(t), ps(ms * 1e-3)));
+                a.imu.implausible_radps = rate;
+            }
+            "--imu-absent" => {
+                let (t, ms) = pair(&val()?, "--imu-absent")?;
+                a.imu.absent = Some((ps(t), ps(ms * 1e-3)));
+            }
             "-h" | "--help" => return Err(usage()),
             _ => return Err(format!("unknown argument {k}\n{}", usage())),
         }
@@ -284,6 +335,18 @@ fn run() -> Result<i32, String> {
     if let Some(r) = &a.robot {
         m.board().robot = stm32_emu::robot::Robot::of_file(r)?;
     }
+    // The MPU-6050 mounted as the robot file's imu.yaw_axis says (the
+    // compiled-in paper robot's is +z).
+    let (axis, sign) = a
+        .robot
+        .as_ref()
+        .map_or((2, 1.0), |r| r.imu.yaw_axis.axis_and_sign());
+    m.board().mpu = stm32_emu::mpu6050::Mpu6050::new(axis, sign < 0.0);
+    m.board().mpu.faults = a.imu;
+    // The firmware's gyro cell (firmware::imu::LATEST, `imu` images):
+    // what the board's gyro hands the estimator every tick.
+    let gyro_cell = m.symbol_prefix("_ZN8firmware3imu6LATEST17h");
+    let mut gyro = GyroWatch::default();
     m.board().flash().timing = a.flash_timing;
     m.board().peak_from_s = a.peak_from;
     if let Some(h) = m.board().usb_host.as_mut() {
@@ -500,6 +563,9 @@ fn run() -> Result<i32, String> {
                 m.board().event(e);
             }
         }
+        if let Some(addr) = gyro_cell {
+            gyro.poll(m, addr, t_s)?;
+        }
         if let Some((f, at)) = a.fault {
             if faulted.is_none() && t_s >= at {
                 faulted = Some(now);
@@ -641,6 +707,19 @@ fn run() -> Result<i32, String> {
         "\"armature_peak\":[{:.4},{:.4}],",
         d.armature_peak[0].0, d.armature_peak[1].0
     );
+    if gyro_cell.is_some() {
+        let i = &d.i2c1.stats;
+        let c = &d.mpu.stats;
+        s += &format!(
+            "\"i2c_starts\":{},\"i2c_stops\":{},\"i2c_address_nacks\":{},\"i2c_bytes\":{},\"dma1_items\":{},",
+            i.starts, i.stops, i.address_nacks, i.bytes, d.dma1.items
+        );
+        s += &format!(
+            "\"mpu_acks\":{},\"mpu_nacks\":{},\"mpu_gyro_reads\":{},\"mpu_resets\":{},\"mpu_recovery_clocks\":{},\"mpu_regs\":\"{}\",",
+            c.acks, c.nacks, c.gyro_reads, c.resets, c.recovery_clocks, d.mpu.report()
+        );
+        s += &gyro.json();
+    }
     s += &format!(
         "\"sysclk_hz\":{},\"plant_steps\":{}",
         d.sysclk_hz, d.robot.steps
@@ -665,4 +744,91 @@ fn faulted_time(events: &[stm32_emu::machine::Event]) -> Option<f64> {
         .iter()
         .find(|e| e.what.starts_with("fault injected"))
         .map(|e| e.t_s)
+}
+
+/// The firmware's gyro cell watched every poll (1 ms): `Option<GyroSample>`
+/// as rustc lays it out for the thumbv7em target (a u32 tag, then
+/// `rate_radps: f32`, `stamp_us: u32`); a tag other than 0/1 fails the run
+/// (a layout this watch does not know).
+#[derive(Default)]
+struct GyroWatch {
+    polls: u64,
+    valid: u64,
+    first_valid_s: Option<f64>,
+    /// Spans [from, to) with the cell empty after the first sample (`to`
+    /// open while empty).
+    empty: Vec<(f64, Option<f64>)>,
+    last_stamp: Option<u32>,
+    fresh: u64,
+    err_sum: f64,
+    max_abs: f64,
+}
+
+impl GyroWatch {
+    fn poll(&mut self, m: &mut Machine, addr: u32, t_s: f64) -> Result<(), String> {
+        let mut b = [0u8; 12];
+        if m.uc.mem_read(addr as u64, &mut b).is_err() {
+            return Ok(());
+        }
+        let w = |i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+        let tag = w(0);
+        if tag > 1 {
+            return Err(format!(
+                "gyro cell at 0x{addr:08X}: tag {tag}: not the Option<GyroSample> layout this harness reads"
+            ));
+        }
+        self.polls += 1;
+        let valid = tag == 1;
+        if valid {
+            self.valid += 1;
+            let rate = f32::from_bits(w(4)) as f64;
+            let stamp = w(8);
+            self.max_abs = self.max_abs.max(rate.abs());
+            if self.first_valid_s.is_none() {
+                self.first_valid_s = Some(t_s);
+                m.board()
+                    .event(format!("gyro cell: first sample ({rate:+.4} rad/s)"));
+            }
+            if let Some((_, to @ None)) = self.empty.last_mut() {
+                *to = Some(t_s);
+                m.board().event(format!(
+                    "gyro cell: sample again ({rate:+.4} rad/s): the estimator has the gyro"
+                ));
+            }
+            if self.last_stamp != Some(stamp) {
+                self.last_stamp = Some(stamp);
+                self.fresh += 1;
+                let truth = m.board().robot.yaw_rate_radps();
+                self.err_sum += (rate - truth).abs();
+            }
+        } else if self.first_valid_s.is_some() && !matches!(self.empty.last(), Some((_, None))) {
+            self.empty.push((t_s, None));
+            m.board()
+                .event("gyro cell: empty: the estimator uses the wheels".into());
+        }
+        Ok(())
+    }
+
+    fn json(&self) -> String {
+        let spans: Vec<String> = self
+            .empty
+            .iter()
+            .map(|(a, b)| {
+                format!(
+                    "[{a:.4},{}]",
+                    b.map_or("null".into(), |b| format!("{b:.4}"))
+                )
+            })
+            .collect();
+        format!(
+            "\"gyro_polls\":{},\"gyro_valid_polls\":{},\"gyro_first_valid_s\":{},\"gyro_empty_spans\":[{}],\"gyro_fresh_samples\":{},\"gyro_err_mean_radps\":{:.6},\"gyro_max_abs_radps\":{:.4},",
+            self.polls,
+            self.valid,
+            self.first_valid_s.map_or("null".into(), |t| format!("{t:.4}")),
+            spans.join(","),
+            self.fresh,
+            self.err_sum / self.fresh.max(1) as f64,
+            self.max_abs
+        )
+    }
 }

@@ -178,6 +178,11 @@ impl Robot {
         [self.state.q[0], self.state.q[1], self.state.q[2]]
     }
 
+    /// Yaw rate θ̇ \[rad/s\] (counter-clockwise positive): η's ω.
+    pub fn yaw_rate_radps(&self) -> f64 {
+        self.plant.eta(&self.state, &self.still)[1]
+    }
+
     /// Wheel speeds `[right, left]` \[rad/s\].
     pub fn wheel_rates(&self) -> [f64; 2] {
         self.plant.wheel_rates_radps(&self.state, &self.still)

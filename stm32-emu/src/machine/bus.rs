@@ -65,7 +65,20 @@ impl Board {
             0x4002_0000..=0x4002_1C00 => {
                 let i = ((addr - 0x4002_0000) / 0x400) as usize;
                 self.clock_on("GPIO", 0x30, i as u32)?;
+                if i == 1 {
+                    self.sda_line();
+                }
                 self.gpio[i].read(off)
+            }
+            0x4000_5400 => {
+                self.clock_on("I2C1", 0x40, 21)?;
+                self.stop_req = true;
+                self.i2c1.read(off, now)
+            }
+            0x4002_6000 => {
+                self.clock_on("DMA1", 0x30, 21)?;
+                self.stop_req = true;
+                self.dma1.read(off)
             }
             0x4001_0000 => {
                 self.clock_on("TIM1", 0x44, 0)?;
@@ -200,8 +213,25 @@ impl Board {
                 let i = ((addr - 0x4002_0000) / 0x400) as usize;
                 self.clock_on("GPIO", 0x30, i as u32)?;
                 self.sync_robot()?;
+                let scl = self.scl_line();
                 self.gpio[i].write(off, value, mask)?;
+                if i == 1 {
+                    self.gpio_b_written(scl);
+                }
                 self.sync_robot()
+            }
+            0x4000_5400 => {
+                self.clock_on("I2C1", 0x40, 21)?;
+                if off == 0 && value & mask & crate::periph::i2c::cr1::START != 0 {
+                    self.i2c_start_check()?;
+                }
+                self.stop_req = true;
+                self.i2c1.write(off, value, mask, now)
+            }
+            0x4002_6000 => {
+                self.clock_on("DMA1", 0x30, 21)?;
+                self.stop_req = true;
+                self.dma1.write(off, value, mask)
             }
             0x4001_0000 => {
                 self.clock_on("TIM1", 0x44, 0)?;
@@ -298,6 +328,9 @@ impl Board {
                         self.gpio[i] = Port::new("ABCDEFGH".as_bytes()[i] as char);
                     }
                 }
+                if bits & (1 << 21) != 0 {
+                    self.dma1 = crate::periph::dma::Dma::default();
+                }
             }
             0x20 => {
                 if bits & (1 << 1) != 0 {
@@ -316,6 +349,11 @@ impl Board {
                 }
                 if bits & (1 << 28) != 0 {
                     self.pwr = Pwr::default();
+                }
+                if bits & (1 << 21) != 0 {
+                    let stats = self.i2c1.stats;
+                    self.i2c1 = crate::periph::i2c::I2c::new(p1);
+                    self.i2c1.stats = stats;
                 }
             }
             0x24 if bits & 1 != 0 => self.tim1 = Timer::new("TIM1", Kind::Advanced, apb2t),

@@ -34,6 +34,8 @@ pub struct Port {
     /// Pins driven from outside (bit set: driven), and their levels.
     ext_mask: u16,
     ext_level: u16,
+    /// Open-drain lines another device pulls low (an I2C slave on SDA).
+    pulled_low: u16,
 }
 
 impl Port {
@@ -56,6 +58,7 @@ impl Port {
             afr: [0; 2],
             ext_mask: 0,
             ext_level: 0,
+            pulled_low: 0,
         }
     }
 
@@ -77,6 +80,9 @@ impl Port {
     /// The level of `pin` on the board: an output's ODR bit, an external
     /// drive, else the pull (pull-up high; none or pull-down low).
     pub fn level(&self, pin: u32) -> bool {
+        if self.pulled_low & (1 << pin) != 0 {
+            return false; // wired-AND: another device holds the line low
+        }
         if self.mode(pin) == Mode::Output {
             return self.odr_bit(pin);
         }
@@ -84,6 +90,20 @@ impl Port {
             return self.ext_level & (1 << pin) != 0;
         }
         (self.pupdr >> (2 * pin)) & 3 == 1
+    }
+
+    /// Whether `pin`'s output is open drain (OTYPER).
+    pub fn open_drain(&self, pin: u32) -> bool {
+        self.otyper & (1 << pin) != 0
+    }
+
+    /// Another device on the line pulls `pin` low (`true`) or releases it.
+    pub fn pull_low(&mut self, pin: u32, low: bool) {
+        if low {
+            self.pulled_low |= 1 << pin;
+        } else {
+            self.pulled_low &= !(1 << pin);
+        }
     }
 
     /// Drives `pin` from outside (`Some(level)`) or releases it (`None`).

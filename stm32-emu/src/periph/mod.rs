@@ -4,8 +4,10 @@
 //! a silent zero).
 
 pub mod dbgmcu;
+pub mod dma;
 pub mod flash;
 pub mod gpio;
+pub mod i2c;
 pub mod iwdg;
 pub mod nvic;
 pub mod otg_fs;
