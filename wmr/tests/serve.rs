@@ -114,10 +114,15 @@ fn drive_record_and_watch_at_once_through_one_server() {
     assert!(record.status.success(), "{record}");
     let summary: serde_json::Value =
         serde_json::from_str(record.stdout.lines().last().unwrap()).unwrap();
-    // 2 s at 50 Hz while running, none lost on a clean line.
+    // 2 s at 50 Hz while running (101 frames with both ends), none lost
+    // on a clean line; plus one frame each time the server changes the
+    // robot's telemetry while the record runs: `watch` joining and leaving
+    // changes the union of the subscriptions (serve/mux.rs), and the
+    // robot's `SetTelemetry` restarts its schedule with a frame at once
+    // (wmr-device requests.rs): at most 103.
     assert_eq!(summary["dropped_frames"], 0, "{record}");
     let rows = summary["rows"].as_u64().unwrap();
-    assert!((95..=101).contains(&rows), "{record}");
+    assert!((95..=103).contains(&rows), "{record}");
     let drive = finish(drive, BOUND, "drive");
     assert!(drive.status.success(), "{drive}");
     assert!(
