@@ -21,6 +21,7 @@ use crate::asmc::{AdaptiveGain, SlidingParams, SlidingState, Switching};
 use crate::error::{ConfigError, InputFault};
 use crate::eso::{EsoParams, EsoState};
 use crate::fault_observer::{FaultObserverGains, FaultObserverState};
+use crate::friction::FrictionModel;
 use crate::kinematic::KinematicGains;
 use crate::math::{all_finite, clamp_abs};
 use crate::math::{all_non_negative, all_positive};
@@ -102,6 +103,9 @@ pub struct ControllerConfig {
     pub sliding: SlidingParams,
     /// Per-wheel torque limit \[N·m\].
     pub torque_limit_nm: f32,
+    /// The wheels' friction, compensated in the dynamic loop of every kind
+    /// (eqs. 7f, 24f; [`FrictionModel::NONE`]: the paper's model).
+    pub friction: FrictionModel,
     /// Control period \[s\].
     pub period_s: f32,
     /// Input plausibility limits.
@@ -136,6 +140,7 @@ impl ControllerConfig {
             eso: EsoParams::DEFAULT,
             sliding: SlidingParams { k_s, switching },
             torque_limit_nm: DEFAULT_TORQUE_LIMIT_NM,
+            friction: FrictionModel::NONE,
             period_s: 1e-3,
             input_limits: InputLimits::DEFAULT,
         }
@@ -151,6 +156,7 @@ impl ControllerConfig {
         if !all_positive(&[self.torque_limit_nm]) {
             return Err(ConfigError::NonPositiveTorqueLimit);
         }
+        self.friction.validate(self.torque_limit_nm)?;
         // 0 < period <= 0.1 s.
         if !(all_positive(&[self.period_s]) && all_non_negative(&[0.1 - self.period_s])) {
             return Err(ConfigError::InvalidPeriod);
@@ -275,7 +281,11 @@ pub struct DynamicOutput {
     pub d_hat: [f32; 2],
     /// Mη at the measured η (eq. 7).
     pub m_eta: [f32; 2],
-    /// Torque of eq. (24) before saturation \[N·m\], `[right, left]`.
+    /// The friction compensation τ̂_f at η_c's wheel rates (eq. 7f; zero
+    /// without friction) \[N·m\], `[right, left]`.
+    pub friction_nm: [f32; 2],
+    /// Torque of eq. (24f) (eq. 24 plus τ̂_f) before saturation \[N·m\],
+    /// `[right, left]`.
     pub torque_request_nm: [f32; 2],
 }
 
@@ -346,6 +356,10 @@ pub struct ControlLaw {
     model: ReducedModel,
     /// ζ^(α−1) of the ESO's fal, computed once.
     fal_slope: f32,
+    /// Any friction to compensate (false: the stage costs nothing).
+    friction_on: bool,
+    /// 1/r of the model \[1/m\], for the reference's wheel rates.
+    inv_wheel_radius_per_m: f32,
 }
 
 impl ControlLaw {
@@ -357,6 +371,8 @@ impl ControlLaw {
             cfg,
             model,
             fal_slope: cfg.eso.fal_slope(),
+            friction_on: cfg.friction.is_some(),
+            inv_wheel_radius_per_m: 1.0 / cfg.robot.wheel_radius_m,
         })
     }
 
@@ -487,7 +503,9 @@ impl ControlLaw {
 
     /// Stage 3, the dynamic loop: sliding surface (eq. 20) and the torque
     /// request of eq. (24) with D̂ = x̂3 (`Proposed` only), from the measured
-    /// η and the kinematic stage. Reads the state, changes nothing.
+    /// η and the kinematic stage, plus the friction at the wheel rates of
+    /// the dynamic loop's reference η_c (eq. 24f). Reads the state, changes
+    /// nothing.
     #[inline]
     pub fn dynamic(
         &self,
@@ -507,19 +525,35 @@ impl ControlLaw {
         };
         let m_eta = self.model.m_eta(eta);
         let accel = sl.accel_request(&state.sliding, kin.eta_c_dot, m_eta, d_hat, e_eta, s);
+        let mut torque = self.model.n_inv_mul(accel);
+        // Eq. (24f): + τ̂_f at the wheel rates η_c asks for.
+        let friction_nm = if self.friction_on {
+            let rates = crate::params::wheel_rates(
+                self.inv_wheel_radius_per_m,
+                self.cfg.robot.half_track_m,
+                eta_c,
+            );
+            let f = self.cfg.friction.torque_nm(rates);
+            torque = [torque[0] + f[0], torque[1] + f[1]];
+            f
+        } else {
+            [0.0; 2]
+        };
         DynamicOutput {
             e_eta,
             s,
             d_hat,
             m_eta,
-            torque_request_nm: self.model.n_inv_mul(accel),
+            friction_nm,
+            torque_request_nm: torque,
         }
     }
 
     /// Stage 5, the state advance over one period, given the torque actually
     /// applied: ∫e_η and ρ̂ are frozen while `applied.saturated`
     /// (anti-windup), and the fal-ESO (eqs. 18-19, `Proposed` only) sees
-    /// `applied.torque_nm`.
+    /// `applied.torque_nm` less the friction compensation (eq. 7f: it
+    /// estimates what the friction model misses).
     #[inline]
     pub fn advance(
         &self,
@@ -539,7 +573,9 @@ impl ControlLaw {
         );
         if cfg.kind == ControllerKind::Proposed {
             let m_eta = dynamic.m_eta;
-            let n_tau = self.model.n_tau(applied.torque_nm);
+            let t = applied.torque_nm;
+            let f = dynamic.friction_nm;
+            let n_tau = self.model.n_tau([t[0] - f[0], t[1] - f[1]]);
             let known = [m_eta[0] + n_tau[0], m_eta[1] + n_tau[1]];
             cfg.eso
                 .update_with_slope(&mut state.eso, eta.as_array(), known, dt, self.fal_slope);

@@ -39,6 +39,9 @@ pub enum ConfigError {
     /// Health machine: thresholds finite and > 0, exit fraction in (0, 1),
     /// degraded speed scale in (0, 1], dwell times >= 0.
     InvalidHealth,
+    /// Wheel friction: b, c finite and >= 0, smoothing rate > 0, and c
+    /// below the torque limit.
+    InvalidFriction,
 }
 
 impl core::fmt::Display for ConfigError {
@@ -56,6 +59,9 @@ impl core::fmt::Display for ConfigError {
             Self::NonPositiveTorqueLimit => "torque limit must be finite and > 0",
             Self::InvalidPeriod => "control period must be in (0, 0.1] s",
             Self::InvalidInputLimits => "input limits must be finite and > 0",
+            Self::InvalidFriction => {
+                "wheel friction must be finite and >= 0, its smoothing rate > 0, and the Coulomb torque below the torque limit"
+            }
             Self::InvalidTrajectory => "trajectory parameters must be finite and > 0",
             Self::KindMismatch => "component not available for this controller kind",
             Self::InvalidGovernor => "invalid reference-governor parameters",

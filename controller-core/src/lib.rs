@@ -26,6 +26,7 @@ pub mod error;
 pub mod eso;
 pub mod estimator;
 pub mod fault_observer;
+pub mod friction;
 pub mod governor;
 pub mod health;
 pub mod kinematic;

@@ -5,6 +5,7 @@ use crate::error::{Reason, RobotError};
 use crate::sections::Robot;
 use controller_core::estimator::EstimatorConfig;
 use controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
+use controller_core::friction::FrictionModel;
 use controller_core::pacer::PacingConfig;
 use controller_core::runtime::{EncoderParams, MotorParams, RuntimeConfig, SafetyLimits};
 use controller_core::trajectory::Reference;
@@ -27,6 +28,11 @@ pub const DIRECTION_TORQUE_FRACTION: f32 = 0.1;
 /// larger (the model omits friction; it shifts the measurement by the
 /// friction's acceleration: D109's midpoint must be clear of it).
 pub const DIRECTION_FRICTION_FACTOR: f32 = 1.5;
+
+/// The friction compensation's smoothing rate as a fraction of the wheel
+/// rate at `limits.max_speed_mps` (D175): at 5 % of top speed it gives half
+/// the Coulomb torque, at 50 % 91 % of it.
+pub const FRICTION_SMOOTHING_FRACTION: f32 = 0.05;
 /// The direction check's acceleration tolerance in quanta of the windowed
 /// rate estimate over a block (one count per speed window, differenced
 /// over a block): 3 quanta, 9.8 rad/s² for the paper robot's encoder
@@ -90,8 +96,23 @@ impl Robot {
         let mut c = ControllerConfig::paper(kind);
         c.robot = self.robot_params();
         c.torque_limit_nm = self.limits.torque_nm;
+        c.friction = self.friction_model();
         self.gains.resolved(kind).apply(&mut c);
         c
+    }
+
+    /// The controller's friction model (eq. 7f, D175): the file's
+    /// `motors.viscous_friction_nms_per_rad` and `motors.coulomb_friction_nm`,
+    /// the Coulomb term smoothed over [`FRICTION_SMOOTHING_FRACTION`] of the
+    /// wheel rate at `limits.max_speed_mps`.
+    pub fn friction_model(&self) -> FrictionModel {
+        let m = &self.motors;
+        let top_wheel_rate_radps = self.limits.max_speed_mps / self.mean_wheel_radius_m();
+        FrictionModel {
+            viscous_nms_per_rad: m.viscous_friction_nms_per_rad,
+            coulomb_nm: m.coulomb_friction_nm,
+            smoothing_radps: FRICTION_SMOOTHING_FRACTION * top_wheel_rate_radps,
+        }
     }
 
     /// The motor model's parameters for a PWM timer of `duty_full_scale`

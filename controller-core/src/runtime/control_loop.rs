@@ -106,6 +106,7 @@ impl<const H: usize> ControlLoop<H> {
                 input_faults: 0,
                 torque_saturated: 0,
                 duty_saturated: 0,
+                torque_bounded: 0,
                 external_poses: 0,
                 stops: 0,
             },
@@ -367,9 +368,9 @@ impl<const H: usize> ControlLoop<H> {
             None => self.pacer.status(&self.pace),
         };
         if out.is_some() && stop.is_none() {
-            // The delivered torque (`duty_for` replaces a clamped wheel's).
-            self.last_torque_nm = torque;
-            duty = self.duty_for(torque, &sample);
+            // The delivered torque (`duty_for` bounds it and replaces a
+            // clamped wheel's).
+            (duty, torque) = self.duty_for(torque, &sample);
             motors.set(duty);
             enabled = true;
             self.status.run_ticks = self.status.run_ticks.saturating_add(1);
@@ -539,8 +540,41 @@ impl<const H: usize> ControlLoop<H> {
     /// duty clamps, `last_torque_nm` becomes the torque the clamped duty
     /// delivers at that rate by the same model (b_V·V_supply·duty − b·φ̇):
     /// what the stall and direction checks judge the wheel on (D111).
-    fn duty_for(&mut self, torque_nm: [f32; 2], sample: &CountSample) -> [DutyCommand; 2] {
-        core::array::from_fn(|i| {
+    ///
+    /// First the torque is bounded so that what the motor *delivers* (its
+    /// current) stays within the torque limit although the duty is computed
+    /// at an estimated rate ([`MotorModel::torque_bound_nm`] with the
+    /// estimate's resolution this tick): both wheels scaled by one factor,
+    /// as [`crate::controller::saturate`] does (the steering kept; D176).
+    ///
+    /// Returns the duty commands and the bounded torque they were computed for.
+    fn duty_for(
+        &mut self,
+        torque_nm: [f32; 2],
+        sample: &CountSample,
+    ) -> ([DutyCommand; 2], [f32; 2]) {
+        let limit = self.cfg.controller.torque_limit_nm;
+        let mut scale = 1.0f32;
+        for i in 0..2 {
+            let bound = self
+                .motor
+                .torque_bound_nm(limit, sample.rate_quantum_radps[i]);
+            let t = torque_nm[i].abs();
+            if t > bound {
+                let k = if t > 0.0 { bound / t } else { 0.0 };
+                if k < scale {
+                    scale = k;
+                }
+            }
+        }
+        let torque_nm = if scale < 1.0 {
+            self.status.torque_bounded = self.status.torque_bounded.saturating_add(1);
+            [torque_nm[0] * scale, torque_nm[1] * scale]
+        } else {
+            torque_nm
+        };
+        self.last_torque_nm = torque_nm;
+        let duty = core::array::from_fn(|i| {
             let rate = sample.rate_radps[i];
             let req = self.motor.duty_for_torque(torque_nm[i], rate);
             if req.saturated {
@@ -552,7 +586,8 @@ impl<const H: usize> ControlLoop<H> {
                 cmd.reverse = !cmd.reverse;
             }
             cmd
-        })
+        });
+        (duty, torque_nm)
     }
 }
 

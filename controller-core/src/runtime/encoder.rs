@@ -105,6 +105,8 @@ pub struct WheelCounts {
     filled: usize,
     /// Last rate, kept when a window's time is zero.
     last_rate: [f32; 2],
+    /// Last resolution, kept like `last_rate`.
+    last_quantum: [f32; 2],
 }
 
 /// One tick's encoder result.
@@ -118,6 +120,11 @@ pub struct CountSample {
     pub dphi_rad: [f32; 2],
     /// Windowed wheel-rate estimate \[rad/s\] `[right, left]`.
     pub rate_radps: [f32; 2],
+    /// The estimate's resolution this tick \[rad/s\] `[right, left]`: one
+    /// count over the window's true span (coarser while the window fills
+    /// after a start: one count over the ticks seen so far). The true mean
+    /// rate over the window is within this of `rate_radps`.
+    pub rate_quantum_radps: [f32; 2],
 }
 
 impl WheelCounts {
@@ -136,6 +143,7 @@ impl WheelCounts {
             head: 0,
             filled: 0,
             last_rate: [0.0; 2],
+            last_quantum: [0.0; 2],
         })
     }
 
@@ -214,22 +222,30 @@ impl WheelCounts {
         self.filled = (self.filled + 1).min(MAX_SPEED_WINDOW);
         let mut rate = [0.0f32; 2];
         let mut dphi = [0.0f32; 2];
+        let mut quantum = self.last_quantum;
+        // One division for both wheels' rates and resolutions.
+        let inv_span = if span_s > 0.0 { 1.0 / span_s } else { 0.0 };
         for i in 0..2 {
             let counts = self.position[i].wrapping_sub(oldest[i]) as f32;
+            if span_s > 0.0 {
+                quantum[i] = self.rad_per_count[i] * inv_span;
+            }
             rate[i] = if self.filled <= 1 {
                 0.0
             } else if span_s > 0.0 {
-                counts * self.rad_per_count[i] / span_s
+                counts * quantum[i]
             } else {
                 self.last_rate[i] // no time passed (never on a real clock)
             };
             dphi[i] = delta[i] as f32 * self.rad_per_count[i];
         }
         self.last_rate = rate;
+        self.last_quantum = quantum;
         CountSample {
             delta,
             dphi_rad: dphi,
             rate_radps: rate,
+            rate_quantum_radps: quantum,
         }
     }
 

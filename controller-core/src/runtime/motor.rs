@@ -142,6 +142,11 @@ pub struct MotorModel {
     emf_per_wheel_rate: f32,
     /// Largest duty magnitude \[counts\].
     max_duty: u16,
+    /// Back-EMF damping b = η_g·N²·k²/R \[N·m per rad/s\].
+    emf_damping_nms_per_rad: f32,
+    /// Wheel torque of half a duty count at a given rate \[N·m\]: the
+    /// rounding error of [`Self::duty_for_torque`].
+    half_count_torque_nm: f32,
 }
 
 impl MotorModel {
@@ -151,11 +156,17 @@ impl MotorModel {
         let max = p.max_duty_fraction * p.duty_full_scale as f32;
         // Floor (+ a little for exact products like 0.5·4800), never above full scale.
         let max_duty = ((max + 1e-3) as u32).min(p.duty_full_scale as u32) as u16;
+        let torque_per_amp = p.gear_efficiency * p.gear_ratio * p.torque_constant_nm_per_a;
+        let emf_per_wheel_rate = p.torque_constant_nm_per_a * p.gear_ratio;
+        let r = p.winding_resistance_ohm;
         Ok(Self {
             params: p,
-            torque_per_amp: p.gear_efficiency * p.gear_ratio * p.torque_constant_nm_per_a,
-            emf_per_wheel_rate: p.torque_constant_nm_per_a * p.gear_ratio,
+            torque_per_amp,
+            emf_per_wheel_rate,
             max_duty,
+            emf_damping_nms_per_rad: torque_per_amp * emf_per_wheel_rate / r,
+            half_count_torque_nm: 0.5 * torque_per_amp * p.supply_voltage_v
+                / (p.duty_full_scale as f32 * r),
         })
     }
 
@@ -172,7 +183,30 @@ impl MotorModel {
     /// Back-EMF damping at the wheel b = η_g·N²·k²/R \[N·m per rad/s\]: at a
     /// fixed voltage the wheel torque falls by b per rad/s of wheel rate.
     pub fn back_emf_damping_nms_per_rad(&self) -> f32 {
-        self.torque_per_amp * self.emf_per_wheel_rate / self.params.winding_resistance_ohm
+        self.emf_damping_nms_per_rad
+    }
+
+    /// The largest torque to command so that the torque *delivered* (the
+    /// armature current) stays within `limit_nm` while the true wheel rate
+    /// may differ from the estimate the duty is computed at by up to
+    /// `rate_uncertainty_radps` \[N·m\], never negative:
+    ///
+    /// limit − b·δ − (half a duty count's torque).
+    ///
+    /// The delivered torque at the true rate φ̇ is the commanded one plus
+    /// b·(φ̇_est − φ̇) (the back-EMF term of [`Self::voltage_for_torque`]
+    /// evaluated at the estimate), and the duty's rounding adds at most half
+    /// a count (D176).
+    #[inline]
+    pub fn torque_bound_nm(&self, limit_nm: f32, rate_uncertainty_radps: f32) -> f32 {
+        let b = limit_nm
+            - self.emf_damping_nms_per_rad * rate_uncertainty_radps
+            - self.half_count_torque_nm;
+        if b > 0.0 {
+            b
+        } else {
+            0.0
+        }
     }
 
     /// Mean armature voltage \[V\] that produces `torque_nm` at the wheel

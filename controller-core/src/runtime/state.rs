@@ -110,6 +110,9 @@ pub struct Status {
     /// Wheel-steps where the duty was clamped (the supply could not deliver
     /// the torque at that speed).
     pub duty_saturated: u32,
+    /// Ticks where the torque was scaled down so that the delivered torque
+    /// stays within the limit at the rate estimate's resolution (D176).
+    pub torque_bounded: u32,
     /// External pose measurements accepted by the estimator.
     pub external_poses: u32,
     /// Safe stops latched.
