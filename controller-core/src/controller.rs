@@ -279,11 +279,10 @@ pub struct DynamicOutput {
     pub s: [f32; 2],
     /// Disturbance estimate D̂ = x̂3 the law used (zero without ESO).
     pub d_hat: [f32; 2],
-    /// Mη at the measured η (eq. 7).
+    /// Mη at the measured η (eq. 7), less N·τ̂_f with friction (eq. 7f):
+    /// the model's acceleration besides N·τ, which the ESO adds to the
+    /// applied torque's (so it estimates what the friction model misses).
     pub m_eta: [f32; 2],
-    /// The friction compensation τ̂_f at η_c's wheel rates (eq. 7f; zero
-    /// without friction) \[N·m\], `[right, left]`.
-    pub friction_nm: [f32; 2],
     /// Torque of eq. (24f) (eq. 24 plus τ̂_f) before saturation \[N·m\],
     /// `[right, left]`.
     pub torque_request_nm: [f32; 2],
@@ -526,8 +525,9 @@ impl ControlLaw {
         let m_eta = self.model.m_eta(eta);
         let accel = sl.accel_request(&state.sliding, kin.eta_c_dot, m_eta, d_hat, e_eta, s);
         let mut torque = self.model.n_inv_mul(accel);
-        // Eq. (24f): + τ̂_f at the wheel rates η_c asks for.
-        let friction_nm = if self.friction_on {
+        let mut m_eta = m_eta;
+        // Eq. (24f): + τ̂_f at the wheel rates η_c asks for; eq. (7f) for the ESO.
+        if self.friction_on {
             let rates = crate::params::wheel_rates(
                 self.inv_wheel_radius_per_m,
                 self.cfg.robot.half_track_m,
@@ -535,16 +535,14 @@ impl ControlLaw {
             );
             let f = self.cfg.friction.torque_nm(rates);
             torque = [torque[0] + f[0], torque[1] + f[1]];
-            f
-        } else {
-            [0.0; 2]
-        };
+            let n_f = self.model.n_tau(f);
+            m_eta = [m_eta[0] - n_f[0], m_eta[1] - n_f[1]];
+        }
         DynamicOutput {
             e_eta,
             s,
             d_hat,
             m_eta,
-            friction_nm,
             torque_request_nm: torque,
         }
     }
@@ -552,8 +550,8 @@ impl ControlLaw {
     /// Stage 5, the state advance over one period, given the torque actually
     /// applied: ∫e_η and ρ̂ are frozen while `applied.saturated`
     /// (anti-windup), and the fal-ESO (eqs. 18-19, `Proposed` only) sees
-    /// `applied.torque_nm` less the friction compensation (eq. 7f: it
-    /// estimates what the friction model misses).
+    /// `applied.torque_nm` with the friction model's acceleration (eq. 7f,
+    /// in `dynamic.m_eta`: it estimates what the friction model misses).
     #[inline]
     pub fn advance(
         &self,
@@ -573,9 +571,7 @@ impl ControlLaw {
         );
         if cfg.kind == ControllerKind::Proposed {
             let m_eta = dynamic.m_eta;
-            let t = applied.torque_nm;
-            let f = dynamic.friction_nm;
-            let n_tau = self.model.n_tau([t[0] - f[0], t[1] - f[1]]);
+            let n_tau = self.model.n_tau(applied.torque_nm);
             let known = [m_eta[0] + n_tau[0], m_eta[1] + n_tau[1]];
             cfg.eso
                 .update_with_slope(&mut state.eso, eta.as_array(), known, dt, self.fal_slope);

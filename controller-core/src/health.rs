@@ -270,12 +270,38 @@ impl HealthState {
     }
 }
 
+/// The soft conditions' thresholds at one scale (computed once).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct SoftThresholds {
+    saturation: f32,
+    fault_ratio: f32,
+    disturbance: f32,
+    adaptation: f32,
+    error_sq_m2: f32,
+}
+
+impl SoftThresholds {
+    fn of(p: &HealthParams, scale: f32) -> Self {
+        Self {
+            saturation: scale * p.saturation_degraded,
+            fault_ratio: scale * p.fault_ratio_degraded,
+            disturbance: scale * p.disturbance_degraded,
+            adaptation: scale * p.adaptation_degraded,
+            error_sq_m2: scale * scale * p.error_degraded_m * p.error_degraded_m,
+        }
+    }
+}
+
 /// The validated parameters and derived constants of the machine; the state
 /// is passed to each call.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct HealthMonitor {
     params: HealthParams,
+    /// The soft thresholds to enter Degraded, and × `exit_fraction` to leave it.
+    enter_at: SoftThresholds,
+    exit_at: SoftThresholds,
     alpha: f32,
     dwell_ticks: u32,
     hard_ticks: u32,
@@ -295,6 +321,8 @@ impl HealthMonitor {
         let ticks = |t: f32| (t / period_s + 0.999) as u32;
         Ok(Self {
             params,
+            enter_at: SoftThresholds::of(&params, 1.0),
+            exit_at: SoftThresholds::of(&params, params.exit_fraction),
             alpha: period_s / (params.filter_s + period_s),
             dwell_ticks: ticks(params.min_dwell_s),
             hard_ticks: ticks(params.hard_dwell_s).max(1),
@@ -382,19 +410,19 @@ impl HealthMonitor {
             None => st.hard_ticks = 0,
         }
 
-        // Soft conditions: the first at or above `scale` × its threshold.
-        let over = |scale: f32| -> Option<HealthReason> {
-            if st.saturation >= scale * p.saturation_degraded {
+        // Soft conditions: the first at or above its threshold in `at`.
+        let over = |at: &SoftThresholds| -> Option<HealthReason> {
+            if st.saturation >= at.saturation {
                 Some(HealthReason::Saturation)
-            } else if eps >= scale * p.fault_ratio_degraded {
+            } else if eps >= at.fault_ratio {
                 Some(HealthReason::ActuatorFault)
-            } else if st.disturbance >= scale * p.disturbance_degraded {
+            } else if st.disturbance >= at.disturbance {
                 Some(HealthReason::Disturbance)
-            } else if st.adaptation >= scale * p.adaptation_degraded {
+            } else if st.adaptation >= at.adaptation {
                 Some(HealthReason::AdaptationLimit)
             } else if input.estimator == EstimatorHealth::Degraded {
                 Some(HealthReason::Estimator)
-            } else if st.acquired && st.error_sq_m2 >= scale * scale * self.error_degraded_sq_m2 {
+            } else if st.acquired && st.error_sq_m2 >= at.error_sq_m2 {
                 Some(HealthReason::TrackingError)
             } else {
                 None
@@ -402,13 +430,13 @@ impl HealthMonitor {
         };
         match st.mode {
             HealthMode::Nominal => {
-                over(1.0).map(|reason| Self::enter(st, HealthMode::Degraded, reason))
+                over(&self.enter_at).map(|reason| Self::enter(st, HealthMode::Degraded, reason))
             }
             HealthMode::Degraded => {
-                if let Some(r) = over(1.0) {
+                if let Some(r) = over(&self.enter_at) {
                     st.reason = r;
                     None
-                } else if over(p.exit_fraction).is_none() && st.ticks_in_mode >= self.dwell_ticks {
+                } else if over(&self.exit_at).is_none() && st.ticks_in_mode >= self.dwell_ticks {
                     let reason = st.reason;
                     Some(Self::enter(st, HealthMode::Nominal, reason))
                 } else {

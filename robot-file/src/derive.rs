@@ -4,8 +4,8 @@
 use crate::error::{Reason, RobotError};
 use crate::sections::Robot;
 use controller_core::estimator::EstimatorConfig;
-use controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
 use controller_core::friction::FrictionModel;
+use controller_core::kinematic::DEFAULT_LARGE_ERROR_M;
 use controller_core::pacer::PacingConfig;
 use controller_core::runtime::{EncoderParams, MotorParams, RuntimeConfig, SafetyLimits};
 use controller_core::trajectory::Reference;
@@ -69,6 +69,25 @@ impl Robot {
         m.supply_voltage_v / (m.torque_constant_nm_per_a * m.gear_ratio)
     }
 
+    /// The speed the smaller wheel holds at `bridge.max_duty_fraction`
+    /// against its friction \[m/s\]: the motor's torque at duty d and rate
+    /// ω, τ_s·(d − ω/ω₀), equals c + b·ω at
+    /// ω = (τ_s·d − c)/(τ_s/ω₀ + b), with τ_s the stall torque and ω₀ the
+    /// no-load speed (both wheels; the slower counts).
+    pub fn friction_limited_speed_mps(&self) -> f32 {
+        let stall = self.stall_torque_nm();
+        let w0 = self.no_load_wheel_speed_radps();
+        let d = self.bridge.max_duty_fraction;
+        let m = &self.motors;
+        let [r0, r1] = self.body.wheel_radius_m;
+        let wheel = |i: usize| {
+            let w = (stall * d - m.coulomb_friction_nm[i])
+                / (stall / w0 + m.viscous_friction_nms_per_rad[i]);
+            w.max(0.0)
+        };
+        (r0 * wheel(0)).min(r1 * wheel(1))
+    }
+
     /// No-load forward speed of the smaller wheel, r_min·V/(k·N) \[m/s\].
     pub fn no_load_speed_mps(&self) -> f32 {
         let [r0, r1] = self.body.wheel_radius_m;
@@ -107,6 +126,9 @@ impl Robot {
     /// wheel rate at `limits.max_speed_mps`.
     pub fn friction_model(&self) -> FrictionModel {
         let m = &self.motors;
+        if m.coulomb_friction_nm == [0.0; 2] && m.viscous_friction_nms_per_rad == [0.0; 2] {
+            return FrictionModel::NONE; // the paper's model (7), exactly
+        }
         let top_wheel_rate_radps = self.limits.max_speed_mps / self.mean_wheel_radius_m();
         FrictionModel {
             viscous_nms_per_rad: m.viscous_friction_nms_per_rad,

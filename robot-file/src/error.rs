@@ -32,6 +32,20 @@ pub enum Reason {
         /// The rule broken.
         why: &'static str,
     },
+    /// Beyond what another field allows: the value, the bound computed from
+    /// the other field (`with`) and what to do (`why`).
+    Exceeds {
+        /// The value found.
+        value: f32,
+        /// The bound it breaks.
+        limit: f32,
+        /// Unit of both numbers.
+        unit: &'static str,
+        /// The other field or the formula of the bound.
+        with: &'static str,
+        /// The rule broken and what to do.
+        why: &'static str,
+    },
     /// `format` is not the version this build reads ([`crate::FORMAT`]).
     UnsupportedFormat {
         /// The version found.
@@ -76,6 +90,16 @@ impl core::fmt::Display for RobotError {
             }
             Reason::Range(e) => write!(f, "{}", e.reason()),
             Reason::Inconsistent { with, why } => write!(f, "inconsistent with {with}: {why}"),
+            Reason::Exceeds {
+                value,
+                limit,
+                unit,
+                with,
+                why,
+            } => write!(
+                f,
+                "{value} {unit} is beyond its bound {limit:.4} {unit} ({with}): {why}"
+            ),
             Reason::UnsupportedFormat { found } => write!(
                 f,
                 "format {found} is not supported (this build reads format {})",

@@ -437,6 +437,42 @@ impl Robot {
         }
         // limits.torque_nm ≤ the stall torque: its range (validate_ranges).
         let l = &self.limits;
+        for (i, f) in [
+            "motors.coulomb_friction_nm[0]",
+            "motors.coulomb_friction_nm[1]",
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let c = mo.coulomb_friction_nm[i];
+            if c >= l.torque_nm {
+                return Err(RobotError::new(
+                    f,
+                    Reason::Exceeds {
+                        value: c,
+                        limit: l.torque_nm,
+                        unit: "N·m",
+                        with: "limits.torque_nm",
+                        why:
+                            "no torque within the limit would move the wheel; measure the friction \
+                              again (wmr commission) or raise limits.torque_nm if the driver allows",
+                    },
+                ));
+            }
+        }
+        let top = self.friction_limited_speed_mps();
+        if l.max_speed_mps > top {
+            return Err(RobotError::new(
+                "limits.max_speed_mps",
+                Reason::Exceeds {
+                    value: l.max_speed_mps,
+                    limit: top,
+                    unit: "m/s",
+                    with: "the speed the motors hold against their friction at bridge.max_duty_fraction",
+                    why: "the robot cannot reach it; lower limits.max_speed_mps to the bound or less",
+                },
+            ));
+        }
         consistent(
             l.max_speed_mps <= self.no_load_speed_mps(),
             "limits.max_speed_mps",

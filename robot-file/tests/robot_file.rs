@@ -166,7 +166,12 @@ fn derived_safety_limits_follow_their_formulas() {
 
 #[test]
 fn examples_parse_and_round_trip() {
-    for f in ["paper.toml", "tb6612-2kg.toml", "bts7960-10kg.toml"] {
+    for f in [
+        "paper.toml",
+        "tb6612-2kg.toml",
+        "bts7960-10kg.toml",
+        "n20-0p85kg.toml",
+    ] {
         let text = read(f);
         let r = Robot::from_toml_str(&text).unwrap_or_else(|e| panic!("{f}: {e}"));
         let back = Robot::from_toml_str(&r.to_toml_string()).unwrap();
@@ -857,4 +862,42 @@ fn a_control_character_in_a_comment_names_no_field_of_its_text() {
             "{cc:?}: {e}"
         );
     }
+}
+
+/// A Coulomb friction at or above the torque limit, and a top speed the
+/// motors cannot hold against their friction, are refused with the value,
+/// the bound and what to do. The bound is the motor law's: at duty d the
+/// torque τ_s·(d − ω/ω₀) equals c + b·ω at ω = (τ_s·d − c)/(τ_s/ω₀ + b);
+/// checked here against that formula written out for n20-0p85kg.toml.
+#[test]
+fn friction_beyond_the_limit_and_an_unreachable_top_speed_are_refused() {
+    let base = Robot::from_toml_str(&read("n20-0p85kg.toml")).unwrap();
+    let mut r = base.clone();
+    r.motors.coulomb_friction_nm = [0.12, 0.06];
+    let e = r.validate().unwrap_err();
+    assert_eq!(e.field, "motors.coulomb_friction_nm[0]", "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains("0.12 N·m") && text.contains("limits.torque_nm"),
+        "{text}"
+    );
+
+    // The bound by hand: 7.4 V, k = 0.00191, N = 120, η = 0.6, R = 4 Ω,
+    // d = 0.95, c = 0.06, b = 0.0002, r = 0.03.
+    let (v, k, n, eta, res) = (7.4f64, 0.00191f64, 120.0f64, 0.6f64, 4.0f64);
+    let stall = eta * n * k * v / res;
+    let w0 = v / (k * n);
+    let w = (stall * 0.95 - 0.06) / (stall / w0 + 0.0002);
+    let top = 0.03 * w;
+    assert!((base.friction_limited_speed_mps() as f64 - top).abs() < 1e-4 * top);
+    assert!(base.limits.max_speed_mps as f64 <= top);
+    let mut r = base.clone();
+    r.limits.max_speed_mps = (top * 1.02) as f32;
+    let e = r.validate().unwrap_err();
+    assert_eq!(e.field, "limits.max_speed_mps", "{e}");
+    let text = e.to_string();
+    assert!(
+        text.contains(&format!("{top:.4} m/s")) && text.contains("lower"),
+        "{text}"
+    );
 }

@@ -13,6 +13,7 @@ pub fn robot_fault(e: &RobotError) -> RobotFault {
         Reason::OutOfRange { min, max, .. } => (RobotFaultKind::OutOfRange, Some([min, max])),
         Reason::Range(e) => (RobotFaultKind::OutOfRange, Some([e.min, e.max])),
         Reason::Inconsistent { .. } => (RobotFaultKind::Inconsistent, None),
+        Reason::Exceeds { limit, .. } => (RobotFaultKind::Inconsistent, Some([0.0, limit])),
         Reason::UnsupportedFormat { .. } => (RobotFaultKind::UnsupportedFormat, None),
         _ => (RobotFaultKind::Refused, None),
     };

@@ -41,6 +41,12 @@ pub struct ControlLoop<const H: usize = HISTORY_LEN> {
     /// The torque delivered during the tick now elapsing \[N·m\]: the
     /// commanded one, or the clamped duty's where the duty saturated.
     last_torque_nm: [f32; 2],
+    /// The torque the step may command \[N·m\]: [`MotorModel::torque_bound_nm`]
+    /// at the rate resolution `bound_quantum_radps` (recomputed when the
+    /// resolution changes: while the window fills, after a late tick; NaN
+    /// forces it).
+    bound_nm: f32,
+    bound_quantum_radps: f32,
     direction: DirectionCheck,
     /// Eq. (7) to wheel accelerations for the direction check (from the
     /// controller's model; rebuilt by [`Self::reconfigure`]).
@@ -113,6 +119,8 @@ impl<const H: usize> ControlLoop<H> {
             stall_ticks: [0; 2],
             consecutive_input_faults: 0,
             last_torque_nm: [0.0; 2],
+            bound_nm: 0.0,
+            bound_quantum_radps: f32::NAN,
             direction: DirectionCheck::default(),
             prediction,
         })
@@ -260,6 +268,7 @@ impl<const H: usize> ControlLoop<H> {
         self.pacer = pacer;
         self.cfg.controller = controller;
         self.cfg.safety = safety;
+        self.bound_quantum_radps = f32::NAN; // the limit may have changed
         Ok(())
     }
 
@@ -370,7 +379,8 @@ impl<const H: usize> ControlLoop<H> {
         if out.is_some() && stop.is_none() {
             // The delivered torque (`duty_for` bounds it and replaces a
             // clamped wheel's).
-            (duty, torque) = self.duty_for(torque, &sample);
+            self.last_torque_nm = torque;
+            duty = self.duty_for(&mut torque, &sample);
             motors.set(duty);
             enabled = true;
             self.status.run_ticks = self.status.run_ticks.saturating_add(1);
@@ -535,46 +545,44 @@ impl<const H: usize> ControlLoop<H> {
         stop
     }
 
+    /// The torque to command so that what the motor *delivers* (its
+    /// current) stays within the torque limit although the duty is computed
+    /// at an estimated rate ([`MotorModel::torque_bound_nm`] at the
+    /// estimate's resolution this tick; D176).
+    fn torque_bound_nm(&mut self, rate_quantum_radps: f32) -> f32 {
+        if rate_quantum_radps != self.bound_quantum_radps {
+            self.bound_quantum_radps = rate_quantum_radps;
+            self.bound_nm = self
+                .motor
+                .torque_bound_nm(self.cfg.controller.torque_limit_nm, rate_quantum_radps);
+        }
+        self.bound_nm
+    }
+
     /// Step 5: torque to duty and direction at each wheel's measured rate
     /// (the motor model's inverse), flipped for mirrored motors. Where the
     /// duty clamps, `last_torque_nm` becomes the torque the clamped duty
     /// delivers at that rate by the same model (b_V·V_supply·duty − b·φ̇):
     /// what the stall and direction checks judge the wheel on (D111).
     ///
-    /// First the torque is bounded so that what the motor *delivers* (its
-    /// current) stays within the torque limit although the duty is computed
-    /// at an estimated rate ([`MotorModel::torque_bound_nm`] with the
-    /// estimate's resolution this tick): both wheels scaled by one factor,
-    /// as [`crate::controller::saturate`] does (the steering kept; D176).
-    ///
-    /// Returns the duty commands and the bounded torque they were computed for.
-    fn duty_for(
-        &mut self,
-        torque_nm: [f32; 2],
-        sample: &CountSample,
-    ) -> ([DutyCommand; 2], [f32; 2]) {
-        let limit = self.cfg.controller.torque_limit_nm;
-        let mut scale = 1.0f32;
-        for i in 0..2 {
-            let bound = self
-                .motor
-                .torque_bound_nm(limit, sample.rate_quantum_radps[i]);
-            let t = torque_nm[i].abs();
-            if t > bound {
-                let k = if t > 0.0 { bound / t } else { 0.0 };
-                if k < scale {
-                    scale = k;
-                }
-            }
-        }
-        let torque_nm = if scale < 1.0 {
+    /// First the torque is scaled (both wheels by one factor, the steering
+    /// kept, as [`crate::controller::saturate`] does) to at most
+    /// [`Self::torque_bound_nm`], so that the delivered torque stays within
+    /// the limit (D176; the controller's ESO and anti-windup see the torque
+    /// before this scaling, which differs only while the rate window fills
+    /// after a start, by at most b·δ).
+    fn duty_for(&mut self, torque_nm: &mut [f32; 2], sample: &CountSample) -> [DutyCommand; 2] {
+        let bound = self.torque_bound_nm(sample.rate_quantum_radps);
+        let (t0, t1) = (torque_nm[0].abs(), torque_nm[1].abs());
+        let peak = if t0 > t1 { t0 } else { t1 };
+        if peak > bound {
             self.status.torque_bounded = self.status.torque_bounded.saturating_add(1);
-            [torque_nm[0] * scale, torque_nm[1] * scale]
-        } else {
-            torque_nm
-        };
-        self.last_torque_nm = torque_nm;
-        let duty = core::array::from_fn(|i| {
+            let k = bound / peak;
+            *torque_nm = [torque_nm[0] * k, torque_nm[1] * k];
+            self.last_torque_nm = *torque_nm;
+        }
+        let torque_nm = *torque_nm;
+        core::array::from_fn(|i| {
             let rate = sample.rate_radps[i];
             let req = self.motor.duty_for_torque(torque_nm[i], rate);
             if req.saturated {
@@ -586,8 +594,7 @@ impl<const H: usize> ControlLoop<H> {
                 cmd.reverse = !cmd.reverse;
             }
             cmd
-        });
-        (duty, torque_nm)
+        })
     }
 }
 

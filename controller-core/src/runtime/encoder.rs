@@ -105,8 +105,8 @@ pub struct WheelCounts {
     filled: usize,
     /// Last rate, kept when a window's time is zero.
     last_rate: [f32; 2],
-    /// Last resolution, kept like `last_rate`.
-    last_quantum: [f32; 2],
+    /// The coarser wheel's angle per count \[rad\].
+    coarse_rad_per_count: f32,
 }
 
 /// One tick's encoder result.
@@ -120,11 +120,12 @@ pub struct CountSample {
     pub dphi_rad: [f32; 2],
     /// Windowed wheel-rate estimate \[rad/s\] `[right, left]`.
     pub rate_radps: [f32; 2],
-    /// The estimate's resolution this tick \[rad/s\] `[right, left]`: one
-    /// count over the window's true span (coarser while the window fills
-    /// after a start: one count over the ticks seen so far). The true mean
-    /// rate over the window is within this of `rate_radps`.
-    pub rate_quantum_radps: [f32; 2],
+    /// The estimate's resolution this tick \[rad/s\]: one count of the
+    /// coarser wheel over the window's true span (coarser while the window
+    /// fills after a start: one count over the ticks seen so far; 0 when no
+    /// time passed). Each wheel's true mean rate over the window is within
+    /// this of its `rate_radps`.
+    pub rate_quantum_radps: f32,
 }
 
 impl WheelCounts {
@@ -135,6 +136,10 @@ impl WheelCounts {
         Ok(Self {
             params,
             rad_per_count: params.rad_per_count(),
+            coarse_rad_per_count: {
+                let [a, b] = params.rad_per_count();
+                a.max(b)
+            },
             prev_raw: [0; 2],
             primed: false,
             position: [0; 2],
@@ -143,7 +148,6 @@ impl WheelCounts {
             head: 0,
             filled: 0,
             last_rate: [0.0; 2],
-            last_quantum: [0.0; 2],
         })
     }
 
@@ -222,25 +226,23 @@ impl WheelCounts {
         self.filled = (self.filled + 1).min(MAX_SPEED_WINDOW);
         let mut rate = [0.0f32; 2];
         let mut dphi = [0.0f32; 2];
-        let mut quantum = self.last_quantum;
-        // One division for both wheels' rates and resolutions.
-        let inv_span = if span_s > 0.0 { 1.0 / span_s } else { 0.0 };
         for i in 0..2 {
             let counts = self.position[i].wrapping_sub(oldest[i]) as f32;
-            if span_s > 0.0 {
-                quantum[i] = self.rad_per_count[i] * inv_span;
-            }
             rate[i] = if self.filled <= 1 {
                 0.0
             } else if span_s > 0.0 {
-                counts * quantum[i]
+                counts * self.rad_per_count[i] / span_s
             } else {
                 self.last_rate[i] // no time passed (never on a real clock)
             };
             dphi[i] = delta[i] as f32 * self.rad_per_count[i];
         }
         self.last_rate = rate;
-        self.last_quantum = quantum;
+        let quantum = if span_s > 0.0 {
+            self.coarse_rad_per_count / span_s
+        } else {
+            0.0
+        };
         CountSample {
             delta,
             dphi_rad: dphi,
