@@ -757,16 +757,17 @@ for chip in f446re f411ce; do
             fail "$chip imu: stack high-water $used B: not within $STACK_MAX_FRACTION of the $s_size B stack"
     done
     IMU_STEP[$chip]="step_insn_mean/max=$m_mean/$m_max stack_running/boot/size_b=$s_run/$s_boot/$s_size"
-    # The other stops on the imu image (headless, as for the others): a
-    # 10 ms stall latches, a HardFault cuts every motor pin.
+    # The other stops on the imu image (headless, as for the others, but
+    # earlier: the button's circle runs from 0.52 s): a 10 ms stall
+    # latches, a HardFault cuts every motor pin.
     elf="$ELF446IMU"
     [ "$chip" = f411ce ] && elf="$ELF411IMU"
     l_stop="$(link_stop_ms "$LOG")"
-    s="$(headless "imu_latch_$chip" --elf "$elf" --chip "$chip" --press 0.5 --stall 2.0:10 --seconds 2.3)"
+    s="$(headless "imu_latch_$chip" --elf "$elf" --chip "$chip" --press 0.5 --stall 1.0:10 --seconds 1.2)"
     [ "$(json ok "$s")" = true ] && [ "$(json boots "$s")" = 1 ] || fail "$chip imu: the 10 ms stall run failed or reset: $s"
     l_latch="$(latch_stop_us "$OUT_DIR/imu_latch_$chip.log")"
     [ -n "$l_latch" ] || fail "$chip imu: the motors were not cut after the 10 ms stall"
-    s="$(headless "imu_hardfault_$chip" --elf "$elf" --chip "$chip" --press 0.5 --fault hardfault@2.0 --seconds 2.6)"
+    s="$(headless "imu_hardfault_$chip" --elf "$elf" --chip "$chip" --press 0.5 --fault hardfault@1.0 --seconds 1.1)"
     cut="$(json motors_cut_after_fault_us "$s")"
     [ -n "$cut" ] && le "$cut" "$FAULT_CUT_US" || fail "$chip imu: motor pins low ${cut:-never} us after a HardFault (> $FAULT_CUT_US us)"
     IMU_STOP[$chip]="$l_stop/$l_latch/$cut/$(json motors_cut_after_fault_insn "$s")"
