@@ -69,6 +69,17 @@
 #       (device --robot FILE); before the push the bridge stays disabled
 #       (the harness fails the run if a pin map of another mode than its
 #       wiring's is ever enabled);
+#   (p) every release image runs an example robot pushed over its own
+#       link: (l) covers the F446 (tb6612-2kg on the pwm-dir image); the
+#       F411 (USB: the push's reboot enumerates again) and the F411-imu
+#       get tb6612-2kg, the F446-imu bts7960-10kg, each with the harness's
+#       robot and wiring that file's, booted from flash, the square for
+#       ROBOT_RECORD_S within REL_TOL_ROBOT of hil-sim's runtime path for
+#       that robot (the imu images: with a gyro, reference-robot-imu.toml;
+#       the gyro cell full again after the reboot and through the record);
+#   every paced run (and (j)'s drives): no transient bridge state (between
+#       the stores of one motor update) drives a wheel harder than the
+#       stable states around it (src/bridge.rs TransientWatch, D148);
 #   (n) a stored record with an invalid [bridge] falls back safely: the
 #       store crafted to hold bts7960-10kg with bridge.pwm_frequency_hz =
 #       2000 Hz (below the F446 TIM1's 2,564 Hz at 65,535 counts) and a
@@ -89,7 +100,11 @@
 #       is mirrored: forward). Control: an image with the naive two-PWM
 #       mapping (feature ci-naive-two-pwm: IN1 = duty PWM, IN2 = direction
 #       level) must fail it.
-# Prints the numbers (RMS both ways, emulation speed, step time).
+# Prints the numbers (RMS both ways, emulation speed, step time), and one
+# `RESULT image=...` line per release image (F446, F411, both imu): the
+# square's RMS emulated/hil-sim, the pushed robot's, the stop latencies
+# (link silence, a latched stall, the fault handlers), the control step's
+# instructions, the stack, the imu images' I2C fault recoveries.
 #
 # Usage: stm32-emu/run.sh       (from anywhere; builds what it needs)
 # Env:   OUT_DIR=<dir>  RECORD_S=10  REL_TOL_RMS=0.10  MAX_DROPPED_FRAMES=10
@@ -240,14 +255,7 @@ drive() {
     echo "$rec"
     step "link silence: the host stays quiet for $LINK_SILENCE_S s of robot time while the robot runs"
     if [ "$chip" != sim ]; then
-        # Emulated time (the log's once-a-second lines): the emulator may run
-        # slower than the wall clock on a loaded machine.
-        local e0 t_end=$((SECONDS + 60))
-        e0="$(emu_now)"
-        until le "$(awk -v a="$e0" -v b="$LINK_SILENCE_S" 'BEGIN { print a + b + 1 }')" "$(emu_now)"; do
-            [ "$SECONDS" -lt "$t_end" ] || fail "the emulator did not advance $LINK_SILENCE_S s within 60 s"
-            sleep 0.2
-        done
+        wait_emulated "$LINK_SILENCE_S"
     else
         sleep "$LINK_SILENCE_S"
     fi
@@ -255,10 +263,37 @@ drive() {
     echo "$st"
 }
 
-declare -A F411_CUT
+# Waits until the emulator's clock has advanced $1 s (the log's
+# once-a-second lines, so up to 1 s more): the emulator may run slower than
+# the wall clock on a loaded machine.
+wait_emulated() {
+    local e0 t_end=$((SECONDS + 60))
+    e0="$(emu_now)"
+    until le "$(awk -v a="$e0" -v b="$1" 'BEGIN { print a + b + 1 }')" "$(emu_now)"; do
+        [ "$SECONDS" -lt "$t_end" ] || fail "the emulator did not advance $1 s within 60 s"
+        sleep 0.2
+    done
+}
+
+declare -A F411_CUT F446_CUT
 json() { sed -n "s/.*\"$1\":\([-0-9.eE+a-z]*\).*/\1/p" <<<"${2:-$rec}"; }
 within_rel() { awk -v a="$1" -v b="$2" -v t="$3" 'BEGIN { d = a - b; if (d < 0) d = -d; exit !(d <= t * b) }'; }
 le() { awk -v a="$1" -v b="$2" 'BEGIN { exit !(a + 0 <= b + 0) }'; }
+# Stop latencies from an emulator log: link silence = the host's last byte
+# to the motors off (the last such line: the emulator appends it to every
+# "motors off" event); a latched stall = the stall's end to the motors off.
+link_stop_ms() { sed -n "s/.*motors off.*the host's last byte \([0-9.]*\) ms before.*/\1/p" "$1" | tail -1; }
+latch_stop_us() {
+    awk '/stall ends/ { s = $0; sub(/^\[stm32-emu t= */, "", s); t0 = s + 0; on = 1 }
+        on && /motors off/ { s = $0; sub(/^\[stm32-emu t= */, "", s); printf "%.0f", (s - t0) * 1e6; exit }' "$1"
+}
+# No transient bridge state drove a wheel beyond the stable states around it
+# (src/bridge.rs TransientWatch: an ordering defect of the motor writes).
+no_transients() {
+    if grep -q "bridge transient" "$1"; then
+        fail "$2: $(grep "bridge transient" "$1" | head -2)"
+    fi
+}
 
 step "(a) boot the exact F446RE image ($ELF446)"
 ls -l "$ELF446"
@@ -306,7 +341,10 @@ grep -q "state Running" <<<"$emu_st" && fail "still running after the host went 
 grep "motors off" "$LOG" | tail -1
 tail_motor="$(grep -E "motors (off|driven)" "$LOG" | tail -1)"
 grep -q "motors off" <<<"$tail_motor" || fail "the motors are still driven after the link-loss stop"
-echo "OK: the firmware stopped the robot on link silence, motors off"
+LINK_STOP446="$(link_stop_ms "$OUT_DIR/emu_a.log")"
+[ -n "$LINK_STOP446" ] || fail "no link-silence stop latency in the log (the motors-off line names the host's last byte)"
+no_transients "$OUT_DIR/emu_a.log" "F446 tracking run"
+echo "OK: the firmware stopped the robot on link silence, motors off ${LINK_STOP446} ms after the host's last byte"
 
 # Starts `hil-sim device --pty` with args "$@"; sets DEV_PID, PORT.
 start_hilsim() {
@@ -363,7 +401,8 @@ grep -q "last stop LoopOverrun" <<<"$st" || fail "no LoopOverrun latch after a 1
 grep -q "RESET" "$LOG" && fail "the 10 ms stall reset the chip"
 awk '/stall ends/ { s = 1 } s && /motors off/ { found = 1 } END { exit !found }' "$LOG" ||
     fail "the motors were not cut after the stall"
-echo "OK: $(grep -A3 "stall ends" "$LOG" | grep "motors off" | head -1)"
+LATCH446_US="$(latch_stop_us "$LOG")"
+echo "OK: motors off ${LATCH446_US} us after the stall ends: $(grep -A3 "stall ends" "$LOG" | grep "motors off" | head -1)"
 
 # Headless checks: deterministic, as fast as the host allows.
 headless() {
@@ -394,6 +433,7 @@ for fault in hardfault busfault; do
     le "$cut" "$FAULT_CUT_US" || fail "motor pins low only $cut us after the $fault (> $FAULT_CUT_US us)"
     [ "$(json hardfaults "$s")" -ge 1 ] || fail "no HardFault taken"
     [ "$(json iwdgrstf "$s")" = true ] || fail "no IWDG reset after the $fault"
+    F446_CUT[$fault]="$cut/$(json motors_cut_after_fault_insn "$s")"
     echo "OK: every motor pin low $cut us ($(json motors_cut_after_fault_insn "$s") instructions) after the $fault, then the IWDG reset"
 done
 
@@ -420,6 +460,8 @@ within_rel "$rms411" "$ref_rms" "$REL_TOL_RMS" ||
     fail "F411: RMS position error $rms411 m differs from hil-sim's $ref_rms m by more than $REL_TOL_RMS of it"
 grep -q "last stop LinkSilence" <<<"$st411" || fail "F411: no link-loss stop after $LINK_SILENCE_S s of silence: $st411"
 grep -E "motors (off|driven)" "$LOG" | tail -1 | grep -q "motors off" || fail "F411: the motors are still driven after the link-loss stop"
+LINK_STOP411="$(link_stop_ms "$LOG")"
+no_transients "$LOG" "F411 tracking run"
 stack411="$(grep "alive (stack high-water" "$LOG" | tail -1)"
 read -r st411_run st411_boot st411_size < <(sed -n 's/.*stack high-water \([0-9]*\) B running, \([0-9]*\) B at boot, of \([0-9]*\) B.*/\1 \2 \3/p' <<<"$stack411")
 for used in "$st411_run" "$st411_boot"; do
@@ -450,7 +492,8 @@ s="$(headless f411_latch --elf "$ELF411" --chip f411ce --press 0.5 --stall 2.0:1
 [ "$(json boots "$s")" = 1 ] || fail "F411: the 10 ms stall reset the chip"
 awk '/stall ends/ { s = 1 } s && /motors off/ { f = 1 } END { exit !f }' "$OUT_DIR/f411_latch.log" ||
     fail "F411: the motors were not cut after the 10 ms stall"
-echo "OK: F411 10 ms stall: $(awk '/stall ends/ { s = 1 } s && /motors off/ { print; exit }' "$OUT_DIR/f411_latch.log")"
+LATCH411_US="$(latch_stop_us "$OUT_DIR/f411_latch.log")"
+echo "OK: F411 10 ms stall: motors off ${LATCH411_US} us after it: $(awk '/stall ends/ { s = 1 } s && /motors off/ { print; exit }' "$OUT_DIR/f411_latch.log")"
 s="$(headless f411_iwdg --elf "$ELF411" --chip f411ce --press 0.5 --stall 2.0:100 --seconds 2.6)"
 [ "$(json ok "$s")" = true ] || fail "F411 IWDG run failed: $s"
 [ "$(json iwdg_resets "$s")" = 1 ] && [ "$(json iwdgrstf "$s")" = true ] && [ "$(json loop_started "$s")" = true ] ||
@@ -676,7 +719,7 @@ imu_square() {
     rec="$(wmr record --seconds "$RECORD_S" --rate "$RATE_HZ" --out "$OUT_DIR/imu_square_$1.csv" --arm --quiet)" || fail "wmr record ($1 imu)"
     echo "$rec"
 }
-declare -A IMU_RMS IMU_STEP
+declare -A IMU_RMS IMU_STEP IMU_STOP
 start_hilsim --scenario reference-imu.toml
 imu_square sim
 cleanup
@@ -691,8 +734,15 @@ for chip in f446re f411ce; do
     fi
     PORT="$PTY"
     imu_square "$chip"
+    # Link silence on the imu image too (the same session): the stop's
+    # latency from the host's last byte.
+    wait_emulated "$LINK_SILENCE_S"
+    st="$(wmr status)" || fail "wmr status after the silence ($chip imu)"
     cleanup
     cp "$LOG" "$OUT_DIR/imu_square_$chip.log"
+    grep -q "last stop LinkSilence" <<<"$st" || fail "$chip imu: no link-loss stop after $LINK_SILENCE_S s of silence: $st"
+    grep -E "motors (off|driven)" "$LOG" | tail -1 | grep -q "motors off" || fail "$chip imu: the motors are still driven after the link-loss stop"
+    no_transients "$LOG" "$chip imu square"
     grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fail "$chip imu: a reset, fault or unmodelled access during the square"
     grep -q "gyro cell: first sample" "$LOG" || fail "$chip imu: no gyro sample during the square"
     grep -q "gyro cell: empty" "$LOG" && fail "$chip imu: the gyro was withdrawn during the square: $(grep "gyro cell: empty" "$LOG" | head -1)"
@@ -707,7 +757,21 @@ for chip in f446re f411ce; do
             fail "$chip imu: stack high-water $used B: not within $STACK_MAX_FRACTION of the $s_size B stack"
     done
     IMU_STEP[$chip]="step_insn_mean/max=$m_mean/$m_max stack_running/boot/size_b=$s_run/$s_boot/$s_size"
-    echo "OK: $chip imu: the square with the gyro, RMS ${IMU_RMS[$chip]} m (hil-sim with a gyro ${IMU_RMS[sim]} m, without $ref_rms m); control step $m_mean instructions mean, $m_max max; stack $s_run B running, $s_boot B at boot, of $s_size B"
+    # The other stops on the imu image (headless, as for the others, but
+    # earlier: the button's circle runs from 0.52 s): a 10 ms stall
+    # latches, a HardFault cuts every motor pin.
+    elf="$ELF446IMU"
+    [ "$chip" = f411ce ] && elf="$ELF411IMU"
+    l_stop="$(link_stop_ms "$LOG")"
+    s="$(headless "imu_latch_$chip" --elf "$elf" --chip "$chip" --press 0.5 --stall 1.0:10 --seconds 1.2)"
+    [ "$(json ok "$s")" = true ] && [ "$(json boots "$s")" = 1 ] || fail "$chip imu: the 10 ms stall run failed or reset: $s"
+    l_latch="$(latch_stop_us "$OUT_DIR/imu_latch_$chip.log")"
+    [ -n "$l_latch" ] || fail "$chip imu: the motors were not cut after the 10 ms stall"
+    s="$(headless "imu_hardfault_$chip" --elf "$elf" --chip "$chip" --press 0.5 --fault hardfault@1.0 --seconds 1.1)"
+    cut="$(json motors_cut_after_fault_us "$s")"
+    [ -n "$cut" ] && le "$cut" "$FAULT_CUT_US" || fail "$chip imu: motor pins low ${cut:-never} us after a HardFault (> $FAULT_CUT_US us)"
+    IMU_STOP[$chip]="$l_stop/$l_latch/$cut/$(json motors_cut_after_fault_insn "$s")"
+    echo "OK: $chip imu: the square with the gyro, RMS ${IMU_RMS[$chip]} m (hil-sim with a gyro ${IMU_RMS[sim]} m, without $ref_rms m); control step $m_mean instructions mean, $m_max max; stack $s_run B running, $s_boot B at boot, of $s_size B; stops: link silence ${l_stop} ms after the host's last byte, 10 ms stall latched ${l_latch} us after it, HardFault: every motor pin low $cut us"
 done
 
 step "(i) every bridge mode tracks the square (the F446 image per BRIDGE_MODE, the harness's bridge model per mode)"
@@ -720,6 +784,7 @@ for mode in two-pwm pwm-in1-in2; do
     drive stm32f446re "$OUT_DIR/emu_square_$mode.csv"
     cleanup
     grep -E "^\[stm32-emu.*(RESET|exception [0-9]+ entered|unmodelled)" "$LOG" && fail "$mode: a reset, fault or unmodelled access during the tracking run"
+    no_transients "$LOG" "$mode tracking run"
     m_rms="$(json rms_pos_err_m "$rec")"
     m_rows="$(json rows "$rec")"
     [ -n "$m_rms" ] || fail "$mode: no metrics in wmr record's summary"
@@ -760,6 +825,7 @@ step "(j) a small reverse command gives a small reverse voltage in every mode (w
 declare -A MODE_PEAK
 for mode in pwm-dir two-pwm pwm-in1-in2; do
     reverse_peaks "${MODE_ELF[$mode]}" "$mode"
+    no_transients "$LOG" "$mode reverse drive"
     MODE_PEAK[$mode]="$peak_r/$peak_l"
     small_reverse "$peak_r" "$peak_l" "$big_r" "$big_l" ||
         fail "$mode: a small reverse command gave reverse armature peaks right $peak_r, left $peak_l, largest magnitudes $big_r / $big_l of the supply (want right < 0, left > 0, both within $REVERSE_MAX_FRACTION): $(tail -2 "$OUT_DIR/drive_$mode.out")"
@@ -787,7 +853,7 @@ step "(l) the example robots, each pushed over the link (wmr robot push) to an i
 # (stm32-emu/reference-robot.toml: the file's encoders and motors).
 declare -A ROBOT_MODE=([paper]=pwm-dir [tb6612-2kg]=pwm-in1-in2 [bts7960-10kg]=two-pwm)
 declare -A IMAGE_MODE=([paper]=two-pwm [tb6612-2kg]=pwm-dir [bts7960-10kg]=pwm-in1-in2)
-declare -A ROBOT_RMS
+declare -A ROBOT_RMS ROBOT_REF
 for r in paper tb6612-2kg bts7960-10kg; do
     file="$ROOT/robots/$r.toml"
     [ "${IMAGE_MODE[$r]}" != "${ROBOT_MODE[$r]}" ] || fail "(l) $r: the image's mode must differ from the robot's"
@@ -805,6 +871,7 @@ for r in paper tb6612-2kg bts7960-10kg; do
     grep -E "^\[stm32-emu.*(exception [0-9]+ entered|unmodelled|IWDG expired)" "$LOG" && fail "$r: a fault, unmodelled access or watchdog reset"
     [ "$(grep -c "\] boot " "$LOG")" -eq 2 ] || fail "$r: expected exactly the push's reboot"
     grep "board wiring" "$LOG" || true
+    no_transients "$LOG" "$r pushed"
     start_hilsim --scenario reference-robot.toml --robot "$file"
     wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "$r: wmr upload (hil-sim)"
     r_ref="$(wmr record --seconds "$ROBOT_RECORD_S" --rate "$RATE_HZ" --out "$OUT_DIR/robot_${r}_hilsim.csv" --arm --quiet)" ||
@@ -816,8 +883,74 @@ for r in paper tb6612-2kg bts7960-10kg; do
     within_rel "$a_rms" "$b_rms" "$REL_TOL_ROBOT" ||
         fail "$r: RMS $a_rms m on the emulated board, $b_rms m on hil-sim's runtime path: beyond $REL_TOL_ROBOT"
     ROBOT_RMS[$r]="$a_rms/$b_rms"
+    ROBOT_REF[$r]="$b_rms"
     echo "OK: $r (${ROBOT_MODE[$r]}, stored, on the ${IMAGE_MODE[$r]} image): RMS $a_rms m emulated, $b_rms m hil-sim, over $ROBOT_RECORD_S s"
 done
+
+step "(p) every release image runs an example robot pushed over its own link: F411 (USB), F446-imu, F411-imu (the F446's is (l)'s tb6612-2kg)"
+# An example robot of another bridge mode than the image's compiled-in
+# paper robot (pwm-dir), as in (l): the harness's robot and H-bridge wiring
+# that file's (--robot; so each is its own session: the plant is fixed
+# when the emulator starts), `wmr robot push` over the image's own link
+# (USB on the F411: the push's reboot re-enumerates), booted from flash,
+# then the square for ROBOT_RECORD_S against hil-sim's runtime path for
+# that robot with the same commands: without a gyro (F411) (l)'s reference
+# of the same robot (the F446's 8400 PWM counts, as (g) uses (b)'s), with
+# one (the imu images) reference-robot-imu.toml; on the imu images the
+# gyro cell holds samples again after the push's reboot and stays full
+# (the estimator uses the gyro during the record). tb6612-2kg is the
+# Black Pill + MPU-6050 robot; bts7960-10kg (two-pwm) on the F446-imu.
+declare -A PUSH_RMS
+PUSH_RMS[f446re]="tb6612-2kg ${ROBOT_RMS[tb6612-2kg]}"
+t_p0=$SECONDS
+push_run() {
+    local img="$1" chip="$2" elf="$3" r="$4" imu="$5"
+    local file="$ROOT/robots/$r.toml"
+    if [ "$chip" = f411ce ]; then
+        start_emu --elf "$elf" --chip f411ce --robot "$file"
+        wait_for_log "USB host: configured" 20
+    else
+        start_emu --elf "$elf" --robot "$file"
+        wait_for_log "IWDG started" 20
+    fi
+    PORT="$PTY"
+    out="$(wmr robot push "$file" 2>&1)" || fail "$img: wmr robot push $r: $out"
+    grep -q "runs \"$r\" from flash" <<<"$out" || fail "$img: the board did not boot the pushed $r from flash: $out"
+    wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "$img ($r): wmr upload"
+    r_emu="$(wmr record --seconds "$ROBOT_RECORD_S" --rate "$RATE_HZ" --out "$OUT_DIR/push_$img.csv" --arm --quiet)" ||
+        fail "$img ($r): wmr record"
+    cleanup
+    cp "$LOG" "$OUT_DIR/push_$img.log"
+    grep -E "^\[stm32-emu.*(exception [0-9]+ entered|unmodelled|IWDG expired)" "$LOG" && fail "$img ($r): a fault, unmodelled access or watchdog reset"
+    [ "$(grep -c "\] boot " "$LOG")" -eq 2 ] || fail "$img ($r): expected exactly the push's reboot"
+    if [ "$chip" = f411ce ]; then
+        [ "$(grep -c "USB host: configured" "$LOG")" -eq 2 ] || fail "$img ($r): the host did not enumerate the device again after the push's reboot"
+    fi
+    no_transients "$LOG" "$img ($r pushed)"
+    if [ "$imu" = imu ]; then
+        awk '/\] boot / { s = 0; e = 0 } /gyro cell: (first sample|sample again)/ { s = 1; e = 0 } s && /gyro cell: empty/ { e = 1 }
+            END { exit !(s && !e) }' "$LOG" ||
+            fail "$img ($r): the gyro cell did not hold samples through the record after the push's reboot: $(grep "gyro cell" "$LOG" | tail -3)"
+        start_hilsim --scenario reference-robot-imu.toml --robot "$file"
+        wmr upload "$ROOT/trajectories/square.toml" >/dev/null || fail "$img ($r): wmr upload (hil-sim)"
+        r_ref="$(wmr record --seconds "$ROBOT_RECORD_S" --rate "$RATE_HZ" --out "$OUT_DIR/push_${img}_hilsim.csv" --arm --quiet)" ||
+            fail "$img ($r): wmr record on hil-sim's device"
+        cleanup
+        b_rms="$(json rms_pos_err_m "$r_ref")"
+    else
+        b_rms="${ROBOT_REF[$r]}"
+    fi
+    a_rms="$(json rms_pos_err_m "$r_emu")"
+    [ -n "$a_rms" ] && [ -n "$b_rms" ] || fail "$img ($r): no metrics in wmr record's summaries"
+    within_rel "$a_rms" "$b_rms" "$REL_TOL_ROBOT" ||
+        fail "$img ($r): RMS $a_rms m on the emulated board, $b_rms m on hil-sim's runtime path: beyond $REL_TOL_ROBOT"
+    PUSH_RMS[$img]="$r $a_rms/$b_rms"
+    echo "OK: $img: $r pushed over its link, booted from flash, the square for $ROBOT_RECORD_S s: RMS $a_rms m emulated, $b_rms m hil-sim${imu:+ (with a gyro, the cell full after the reboot)}"
+}
+push_run f411ce f411ce "$ELF411" tb6612-2kg ""
+push_run f411ce-imu f411ce "$ELF411IMU" tb6612-2kg imu
+push_run f446re-imu f446re "$ELF446IMU" bts7960-10kg imu
+echo "(p) took $((SECONDS - t_p0)) s wall"
 
 step "(n) a stored record with an invalid [bridge] falls back safely; the link refuses the same robot"
 # The store crafted (--flash-robot, --flash-pwm-hz: a valid CRC around
@@ -938,4 +1071,28 @@ echo "RESULT bridge=naive-two-pwm reverse_armature_peak_r/l=$peak_r/$peak_l (con
 echo "RESULT imu rms_pos_err_m f446re/f411ce/hil-sim=${IMU_RMS[f446re]}/${IMU_RMS[f411ce]}/${IMU_RMS[sim]} boot_f446re=\"${IMU_BOOT[f446re]}\" boot_f411ce=\"${IMU_BOOT[f411ce]}\""
 for chip in f446re f411ce; do echo "RESULT imu chip=$chip ${IMU_STEP[$chip]}"; done
 for k in "${!IMU_FAULT[@]}"; do echo "RESULT imu fault=$k withdrawn/back_ms_after=${IMU_FAULT[$k]}"; done
+# One line per release image (stm32-emu/README.md's table of the four):
+# the square's RMS emulated/hil-sim, the pushed robot's, the stop latencies
+# (link silence: ms from the host's last byte to the motors off; a 10 ms
+# stall's latch: us from its end; HardFault / bus fault: us and
+# instructions to every motor pin low), the control step's instructions,
+# the stack, and the imu images' I2C faults (ms after the fault: gyro
+# withdrawn/back).
+imu_faults() {
+    local k out=""
+    for k in $(printf '%s\n' "${!IMU_FAULT[@]}" | grep "\.$1\$" | sort); do out+=" ${k%.*}=${IMU_FAULT[$k]}"; done
+    echo "${out# }"
+}
+echo
+for img in f446re f411ce f446re-imu f411ce-imu; do
+    case $img in
+    f446re) line="link=usart2 square_rms_m=$rms/$ref_rms link_stop_ms=$LINK_STOP446 latch_us=$LATCH446_US fault_cut_us/insn=${F446_CUT[hardfault]},${F446_CUT[busfault]} step_insn_mean/max=$STEP446_MEAN/$STEP446_MAX stack_running/boot/size_b=$STACK_RUN_B/$STACK_BOOT_B/$st_size" ;;
+    f411ce) line="link=usb square_rms_m=$rms411/$ref_rms link_stop_ms=$LINK_STOP411 latch_us=$LATCH411_US fault_cut_us/insn=${F411_CUT[hardfault]},${F411_CUT[busfault]} step_insn_mean/max=$STEP411_MEAN/$STEP411_MAX stack_running/boot/size_b=$st411_run/$st411_boot/$st411_size" ;;
+    *-imu)
+        c="${img%-imu}"
+        IFS=/ read -r a b cu ci <<<"${IMU_STOP[$c]}"
+        line="link=$([ "$c" = f411ce ] && echo usb || echo usart2) square_rms_m=${IMU_RMS[$c]}/${IMU_RMS[sim]} link_stop_ms=$a latch_us=$b fault_cut_us/insn=$cu/$ci ${IMU_STEP[$c]} i2c_faults_withdrawn/back_ms: $(imu_faults "$c")" ;;
+    esac
+    echo "RESULT image=$img $line pushed_robot_rms_m=${PUSH_RMS[$img]// /:}"
+done
 echo "stm32-emu: all checks passed in $((SECONDS - T_START)) s (logs: $OUT_DIR)"

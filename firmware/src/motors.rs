@@ -46,7 +46,10 @@
 //! reverse; while PWM is low the TB6612 short-brakes (its truth table:
 //! IN1/IN2 = 10 or 01 with PWM L is "short brake"), so it is drive/brake.
 //! Idle brake IN1 = IN2 = high with PWM high (short brake in any case),
-//! coast IN1 = IN2 = low with PWM low ("stop", outputs off). An L298N on
+//! coast IN1 = IN2 = low with PWM low ("stop", outputs off). The lines and
+//! the duty are separate stores: a wheel going to brake or reversing is
+//! braked first (both lines high), so no state between the stores drives
+//! more than the old or the new one (D148). An L298N on
 //! these pins (ENx = PWM) is drive/*coast* while ENx is low, not the
 //! slow decay the motor model assumes: wire it as TwoPwm (IN1/IN2 = PA8/PB13,
 //! PA9/PB0, ENA/ENB to PB14) instead.
@@ -310,16 +313,40 @@ impl MotorDriver for HBridge {
                 }
             }
             BridgeMode::PwmIn1In2 => {
+                // The lines (GPIO) and the duty (CCR) are two stores, and
+                // every state between them is driven (for a few
+                // instructions, or an interrupt's length). Ordered so that
+                // none drives more than the old or the new state: a wheel
+                // going to brake, or reversing, is braked first (IN1 = IN2
+                // = high: short brake at any PWM), then CCR, then the
+                // lines. Written the other way round, drive → brake passed
+                // through the old direction at CCR = full: the whole
+                // supply (stm32-emu's bridge transients, D148).
                 let pins = [(PB_R_DIR_IN1, PB_R_IN2), (PB_L_DIR_IN1, PB_L_IN2)];
+                let odr = pac::GPIOB.odr().read().0;
+                let mut brake_first = 0u32;
+                let mut ccr = [0u32; 2];
                 for (i, ((in1, in2), c)) in pins.into_iter().zip(cmd).enumerate() {
-                    let (a, b, ccr) = match (c.duty, self.idle) {
+                    let (a, b, duty) = match (c.duty, self.idle) {
                         (0, IdleMode::Brake) => (true, true, full),
                         (0, IdleMode::Coast) => (false, false, 0),
                         (d, _) => (!c.reverse, c.reverse, (d as u32).min(full)),
                     };
+                    let was = ((odr >> in1) & 1 != 0, (odr >> in2) & 1 != 0);
+                    let reversing = a != b && was.0 != was.1 && was.0 != a;
+                    if (a && b) || reversing {
+                        brake_first |= bsrr_bit(in1, true) | bsrr_bit(in2, true);
+                    }
                     bsrr |= bsrr_bit(in1, a) | bsrr_bit(in2, b);
-                    write_ccr(i, ccr);
+                    ccr[i] = duty;
                 }
+                if brake_first != 0 {
+                    pac::GPIOB
+                        .bsrr()
+                        .write_value(pac::gpio::regs::Bsrr(brake_first));
+                }
+                write_ccr(0, ccr[0]);
+                write_ccr(1, ccr[1]);
             }
             BridgeMode::TwoPwm => {
                 let mut ccer = 0u32;

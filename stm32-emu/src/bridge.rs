@@ -114,6 +114,88 @@ pub fn armature(
     }
 }
 
+/// Bridge states shorter than this are transients \[ps\]: the states
+/// between the stores of one update of the motor outputs (CCR, CCER, the
+/// GPIO lines; a few tens of instructions, < 0.5 µs at CPI 1), unless an
+/// interrupt lands between them.
+pub const TRANSIENT_PS: u128 = 2_000_000;
+
+/// Tolerance of [`TransientWatch`] (fraction of the supply).
+pub const TRANSIENT_TOL: f64 = 0.01;
+
+/// A run of transient states that drove a wheel harder than the stable
+/// states on both sides of it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transient {
+    /// Wheel (0 right, 1 left).
+    pub wheel: usize,
+    /// The largest armature fraction during the run (signed).
+    pub armature: f64,
+    /// The stable states' fractions before and after it.
+    pub before: f64,
+    /// See `before`.
+    pub after: f64,
+    /// When the run began and how long it lasted \[ps\].
+    pub at_ps: u128,
+    /// See `at_ps`.
+    pub len_ps: u128,
+}
+
+/// Watches the sequence of bridge states (each wheel's armature fraction,
+/// coast = 0) for transients: states lasting less than [`TRANSIENT_PS`]
+/// whose magnitude exceeds both the stable state before and the one after
+/// them by more than [`TRANSIENT_TOL`]. Such a state is an ordering defect
+/// of the writes (the new duty with the old direction lines, e.g.): on the
+/// chip it lasts as long as the gap between two stores, or an interrupt.
+#[derive(Clone, Debug, Default)]
+pub struct TransientWatch {
+    /// The state being watched, since when.
+    current: Option<([f64; 2], u128)>,
+    /// The last stable state.
+    stable: [f64; 2],
+    /// The open run of transients: its start and each wheel's largest
+    /// magnitude (signed value kept).
+    run: Option<(u128, [f64; 2])>,
+}
+
+impl TransientWatch {
+    /// The bridge changed to `state` at `now_ps`; returns the transients
+    /// the state just left closes (at most one per wheel).
+    pub fn change(&mut self, now_ps: u128, state: [f64; 2]) -> Vec<Transient> {
+        let mut out = Vec::new();
+        let Some((left, since)) = self.current.replace((state, now_ps)) else {
+            self.stable = state;
+            return out;
+        };
+        if now_ps - since < TRANSIENT_PS {
+            let (_, peak) = self.run.get_or_insert((since, [0.0; 2]));
+            for i in 0..2 {
+                if left[i].abs() > peak[i].abs() {
+                    peak[i] = left[i];
+                }
+            }
+            return out;
+        }
+        if let Some((start, peak)) = self.run.take() {
+            for i in 0..2 {
+                let bound = self.stable[i].abs().max(left[i].abs()) + TRANSIENT_TOL;
+                if peak[i].abs() > bound {
+                    out.push(Transient {
+                        wheel: i,
+                        armature: peak[i],
+                        before: self.stable[i],
+                        after: left[i],
+                        at_ps: start,
+                        len_ps: since - start,
+                    });
+                }
+            }
+        }
+        self.stable = left;
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -174,5 +256,38 @@ mod tests {
         ] {
             assert_eq!(armature(mode, d, hi, lo, false), None, "{mode:?}");
         }
+    }
+
+    /// Drive → brake written as CCR = full before the lines: a state of
+    /// full drive for 0.1 µs between 5 % and brake is a transient; the
+    /// same update lines-first (brake, then CCR) is not; nor is a normal
+    /// update whose intermediate states lie between the old and the new.
+    #[test]
+    fn transient_watch_flags_a_full_drive_between_stores() {
+        let us = 1_000_000u128;
+        let mut w = TransientWatch::default();
+        assert!(w.change(0, [0.05, -0.05]).is_empty());
+        // CCR = full with IN1/IN2 still forward: +1.0 for 0.1 µs.
+        assert!(w.change(1000 * us, [1.0, -0.05]).is_empty());
+        assert!(w.change(1000 * us + us / 10, [0.0, -0.05]).is_empty());
+        // Brake held for a tick: the run closes.
+        let t = w.change(2000 * us, [0.0, -0.04]);
+        assert_eq!(t.len(), 1, "{t:?}");
+        assert_eq!(t[0].wheel, 0);
+        assert_eq!(t[0].armature, 1.0);
+        assert_eq!((t[0].before, t[0].after), (0.05, 0.0));
+        assert_eq!(t[0].len_ps, us / 10);
+        // Lines first: brake, then CCR = full (still brake), then stable.
+        let mut w = TransientWatch::default();
+        w.change(0, [0.05, 0.0]);
+        w.change(1000 * us, [0.0, 0.0]);
+        w.change(1000 * us + us / 10, [0.0, 0.0]);
+        assert!(w.change(2000 * us, [0.0, 0.0]).is_empty());
+        // An ordinary update: 5 % → 7 % / −3 % → −2 %, one CCR at a time.
+        let mut w = TransientWatch::default();
+        w.change(0, [0.05, -0.03]);
+        w.change(1000 * us, [0.07, -0.03]);
+        w.change(1000 * us + us / 20, [0.07, -0.02]);
+        assert!(w.change(2000 * us, [0.06, -0.02]).is_empty());
     }
 }

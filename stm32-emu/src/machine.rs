@@ -253,6 +253,13 @@ pub struct Board {
     /// Largest |armature voltage fraction| per wheel while driven since
     /// [`Self::peak_from_s`], and when (logged on every new peak).
     pub armature_peak: [(f64, f64); 2],
+    /// The armature states' transients (`crate::bridge::TransientWatch`).
+    pub transient_watch: crate::bridge::TransientWatch,
+    /// Transients found (each logged as `bridge transient`).
+    pub bridge_transients: u32,
+    /// When the host program last wrote to the link \[ps\] (the `motors
+    /// off` event says how long before: the link-silence stop's latency).
+    pub last_host_byte_ps: Option<u128>,
     /// Peaks count from this emulated time on \[s\] (`--peak-from`).
     pub peak_from_s: f64,
     /// Unmodelled USB: the F411 reached OTG_FS.
@@ -339,6 +346,9 @@ impl Board {
             foreign_pin_map: None,
             bridge_mode: BridgeMode::PwmDir,
             armature_peak: [(0.0, 0.0); 2],
+            transient_watch: Default::default(),
+            bridge_transients: 0,
+            last_host_byte_ps: None,
             peak_from_s: 0.0,
             usb_reached: None,
             unmodelled_addr: None,
@@ -607,12 +617,34 @@ impl Board {
             }
         }
         if b != self.last_bridge {
+            if b.armature != self.last_bridge.armature {
+                let u = b.armature.map(|a| a.unwrap_or(0.0));
+                for t in self.transient_watch.change(now, u) {
+                    self.bridge_transients += 1;
+                    self.event(format!(
+                        "bridge transient {}: {:+.4} of the supply for {:.3} us at {:.6} s, between the stable {:+.4} and {:+.4} (an ordering of the motor writes)",
+                        ["right", "left"][t.wheel],
+                        t.armature,
+                        t.len_ps as f64 * 1e-6,
+                        t.at_ps as f64 * 1e-12,
+                        t.before,
+                        t.after
+                    ));
+                }
+            }
             let was_off = self.last_bridge.motors_off();
             self.last_bridge = b;
             if b.motors_off() != was_off {
                 let u = |a: Option<f64>| a.map_or("coast".to_string(), |u| format!("{u:+.3}"));
+                let host = match (b.motors_off(), self.last_host_byte_ps) {
+                    (true, Some(t)) => format!(
+                        "; the host's last byte {:.1} ms before",
+                        (now - t) as f64 * 1e-9
+                    ),
+                    _ => String::new(),
+                };
                 self.event(format!(
-                    "motors {}: ENABLE {} lines 0x{:04X} PWM {}/{} of {} armature {}/{} of the supply",
+                    "motors {}: ENABLE {} lines 0x{:04X} PWM {}/{} of {} armature {}/{} of the supply{host}",
                     if b.motors_off() { "off" } else { "driven" },
                     b.enable as u8,
                     b.high_lines,

@@ -704,8 +704,8 @@ fn run() -> Result<i32, String> {
     );
     s += &format!("\"pose\":[{:.4},{:.4},{:.4}],", pose[0], pose[1], pose[2]);
     s += &format!(
-        "\"armature_peak\":[{:.4},{:.4}],",
-        d.armature_peak[0].0, d.armature_peak[1].0
+        "\"armature_peak\":[{:.4},{:.4}],\"bridge_transients\":{},",
+        d.armature_peak[0].0, d.armature_peak[1].0, d.bridge_transients
     );
     if gyro_cell.is_some() {
         let i = &d.i2c1.stats;

@@ -45,6 +45,9 @@ impl Board {
     /// Bytes from the host program (the pty) towards the firmware.
     pub fn link_from_host(&mut self, bytes: &[u8]) {
         let now = self.now_ps();
+        if !bytes.is_empty() {
+            self.last_host_byte_ps = Some(now);
+        }
         match (self.chip, self.usb_host.as_mut()) {
             (ChipKind::F411ce, Some(h)) => h.send(bytes),
             _ => self.usart2.host_send(bytes, now),
