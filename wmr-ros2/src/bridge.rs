@@ -180,6 +180,10 @@ pub struct Stats {
     pub frames_repeated: u64,
     /// Set-odometry calls that set the pose.
     pub odometry_sets: u64,
+    /// Service requests refused unanswered and not acted on (neither
+    /// mapping's request id, another mapping than the one accepted, or not
+    /// of the service's type; D150).
+    pub service_requests_refused: u64,
     /// Telemetry frames received.
     pub frames: u64,
     /// Telemetry frames lost (gaps in their sequence numbers).
@@ -261,6 +265,20 @@ pub fn odom_frame(frame_id: &str) -> Result<(), Refusal> {
         ros_mcap::FRAME_ODOM,
         ros_mcap::FRAME_ODOM
     )))
+}
+
+/// Puts the covariances of the pose (of `base_link`, row-major 6×6: x, y,
+/// z, roll, pitch, yaw) and of the twist into an `/odom` message: the one
+/// place the bridge's `/odom` covariance is set besides ros-mcap's
+/// `RosFrames` (which fills its fixed ones), for the estimator's
+/// covariance once the link carries it (issue 35, the other half).
+pub fn set_odom_covariance(
+    odom: &mut ros_mcap::msg::Odometry,
+    pose_cov: [f64; 36],
+    twist_cov: [f64; 36],
+) {
+    odom.pose.covariance = ros_mcap::msg::Covariance::from_array(pose_cov);
+    odom.twist.covariance = ros_mcap::msg::Covariance::from_array(twist_cov);
 }
 
 /// Admits telemetry stamps strictly after the last one admitted: `/odom`
@@ -554,6 +572,10 @@ impl Bridge {
         kv("localiser_poses_invalid", s.poses_invalid.to_string());
         kv("poses_wrong_frame", s.poses_wrong_frame.to_string());
         kv("odometry_sets", s.odometry_sets.to_string());
+        kv(
+            "service_requests_refused",
+            s.service_requests_refused.to_string(),
+        );
         kv("telemetry_frames_repeated", s.frames_repeated.to_string());
         kv("telemetry_frames", s.frames.to_string());
         kv("telemetry_frames_dropped", s.frames_dropped.to_string());
@@ -1066,7 +1088,10 @@ mod tests {
         assert!(odom_frame("/odom").is_ok());
         for f in ["map", "", "base_link", "odom_combined"] {
             let e = odom_frame(f).unwrap_err().to_string();
-            assert!(e.contains(&format!("{f:?}")) && e.contains("REP-105"), "{e}");
+            assert!(
+                e.contains(&format!("{f:?}")) && e.contains("REP-105"),
+                "{e}"
+            );
         }
     }
 

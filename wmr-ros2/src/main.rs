@@ -20,9 +20,9 @@ use wmr_ros2::msg::{
     Path, PoseWithCovarianceStamped, SetOdometryRequest, SetOdometryResponse, TriggerRequest,
     TriggerResponse, TwistStamped,
 };
+use wmr_ros2::params;
 use wmr_ros2::rpc::{self, Accept};
 use wmr_ros2::services::{self, Service, ServiceHost};
-use wmr_ros2::params;
 use wmr_ros2::topics::{self, TopicSpec};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -212,6 +212,15 @@ where
 }
 
 impl ParamServers {
+    /// Requests refused unanswered, over the five services.
+    fn refused(&self) -> u64 {
+        self.get.refused
+            + self.types.refused
+            + self.set.refused
+            + self.list.refused
+            + self.describe.refused
+    }
+
     fn new(host: &ServiceHost, node_name: &str) -> Result<Self, String> {
         let n = |s: &str| format!("/{node_name}/{s}");
         let rcl = "rcl_interfaces";
@@ -533,6 +542,9 @@ fn run(a: &Args) -> Result<(), String> {
             Ok::<_, Fatal>(resp)
         })?;
         notes.extend(param_servers.serve(&mut b)?);
+        b.stats.service_requests_refused = servers.iter().map(|s| s.refused).sum::<u64>()
+            + set_odometry.refused
+            + param_servers.refused();
         for n in notes {
             // The same refusal again (a publisher at 20 Hz): once every 5 s.
             if last_note

@@ -277,13 +277,14 @@ mod tests {
             message: "armed".into(),
         };
         let bytes = reply_payload(&call, &resp);
-        let (back, _) = ros2_client::dds::rustdds::serialization::deserialize_from_cdr_with_rep_id::<
-            TriggerResponse,
-        >(
-            &bytes,
-            ros2_client::dds::rustdds::RepresentationIdentifier::CDR_LE,
-        )
-        .unwrap();
+        let (back, _) =
+            ros2_client::dds::rustdds::serialization::deserialize_from_cdr_with_rep_id::<
+                TriggerResponse,
+            >(
+                &bytes,
+                ros2_client::dds::rustdds::RepresentationIdentifier::CDR_LE,
+            )
+            .unwrap();
         assert_eq!(back, resp);
     }
 
@@ -314,7 +315,11 @@ mod tests {
                 message: "no".into(),
             },
         );
-        assert_eq!(&bytes[..16], &payload[..16], "the header comes back as sent");
+        assert_eq!(
+            &bytes[..16],
+            &payload[..16],
+            "the header comes back as sent"
+        );
         // A big-endian caller's header is read in its byte order and
         // answered in the reply's (little-endian).
         let mut be = Vec::new();

@@ -108,7 +108,9 @@ impl ServiceHost {
             reason: e,
         };
         Ok(Self {
-            publisher: dp.create_publisher(&qos).map_err(|e| err(format!("{e:?}")))?,
+            publisher: dp
+                .create_publisher(&qos)
+                .map_err(|e| err(format!("{e:?}")))?,
             subscriber: dp
                 .create_subscriber(&qos)
                 .map_err(|e| err(format!("{e:?}")))?,
