@@ -283,8 +283,8 @@ pub fn set_odom_covariance(
 
 /// Admits telemetry stamps strictly after the last one admitted: `/odom`
 /// and `/tf` never repeat a stamp nor go back (tf2 warns on a repeated
-/// stamp; a robot sends a frame at once when telemetry is turned on, and a
-/// clock re-anchoring may step the stamps back by microseconds).
+/// stamp; issue 35 saw three `/odom` of one stamp at start, and a clock
+/// re-anchoring may step the stamps back by microseconds).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StampGate {
     last_ns: Option<u64>,
@@ -1075,8 +1075,8 @@ mod tests {
     #[test]
     fn stamps_never_repeat_nor_go_back() {
         let mut g = StampGate::default();
-        // three frames of one stamp at start (what the robot's first frames
-        // did before issue 35), then later ones, then one stepped back
+        // three frames of one stamp at start (as issue 35 saw on /odom),
+        // then later ones, then one stepped back
         let stamps = [10, 10, 10, 20, 30, 25, 30, 40];
         let admitted: Vec<u64> = stamps.into_iter().filter(|&s| g.admit(s)).collect();
         assert_eq!(admitted, vec![10, 20, 30, 40]);

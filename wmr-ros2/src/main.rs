@@ -563,10 +563,11 @@ fn run(a: &Args) -> Result<(), String> {
         Ok(()) => {
             b.shutdown();
             eprintln!(
-                "wmr-ros2: done after {:.1} s: {} frames ({} dropped), {} cmd_vel ({} forwarded, {} refused), {} paths ({} uploaded), {}, {} publications dropped",
+                "wmr-ros2: done after {:.1} s: {} frames ({} dropped, {} not published: stamped at or before the last), {} cmd_vel ({} forwarded, {} refused), {} paths ({} uploaded), {}, {} publications dropped",
                 started.elapsed().as_secs_f64(),
                 b.stats.frames,
                 b.stats.frames_dropped,
+                b.stats.frames_repeated,
                 b.stats.cmd_vel,
                 b.stats.cmd_vel_forwarded,
                 b.stats.cmd_vel_refused,
