@@ -38,6 +38,19 @@ ROBOT_FILE=robots/tb6612-2kg.toml
 EXPECT_COM_OFFSET_M="$(awk -F'=' '/^com_offset_m/ {gsub(/[ \t]|#.*/, "", $2); print $2; exit}' "$ROBOT_FILE")"
 [ -n "$EXPECT_COM_OFFSET_M" ] || fail "no com_offset_m in $ROBOT_FILE"
 export EXPECT_COM_OFFSET_M
+# A robot that cannot tell its d (a robot file pushed without a reboot: the
+# stored record is not the one in force): the bridge refuses to start,
+# naming the reason and --com-offset-m, rather than take the paper's 0.05 m.
+start_device "$OUT" --scenario wmr-ros2/check/scenario.toml --robot "$ROBOT_FILE" --for-s 30
+"$ROOT/target/release/wmr" robot push --no-reboot --port "$DEV_PTY" robots/paper.toml >"$OUT/push.out" 2>&1 ||
+    fail "wmr robot push --no-reboot: $(cat "$OUT/push.out")"
+if "$ROOT/target/release/wmr-ros2" --port "$DEV_PTY" --for-s 5 2>"$OUT/unknown-d.err"; then
+    fail "the bridge started on a robot that cannot tell its d: $(cat "$OUT/unknown-d.err")"
+fi
+grep -q -- "--com-offset-m" "$OUT/unknown-d.err" || fail "the bridge's refusal does not name --com-offset-m: $(cat "$OUT/unknown-d.err")"
+echo "d unknown to the robot: the bridge refused to start: $(tail -1 "$OUT/unknown-d.err")"
+stop_pid "$DEV_PID"
+DEV_PID=""
 start_device "$OUT" --scenario wmr-ros2/check/scenario.toml --robot "$ROBOT_FILE" --for-s 150
 # Kilted's Nav2 defaults (TwistStamped cmd_vel); the services' mapping auto
 "$ROOT/target/release/wmr-ros2" --port "$DEV_PTY" --ros-distro kilted --cmd-timeout-ms 500 --for-s 140 2>"$OUT/bridge.err" &
