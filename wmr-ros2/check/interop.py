@@ -51,7 +51,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from cyclonedds.core import Qos, Policy
+from cyclonedds.core import Listener, Qos, Policy
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl.types import array, float64, int32, int64, sequence, uint8, uint32
@@ -355,9 +355,20 @@ RELIABLE = Qos(
 BEST_EFFORT = Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile, Policy.History.KeepLast(1))
 
 
+# QoS incompatibilities any endpoint of the check saw (CycloneDDS's
+# listener callbacks, counted only: they run on DDS's receive threads)
+QOS_INCOMPATIBLE = []
+
+
 class Ros:
     def __init__(self):
-        self.dp = DomainParticipant(int(os.environ.get("ROS_DOMAIN_ID", "0")))
+        self.dp = DomainParticipant(
+            int(os.environ.get("ROS_DOMAIN_ID", "0")),
+            listener=Listener(
+                on_requested_incompatible_qos=lambda e, st: QOS_INCOMPATIBLE.append("requested"),
+                on_offered_incompatible_qos=lambda e, st: QOS_INCOMPATIBLE.append("offered"),
+            ),
+        )
         self.readers = {}
         self.odom = []  # every Odometry received, in order
         self.tf = []
@@ -822,7 +833,10 @@ def nav2_standin(ros, cmd_timeout_s):
     compensate: a mis-stamped pose would pull the estimate back 12 mm at
     0.2 m/s). Asserted: the cross-track error of every /odom within
     CROSS_TRACK_M, the goal within 5 cm, the robot at rest within its bound
-    after the commands stop, stamps strictly increasing."""
+    after the commands stop, stamps strictly increasing, no QoS
+    incompatibility seen by any endpoint of the check (CycloneDDS's
+    listener: a reader asking transient-local of a volatile writer is
+    counted)."""
     import random
     rng = random.Random(35)
     x0, y0, th0 = ros.pose()
@@ -911,6 +925,8 @@ def nav2_standin(ros, cmd_timeout_s):
         fail(f"stand-in: at rest {took:.3f} s after the last command, beyond {bound:.3f} s")
     if any(b <= a for a, b in zip(stamps, stamps[1:])):
         fail("stand-in: /odom stamps repeat or go back")
+    if QOS_INCOMPATIBLE:
+        fail(f"QoS incompatibilities between the check's endpoints and the bridge's: {QOS_INCOMPATIBLE}")
 
 
 def params_check(ros, limits):

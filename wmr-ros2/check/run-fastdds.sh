@@ -5,7 +5,8 @@
 # `wmr-ros2` bridging `hil-sim device --pty`, with its default service
 # mapping (auto). The client is also the Nav2 stand-in over Fast DDS (pure
 # pursuit at 20 Hz, a localiser at 10 Hz 60 ms late). Every DDS participant
-# runs inside a private network namespace, as in run.sh.
+# runs inside a private network namespace, as in run.sh. First, the bridge
+# must refuse to start on a robot that cannot tell its d.
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 cd "$ROOT"
