@@ -3,13 +3,16 @@
 ours: a CycloneDDS participant (PyPI `cyclonedds`, the DDS behind
 rmw_cyclonedds) with the ROS 2 types defined here independently in
 CycloneDDS's IDL (ROS 2 type names `nav_msgs::msg::dds_::Odometry_`, topics
-`rt/odom`, ...), talking to `wmr-ros2 --service-mapping cyclone` bridging
-`hil-sim device --pty`. Run inside a private network namespace (run.sh).
+`rt/odom`, ...), talking to `wmr-ros2` (its services' mapping auto: each
+caller answered in its own) bridging `hil-sim device --pty`. Run inside a
+private network namespace (run.sh).
 
 Steps (each fails loudly, exit 1 with the reason):
  1. /odom, /tf, /diagnostics arrive (discovery on loopback);
  2. cmd_vel before the arm service is refused: the robot does not move;
- 3. /initialpose sets the pose: /odom reports it; the robot's parameters
+ 3. /initialpose sets the pose: /odom reports it; one in `map` is refused;
+    set_odometry (control_msgs/SetOdometry) sets it, a roll refused; the
+    robot's parameters
     as ROS parameters (rcl_interfaces/GetParameters, SetParameters): read
     from the robot, a gain set and read back, a gain beyond its physical
     range refused with the robot's reason, a read-only one refused, a
@@ -25,14 +28,19 @@ Steps (each fails loudly, exit 1 with the reason):
     pose) is profiled, uploaded and tracked: /odom stays within TRACK_TOL_M
     of the path and ends within END_TOL_M of its end, at speeds within the
     robot's limits; the run ends with TrajectoryEnd;
- 7. localiser poses (PoseWithCovarianceStamped stamped 80 ms in the past,
-    offset 8 cm from /odom) are fused: /odom moves to them;
+ 6b. the Nav2 stand-in (nav2_standin): pure pursuit at 20 Hz on /tf and
+    /odom, TwistStamped out, a plan with a turn in place, a localiser at
+    10 Hz 60 ms late with noise: cross-track within CROSS_TRACK_M, at rest
+    within the bound after the commands stop;
+ 7. localiser poses on /amcl_pose (PoseWithCovarianceStamped stamped 80 ms
+    in the past, offset 8 cm from /odom): in `map` refused, none fused;
+    in `odom` fused: /odom moves to them;
  8. emergency stop latches (a cmd_vel then moves nothing), clear stop
     returns to hold;
  9. every /odom received equals the robot's telemetry of the same stamp in
     the bridge's MCAP log (/wmr/tracking, decoded by `mcap` + `rosbags`):
     the pose of G moved d back to the axle, and the twist eta; /tf carries
-    the same transform.
+    the same transform; /odom's stamps strictly increasing.
 
 Usage: interop.py BRIDGE.mcap   (after the bridge has been started)
 """
@@ -43,7 +51,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from cyclonedds.core import Qos, Policy
+from cyclonedds.core import Listener, Qos, Policy
 from cyclonedds.domain import DomainParticipant
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl.types import array, float64, int32, int64, sequence, uint8, uint32
@@ -53,6 +61,7 @@ from cyclonedds.topic import Topic
 from cyclonedds.util import duration
 
 TRACK_TOL_M = float(os.environ.get("TRACK_TOL_M", "0.05"))
+CROSS_TRACK_M = float(os.environ.get("CROSS_TRACK_M", "0.05"))
 END_TOL_M = float(os.environ.get("END_TOL_M", "0.05"))
 T0 = time.monotonic()
 
@@ -209,21 +218,40 @@ class PoseWithCovarianceStamped(
     pose: PoseWithCovariance
 
 
-# std_srvs/srv/Trigger as rmw_cyclonedds sends it: its request header (the
-# client's GUID's last 8 bytes and a 64-bit sequence number) before the body.
+# std_srvs/srv/Trigger as rmw_cyclonedds sends it: its request header
+# (rmw_cyclonedds_cpp/src/serdata.hpp, cdds_request_header_t: uint64 guid,
+# the request writer's instance handle; int64 seq) before the body.
 @dataclass
 class TriggerRequest(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Request_"):
     client_guid: array[uint8, 8]
-    seq_high: int32
-    seq_low: uint32
+    seq: int64
     structure_needs_at_least_one_member: uint8
 
 
 @dataclass
 class TriggerResponse(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Response_"):
     client_guid: array[uint8, 8]
-    seq_high: int32
-    seq_low: uint32
+    seq: int64
+    success: bool
+    message: str
+
+
+@dataclass
+class SetOdometryRequest(IdlStruct, typename="control_msgs::srv::dds_::SetOdometry_Request_"):
+    client_guid: array[uint8, 8]
+    seq: int64
+    x: float64
+    y: float64
+    z: float64
+    roll: float64
+    pitch: float64
+    yaw: float64
+
+
+@dataclass
+class SetOdometryResponse(IdlStruct, typename="control_msgs::srv::dds_::SetOdometry_Response_"):
+    client_guid: array[uint8, 8]
+    seq: int64
     success: bool
     message: str
 
@@ -266,32 +294,28 @@ class SetParametersResult(IdlStruct, typename="rcl_interfaces::msg::dds_::SetPar
 @dataclass
 class SetParametersRequest(IdlStruct, typename="rcl_interfaces::srv::dds_::SetParameters_Request_"):
     client_guid: array[uint8, 8]
-    seq_high: int32
-    seq_low: uint32
+    seq: int64
     parameters: sequence[Parameter]
 
 
 @dataclass
 class SetParametersResponse(IdlStruct, typename="rcl_interfaces::srv::dds_::SetParameters_Response_"):
     client_guid: array[uint8, 8]
-    seq_high: int32
-    seq_low: uint32
+    seq: int64
     results: sequence[SetParametersResult]
 
 
 @dataclass
 class GetParametersRequest(IdlStruct, typename="rcl_interfaces::srv::dds_::GetParameters_Request_"):
     client_guid: array[uint8, 8]
-    seq_high: int32
-    seq_low: uint32
+    seq: int64
     names: sequence[str]
 
 
 @dataclass
 class GetParametersResponse(IdlStruct, typename="rcl_interfaces::srv::dds_::GetParameters_Response_"):
     client_guid: array[uint8, 8]
-    seq_high: int32
-    seq_low: uint32
+    seq: int64
     values: sequence[ParameterValue]
 
 
@@ -331,9 +355,20 @@ RELIABLE = Qos(
 BEST_EFFORT = Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile, Policy.History.KeepLast(1))
 
 
+# QoS incompatibilities any endpoint of the check saw (CycloneDDS's
+# listener callbacks, counted only: they run on DDS's receive threads)
+QOS_INCOMPATIBLE = []
+
+
 class Ros:
     def __init__(self):
-        self.dp = DomainParticipant(int(os.environ.get("ROS_DOMAIN_ID", "0")))
+        self.dp = DomainParticipant(
+            int(os.environ.get("ROS_DOMAIN_ID", "0")),
+            listener=Listener(
+                on_requested_incompatible_qos=lambda e, st: QOS_INCOMPATIBLE.append("requested"),
+                on_offered_incompatible_qos=lambda e, st: QOS_INCOMPATIBLE.append("offered"),
+            ),
+        )
         self.readers = {}
         self.odom = []  # every Odometry received, in order
         self.tf = []
@@ -346,7 +381,7 @@ class Ros:
         self.cmd_vel = DataWriter(self.dp, Topic(self.dp, "rt/cmd_vel", TwistStamped), qos=RELIABLE)
         self.path = DataWriter(self.dp, Topic(self.dp, "rt/wmr/path", Path), qos=RELIABLE)
         self.localiser = DataWriter(
-            self.dp, Topic(self.dp, "rt/wmr/localiser_pose", PoseWithCovarianceStamped), qos=RELIABLE
+            self.dp, Topic(self.dp, "rt/amcl_pose", PoseWithCovarianceStamped), qos=RELIABLE
         )
         self.initialpose = DataWriter(
             self.dp, Topic(self.dp, "rt/initialpose", PoseWithCovarianceStamped), qos=RELIABLE
@@ -355,6 +390,7 @@ class Ros:
         kinds = [(f"wmr/{s}", TriggerRequest, TriggerResponse) for s in TRIGGERS] + [
             (f"{NODE}/set_parameters", SetParametersRequest, SetParametersResponse),
             (f"{NODE}/get_parameters", GetParametersRequest, GetParametersResponse),
+            (f"{NODE}/set_odometry", SetOdometryRequest, SetOdometryResponse),
         ]
         for s, req, resp in kinds:
             rq = DataWriter(self.dp, Topic(self.dp, f"rq/{s}Request", req), qos=RELIABLE)
@@ -419,10 +455,10 @@ class Ros:
                 fail(f"service /{service}: no server discovered")
             self.spin(0.05)
         self.seq += 1
-        rq.write(req(client_guid=self.guid, seq_high=0, seq_low=self.seq, **body))
+        rq.write(req(client_guid=self.guid, seq=self.seq, **body))
         while time.monotonic() < end:
             for r in rr.take(N=10):
-                if list(r.client_guid) == self.guid and r.seq_low == self.seq:
+                if list(r.client_guid) == self.guid and r.seq == self.seq:
                     return r
             self.spin(0.02)
         fail(f"service /{service}: no response within {timeout} s")
@@ -514,6 +550,11 @@ def main(mcap_path):
     ros.wait_matched(ros.path, "path")
     ros.wait_matched(ros.localiser, "localiser pose")
 
+    # 1b. a call the bridge cannot answer in its caller's mapping (the
+    # request alone, no rmw_cyclonedds header and no related sample
+    # identity) is refused, not acted on: motion stays disabled
+    unanswerable_arm(ros)
+
     # 2. cmd_vel without the arm service: no motion
     p0 = ros.pose()
     for _ in range(20):
@@ -537,6 +578,25 @@ def main(mcap_path):
     ros.wait_for("/odom at the /initialpose pose", at_want, 3.0)
     log(f"/initialpose {want}: /odom reports {ros.pose()}")
 
+    # 3a. /initialpose in map (RViz's fixed frame under AMCL): refused, the
+    # odom pose does not move; set_odometry (diff_drive_controller's) sets it
+    ros.initialpose.write(ros.pose_msg(1.5, 1.5, 1.0, (0.01, 0.01, 0, 0, 0, 0.01), stamp_now(), frame="map"))
+    ros.spin(0.5)
+    p = ros.pose()
+    _, bridge = ros.fresh_values()
+    # (the map pose is 1.4 m away; holding, /odom stays within 1 cm)
+    if math.hypot(p[0] - want[0], p[1] - want[1]) > 0.01 or int(bridge["poses_wrong_frame"]) < 1:
+        fail(f"/initialpose in map: /odom {p}, poses_wrong_frame {bridge['poses_wrong_frame']} (want it refused)")
+    want = (0.4, -0.2, 0.3)
+    r = ros.request(f"{NODE}/set_odometry", x=want[0], y=want[1], z=0.0, roll=0.0, pitch=0.0, yaw=want[2])
+    if not r.success:
+        fail(f"set_odometry {want}: {r.message}")
+    ros.wait_for("/odom at the set_odometry pose", at_want, 3.0)
+    r = ros.request(f"{NODE}/set_odometry", x=0.0, y=0.0, z=0.0, roll=0.3, pitch=0.0, yaw=0.0)
+    if r.success or "planar" not in r.message:
+        fail(f"set_odometry with roll 0.3: {r.success} {r.message!r} (want refused: planar)")
+    log(f"/initialpose in map refused; set_odometry {want}: /odom reports {ros.pose()}; roll refused ({r.message!r})")
+
     # 3b. ROS parameters: the robot's, read and written through the link
     params_check(ros, limits)
 
@@ -546,8 +606,18 @@ def main(mcap_path):
     target = (x + 0.08, y, th)
     robot, _ = ros.fresh_values()
     fused0 = int(robot["external_poses"])
-    for _ in range(30):
+    # first in map, as AMCL publishes them: refused, never fused as odom
+    for _ in range(10):
         ros.localiser.write(ros.pose_msg(*target, (0.03 ** 2, 0.03 ** 2, 0, 0, 0, 1e6), stamp_now(-0.08), frame="map"))
+        ros.spin(0.1)
+    ros.spin(0.3)
+    robot, bridge = ros.fresh_values()
+    p = ros.pose()
+    if int(robot["external_poses"]) != fused0 or int(bridge["poses_wrong_frame"]) < 6 or abs(p[0] - x) > 1e-4:
+        fail(f"localiser poses in map: robot fused {int(robot['external_poses']) - fused0}, poses_wrong_frame {bridge['poses_wrong_frame']}, /odom x {x:.4f} -> {p[0]:.4f} (want none fused, /odom unmoved)")
+    log(f"localiser poses in map: refused ({bridge['poses_wrong_frame']} in a wrong frame), none fused, /odom unmoved")
+    for _ in range(30):
+        ros.localiser.write(ros.pose_msg(*target, (0.03 ** 2, 0.03 ** 2, 0, 0, 0, 1e6), stamp_now(-0.08), frame="odom"))
         ros.spin(0.1)
     ros.spin(0.5)
     p = ros.pose()
@@ -698,6 +768,10 @@ def main(mcap_path):
     if vmax > limits["max_speed_mps"] * limits["path_limit_fraction"] * 1.1:
         fail(f"the path ran at {vmax:.3f} m/s, beyond {limits['path_limit_fraction']} of the limit {limits['max_speed_mps']}")
 
+    # 6b. the Nav2 stand-in over CycloneDDS (what the controller server
+    # does at 20 Hz), with a localiser at 10 Hz, 60 ms late, with noise
+    nav2_standin(ros, cmd_timeout_s)
+
     # 8. emergency stop, then clear
     if not ros.call("emergency_stop").success:
         fail("the emergency_stop service failed")
@@ -725,6 +799,134 @@ def main(mcap_path):
     ros.spin(0.5)
     ros.odom_all = list(ros.odom)
     return ros, d
+
+
+@dataclass
+class BareTriggerRequest(IdlStruct, typename="std_srvs::srv::dds_::Trigger_Request_"):
+    structure_needs_at_least_one_member: uint8
+
+
+def unanswerable_arm(ros):
+    """An arm request with neither mapping's request id (before issue 35 an
+    enhanced-only bridge armed on a CycloneDDS caller's request and answered
+    in a form the caller could not decode)."""
+    dp = DomainParticipant(int(os.environ.get("ROS_DOMAIN_ID", "0")))
+    w = DataWriter(dp, Topic(dp, "rq/wmr/armRequest", BareTriggerRequest), qos=RELIABLE)
+    ros.wait_matched(w, "/wmr/arm (bare request)")
+    _, b0 = ros.fresh_values()
+    w.write(BareTriggerRequest(structure_needs_at_least_one_member=0))
+    ros.spin(1.0)
+    _, b1 = ros.fresh_values()
+    if b1["motion_enabled"] != "false":
+        fail(f"a request the bridge cannot answer enabled motion: motion_enabled {b1['motion_enabled']}")
+    if int(b1["service_requests_refused"]) <= int(b0["service_requests_refused"]):
+        fail(f"a request without either mapping's id was not refused: service_requests_refused {b1['service_requests_refused']}")
+    log(f"/wmr/arm without a request id (neither rmw_fastrtps's nor rmw_cyclonedds's): refused, motion stays disabled ({b1['service_requests_refused']} refused)")
+
+
+def nav2_standin(ros, cmd_timeout_s):
+    """Pure pursuit as Nav2's controller server runs it: at 20 Hz, the pose
+    from /tf (odom -> base_link), TwistStamped out, along a plan with a turn
+    in place (0.6 m ahead, a quarter turn left, 0.4 m ahead); meanwhile a
+    localiser publishes on /amcl_pose (in odom) at 10 Hz the pose /odom had
+    60 ms earlier plus 1 cm of noise, stamped then (what the bridge must
+    compensate: a mis-stamped pose would pull the estimate back 12 mm at
+    0.2 m/s). Asserted: the cross-track error of every /odom within
+    CROSS_TRACK_M, the goal within 5 cm, the robot at rest within its bound
+    after the commands stop, stamps strictly increasing, no QoS
+    incompatibility seen by any endpoint of the check (CycloneDDS's
+    listener: a reader asking transient-local of a volatile writer is
+    counted)."""
+    import random
+    rng = random.Random(35)
+    x0, y0, th0 = ros.pose()
+    c, s = math.cos(th0), math.sin(th0)
+    plan = [(x0, y0, th0), (x0 + 0.6 * c, y0 + 0.6 * s, th0), (x0 + 0.6 * c, y0 + 0.6 * s, th0 + math.pi / 2),
+            (x0 + 0.6 * c - 0.4 * s, y0 + 0.6 * s + 0.4 * c, th0 + math.pi / 2)]
+    line = [(p[0], p[1]) for p in plan]
+    L, VMAX, WMAX = 0.15, 0.2, 0.8
+    seg, n0 = 0, len(ros.odom)
+    next_ctrl = next_loc = time.monotonic()
+    t_limit = time.monotonic() + 60.0
+    ticks = sent = 0
+    last_cmd = 0.0
+    while seg + 1 < len(plan):
+        if time.monotonic() > t_limit:
+            fail(f"stand-in: the plan not done within 60 s (segment {seg})")
+        ros.spin(0.0)
+        now = time.monotonic()
+        if now >= next_loc:
+            t_cap = (time.time() - 0.06) * 1e9
+            for o in reversed(ros.odom):
+                if ns(o.header.stamp) <= t_cap:
+                    p = o.pose.pose
+                    m = ros.pose_msg(p.position.x + rng.gauss(0, 0.01), p.position.y + rng.gauss(0, 0.01),
+                                     yaw_of(p.orientation) + rng.gauss(0, 0.005), (0.01 ** 2, 0.01 ** 2, 0, 0, 0, 0.02 ** 2), o.header.stamp)
+                    ros.localiser.write(m)
+                    sent += 1
+                    break
+            next_loc += 0.1
+        if now < next_ctrl:
+            time.sleep(0.002)
+            continue
+        next_ctrl += 0.05
+        ticks += 1
+        tr = ros.tf[-1].transforms[0].transform
+        px, py, pth = tr.translation.x, tr.translation.y, yaw_of(tr.rotation)
+        (ax, ay, _), (bx, by, bth) = plan[seg], plan[seg + 1]
+        v = w = 0.0
+        if math.hypot(bx - ax, by - ay) < 1e-9:
+            e = wrap(bth - pth)
+            if abs(e) < 0.02:
+                seg += 1
+                continue
+            w = max(-WMAX, min(WMAX, 2.0 * e))
+        else:
+            ln = math.hypot(bx - ax, by - ay)
+            ux, uy = (bx - ax) / ln, (by - ay) / ln
+            along = (px - ax) * ux + (py - ay) * uy
+            if ln - along < 0.01:
+                seg += 1
+                continue
+            la = min(ln, along + L)
+            tx, ty = ax + la * ux, ay + la * uy
+            alpha = wrap(math.atan2(ty - py, tx - px) - pth)
+            v = min(VMAX, 1.0 * (ln - along) + 0.03)
+            w = max(-WMAX, min(WMAX, 2.0 * v * math.sin(alpha) / max(math.hypot(tx - px, ty - py), 0.02)))
+        ros.send_twist(v, w)
+        last_cmd = time.time()
+    # the commands stop: at rest within the command timeout, the braking
+    # from the top speed and rate, 0.6 s to rest (D133), 2 frames, 1 s delivery
+    _, bridge = ros.fresh_values()
+    bound = cmd_timeout_s + VMAX / float(bridge["brake_decel_mps2"]) + WMAX / float(bridge["ang_accel_radps2"]) + 0.6 + 2.0 / float(bridge["rate_hz"]) + 1.0
+
+    def rest_since():
+        after = [o for o in ros.odom if ns(o.header.stamp) > last_cmd * 1e9]
+        if len(after) < 10 or not all(at_rest(o) for o in after[-10:]):
+            return None
+        t = None
+        for o in after:
+            t = (ns(o.header.stamp) if t is None else t) if at_rest(o) else None
+        return t
+
+    ros.wait_for("stand-in: the robot at rest after the commands stop", lambda: rest_since() is not None, bound + 30.0)
+    took = rest_since() * 1e-9 - last_cmd
+    run = ros.odom[n0:]
+    ct = max(dist_to_polyline((o.pose.pose.position.x, o.pose.pose.position.y), line) for o in run)
+    end = ros.pose()
+    end_err = math.hypot(end[0] - plan[-1][0], end[1] - plan[-1][1])
+    stamps = [ns(o.header.stamp) for o in run]
+    log(f"stand-in: {ticks} control ticks at 20 Hz, {sent} localiser poses at 10 Hz (60 ms late, 1 cm noise); cross-track up to {ct * 1000:.1f} mm (bound {CROSS_TRACK_M * 1000:.0f} mm), goal {end_err * 1000:.1f} mm; at rest {took:.3f} s after the last command (bound {bound:.3f} s)")
+    if ct > CROSS_TRACK_M:
+        fail(f"stand-in: cross-track error {ct:.4f} m beyond {CROSS_TRACK_M} m")
+    if end_err > 0.05:
+        fail(f"stand-in: ended {end_err:.4f} m from the goal")
+    if took > bound:
+        fail(f"stand-in: at rest {took:.3f} s after the last command, beyond {bound:.3f} s")
+    if any(b <= a for a, b in zip(stamps, stamps[1:])):
+        fail("stand-in: /odom stamps repeat or go back")
+    if QOS_INCOMPATIBLE:
+        fail(f"QoS incompatibilities between the check's endpoints and the bridge's: {QOS_INCOMPATIBLE}")
 
 
 def params_check(ros, limits):
@@ -823,6 +1025,11 @@ def check_against_log(ros, d, mcap_path):
     if dev > allowed:
         fail(f"the path was tracked {dev * 1000:.1f} mm from it, beyond the robot's own tracking error {own * 1000:.1f} mm + {(allowed - own) * 1000:.1f} mm")
     odom = ros.odom_all
+    # stamps strictly increasing: none repeated (tf2 warns), none back
+    stamps = [ns(o.header.stamp) for o in odom]
+    bad = [(a, b) for a, b in zip(stamps, stamps[1:]) if b <= a]
+    if bad:
+        fail(f"/odom stamps repeat or go back {len(bad)} times (first {bad[0]})")
     matched = 0
     worst = 0.0
     for o in odom:

@@ -43,7 +43,7 @@ EXPECT_COM_OFFSET_M="$(awk -F'=' '/^com_offset_m/ {gsub(/[ \t]|#.*/, "", $2); pr
 [ -n "$EXPECT_COM_OFFSET_M" ] || fail "no com_offset_m in $ROBOT_FILE"
 export EXPECT_COM_OFFSET_M
 start_device "$OUT" --scenario wmr-ros2/check/scenario.toml --robot "$ROBOT_FILE" --for-s 120
-"$ROOT/target/release/wmr-ros2" --port "$DEV_PTY" --service-mapping cyclone --cmd-timeout-ms 500 --mcap "$OUT/bridge.mcap" \
+"$ROOT/target/release/wmr-ros2" --port "$DEV_PTY" --cmd-vel-type stamped --cmd-timeout-ms 500 --mcap "$OUT/bridge.mcap" \
     --for-s 110 2>"$OUT/bridge.err" &
 BRIDGE_PID=$!
 sleep 0.5

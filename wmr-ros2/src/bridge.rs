@@ -20,8 +20,9 @@
 
 use crate::convert::{
     external_pose_request, g_of_axle, planar, pose_msg, velocity_command, Limits, Refusal,
+    MAX_POSITION_M,
 };
-use crate::msg::{Path, PoseWithCovarianceStamped};
+use crate::msg::{Path, PoseWithCovarianceStamped, SetOdometryRequest};
 use crate::profile;
 use ros_mcap::msg::{DiagnosticStatus, KeyValue, Twist};
 use ros_mcap::{Geometry, LogFrame, RosFrames, RosMessages, TimeMap};
@@ -171,6 +172,18 @@ pub struct Stats {
     /// Localiser poses not sent (bad message) — those the robot refused
     /// are in the pose tally.
     pub poses_invalid: u64,
+    /// Localiser poses and initial poses refused for their frame (not
+    /// `odom`: AMCL's `map`).
+    pub poses_wrong_frame: u64,
+    /// Telemetry frames not published: stamped at or before the last one
+    /// published (tf2 warns on a repeated stamp).
+    pub frames_repeated: u64,
+    /// Set-odometry calls that set the pose.
+    pub odometry_sets: u64,
+    /// Service requests refused unanswered and not acted on (neither
+    /// mapping's request id, another mapping than the one accepted, or not
+    /// of the service's type; D150).
+    pub service_requests_refused: u64,
     /// Telemetry frames received.
     pub frames: u64,
     /// Telemetry frames lost (gaps in their sequence numbers).
@@ -208,6 +221,7 @@ pub struct Bridge {
     upload: Option<UploadState>,
     queued_path: Option<Vec<wmr_protocol::Waypoint>>,
     last_log_frame: Option<LogFrame>,
+    stamps: StampGate,
     /// What came in and went out.
     pub stats: Stats,
     /// Localiser poses sent and refused by reason.
@@ -237,6 +251,57 @@ pub fn from_future(stamp_ns: u64, now_ns: u64) -> bool {
     stamp_ns.saturating_sub(now_ns) > MAX_FUTURE_STAMP_NS
 }
 
+/// A pose's frame must be the one the robot's estimate is published in
+/// (`odom`; tf2's leading slash allowed): a pose in another frame, such as
+/// AMCL's `map`, is refused, never fused as `odom` — map → odom is the
+/// localiser's own transform (REP-105: `odom` stays continuous), and
+/// transforming it back through that transform gives the odometry itself.
+pub fn odom_frame(frame_id: &str) -> Result<(), Refusal> {
+    if frame_id.strip_prefix('/').unwrap_or(frame_id) == ros_mcap::FRAME_ODOM {
+        return Ok(());
+    }
+    Err(Refusal::WrongFrame(format!(
+        "pose in frame {frame_id:?}, not {:?}: the robot's estimate is the odom frame; a map-frame localiser (AMCL) corrects map -> odom itself (REP-105), so its poses are not fused (publish poses in {:?} to fuse them)",
+        ros_mcap::FRAME_ODOM,
+        ros_mcap::FRAME_ODOM
+    )))
+}
+
+/// Puts the covariances of the pose (of `base_link`, row-major 6×6: x, y,
+/// z, roll, pitch, yaw) and of the twist into an `/odom` message: the one
+/// place the bridge's `/odom` covariance is set besides ros-mcap's
+/// `RosFrames` (which fills its fixed ones), for the estimator's
+/// covariance once the link carries it (issue 35, the other half).
+pub fn set_odom_covariance(
+    odom: &mut ros_mcap::msg::Odometry,
+    pose_cov: [f64; 36],
+    twist_cov: [f64; 36],
+) {
+    odom.pose.covariance = ros_mcap::msg::Covariance::from_array(pose_cov);
+    odom.twist.covariance = ros_mcap::msg::Covariance::from_array(twist_cov);
+}
+
+/// Admits telemetry stamps strictly after the last one admitted: `/odom`
+/// and `/tf` never repeat a stamp nor go back (tf2 warns on a repeated
+/// stamp; issue 35 saw three `/odom` of one stamp at start, and a clock
+/// re-anchoring may step the stamps back by microseconds).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StampGate {
+    last_ns: Option<u64>,
+}
+
+impl StampGate {
+    /// True when `stamp_ns` is after every stamp admitted before (and
+    /// admits it).
+    pub fn admit(&mut self, stamp_ns: u64) -> bool {
+        if self.last_ns.is_some_and(|l| stamp_ns <= l) {
+            return false;
+        }
+        self.last_ns = Some(stamp_ns);
+        true
+    }
+}
+
 fn nack_reason(e: &LinkError) -> Option<ErrorCode> {
     match e {
         LinkError::Nack(_, c) => Some(*c),
@@ -252,6 +317,13 @@ impl Bridge {
         session::adopt_link_timeout(&mut link)?;
         // d from the robot file the robot runs unless given.
         let com_offset = session::com_offset_m(&mut link, cfg.com_offset_m)?;
+        // Every robot value from the robot on the link (issue 35): a robot
+        // that cannot tell its d is not given the paper robot's.
+        if let session::ComOffsetSource::PaperDefault(why) = &com_offset.source {
+            return Err(Fatal::Robot(format!(
+                "d (body.com_offset_m) is not known from the robot on the link: {why}; give --com-offset-m (the robot file's body.com_offset_m) or push and boot its robot file (wmr robot push)"
+            )));
+        }
         let geometry = Geometry::new(
             hello.robot.wheel_radius_m as f64,
             hello.robot.half_track_m as f64,
@@ -292,6 +364,7 @@ impl Bridge {
             upload: None,
             queued_path: None,
             last_log_frame: None,
+            stamps: StampGate::default(),
             stats: Stats::default(),
             poses: PoseTally::default(),
         })
@@ -424,6 +497,10 @@ impl Bridge {
             }
         }
         let stamp = self.time_map.host_ns(t.t_robot_us);
+        if !self.stamps.admit(stamp) {
+            self.stats.frames_repeated += 1;
+            return None;
+        }
         let f = LogFrame::of_telemetry(t, stamp, self.last_stop)?;
         self.last_log_frame = Some(f);
         let mut m = self.frames.messages(&f);
@@ -493,6 +570,13 @@ impl Bridge {
         kv("initial_poses_refused", s.initial_poses_refused.to_string());
         kv("localiser_poses", self.poses.to_string().replace('\n', ";"));
         kv("localiser_poses_invalid", s.poses_invalid.to_string());
+        kv("poses_wrong_frame", s.poses_wrong_frame.to_string());
+        kv("odometry_sets", s.odometry_sets.to_string());
+        kv(
+            "service_requests_refused",
+            s.service_requests_refused.to_string(),
+        );
+        kv("telemetry_frames_repeated", s.frames_repeated.to_string());
         kv("telemetry_frames", s.frames.to_string());
         kv("telemetry_frames_dropped", s.frames_dropped.to_string());
         kv("link_lost_events", s.link_lost_events.to_string());
@@ -736,6 +820,10 @@ impl Bridge {
     /// now: sent as an external pose of G stamped in robot time.
     pub fn localiser_pose(&mut self, p: &PoseWithCovarianceStamped) -> Outcome {
         let arrival = self.host_us();
+        if let Err(r) = odom_frame(&p.header.frame_id) {
+            self.stats.poses_wrong_frame += 1;
+            return Ok(self.refuse(r));
+        }
         let cov = p.covariance();
         let clock = self.clock.pose_clock();
         let req = match external_pose_request(
@@ -772,6 +860,11 @@ impl Bridge {
     /// given base_link pose (the robot holds; its covariance is not used:
     /// `SetPose` carries none).
     pub fn initial_pose(&mut self, p: &PoseWithCovarianceStamped) -> Outcome {
+        if let Err(r) = odom_frame(&p.header.frame_id) {
+            self.stats.poses_wrong_frame += 1;
+            self.stats.initial_poses_refused += 1;
+            return Ok(self.refuse(r));
+        }
         let b = match planar(&p.pose.pose) {
             Ok(b) => b,
             Err(r) => {
@@ -790,6 +883,44 @@ impl Bridge {
                     self.stats.initial_poses_refused += 1;
                     Ok(self.refuse(Refusal::Robot(c.reason().into())))
                 }
+                None => Err(e.into()),
+            },
+        }
+    }
+
+    /// The set-odometry service (`control_msgs/srv/SetOdometry`, as
+    /// diff_drive_controller's `~/set_odometry`): re-anchors the estimate at
+    /// the pose of G of the given `base_link` pose in `odom` (the robot
+    /// holds, as for `/initialpose`). A planar robot: z, roll and pitch
+    /// must be 0.
+    pub fn set_odometry(&mut self, q: &SetOdometryRequest) -> Outcome {
+        let v = [q.x, q.y, q.z, q.roll, q.pitch, q.yaw];
+        if v.iter().any(|x| !x.is_finite()) {
+            return Ok(self.refuse(Refusal::NotFinite("set_odometry pose")));
+        }
+        if q.z != 0.0 || q.roll != 0.0 || q.pitch != 0.0 {
+            return Ok(self.refuse(Refusal::Implausible(format!(
+                "set_odometry z {} m, roll {} rad, pitch {} rad: a planar robot takes 0 for each (x, y, yaw only)",
+                q.z, q.roll, q.pitch
+            ))));
+        }
+        if q.x.abs() > MAX_POSITION_M || q.y.abs() > MAX_POSITION_M {
+            return Ok(self.refuse(Refusal::Implausible(format!(
+                "set_odometry position ({}, {}) m beyond ±{MAX_POSITION_M} m",
+                q.x, q.y
+            ))));
+        }
+        let g = g_of_axle(&self.geometry, [q.x, q.y, q.yaw]);
+        match self.link.command(&Request::SetPose(pose_msg(g))) {
+            Ok(_) => {
+                self.stats.odometry_sets += 1;
+                Ok(Ok(format!(
+                    "odometry set to ({}, {}, {} rad)",
+                    q.x, q.y, q.yaw
+                )))
+            }
+            Err(e) => match nack_reason(&e) {
+                Some(c) => Ok(self.refuse(Refusal::Robot(c.reason().into()))),
                 None => Err(e.into()),
             },
         }
@@ -939,6 +1070,29 @@ mod tests {
         // A little ahead is another host's clock; 1,000 s ahead is not.
         assert!(!from_future(now + 50_000_000, now));
         assert!(from_future(now + 1_000 * 1_000_000_000, now));
+    }
+
+    #[test]
+    fn stamps_never_repeat_nor_go_back() {
+        let mut g = StampGate::default();
+        // three frames of one stamp at start (as issue 35 saw on /odom),
+        // then later ones, then one stepped back
+        let stamps = [10, 10, 10, 20, 30, 25, 30, 40];
+        let admitted: Vec<u64> = stamps.into_iter().filter(|&s| g.admit(s)).collect();
+        assert_eq!(admitted, vec![10, 20, 30, 40]);
+    }
+
+    #[test]
+    fn a_map_frame_pose_is_not_taken_as_odom() {
+        assert!(odom_frame("odom").is_ok());
+        assert!(odom_frame("/odom").is_ok());
+        for f in ["map", "", "base_link", "odom_combined"] {
+            let e = odom_frame(f).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("{f:?}")) && e.contains("REP-105"),
+                "{e}"
+            );
+        }
     }
 
     #[test]

@@ -23,6 +23,8 @@ pub enum Refusal {
     NotEnabled,
     /// The robot refused it (its reason).
     Robot(String),
+    /// A pose in a frame the bridge does not fuse (which and why).
+    WrongFrame(String),
 }
 
 impl std::fmt::Display for Refusal {
@@ -36,6 +38,7 @@ impl std::fmt::Display for Refusal {
                 "motion not enabled: call the arm service (or start wmr-ros2 with --enable)"
             ),
             Self::Robot(w) => write!(f, "the robot refused it: {w}"),
+            Self::WrongFrame(w) => write!(f, "{w}"),
         }
     }
 }

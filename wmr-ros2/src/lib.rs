@@ -13,7 +13,9 @@
 //!   ([`ros_mcap::RosFrames`]), so the logs and the live topics agree;
 //! - [`params`]: the robot's parameters as ROS parameters;
 //! - [`topics`]: every topic and service with its type and QoS;
-//! - [`msg`]: the message types the bridge subscribes to.
+//! - [`msg`]: the message types the bridge subscribes to;
+//! - [`rpc`]: each service caller's request/reply mapping (D150);
+//! - [`services`]: the services on DDS, answered in the caller's mapping.
 #![deny(missing_docs)]
 
 pub mod bridge;
@@ -21,6 +23,8 @@ pub mod convert;
 pub mod msg;
 pub mod params;
 pub mod profile;
+pub mod rpc;
+pub mod services;
 pub mod topics;
 
 pub use bridge::{Bridge, Config, Fatal};

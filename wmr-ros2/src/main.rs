@@ -7,8 +7,8 @@ use controller_core::runtime::param_table::RobotBounds;
 use ros2_client::parameters::raw::{ParameterType, SetParametersResult};
 use ros2_client::rcl_interfaces as rcl;
 use ros2_client::{
-    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, Server,
-    ServiceMapping, ServiceTypeName, Subscription,
+    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher,
+    Subscription,
 };
 use serde::{de::DeserializeOwned, Serialize};
 use std::path::PathBuf;
@@ -17,27 +17,53 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 use wmr_ros2::bridge::{self, Bridge, Config, Fatal, Outcome};
 use wmr_ros2::msg::{
-    Path, PoseWithCovarianceStamped, TriggerRequest, TriggerResponse, TwistStamped,
+    Path, PoseWithCovarianceStamped, SetOdometryRequest, SetOdometryResponse, TriggerRequest,
+    TriggerResponse, TwistStamped,
 };
 use wmr_ros2::params;
+use wmr_ros2::rpc::{self, Accept};
+use wmr_ros2::services::{self, Service, ServiceHost};
 use wmr_ros2::topics::{self, TopicSpec};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum CmdVelType {
-    /// geometry_msgs/TwistStamped (Jazzy's Nav2 default).
+    /// geometry_msgs/TwistStamped: what Nav2's controller_server and velocity_smoother publish by default from Kilted on (enable_stamped_cmd_vel true; false in Jazzy), and the only cmd_vel diff_drive_controller takes since Jazzy.
     Stamped,
-    /// geometry_msgs/Twist (before Jazzy, teleop_twist_keyboard's default).
+    /// geometry_msgs/Twist: what Jazzy's Nav2 publishes by default (enable_stamped_cmd_vel false), and teleop_twist_keyboard.
     Twist,
+}
+
+/// The ROS 2 distribution whose Nav2 defaults the bridge follows
+/// (docs/ros2.md, "Conventions").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Distro {
+    /// Jazzy Jalisco (Nav2 publishes Twist).
+    Jazzy,
+    /// Kilted Kaiju (Nav2 publishes TwistStamped).
+    Kilted,
+    /// Lyrical Luth (Nav2 publishes TwistStamped).
+    Lyrical,
+}
+
+impl Distro {
+    /// The cmd_vel type Nav2's controller_server publishes by default
+    /// (nav2_util/twist_publisher.hpp: enable_stamped_cmd_vel).
+    fn nav2_cmd_vel(self) -> CmdVelType {
+        match self {
+            Self::Jazzy => CmdVelType::Twist,
+            Self::Kilted | Self::Lyrical => CmdVelType::Stamped,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum Mapping {
-    /// RPC over DDS "enhanced" (rmw_fastrtps, ROS 2's default RMW).
+    /// Each request's own: rmw_fastrtps's (a related sample identity) or rmw_cyclonedds's (its header); anything else refused.
+    Auto,
+    /// Only rmw_fastrtps's (RPC over DDS "enhanced"); others refused.
     Enhanced,
-    /// rmw_cyclonedds's request header.
+    /// Only rmw_cyclonedds's request header; others refused.
     Cyclone,
-    /// RPC over DDS "basic".
-    Basic,
 }
 
 /// ROS 2 bridge for the trajectory-tracking robot (docs/ros2.md): /odom,
@@ -60,19 +86,22 @@ struct Args {
     /// Timeout of each cmd_vel on the robot [ms]: a silent publisher stops the robot this long after its last command (then it brakes).
     #[arg(long, default_value_t = bridge::DEFAULT_CMD_TIMEOUT_MS)]
     cmd_timeout_ms: u16,
-    /// cmd_vel message type.
-    #[arg(long, value_enum, default_value_t = CmdVelType::Stamped)]
-    cmd_vel_type: CmdVelType,
+    /// The ROS 2 distribution whose Nav2 defaults to follow (the cmd_vel type); ROS sets ROS_DISTRO.
+    #[arg(long, value_enum, env = "ROS_DISTRO", default_value_t = Distro::Jazzy)]
+    ros_distro: Distro,
+    /// cmd_vel message type [default: the one Nav2 of --ros-distro publishes: twist for jazzy, stamped for kilted and lyrical].
+    #[arg(long, value_enum)]
+    cmd_vel_type: Option<CmdVelType>,
     /// cmd_vel topic.
     #[arg(long, default_value = topics::DEFAULT_CMD_VEL)]
     cmd_vel_topic: String,
     /// Topic of the paths to follow (nav_msgs/Path).
     #[arg(long, default_value = topics::DEFAULT_PATH)]
     path_topic: String,
-    /// Topic of a localiser's poses (geometry_msgs/PoseWithCovarianceStamped), fused by the robot's estimator at their stamps.
+    /// Topic of a localiser's poses (geometry_msgs/PoseWithCovarianceStamped; AMCL's by default), fused by the robot's estimator at their stamps when in the `odom` frame (a pose in another frame, such as AMCL's `map`, is refused: docs/ros2.md, "Frames").
     #[arg(long, default_value = topics::DEFAULT_LOCALISER)]
     localiser_topic: String,
-    /// d, G ahead of the axle midpoint [m] [default: body.com_offset_m of the robot file the robot runs, read from its store; the paper robot's 0.05 when it cannot tell].
+    /// d, G ahead of the axle midpoint [m] [default: body.com_offset_m of the robot file the robot runs, read from its store; the bridge does not start when the robot cannot tell].
     #[arg(long)]
     com_offset_m: Option<f64>,
     /// Fraction of the robot's speed and acceleration limits a path's profile uses.
@@ -81,8 +110,8 @@ struct Args {
     /// Enable motion at start (else call the arm service first).
     #[arg(long)]
     enable: bool,
-    /// Service mapping of the ROS 2 middleware the clients use.
-    #[arg(long, value_enum, default_value_t = Mapping::Enhanced)]
+    /// Service request/reply mapping of the callers (their RMW's).
+    #[arg(long, value_enum, default_value_t = Mapping::Auto)]
     service_mapping: Mapping,
     /// Node name.
     #[arg(long, default_value = "wmr_bridge")]
@@ -146,68 +175,80 @@ fn subscription<T: 'static>(node: &mut Node, t: &TopicSpec) -> Result<Subscripti
         .map_err(|e| format!("subscription {}: {e:?}", t.name))
 }
 
-/// The node's parameter services (D123; `wmr_ros2::params`), with the
-/// bridge's service mapping.
+/// The node's parameter services (D123; `wmr_ros2::params`), answering
+/// each caller in its own service mapping (D150).
 struct ParamServers {
-    get: Server<rcl::GetParametersRequest, rcl::GetParametersResponse>,
-    types: Server<rcl::GetParameterTypesRequest, rcl::GetParameterTypesResponse>,
-    set: Server<rcl::SetParametersRequest, rcl::SetParametersResponse>,
-    list: Server<rcl::ListParametersRequest, rcl::ListParametersResponse>,
-    describe: Server<rcl::DescribeParametersRequest, rcl::DescribeParametersResponse>,
+    get: Service<rcl::GetParametersRequest, rcl::GetParametersResponse>,
+    types: Service<rcl::GetParameterTypesRequest, rcl::GetParameterTypesResponse>,
+    set: Service<rcl::SetParametersRequest, rcl::SetParametersResponse>,
+    list: Service<rcl::ListParametersRequest, rcl::ListParametersResponse>,
+    describe: Service<rcl::DescribeParametersRequest, rcl::DescribeParametersResponse>,
 }
 
-fn server<Q, S>(
-    node: &mut Node,
-    mapping: ServiceMapping,
-    name: &str,
-    package: &str,
-    type_name: &str,
-) -> Result<Server<Q, S>, String>
+/// Takes every request of `srv`: refused ones (not answerable in their
+/// caller's mapping) are noted and not acted on; the others are answered
+/// with `answer`'s response.
+fn serve_all<Q, S, E>(
+    srv: &mut Service<Q, S>,
+    notes: &mut Vec<String>,
+    mut answer: impl FnMut(Q) -> Result<S, E>,
+) -> Result<(), E>
 where
-    Q: ros2_client::Message + DeserializeOwned + Clone + 'static,
-    S: ros2_client::Message + Serialize + 'static,
+    Q: DeserializeOwned,
+    S: Serialize,
 {
-    node.create_server(
-        mapping,
-        &name_of(name)?,
-        &ServiceTypeName::new(package, type_name),
-        topics::service_qos(),
-        topics::service_qos(),
-    )
-    .map_err(|e| format!("service {name}: {e:?}"))
+    while let Some(r) = srv.take() {
+        match r {
+            Err(refused) => notes.push(format!("service {refused}")),
+            Ok((call, q)) => {
+                let resp = answer(q)?;
+                if !srv.reply(&call, &resp) {
+                    notes.push(format!("{}: response not sent", srv.name()));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 impl ParamServers {
-    fn new(node: &mut Node, mapping: ServiceMapping, node_name: &str) -> Result<Self, String> {
+    /// Requests refused unanswered, over the five services.
+    fn refused(&self) -> u64 {
+        self.get.refused
+            + self.types.refused
+            + self.set.refused
+            + self.list.refused
+            + self.describe.refused
+    }
+
+    fn new(host: &ServiceHost, node_name: &str) -> Result<Self, String> {
         let n = |s: &str| format!("/{node_name}/{s}");
         let rcl = "rcl_interfaces";
+        let e = |e: services::CreateError| e.to_string();
         Ok(Self {
-            get: server(node, mapping, &n("get_parameters"), rcl, "GetParameters")?,
-            types: server(
-                node,
-                mapping,
-                &n("get_parameter_types"),
-                rcl,
-                "GetParameterTypes",
-            )?,
-            set: server(node, mapping, &n("set_parameters"), rcl, "SetParameters")?,
-            list: server(node, mapping, &n("list_parameters"), rcl, "ListParameters")?,
-            describe: server(
-                node,
-                mapping,
-                &n("describe_parameters"),
-                rcl,
-                "DescribeParameters",
-            )?,
+            get: host
+                .service(&n("get_parameters"), rcl, "GetParameters")
+                .map_err(e)?,
+            types: host
+                .service(&n("get_parameter_types"), rcl, "GetParameterTypes")
+                .map_err(e)?,
+            set: host
+                .service(&n("set_parameters"), rcl, "SetParameters")
+                .map_err(e)?,
+            list: host
+                .service(&n("list_parameters"), rcl, "ListParameters")
+                .map_err(e)?,
+            describe: host
+                .service(&n("describe_parameters"), rcl, "DescribeParameters")
+                .map_err(e)?,
         })
     }
 
     /// Answers every pending request; the values come from the robot and
     /// go to it through the link. Returns a line for each refused set.
-    fn serve(&self, b: &mut Bridge) -> Result<Vec<String>, Fatal> {
+    fn serve(&mut self, b: &mut Bridge) -> Result<Vec<String>, Fatal> {
         let mut notes = Vec::new();
-        let mut unsent = 0;
-        while let Ok(Some((id, req))) = self.get.receive_request() {
+        serve_all(&mut self.get, &mut notes, |req| {
             let mut values = Vec::new();
             for name in &req.names {
                 values.push(match params::find(name) {
@@ -215,23 +256,18 @@ impl ParamServers {
                     None => params::value(ParameterType::NOT_SET),
                 });
             }
-            unsent += self
-                .get
-                .send_response(id, rcl::GetParametersResponse { values })
-                .is_err() as u32;
-        }
-        while let Ok(Some((id, req))) = self.types.receive_request() {
+            Ok::<_, Fatal>(rcl::GetParametersResponse { values })
+        })?;
+        serve_all(&mut self.types, &mut notes, |req| {
             let values = req
                 .names
                 .iter()
                 .map(|n| params::find(n).map_or(ParameterType::NOT_SET, |p| p.ros_type()))
                 .collect();
-            unsent += self
-                .types
-                .send_response(id, rcl::GetParameterTypesResponse { values })
-                .is_err() as u32;
-        }
-        while let Ok(Some((id, req))) = self.set.receive_request() {
+            Ok::<_, Fatal>(rcl::GetParameterTypesResponse { values })
+        })?;
+        let mut set_notes = Vec::new();
+        serve_all(&mut self.set, &mut notes, |req| {
             let mut results = Vec::new();
             for q in &req.parameter {
                 let r = match params::find(&q.name) {
@@ -254,7 +290,7 @@ impl ParamServers {
                     },
                 };
                 if let Err(e) = &r {
-                    notes.push(format!("set_parameters: {e}"));
+                    set_notes.push(format!("set_parameters: {e}"));
                 } else {
                     eprintln!("wmr-ros2: parameter {} set on the robot", q.name);
                 }
@@ -263,23 +299,18 @@ impl ParamServers {
                     reason: r.err().unwrap_or_default(),
                 });
             }
-            unsent += self
-                .set
-                .send_response(id, rcl::SetParametersResponse { results })
-                .is_err() as u32;
-        }
-        while let Ok(Some((id, req))) = self.list.receive_request() {
+            Ok::<_, Fatal>(rcl::SetParametersResponse { results })
+        })?;
+        notes.extend(set_notes);
+        serve_all(&mut self.list, &mut notes, |req| {
             let l = params::list(&req.prefixes, req.depth);
             let result = rcl::ListParametersResult {
                 names: l.names,
                 prefixes: l.prefixes,
             };
-            unsent += self
-                .list
-                .send_response(id, rcl::ListParametersResponse { result })
-                .is_err() as u32;
-        }
-        while let Ok(Some((id, req))) = self.describe.receive_request() {
+            Ok::<_, Fatal>(rcl::ListParametersResponse { result })
+        })?;
+        serve_all(&mut self.describe, &mut notes, |req| {
             let values = req
                 .names
                 .iter()
@@ -297,14 +328,8 @@ impl ParamServers {
                     },
                 })
                 .collect();
-            unsent += self
-                .describe
-                .send_response(id, rcl::DescribeParametersResponse { values })
-                .is_err() as u32;
-        }
-        if unsent > 0 {
-            notes.push(format!("parameter services: {unsent} responses not sent"));
-        }
+            Ok::<_, Fatal>(rcl::DescribeParametersResponse { values })
+        })?;
         Ok(notes)
     }
 }
@@ -397,7 +422,7 @@ fn run(a: &Args) -> Result<(), String> {
         tracking: publisher(&mut node, &topics::TRACKING)?,
         dropped: 0,
     };
-    let stamped = a.cmd_vel_type == CmdVelType::Stamped;
+    let stamped = a.cmd_vel_type.unwrap_or(a.ros_distro.nav2_cmd_vel()) == CmdVelType::Stamped;
     let cv = topics::cmd_vel(leak(&a.cmd_vel_topic), stamped);
     let cmd_vel = if stamped {
         CmdVelSub::Stamped(subscription(&mut node, &cv)?)
@@ -409,25 +434,27 @@ fn run(a: &Args) -> Result<(), String> {
         subscription(&mut node, &topics::localiser(leak(&a.localiser_topic)))?;
     let init_sub: Subscription<PoseWithCovarianceStamped> =
         subscription(&mut node, &topics::INITIAL_POSE)?;
-    let mapping = match a.service_mapping {
-        Mapping::Enhanced => ServiceMapping::Enhanced,
-        Mapping::Cyclone => ServiceMapping::Cyclone,
-        Mapping::Basic => ServiceMapping::Basic,
+    let accept = match a.service_mapping {
+        Mapping::Auto => Accept::Auto,
+        Mapping::Enhanced => Accept::Only(rpc::Mapping::Enhanced),
+        Mapping::Cyclone => Accept::Only(rpc::Mapping::Cyclone),
     };
-    let mut servers: Vec<Server<TriggerRequest, TriggerResponse>> = Vec::new();
+    let host = ServiceHost::new(ctx.domain_participant(), accept).map_err(|e| e.to_string())?;
+    let mut servers: Vec<Service<TriggerRequest, TriggerResponse>> = Vec::new();
     for s in topics::SERVICES {
         servers.push(
-            node.create_server(
-                mapping,
-                &name_of(s)?,
-                &ServiceTypeName::new("std_srvs", "Trigger"),
-                topics::service_qos(),
-                topics::service_qos(),
-            )
-            .map_err(|e| format!("service {s}: {e:?}"))?,
+            host.service(s, "std_srvs", "Trigger")
+                .map_err(|e| e.to_string())?,
         );
     }
-    let param_servers = ParamServers::new(&mut node, mapping, &a.node_name)?;
+    let mut set_odometry: Service<SetOdometryRequest, SetOdometryResponse> = host
+        .service(
+            &format!("/{}/{}", a.node_name, topics::SET_ODOMETRY),
+            "control_msgs",
+            "SetOdometry",
+        )
+        .map_err(|e| e.to_string())?;
+    let mut param_servers = ParamServers::new(&host, &a.node_name)?;
     let limits = b.limits();
     eprintln!(
         "wmr-ros2: bridging {via} on DDS domain {}: robot r {:.4} m, h {:.4} m, {}; limits {:.2} m/s, {:.2} rad/s; motion {}",
@@ -478,8 +505,8 @@ fn run(a: &Args) -> Result<(), String> {
         while let Ok(Some((p, _))) = init_sub.take() {
             notes.extend(report("initialpose", b.initial_pose(&p))?);
         }
-        for (k, srv) in servers.iter().enumerate() {
-            while let Ok(Some((id, _req))) = srv.receive_request() {
+        for (k, srv) in servers.iter_mut().enumerate() {
+            serve_all(srv, &mut notes, |_req| {
                 let out = match k {
                     0 => b.arm()?,
                     1 => b.disarm()?,
@@ -497,12 +524,27 @@ fn run(a: &Args) -> Result<(), String> {
                     },
                 };
                 eprintln!("wmr-ros2: {}: {}", topics::SERVICES[k], resp.message);
-                if srv.send_response(id, resp).is_err() {
-                    notes.push(format!("{}: response not sent", topics::SERVICES[k]));
-                }
-            }
+                Ok::<_, Fatal>(resp)
+            })?;
         }
+        serve_all(&mut set_odometry, &mut notes, |req| {
+            let resp = match b.set_odometry(&req)? {
+                Ok(m) => SetOdometryResponse {
+                    success: true,
+                    message: m,
+                },
+                Err(r) => SetOdometryResponse {
+                    success: false,
+                    message: r.to_string(),
+                },
+            };
+            eprintln!("wmr-ros2: set_odometry: {}", resp.message);
+            Ok::<_, Fatal>(resp)
+        })?;
         notes.extend(param_servers.serve(&mut b)?);
+        b.stats.service_requests_refused = servers.iter().map(|s| s.refused).sum::<u64>()
+            + set_odometry.refused
+            + param_servers.refused();
         for n in notes {
             // The same refusal again (a publisher at 20 Hz): once every 5 s.
             if last_note
@@ -521,10 +563,11 @@ fn run(a: &Args) -> Result<(), String> {
         Ok(()) => {
             b.shutdown();
             eprintln!(
-                "wmr-ros2: done after {:.1} s: {} frames ({} dropped), {} cmd_vel ({} forwarded, {} refused), {} paths ({} uploaded), {}, {} publications dropped",
+                "wmr-ros2: done after {:.1} s: {} frames ({} dropped, {} not published: stamped at or before the last), {} cmd_vel ({} forwarded, {} refused), {} paths ({} uploaded), {}, {} publications dropped",
                 started.elapsed().as_secs_f64(),
                 b.stats.frames,
                 b.stats.frames_dropped,
+                b.stats.frames_repeated,
                 b.stats.cmd_vel,
                 b.stats.cmd_vel_forwarded,
                 b.stats.cmd_vel_refused,

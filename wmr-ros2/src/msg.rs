@@ -71,3 +71,33 @@ pub struct TriggerResponse {
 
 impl ros2_client::Message for TriggerRequest {}
 impl ros2_client::Message for TriggerResponse {}
+
+/// `control_msgs/srv/SetOdometry` request (diff_drive_controller's
+/// `~/set_odometry`): the pose of `base_link` in `odom` to set.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SetOdometryRequest {
+    /// x \[m\].
+    pub x: f64,
+    /// y \[m\].
+    pub y: f64,
+    /// z \[m\] (a planar robot: 0).
+    pub z: f64,
+    /// Roll \[rad\] (0).
+    pub roll: f64,
+    /// Pitch \[rad\] (0).
+    pub pitch: f64,
+    /// Yaw \[rad\].
+    pub yaw: f64,
+}
+
+/// `control_msgs/srv/SetOdometry` response.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SetOdometryResponse {
+    /// The pose was set.
+    pub success: bool,
+    /// What happened, or why not.
+    pub message: String,
+}
+
+impl ros2_client::Message for SetOdometryRequest {}
+impl ros2_client::Message for SetOdometryResponse {}

@@ -156,8 +156,14 @@ pub const INITIAL_POSE: TopicSpec = TopicSpec {
 pub const DEFAULT_CMD_VEL: &str = "/cmd_vel";
 /// Default path topic (not Nav2's `/plan`: a path sent here is driven).
 pub const DEFAULT_PATH: &str = "/wmr/path";
-/// Default localiser topic.
-pub const DEFAULT_LOCALISER: &str = "/wmr/localiser_pose";
+/// Default localiser topic: where Nav2's AMCL publishes its pose
+/// (nav2_amcl/src/amcl_node.cpp, `amcl_pose`, at Jazzy, Kilted, Lyrical).
+pub const DEFAULT_LOCALISER: &str = "/amcl_pose";
+
+/// The set-odometry service under the node's name (`/wmr_bridge/set_odometry`),
+/// `control_msgs/srv/SetOdometry` as diff_drive_controller's
+/// `~/set_odometry` (ros2_controllers 6.4.0).
+pub const SET_ODOMETRY: &str = "set_odometry";
 
 /// The services (`std_srvs/srv/Trigger` each), under the node's namespace.
 pub const SERVICES: [&str; 4] = [
