@@ -177,6 +177,9 @@ pub fn check_scenario(s: &Scenario) -> Result<(), String> {
 
 /// A value as a person reads it: plain in [1e-3, 1e6), else with an exponent.
 fn num(v: f64) -> String {
+    // Six significant digits: an f32 value widened to f64 (0.12 N·m read
+    // as 0.11999999731779099) prints as the user wrote it.
+    let v = format!("{v:.5e}").parse::<f64>().unwrap_or(v);
     if v == 0.0 || !v.is_finite() || (1e-3..1e6).contains(&v.abs()) {
         format!("{v}")
     } else {

@@ -157,7 +157,8 @@ pub fn scenario_summary(scn: &Scenario) -> String {
         scn.perturbations.skid_scale,
         scn.perturbations.disturbance_nm,
         scn.plant.mass_scale,
-        scn.torque_limit_nm(),
+        // The file's f32 limit as written (0.12, not 0.11999999731779099).
+        scn.torque_limit_nm() as f32,
         scn.seed
     )
 }
