@@ -254,24 +254,30 @@ pub fn compare<'py>(
 
 /// Seconds of each of `reps` runs of `scenario` with `controller` called
 /// from Rust (no Python between them): the native reference of the
-/// benchmark (bench/bench.py) for the per-call overhead of `run`.
+/// benchmark (bench/bench.py) for the per-call overhead of `run`. With
+/// `checks`, each run does what `hil-sim run` and `run` do (the limits
+/// checks, then the simulation); without, the simulation alone.
 #[pyfunction]
-#[pyo3(signature = (scenario, controller="proposed", reps=10, trace=false))]
+#[pyo3(signature = (scenario, controller="proposed", reps=10, trace=false, checks=true))]
 pub fn native_seconds(
     py: Python<'_>,
     scenario: &Scenario,
     controller: &str,
     reps: usize,
     trace: bool,
+    checks: bool,
 ) -> Result<Vec<f64>> {
     let kind = crate::convert::controller(controller)?;
     let scn = &scenario.inner;
     check(scn)?;
-    let every = trace_decimation(scn, trace, None, false)?;
     py.detach(|| {
         (0..reps)
             .map(|_| {
                 let t0 = std::time::Instant::now();
+                if checks {
+                    check(scn)?;
+                }
+                let every = trace_decimation(scn, trace, None, false)?;
                 let out = run_with(scn, controller_config(scn, kind), every)
                     .map_err(Error::Simulation)?;
                 std::hint::black_box(&out);
