@@ -91,3 +91,18 @@ def test_tune_costs_equal_cli(hil_sim, root, tmp_path):
     x = np.array(best["x"])
     same(ts.cost("asmc", x), best["tuned"]["training"])
     same(ts.cost("asmc", x, part="validation"), best["tuned"]["validation"])
+
+
+def test_shard_file_records_equal_a_block(hil_sim, tmp_path):
+    # `montecarlo --shard 1/2` of 5 runs is runs 2..5: the file's lines after
+    # the header are MonteCarlo.records(2, 5), so shards merge in Python too.
+    path = tmp_path / "s.jsonl"
+    hil_sim("montecarlo", "--runs", "5", "--duration", "3", "--seed", "4", "--quiet",
+            "--shard", "1/2", "--out", str(path))
+    lines = path.read_text().splitlines()
+    header = json.loads(lines[0])
+    assert header["runs"] == [2, 5]
+    recs = [json.loads(line) for line in lines[1:]]
+    mc = wmrsim.MonteCarlo(5, duration_s=3.0, seed=4)
+    key = lambda r: (r["run"], r["controller"])  # noqa: E731
+    assert sorted(recs, key=key) == sorted(mc.records(2, 5), key=key)
