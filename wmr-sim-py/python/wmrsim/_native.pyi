@@ -186,3 +186,12 @@ class TuneSet:
     def costs(
         self, controller: Controller, population: npt.ArrayLike, *, part: str = "training"
     ) -> List[float]: ...
+
+def native_seconds(
+    scenario: Scenario,
+    controller: Controller = "proposed",
+    reps: int = 10,
+    trace: bool = False,
+    checks: bool = True,
+) -> List[float]:
+    """Seconds of each of `reps` runs called from Rust (the benchmark's reference)."""
