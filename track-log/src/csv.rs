@@ -52,6 +52,22 @@ fn values(s: &TraceSample) -> [f64; FLOATS] {
     ]
 }
 
+/// Every scalar of `s` in [`CSV_HEADER`] order as f64 (`saturated` as 0
+/// or 1): the row [`trace_row`] writes, as numbers (the Python package's
+/// trace array).
+pub fn trace_values(s: &TraceSample) -> [f64; CSV_COLUMNS] {
+    let mut out = [0.0; CSV_COLUMNS];
+    out[..FLOATS].copy_from_slice(&values(s));
+    out[FLOATS..].copy_from_slice(&[
+        f64::from(u8::from(s.saturated)),
+        s.time_scale,
+        s.tau_s,
+        f64::from(s.health),
+        f64::from(s.health_reason),
+    ]);
+    out
+}
+
 /// One row (no newline).
 pub fn trace_row(s: &TraceSample) -> String {
     let mut line = String::with_capacity(400);
@@ -194,6 +210,25 @@ mod tests {
         assert!(lines[1..]
             .iter()
             .all(|l| l.split(',').count() == CSV_COLUMNS));
+    }
+
+    /// The numbers of [`trace_values`] are the row's cells: the CSV cell
+    /// parsed back is the same f64, bit for bit (NaN as NaN).
+    #[test]
+    fn trace_values_are_the_rows_cells() {
+        for k in 0..12 {
+            let s = sample(k);
+            let row = trace_row(&s);
+            let cells: Vec<f64> = row.split(',').map(|c| c.parse().unwrap()).collect();
+            let v = trace_values(&s);
+            assert_eq!(cells.len(), v.len());
+            for (a, b) in cells.iter().zip(v) {
+                assert!(
+                    a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()),
+                    "{a} vs {b}"
+                );
+            }
+        }
     }
 
     /// Rust prints the shortest string that parses back to the same f64:
