@@ -103,6 +103,9 @@ pub enum CliError {
     /// `serve`.
     #[error(transparent)]
     Serve(#[from] crate::serve::ServeError),
+    /// `commission`.
+    #[error(transparent)]
+    Commission(#[from] crate::commission::CommissionError),
     /// `wmr serve` without `--port`.
     #[error("wmr serve needs --port PATH (or WMR_PORT): the robot's port")]
     ServeNeedsPort,
@@ -142,6 +145,10 @@ pub fn dispatch(cli: &Cli, out: &mut dyn Write) -> Result<(), CliError> {
         Command::Serve(a) => {
             let port = cli.port.as_deref().ok_or(CliError::ServeNeedsPort)?;
             Ok(crate::serve::serve(port, a, out)?)
+        }
+        Command::Commission(a) => {
+            let mut link = link_of(cli)?;
+            Ok(crate::commission::commission(a, &mut link, out)?)
         }
         cmd => {
             let mut link = link_of(cli)?;
@@ -188,7 +195,12 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
             )),
         },
         Command::Watch(a) => crate::watch::watch(a, link, out),
-        Command::Commission(a) => crate::commission::commission(a, link, out),
+        Command::Commission(a) => {
+            crate::commission::commission(a, link, out).map_err(|e| match e {
+                crate::commission::CommissionError::Link(l) => l,
+                e => LinkError::Io(e.to_string()),
+            })
+        }
         Command::Robot(a) => crate::robot::robot(&a.op, link, out),
         Command::Metrics(_) => Err(LinkError::Io(
             "wmr metrics reads a file: it does not run on a link".into(),
