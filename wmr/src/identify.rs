@@ -307,7 +307,7 @@ pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), FitError> {
 }
 
 /// The pose the robot reports in hold (from one telemetry frame).
-fn current_pose(link: &mut Link) -> Result<controller_core::Pose, LinkError> {
+pub(crate) fn current_pose(link: &mut Link) -> Result<controller_core::Pose, LinkError> {
     let t0 = Instant::now();
     while t0.elapsed() < Duration::from_secs(2) {
         if let Some(Reply::Telemetry(t)) = link.next_stream(Duration::from_millis(20))? {
