@@ -786,3 +786,66 @@ pub fn commission_with(
         wiring,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tb6612() -> Robot {
+        let t = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robots/tb6612-2kg.toml"
+        ))
+        .unwrap();
+        Robot::from_toml_str(&t).unwrap()
+    }
+
+    /// The first torque is above the file's Coulomb friction by at least
+    /// half of it, below 90 % of the cap; a frictionless robot gets a
+    /// tenth of stall (at the duty limit), as before.
+    #[test]
+    fn the_test_torque_is_above_the_friction_and_below_the_cap() {
+        let mut r = tb6612();
+        let stall = r.stall_torque_nm() * r.bridge.max_duty_fraction;
+        let cap = test_cap_nm(&r, 0.0);
+        assert_eq!(cap, r.limits.torque_nm.min(stall));
+        for c in [0.0f32, 0.03, 0.1, 0.15, 0.2] {
+            r.motors.coulomb_friction_nm = [c, 0.5 * c];
+            let t = test_torque_nm(&r, cap);
+            assert!(t <= 0.9 * cap + 1e-6, "{c}: {t}");
+            if c < 0.6 * cap {
+                assert!(t >= 1.5 * c - 1e-6, "{c}: {t}");
+            }
+            if c == 0.0 {
+                assert!((t - 0.1 * stall).abs() < 1e-6, "{t}");
+            }
+        }
+        // The robot's smaller limit caps it.
+        assert_eq!(test_cap_nm(&r, 0.1), 0.1);
+    }
+
+    /// `--torque-nm`: the value, or the limit and what to do.
+    #[test]
+    fn the_torque_option_is_checked_against_the_cap() {
+        assert_eq!(check_torque(0.05, 0.12).unwrap(), 0.05);
+        for bad in [0.0, -0.1, f32::NAN] {
+            let e = check_torque(bad, 0.12).unwrap_err().to_string();
+            assert!(e.contains("must be a torque > 0"), "{e}");
+        }
+        let e = check_torque(0.2, 0.12).unwrap_err().to_string();
+        assert!(
+            e.starts_with("--torque-nm 0.2: above the wheel test's cap 0.120 N·m")
+                && e.contains("give at most 0.120"),
+            "{e}"
+        );
+    }
+
+    /// The advice doubles the torque (rounded up to 0.01 N·m) within the
+    /// cap, the cap itself past it, and at the cap says what else to check.
+    #[test]
+    fn the_advice_names_the_torque_to_try() {
+        assert!(advice(0.029, 0.12, true).starts_with("try --torque-nm 0.06"));
+        assert!(advice(0.08, 0.12, true).starts_with("try --torque-nm 0.12"));
+        assert!(advice(0.12, 0.12, false).contains("it is the cap"));
+    }
+}
