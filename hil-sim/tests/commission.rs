@@ -221,8 +221,7 @@ impl std::io::Read for Watcher {
             let said = self.said.borrow();
             let line = said
                 .lines()
-                .filter(|l| l.starts_with(&format!("{w} wheel forward")))
-                .last()
+                .rfind(|l| l.starts_with(&format!("{w} wheel forward")))
                 .unwrap_or_default()
                 .to_string();
             let counts: Vec<i32> = line
