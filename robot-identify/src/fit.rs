@@ -127,6 +127,11 @@ pub struct FitOptions {
     /// A parameter whose 95 % interval is wider than this fraction of its
     /// value is reported as poorly identified.
     pub max_relative_ci: f64,
+    /// The robot's weighed mass \[kg\] (a kitchen scale), taken as known:
+    /// it fixes the voltage form's scale, which the log cannot see, so the
+    /// motor's torque per volt a = η_g·N·k/R is identified instead of
+    /// taken from the prior (issue 34, D171).
+    pub mass_kg: Option<f64>,
 }
 
 impl Default for FitOptions {
@@ -137,6 +142,7 @@ impl Default for FitOptions {
             kinematic_horizon_s: 0.5,
             sign_band_radps: 0.05,
             max_relative_ci: 0.2,
+            mass_kg: None,
         }
     }
 }
@@ -208,6 +214,12 @@ pub struct Dynamics {
     pub emf_vs_per_rad: Option<[Estimate; 2]>,
     /// Sign of each wheel's duty against its torque (−1: mirrored motor).
     pub duty_sign: [f64; 2],
+    /// Voltage form: the motor's torque per volt a = η_g·N·k/R \[N·m/V\]
+    /// that scales the fit: identified from the weighed mass, else the
+    /// prior's (interval ∞: not identified). Torque form: 1.
+    pub torque_per_volt: Estimate,
+    /// The scale came from the weighed mass ([`FitOptions::mass_kg`]).
+    pub mass_given: bool,
     /// The least-squares fit (parameters in the order of [`Self::names`]).
     pub lsq: LsqFit,
     /// The fitted quantities, in the regressor's column order.
@@ -258,6 +270,11 @@ pub enum FitError {
     BadLog(String),
     /// A regression failed.
     Lsq(&'static str, LsqError),
+    /// The weighed mass is not a mass.
+    BadMass(f64),
+    /// The weighed mass was given but the run does not determine the
+    /// translational term it scales (its fitted M_v/a not positive).
+    NoScale(f64),
 }
 
 impl std::fmt::Display for FitError {
@@ -265,6 +282,15 @@ impl std::fmt::Display for FitError {
         match self {
             Self::TooShort(s) | Self::BadLog(s) => f.write_str(s),
             Self::Lsq(what, e) => write!(f, "{what}: {e}"),
+            Self::BadMass(m) => write!(
+                f,
+                "--mass-kg {m}: must be a mass > 0 kg (the robot on a scale, with its battery and everything it carries)"
+            ),
+            Self::NoScale(v) => write!(
+                f,
+                "--mass-kg: the run's translational term M_v/a = {v:.4} is not positive: the run did not \
+                 accelerate the robot along its heading (record a run with v̇ excited: `wmr identify run --v-amp`)"
+            ),
         }
     }
 }
@@ -388,6 +414,11 @@ pub fn identify(
     prior: &Prior,
     opts: &FitOptions,
 ) -> Result<Identification, FitError> {
+    if let Some(m) = opts.mass_kg {
+        if !(m.is_finite() && m > 0.0) {
+            return Err(FitError::BadMass(m));
+        }
+    }
     if rows.len() < 100 {
         return Err(FitError::TooShort(format!(
             "{} rows: an identification needs a run of at least 100 telemetry frames",
@@ -599,19 +630,56 @@ pub fn identify(
         };
         // Two rows per instant: the correlation spans twice the window.
         let f = solve(&phi, &y, 2 * lags).map_err(|e| FitError::Lsq(name, e))?;
-        let scale = match form {
-            Form::Voltage => prior.torque_per_volt(),
-            Form::Torque => 1.0,
-        };
-        let est = |j: usize| Estimate::new(scale * f.theta[j], scale * f.std_err[j]);
         let iw = prior.robot.wheel_inertia_kgm2 as f64;
         let inv_r2 = 1.0 / (r[0] * r[0]) + 1.0 / (r[1] * r[1]);
-        let (mv, mw, md) = (scale * f.theta[0], scale * f.theta[1], scale * f.theta[2]);
+        // The scale a: the prior motor's, or (voltage form, mass weighed)
+        // the one that makes M_v = m + I_w·Σ1/r² of the weighed m. The
+        // physical parameters are p = a·θ; with a = M_v/θ₀ their
+        // covariance is J·C·Jᵀ, J = a·(1 − θ e₀ᵀ/θ₀) (p₀ = M_v exactly).
+        let given = match (form, opts.mass_kg) {
+            (Form::Voltage, Some(m)) => Some(m + iw * inv_r2),
+            _ => None,
+        };
+        let (scale, jac) = match given {
+            Some(mv) => {
+                let t0 = f.theta[0];
+                if t0 <= 0.0 {
+                    return Err(FitError::NoScale(t0));
+                }
+                let a = mv / t0;
+                let j = DMatrix::from_fn(7, 7, |i, k| {
+                    (if i == k { a } else { 0.0 }) - if k == 0 { a * f.theta[i] / t0 } else { 0.0 }
+                });
+                (a, j)
+            }
+            None => {
+                let a = match form {
+                    Form::Voltage => prior.torque_per_volt(),
+                    Form::Torque => 1.0,
+                };
+                (a, DMatrix::from_diagonal_element(7, 7, a))
+            }
+        };
+        let cov = &jac * &f.cov * jac.transpose();
+        let p: Vec<f64> = (0..7).map(|j| scale * f.theta[j]).collect();
+        let est = |j: usize| Estimate::new(p[j], cov[(j, j)].max(0.0).sqrt());
+        let torque_per_volt = match (form, given) {
+            (Form::Torque, _) => Estimate::new(1.0, 0.0),
+            (Form::Voltage, Some(mv)) => {
+                let t0 = f.theta[0];
+                Estimate::new(scale, mv * f.std_err[0] / (t0 * t0))
+            }
+            (Form::Voltage, None) => Estimate {
+                value: scale,
+                ci95: f64::INFINITY,
+            },
+        };
+        let (mv, mw, md) = (p[0], p[1], p[2]);
         let mass = mv - iw * inv_r2;
         let d = md / mass;
         let inertia = mw - 3.0 * md * md / mass - iw * h * h * inv_r2;
         // Delta method over (M_v, M_ω, md).
-        let c = |a: usize, b: usize| scale * scale * f.cov[(a, b)];
+        let c = |a: usize, b: usize| cov[(a, b)];
         let g_i = [3.0 * md * md / (mass * mass), 1.0, -6.0 * md / mass];
         let var_i: f64 = (0..3)
             .flat_map(|a| (0..3).map(move |b| (a, b)))
@@ -625,7 +693,7 @@ pub fn identify(
         let (viscous, emf) = match form {
             Form::Voltage => {
                 let nk = prior.emf_per_wheel_rate();
-                let a = prior.torque_per_volt();
+                let a = scale;
                 (
                     [0, 1].map(|i| Estimate::new(a * (f.theta[3 + i] - nk), a * f.std_err[3 + i])),
                     Some([0, 1].map(|i| Estimate::new(f.theta[3 + i], f.std_err[3 + i]))),
@@ -635,7 +703,7 @@ pub fn identify(
         };
         Ok(Dynamics {
             form,
-            mass_kg: Estimate::new(mass, scale * f.std_err[0]),
+            mass_kg: Estimate::new(mass, cov[(0, 0)].max(0.0).sqrt()),
             inertia_kgm2: Estimate::new(inertia, var_i.max(0.0).sqrt()),
             com_offset_m: Estimate::new(d, var_d.max(0.0).sqrt()),
             m1: [est(0), est(1)],
@@ -643,6 +711,8 @@ pub fn identify(
             viscous_nms_per_rad: viscous,
             emf_vs_per_rad: emf,
             duty_sign,
+            torque_per_volt,
+            mass_given: given.is_some(),
             names: match form {
                 Form::Voltage => [
                     "M_v/a", "M_w/a", "md/a", "kappa_R", "kappa_L", "gamma_R", "gamma_L",
@@ -672,12 +742,9 @@ pub fn identify(
         richness_notes(d, opts, &mut notes);
     }
     if has_duty {
-        notes.push(format!(
-            "scale: mass, inertia and friction are in units of the prior motor's torque per volt \
-             a = η_g·N·k/R = {:.4} N·m/V (one scale factor is not observable from duties and motion: \
-             a robot with all masses, frictions and a scaled alike moves the same); a wrong a scales them by the same factor",
-            prior.torque_per_volt()
-        ));
+        if let Some(d) = &dynamics {
+            notes.push(scale_note(d, prior));
+        }
         notes.push(format!(
             "motor: κ = N·k + c_v/a per wheel (the back-EMF constant and viscous friction share the regressor φ̇); \
              the prior's N·k = {:.4} V·s/rad; viscous friction is reported as a·(κ − N·k)",
@@ -700,6 +767,51 @@ pub fn identify(
         torque_check,
         notes,
     })
+}
+
+/// What the voltage form's scale is: from the weighed mass (the motor's
+/// torque per volt identified), or the prior's, with what the log did
+/// identify (ratios to a, and ratios free of it) and what it did not.
+fn scale_note(d: &Dynamics, prior: &Prior) -> String {
+    let a = d.torque_per_volt;
+    let a0 = prior.torque_per_volt();
+    if d.mass_given {
+        return format!(
+            "scale: the weighed mass m = {:.4} kg (--mass-kg, taken as exact) fixes the scale the log cannot see: \
+             the motor's torque per volt a = η_g·N·k/R is identified, {:.5} ± {:.5} N·m/V ({:+.1} % from the prior's {a0:.5}); \
+             inertia and friction are in N·m from it (their intervals include a's)",
+            d.mass_kg.value,
+            a.value,
+            a.ci95,
+            100.0 * (a.value / a0 - 1.0)
+        );
+    }
+    // Ratios the log determines whatever a is.
+    let th = &d.lsq.theta;
+    let se = &d.lsq.std_err;
+    let ratio = |j: usize| Estimate::new(th[j], se[j]);
+    let i_over_m = d.inertia_kgm2.value / d.mass_kg.value;
+    let c_over_m = [0, 1].map(|i| d.coulomb_nm[i].value / d.mass_kg.value);
+    format!(
+        "scale NOT identified: duties and motion fix only ratios to the motor's torque per volt a = η_g·N·k/R. \
+         Identified: M_v/a = {:.3} kg per N·m/V (M_v = m + I_w·Σ1/r²), M_ω/a = {:.4} kg·m² per N·m/V, \
+         Coulomb friction/a = {:.4} V (right), {:.4} V (left); free of a: I/m = {:.6} m², \
+         Coulomb friction/m = {:.5}, {:.5} N·m/kg. Not identified: a itself, taken from the prior ({a0:.5} N·m/V \
+         from the file's η_g, N, k, R): the mass {:.4} kg, inertia {:.6} kg·m² and friction {:.4}/{:.4} N·m are that a \
+         times the ratios, and an error of x % in a is x % in each of them. Weigh the robot and give --mass-kg: \
+         then a is identified",
+        ratio(0),
+        ratio(1),
+        ratio(5),
+        ratio(6),
+        i_over_m,
+        c_over_m[0],
+        c_over_m[1],
+        d.mass_kg.value,
+        d.inertia_kgm2.value,
+        d.coulomb_nm[0].value,
+        d.coulomb_nm[1].value,
+    )
 }
 
 /// The richness check: condition number, parameters the run did not

@@ -20,7 +20,30 @@ fn line(out: &mut String, name: &str, unit: &str, e: &Estimate, prior: Option<f6
 
 fn dynamics(out: &mut String, d: &Dynamics, prior: &Prior) {
     let p = &prior.robot;
-    line(out, "mass m", "kg", &d.mass_kg, Some(p.mass_kg as f64));
+    if d.mass_given {
+        let _ = writeln!(
+            out,
+            "  {:<22} {:>12.5} {:<12} {:<10}    given (--mass-kg)   (prior {:.5})",
+            "mass m", d.mass_kg.value, "", "kg", p.mass_kg
+        );
+    } else {
+        line(out, "mass m", "kg", &d.mass_kg, Some(p.mass_kg as f64));
+    }
+    if d.form == crate::fit::Form::Voltage && d.mass_given {
+        line(
+            out,
+            "torque/volt a=ηNk/R",
+            "N·m/V",
+            &d.torque_per_volt,
+            Some(prior.torque_per_volt()),
+        );
+    } else if d.form == crate::fit::Form::Voltage {
+        let _ = writeln!(
+            out,
+            "  {:<22} {:>12.5} {:<12} {:<10}    the prior's: NOT identified (give --mass-kg)",
+            "torque/volt a=ηNk/R", d.torque_per_volt.value, "", "N·m/V"
+        );
+    }
     line(
         out,
         "inertia I",
@@ -228,8 +251,10 @@ pub fn robot_toml(id: &Identification, prior: &Prior) -> String {
 /// the body's mass, inertia, centre-of-mass offset, both wheel radii and
 /// the track, and each wheel's friction, replaced where the run identified
 /// them (a friction whose interval contains zero, or below zero, is written
-/// as 0); everything else (motor constants, encoders, bridge, limits,
-/// gains) kept. The header comment is the report (every value with its
+/// as 0); with a weighed mass, the mass and the identified torque per volt
+/// a = η_g·N·k/R (as `motors.gear_efficiency`, or `motors.resistance_ohm`
+/// when that efficiency would leave 0.1..=1); everything else (the other
+/// motor constants, encoders, bridge, limits, gains) kept. The header comment is the report (every value with its
 /// interval). Fails when the result is not a valid robot file (the error
 /// names the field).
 pub fn robot_file(
@@ -240,7 +265,21 @@ pub fn robot_file(
     let mut r = base.clone();
     let ok = |e: &Estimate| e.ci95.is_finite() && !e.consistent_with_zero();
     if let Some(d) = &id.dynamics {
-        if ok(&d.mass_kg) {
+        if d.mass_given {
+            r.body.mass_kg = d.mass_kg.value as f32;
+            // The identified a = η_g·N·k/R: in the gear efficiency (the
+            // number a datasheet knows least; N, k and the back-EMF N·k
+            // are kept), else, beyond its range, in the resistance.
+            let a = d.torque_per_volt.value as f32;
+            let m = &mut r.motors;
+            let eta = a * m.resistance_ohm / (m.gear_ratio * m.torque_constant_nm_per_a);
+            if (0.1..=1.0).contains(&eta) {
+                m.gear_efficiency = eta;
+            } else {
+                m.resistance_ohm =
+                    m.gear_efficiency * m.gear_ratio * m.torque_constant_nm_per_a / a;
+            }
+        } else if ok(&d.mass_kg) {
             r.body.mass_kg = d.mass_kg.value as f32;
         }
         if ok(&d.inertia_kgm2) {

@@ -14,14 +14,14 @@
 
 use controller_core::estimator::GyroSample;
 use controller_core::runtime::{DutyCommand, Gyro, MotorDriver, MotorModel, RuntimeConfig};
-use wmr_protocol::{
-    ErrorCode, WheelTestCmd, WheelTestEnd, WheelTestResult, WHEEL_TEST_MAX_MS,
-    WHEEL_TEST_STALL_FRACTION,
-};
+use wmr_protocol::{ErrorCode, WheelTestCmd, WheelTestEnd, WheelTestResult, WHEEL_TEST_MAX_MS};
 
-/// The largest wheel-test torque of a robot \[N·m\]: the commissioning cap
-/// ([`WHEEL_TEST_STALL_FRACTION`] of the motor's stall torque at its duty
-/// limit, at the wheel) and never above the torque limit.
+/// The largest wheel-test torque of a robot \[N·m\]: the commissioning cap,
+/// the torque limit (the current the driver is rated for, docs/robot.md)
+/// and never above the motor's stall torque at its duty limit (the duty of
+/// a larger torque at standstill does not exist). It was a fifth of stall
+/// (D88), below the Coulomb friction of small plastic gearboxes (issue 34,
+/// D170): the host picks the torque above the wheel's friction.
 pub fn torque_cap_nm(rt: &RuntimeConfig) -> f32 {
     let m = &rt.motor;
     let stall_nm = m.torque_constant_nm_per_a
@@ -30,7 +30,7 @@ pub fn torque_cap_nm(rt: &RuntimeConfig) -> f32 {
         * m.supply_voltage_v
         * m.max_duty_fraction
         / m.winding_resistance_ohm;
-    (WHEEL_TEST_STALL_FRACTION * stall_nm).min(rt.controller.torque_limit_nm)
+    stall_nm.min(rt.controller.torque_limit_nm)
 }
 
 /// A wheel test in progress.

@@ -254,9 +254,6 @@ pub enum Request {
 
 /// Longest wheel test \[ms\] ([`Request::WheelTest`]).
 pub const WHEEL_TEST_MAX_MS: u16 = 2000;
-/// Commissioning cap of a wheel test's torque: this fraction of the
-/// motor's stall torque at full duty (and never above the torque limit).
-pub const WHEEL_TEST_STALL_FRACTION: f32 = 0.2;
 
 /// A wheel test ([`Request::WheelTest`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -490,7 +487,7 @@ pub enum ErrorCode {
     StoreFailed,
     // --- commissioning (issue 18) ---
     /// A wheel test's torque is above the commissioning cap
-    /// ([`WHEEL_TEST_STALL_FRACTION`] of stall, or the torque limit).
+    /// (the torque limit, and the stall torque at the duty limit).
     AboveTestCap,
 }
 

@@ -2,7 +2,8 @@
 //! logic is in its module ([`crate::status`], [`crate::upload`],
 //! [`crate::drive`], [`crate::params`], [`crate::record`],
 //! [`crate::pose_feed`], [`crate::identify`], [`crate::watch`],
-//! [`crate::commission`], [`crate::robot`], [`crate::serve`]), the link's
+//! [`crate::commission`], [`crate::bringup`], [`crate::robot`],
+//! [`crate::serve`]), the link's
 //! session (clock, keep-alive, segment streaming, motion commands) in
 //! [`crate::session`]. Everything is library code ([`execute`]) so tests
 //! drive it in-process over a pseudo-terminal.
@@ -81,6 +82,9 @@ pub enum Command {
     /// Guided first power-up: each wheel driven alone, wiring and the robot
     /// file checked, the corrected file proposed (docs/commissioning.md).
     Commission(crate::commission::CommissionArgs),
+    /// Guided bring-up: commission, identification run, fit, tune, push,
+    /// verification; each step resumable (docs/bringup.md).
+    Bringup(crate::bringup::BringupArgs),
     /// The robot file in the robot's flash: push, pull, diff, check.
     Robot(crate::robot::RobotArgs),
     /// Own the link to --port and serve every other command (and any
@@ -103,6 +107,12 @@ pub enum CliError {
     /// `serve`.
     #[error(transparent)]
     Serve(#[from] crate::serve::ServeError),
+    /// `commission`.
+    #[error(transparent)]
+    Commission(#[from] crate::commission::CommissionError),
+    /// `bringup`.
+    #[error(transparent)]
+    Bringup(#[from] crate::bringup::BringupError),
     /// `wmr serve` without `--port`.
     #[error("wmr serve needs --port PATH (or WMR_PORT): the robot's port")]
     ServeNeedsPort,
@@ -142,6 +152,14 @@ pub fn dispatch(cli: &Cli, out: &mut dyn Write) -> Result<(), CliError> {
         Command::Serve(a) => {
             let port = cli.port.as_deref().ok_or(CliError::ServeNeedsPort)?;
             Ok(crate::serve::serve(port, a, out)?)
+        }
+        Command::Commission(a) => {
+            let mut link = link_of(cli)?;
+            Ok(crate::commission::commission(a, &mut link, out)?)
+        }
+        Command::Bringup(a) => {
+            let mut link = link_of(cli)?;
+            Ok(crate::bringup::bringup(a, &mut link, out)?)
         }
         cmd => {
             let mut link = link_of(cli)?;
@@ -188,7 +206,16 @@ pub fn run(cmd: &Command, link: &mut Link, out: &mut dyn Write) -> Result<(), Li
             )),
         },
         Command::Watch(a) => crate::watch::watch(a, link, out),
-        Command::Commission(a) => crate::commission::commission(a, link, out),
+        Command::Commission(a) => {
+            crate::commission::commission(a, link, out).map_err(|e| match e {
+                crate::commission::CommissionError::Link(l) => l,
+                e => LinkError::Io(e.to_string()),
+            })
+        }
+        Command::Bringup(a) => crate::bringup::bringup(a, link, out).map_err(|e| match e {
+            crate::bringup::BringupError::Link(l) => l,
+            e => LinkError::Io(e.to_string()),
+        }),
         Command::Robot(a) => crate::robot::robot(&a.op, link, out),
         Command::Metrics(_) => Err(LinkError::Io(
             "wmr metrics reads a file: it does not run on a link".into(),

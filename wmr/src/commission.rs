@@ -1,10 +1,12 @@
 //! `wmr commission`: the guided first power-up (issue 18,
 //! docs/commissioning.md). Each wheel is driven alone in each direction
 //! with the robot's wheel test (`Request::WheelTest`: hold only, open
-//! loop, at most 20 % of stall torque, at most 2 s, ended by the robot);
-//! the counts of both wheels and the gyro's yaw integral are checked
-//! against the command and the robot file; the findings are printed in
-//! plain words with their numbers and the corrected file proposed.
+//! loop, at most the torque limit, at most 2 s, ended by the robot) at a
+//! torque above the wheel's breakaway friction (the file's, raised step by
+//! step when the wheel does not move: issue 34, D170); the counts of both
+//! wheels and the gyro's yaw integral are checked against the command and
+//! the robot file; the findings are printed in plain words with their
+//! numbers and the corrected file proposed.
 
 use crate::link::{Link, LinkError};
 use robot_file::{Robot, YawAxis};
@@ -42,6 +44,103 @@ pub struct CommissionArgs {
     /// Test duration [ms] (at most 2000).
     #[arg(long, default_value_t = 1500, value_name = "MS")]
     pub duration_ms: u16,
+    /// Test torque at the wheel [N·m] (0 < T <= the cap: the torque limit)
+    /// [default: above the file's Coulomb friction, raised step by step up
+    /// to the cap while a wheel does not move].
+    #[arg(long, value_name = "N·m")]
+    pub torque_nm: Option<f32>,
+}
+
+/// Why commissioning could not decide, or failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CommissionError {
+    /// The link or the robot.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// The robot file.
+    #[error("{path}: {err}")]
+    RobotFile {
+        /// The file.
+        path: String,
+        /// Why.
+        err: String,
+    },
+    /// `--torque-nm` out of its range.
+    #[error("--torque-nm {value}: {why}")]
+    Torque {
+        /// The value given.
+        value: f32,
+        /// The limit and what to do.
+        why: String,
+    },
+    /// `--turns` or an answer is not what was asked.
+    #[error("{0}")]
+    Answer(String),
+    /// The robot is not in hold.
+    #[error(
+        "the robot is {0}: commissioning needs hold (`wmr disarm`, `wmr clear` a latched stop)"
+    )]
+    NotInHold(String),
+    /// A wheel (or the other wheel's counter) moved less than a test needs.
+    #[error(
+        "the {wheel} wheel moved {counts} counts at {torque_nm:.3} N·m: below the gearbox's friction? {advice} \
+         (a test needs {needed} counts, a tenth of a turn)"
+    )]
+    TooLittle {
+        /// "right" or "left".
+        wheel: &'static str,
+        /// The larger count change of its tests.
+        counts: i32,
+        /// The torque of its last test \[N·m\].
+        torque_nm: f32,
+        /// Counts a test needs.
+        needed: i32,
+        /// What to do.
+        advice: String,
+    },
+    /// On the floor: a gyro fitted but the robot hardly turned while the
+    /// wheel's counter moved.
+    #[error(
+        "the robot turned {yaw_rad:.4} rad in the {wheel} wheel's test while its counter moved {counts} counts: \
+         on the floor one wheel alone turns the robot (at least 0.01 rad): is it on a stand, or the wheel slipping? \
+         (on a stand: drop --floor and give --turns R,L)"
+    )]
+    NoTurn {
+        /// "right" or "left".
+        wheel: &'static str,
+        /// The gyro's yaw \[rad\].
+        yaw_rad: f32,
+        /// The wheel's counts.
+        counts: i32,
+    },
+    /// On the floor without a gyro reading.
+    #[error(
+        "no gyro reading in the {0} wheel's test: --floor needs a gyro (the robot reported none): \
+         on a stand, drop --floor and give --turns R,L"
+    )]
+    NoGyro(&'static str),
+    /// Findings (the message counts them).
+    #[error("{count} finding(s){}", wiring_note(*.wiring))]
+    Findings {
+        /// How many.
+        count: usize,
+        /// A wiring fix among them.
+        wiring: bool,
+    },
+    /// The robot refused the test torque as above its own cap.
+    #[error(
+        "the robot refused the wheel test at {torque_nm:.3} N·m as above its cap (this file implies {cap_nm:.3} N·m): \
+         the robot runs another file? push this one (`wmr robot push`), or give a lower --torque-nm"
+    )]
+    RobotCap {
+        /// The torque asked \[N·m\].
+        torque_nm: f32,
+        /// The cap the file implies \[N·m\].
+        cap_nm: f32,
+    },
+    /// Writing the output.
+    #[error("cannot write the output: {0}")]
+    Output(String),
 }
 
 /// One wrong thing found, with the fix.
@@ -62,8 +161,27 @@ pub enum Finding {
 
 const WHEEL: [&str; 2] = ["right", "left"];
 
-fn io(e: std::io::Error) -> LinkError {
-    LinkError::Io(e.to_string())
+fn wiring_note(wiring: bool) -> &'static str {
+    if wiring {
+        ", a wiring fix among them"
+    } else {
+        ""
+    }
+}
+
+/// Each step of the ramp multiplies the torque by this while a wheel
+/// moves less than [`needed_counts`] (up to the cap).
+pub const RAMP_FACTOR: f32 = 1.5;
+
+/// The fraction of a wheel turn a test must move the wheel (its counter,
+/// or the other one's when swapped): enough for the gyro's yaw on the
+/// floor (a tenth of a turn of a 30 mm wheel on a 140 mm track is 0.13
+/// rad, the check needs 0.01) and for a person watching a marked wheel.
+pub const MIN_TURN_FRACTION: f32 = 0.1;
+
+/// Counts a test must move: a tenth of a turn, at least 10.
+pub fn needed_counts(robot: &Robot) -> i32 {
+    ((MIN_TURN_FRACTION * robot.encoders.counts_per_wheel_rev).round() as i32).max(10)
 }
 
 /// Runs one wheel test and waits (bounded) for its end; the link is kept
@@ -102,17 +220,82 @@ pub fn wheel_test(link: &mut Link, cmd: WheelTestCmd) -> Result<WheelTestResult,
     Err(LinkError::NoAnswer("wheel test end".into()))
 }
 
-/// The test torque \[N·m\]: half of the commissioning cap the robot file
-/// implies (20 % of stall, the torque limit, the robot's own torque limit).
-pub fn test_torque_nm(robot: &Robot, robot_limit_nm: f32) -> f32 {
-    let cap = (wmr_protocol::WHEEL_TEST_STALL_FRACTION * robot.stall_torque_nm())
+/// The wheel test's cap as the file and the robot imply it \[N·m\] (the
+/// robot's own check: `wmr_device::wheel_test::torque_cap_nm`): the
+/// torque limit (the file's and the robot's), never above the stall
+/// torque at the duty limit.
+pub fn test_cap_nm(robot: &Robot, robot_limit_nm: f32) -> f32 {
+    let stall_at_duty = robot.stall_torque_nm() * robot.bridge.max_duty_fraction;
+    stall_at_duty
         .min(robot.limits.torque_nm)
         .min(if robot_limit_nm > 0.0 {
             robot_limit_nm
         } else {
             f32::MAX
-        });
-    0.5 * cap
+        })
+}
+
+/// The first test torque \[N·m\]: the file's breakaway (Coulomb) friction
+/// plus a margin, the larger of half the friction and a tenth of the
+/// stall torque (the torque of a frictionless wheel: it turns a 15 kg
+/// robot by 0.2-0.9 rad in a second), at most 90 % of the cap `cap_nm`.
+/// The robot file's friction of a small plastic gearbox can be half the
+/// torque limit: a fixed tenth of stall did not move such a wheel (issue 34).
+pub fn test_torque_nm(robot: &Robot, cap_nm: f32) -> f32 {
+    let m = &robot.motors;
+    let friction = m.coulomb_friction_nm[0].max(m.coulomb_friction_nm[1]);
+    let base = (0.1 * robot.stall_torque_nm() * robot.bridge.max_duty_fraction).min(0.5 * cap_nm);
+    (friction + (0.5 * friction).max(base)).min(0.9 * cap_nm)
+}
+
+/// `--torque-nm` checked against the cap: the value, or why not.
+pub fn check_torque(value: f32, cap_nm: f32) -> Result<f32, CommissionError> {
+    let why = if !value.is_finite() || value <= 0.0 {
+        Some("must be a torque > 0 N·m (each wheel is driven both ways at it)".to_string())
+    } else if value > cap_nm {
+        Some(format!(
+            "above the wheel test's cap {cap_nm:.3} N·m (the torque limit limits.torque_nm, at most the stall \
+             torque at the duty limit): give at most {cap_nm:.3}, or raise limits.torque_nm in the file and push it"
+        ))
+    } else {
+        None
+    };
+    match why {
+        Some(why) => Err(CommissionError::Torque { value, why }),
+        None => Ok(value),
+    }
+}
+
+/// What to do when a wheel moved too little at `torque_nm`.
+fn advice(torque_nm: f32, cap_nm: f32, user_torque: bool) -> String {
+    if torque_nm < 0.999 * cap_nm {
+        // Two decimals up (0.058 -> 0.06), never above the cap.
+        let next = ((2.0 * torque_nm) * 100.0).ceil() / 100.0;
+        let next = if next > torque_nm && next <= cap_nm {
+            next
+        } else {
+            cap_nm
+        };
+        format!(
+            "try --torque-nm {}{}",
+            trim(next),
+            if user_torque {
+                ""
+            } else {
+                " (or the motor is unpowered, a wire broken)"
+            }
+        )
+    } else {
+        format!(
+            "it is the cap (the torque limit {cap_nm:.3} N·m): check the motor's supply and wires, \
+             the gearbox (turn the wheel by hand), or limits.torque_nm in the file"
+        )
+    }
+}
+
+/// A torque as the shortest decimal that reads back the same.
+fn trim(x: f32) -> String {
+    format!("{x}")
 }
 
 /// The yaw \[rad\] wheel counts imply on the file's geometry (Eq. 3: ψ =
@@ -124,12 +307,16 @@ pub fn wheel_yaw_rad(robot: &Robot, counts: [i32; 2], counts_per_rev: f32) -> f3
 }
 
 /// The findings of the four tests `[right+, right−, left+, left−]`
-/// (`seen`: on a stand, the turns the user saw per wheel's forward test).
+/// (`seen`: on a stand, the turns the user saw per wheel's forward test;
+/// `cap_nm` and `user_torque` phrase the advice when a wheel moved too
+/// little).
 pub fn analyse(
     robot: &Robot,
     tests: &[WheelTestResult; 4],
     seen: Option<[f32; 2]>,
-) -> Result<Vec<Finding>, String> {
+    cap_nm: f32,
+    user_torque: bool,
+) -> Result<Vec<Finding>, CommissionError> {
     let mut f = Vec::new();
     let cpr = robot.encoders.counts_per_wheel_rev;
     let mut corrected: Vec<[i32; 2]> = Vec::new();
@@ -138,11 +325,16 @@ pub fn analyse(
         let (fwd, rev) = (&tests[2 * w], &tests[2 * w + 1]);
         let me = fwd.counts[w].abs().max(rev.counts[w].abs());
         let other = fwd.counts[1 - w].abs().max(rev.counts[1 - w].abs());
-        if me.max(other) < 10 {
-            return Err(format!(
-                "the {} wheel did not move ({} and {} counts): motor unpowered, a broken wire, or the torque too low for its friction",
-                WHEEL[w], fwd.counts[w], rev.counts[w]
-            ));
+        let needed = needed_counts(robot);
+        if me.max(other) < needed {
+            let torque_nm = fwd.torque_nm.abs().max(rev.torque_nm.abs());
+            return Err(CommissionError::TooLittle {
+                wheel: WHEEL[w],
+                counts: me.max(other),
+                torque_nm,
+                needed,
+                advice: advice(torque_nm, cap_nm, user_torque),
+            });
         }
         if other > 2 * me {
             if !f.contains(&Finding::Swapped) {
@@ -154,19 +346,21 @@ pub fn analyse(
         // What the wheel really did: the gyro on the floor (its yaw sign
         // against the counts' yaw), the user on a stand.
         let moved_forward = match (fwd.gyro_yaw_rad, seen) {
-            (Some(g), _) if robot_floor_yaw_ok(g) => {
+            (_, Some(t)) => t[w] > 0.0,
+            (Some(g), None) if robot_floor_yaw_ok(g) => {
                 let wy = wheel_yaw_rad(robot, fwd.counts, cpr);
                 let agree = g * wy > 0.0;
                 gyro_disagrees[w] = !agree;
                 counts_forward == agree
             }
-            (_, Some(t)) => t[w] > 0.0,
-            _ => {
-                return Err(format!(
-                    "no gyro yaw and no answer: cannot tell which way the {} wheel turned (give --floor with a gyro, or --turns R,L)",
-                    WHEEL[w]
-                ))
+            (Some(g), None) => {
+                return Err(CommissionError::NoTurn {
+                    wheel: WHEEL[w],
+                    yaw_rad: g,
+                    counts: fwd.counts[w],
+                })
             }
+            (None, None) => return Err(CommissionError::NoGyro(WHEEL[w])),
         };
         match (counts_forward, moved_forward) {
             (true, true) => {}
@@ -298,41 +492,133 @@ fn describe(robot: &Robot, f: &Finding) -> String {
     }
 }
 
-fn confirm(a: &CommissionArgs, question: &str, out: &mut dyn Write) -> Result<bool, LinkError> {
-    if a.yes {
-        writeln!(out, "{question} yes (--yes)").map_err(io)?;
-        return Ok(true);
-    }
-    write!(out, "{question} [y/N] ").map_err(io)?;
-    out.flush().map_err(io)?;
+fn ask(
+    question: &str,
+    out: &mut dyn Write,
+    input: &mut dyn BufRead,
+) -> Result<String, CommissionError> {
+    write!(out, "{question} ").map_err(out_err)?;
+    out.flush().map_err(out_err)?;
     let mut line = String::new();
-    std::io::stdin().lock().read_line(&mut line).map_err(io)?;
-    Ok(line.trim().eq_ignore_ascii_case("y"))
+    input
+        .read_line(&mut line)
+        .map_err(|e| CommissionError::Answer(format!("cannot read the answer: {e}")))?;
+    Ok(line.trim().to_string())
 }
 
-fn parse_turns(s: &str) -> Result<[f32; 2], LinkError> {
+fn out_err(e: std::io::Error) -> CommissionError {
+    CommissionError::Output(e.to_string())
+}
+
+fn confirm(
+    a: &CommissionArgs,
+    question: &str,
+    out: &mut dyn Write,
+    input: &mut dyn BufRead,
+) -> Result<bool, CommissionError> {
+    if a.yes {
+        writeln!(out, "{question} yes (--yes)").map_err(out_err)?;
+        return Ok(true);
+    }
+    Ok(ask(&format!("{question} [y/N]"), out, input)?.eq_ignore_ascii_case("y"))
+}
+
+fn parse_turns(s: &str) -> Result<[f32; 2], CommissionError> {
+    let bad = || {
+        CommissionError::Answer(format!(
+            "--turns '{s}': give R,L: the signed turns each marked wheel made in its forward test (e.g. 0.5,-0.5)"
+        ))
+    };
     let v: Vec<f32> = s
         .split(',')
         .map(|x| x.trim().parse::<f32>())
         .collect::<Result<_, _>>()
-        .map_err(|_| LinkError::Io(format!("--turns '{s}': give R,L turns")))?;
+        .map_err(|_| bad())?;
     match v[..] {
         [r, l] if r.is_finite() && l.is_finite() => Ok([r, l]),
-        _ => Err(LinkError::Io(format!("--turns '{s}': give R,L turns"))),
+        _ => Err(bad()),
     }
 }
 
-/// `wmr commission`. `Ok` only when nothing is wrong (or every finding
-/// was fixed in the pushed file); findings and unexpected stops are errors.
+/// Runs one wheel test of `wheel` at `torque_nm` (signed) and prints its line.
+fn one_test(
+    link: &mut Link,
+    wheel: u8,
+    torque_nm: f32,
+    a: &CommissionArgs,
+    cap_nm: f32,
+    out: &mut dyn Write,
+) -> Result<WheelTestResult, CommissionError> {
+    let cmd = WheelTestCmd {
+        wheel,
+        torque_nm,
+        duration_ms: a.duration_ms,
+    };
+    let r = match wheel_test(link, cmd) {
+        Err(LinkError::Nack(_, ErrorCode::AboveTestCap)) => {
+            return Err(CommissionError::RobotCap {
+                torque_nm: torque_nm.abs(),
+                cap_nm,
+            })
+        }
+        r => r?,
+    };
+    writeln!(
+        out,
+        "{} wheel {} at {:.3} N·m: duty {}, {} ticks, counts right {} left {}, gyro yaw {}",
+        WHEEL[wheel as usize],
+        if torque_nm > 0.0 {
+            "forward "
+        } else {
+            "backward"
+        },
+        torque_nm.abs(),
+        r.duty,
+        r.ticks,
+        r.counts[0],
+        r.counts[1],
+        r.gyro_yaw_rad
+            .map_or_else(|| "none".into(), |g| format!("{:.4} rad", g))
+    )
+    .map_err(out_err)?;
+    Ok(r)
+}
+
+/// `wmr commission` reading answers from stdin: see [`commission_with`].
 pub fn commission(
     a: &CommissionArgs,
     link: &mut Link,
     out: &mut dyn Write,
-) -> Result<(), LinkError> {
-    let text = std::fs::read_to_string(&a.robot)
-        .map_err(|e| LinkError::Io(format!("{}: {e}", a.robot.display())))?;
-    let robot = Robot::from_toml_str(&text)
-        .map_err(|e| LinkError::Io(format!("{}: {e}", a.robot.display())))?;
+) -> Result<(), CommissionError> {
+    let stdin = std::io::stdin();
+    let mut input = stdin.lock();
+    commission_with(a, link, out, &mut input)
+}
+
+/// `wmr commission`, the questions answered from `input`. `Ok` only when
+/// nothing is wrong; findings (written to `-o`, pushed on confirmation),
+/// a wheel that moved too little, and unexpected stops are errors.
+pub fn commission_with(
+    a: &CommissionArgs,
+    link: &mut Link,
+    out: &mut dyn Write,
+    input: &mut dyn BufRead,
+) -> Result<(), CommissionError> {
+    let file_err = |e: String| CommissionError::RobotFile {
+        path: a.robot.display().to_string(),
+        err: e,
+    };
+    let text = std::fs::read_to_string(&a.robot).map_err(|e| file_err(e.to_string()))?;
+    let robot = Robot::from_toml_str(&text).map_err(|e| file_err(e.to_string()))?;
+    if a.duration_ms == 0 || a.duration_ms > wmr_protocol::WHEEL_TEST_MAX_MS {
+        return Err(CommissionError::Answer(format!(
+            "--duration-ms {}: must be in 1..={} ms (the robot ends every test within {} ms)",
+            a.duration_ms,
+            wmr_protocol::WHEEL_TEST_MAX_MS,
+            wmr_protocol::WHEEL_TEST_MAX_MS
+        )));
+    }
+    let seen_given = a.turns.as_deref().map(parse_turns).transpose()?;
     let hello = match link.last_hello.clone() {
         Some(h) => h,
         None => link.hello()?,
@@ -340,29 +626,48 @@ pub fn commission(
     match link.command(&Request::GetStatus)? {
         Reply::Status { status, .. } if status.state == RunStateMsg::Hold => {}
         Reply::Status { status, .. } => {
-            return Err(LinkError::Io(format!(
-                "the robot is {:?}: commissioning needs hold (disarm, clear the stop)",
-                status.state
-            )))
+            return Err(CommissionError::NotInHold(format!("{:?}", status.state)))
         }
-        r => return Err(LinkError::Unexpected(format!("{r:?}"))),
+        r => return Err(LinkError::Unexpected(format!("{r:?}")).into()),
     }
-    let torque = test_torque_nm(&robot, hello.robot.torque_limit_nm);
+    let cap = test_cap_nm(&robot, hello.robot.torque_limit_nm);
+    let user_torque = a.torque_nm.is_some();
+    let torque = match a.torque_nm {
+        Some(t) => check_torque(t, cap)?,
+        None => test_torque_nm(&robot, cap),
+    };
+    let needed = needed_counts(&robot);
+    let friction = robot.motors.coulomb_friction_nm;
     writeln!(
         out,
-        "commissioning {} ({}): robot {} on {}; each wheel alone, forward then backward, {:.3} N·m open loop for {} ms (cap: 20 % of the file's stall torque {:.2} N·m, torque limit {:.2} N·m, the robot's {:.2} N·m). Abort: Ctrl-C or the button (the robot stops the test itself within {} ms of link silence)",
+        "commissioning {} ({}): robot {} on {}; each wheel alone, forward then backward, open loop for {} ms at {:.3} N·m ({}; cap {:.3} N·m: the torque limit, the file's {:.3}, the robot's {:.3}){}. Abort: Ctrl-C or the button (the robot stops the test itself within {} ms of link silence)",
         robot.name.as_str(),
         a.robot.display(),
         hello.chip,
         if a.floor { "the floor" } else { "a stand" },
-        torque,
         a.duration_ms,
-        robot.stall_torque_nm(),
+        torque,
+        if user_torque {
+            "--torque-nm".to_string()
+        } else {
+            format!(
+                "above the file's Coulomb friction {:.3}/{:.3} N·m",
+                friction[0], friction[1]
+            )
+        },
+        cap,
         robot.limits.torque_nm,
         hello.robot.torque_limit_nm,
+        if user_torque {
+            String::new()
+        } else {
+            format!(
+                "; raised x{RAMP_FACTOR} up to the cap while a wheel moves less than {needed} counts (a tenth of a turn)"
+            )
+        },
         link.timing().link_timeout.as_millis()
     )
-    .map_err(io)?;
+    .map_err(out_err)?;
     if (hello.robot.torque_limit_nm - robot.limits.torque_nm).abs() > 1e-3 * robot.limits.torque_nm
     {
         writeln!(
@@ -370,74 +675,78 @@ pub fn commission(
             "limits: the robot's torque limit is {:.3} N·m, the file's {:.3} N·m: the robot does not run this file (push it first)",
             hello.robot.torque_limit_nm, robot.limits.torque_nm
         )
-        .map_err(io)?;
+        .map_err(out_err)?;
     } else {
         writeln!(
             out,
             "limits: torque limit {:.3} N·m as in the file",
             robot.limits.torque_nm
         )
-        .map_err(io)?;
+        .map_err(out_err)?;
     }
     let mut results = Vec::new();
+    let mut used = [torque; 2];
     for w in 0..2u8 {
-        for s in [1.0f32, -1.0] {
-            let cmd = WheelTestCmd {
-                wheel: w,
-                torque_nm: s * torque,
-                duration_ms: a.duration_ms,
-            };
-            let r = match wheel_test(link, cmd) {
-                Err(LinkError::Nack(_, ErrorCode::AboveTestCap)) => wheel_test(
-                    link,
-                    WheelTestCmd {
-                        torque_nm: 0.5 * cmd.torque_nm,
-                        ..cmd
-                    },
-                )?,
-                r => r?,
-            };
+        // Forward, raised while the wheel does not move (the measured
+        // breakaway), then backward at the torque that moved it.
+        let mut tau = torque;
+        let fwd = loop {
+            let r = one_test(link, w, tau, a, cap, out)?;
+            let moved = r.counts[0].abs().max(r.counts[1].abs());
+            if moved >= needed || user_torque || tau >= 0.999 * cap {
+                break r;
+            }
+            let next = (RAMP_FACTOR * tau).min(cap);
             writeln!(
                 out,
-                "{} wheel {}: duty {}, {} ticks, counts right {} left {}, gyro yaw {}",
-                WHEEL[w as usize],
-                if s > 0.0 { "forward " } else { "backward" },
-                r.duty,
-                r.ticks,
-                r.counts[0],
-                r.counts[1],
-                r.gyro_yaw_rad
-                    .map_or_else(|| "none".into(), |g| format!("{:.4} rad", g))
+                "the {} wheel moved {moved} counts at {tau:.3} N·m (a test needs {needed}): below its breakaway friction, {next:.3} N·m next",
+                WHEEL[w as usize]
             )
-            .map_err(io)?;
-            results.push(r);
-        }
+            .map_err(out_err)?;
+            tau = next;
+        };
+        let rev = one_test(link, w, -tau, a, cap, out)?;
+        used[w as usize] = tau;
+        results.push(fwd);
+        results.push(rev);
+    }
+    if !user_torque && used != [torque; 2] {
+        writeln!(
+            out,
+            "breakaway: the wheels moved at {:.3} (right) and {:.3} N·m (left), the file's Coulomb friction is {:.3}/{:.3} N·m: its friction is higher than the file says (`wmr identify` measures it)",
+            used[0], used[1], friction[0], friction[1]
+        )
+        .map_err(out_err)?;
     }
     let tests: [WheelTestResult; 4] = [results[0], results[1], results[2], results[3]];
-    let seen = match (&a.turns, a.floor) {
-        (Some(t), _) => Some(parse_turns(t)?),
+    let seen = match (seen_given, a.floor) {
+        (Some(t), _) => Some(t),
         (None, true) => None,
         (None, false) => {
             let mut t = [0.0f32; 2];
             for (w, tw) in t.iter_mut().enumerate() {
-                write!(
+                let line = ask(
+                    &format!(
+                        "how many turns did the marked {} wheel make in its forward test (negative if backwards)?",
+                        WHEEL[w]
+                    ),
                     out,
-                    "how many turns did the marked {} wheel make in its forward test (negative if backwards)? ",
-                    WHEEL[w]
-                )
-                .map_err(io)?;
-                out.flush().map_err(io)?;
-                let mut line = String::new();
-                std::io::stdin().lock().read_line(&mut line).map_err(io)?;
+                    input,
+                )?;
                 *tw = line
-                    .trim()
                     .parse()
-                    .map_err(|_| LinkError::Io(format!("'{}': not a number", line.trim())))?;
+                    .ok()
+                    .filter(|x: &f32| x.is_finite())
+                    .ok_or_else(|| {
+                        CommissionError::Answer(format!(
+                        "'{line}': not a number of turns (e.g. 0.5, or -0.5 if it turned backwards)"
+                    ))
+                    })?;
             }
             Some(t)
         }
     };
-    let findings = analyse(&robot, &tests, seen).map_err(LinkError::Io)?;
+    let findings = analyse(&robot, &tests, seen, cap, user_torque)?;
     if findings.is_empty() {
         writeln!(
             out,
@@ -448,36 +757,95 @@ pub fn commission(
                 ""
             }
         )
-        .map_err(io)?;
+        .map_err(out_err)?;
         return Ok(());
     }
     for f in &findings {
-        writeln!(out, "finding: {}", describe(&robot, f)).map_err(io)?;
+        writeln!(out, "finding: {}", describe(&robot, f)).map_err(out_err)?;
     }
     let fixed = corrected(&robot, &findings);
     let wiring = findings.contains(&Finding::Swapped);
     if let Some(p) = &a.output {
-        std::fs::write(p, fixed.to_toml_string())
-            .map_err(|e| LinkError::Io(format!("{}: {e}", p.display())))?;
-        writeln!(out, "proposed robot file written to {}", p.display()).map_err(io)?;
+        std::fs::write(p, fixed.to_toml_string()).map_err(|e| CommissionError::RobotFile {
+            path: p.display().to_string(),
+            err: e.to_string(),
+        })?;
+        writeln!(out, "proposed robot file written to {}", p.display()).map_err(out_err)?;
     }
-    if a.push && !wiring && confirm(a, "push the proposed file to the robot?", out)? {
+    if a.push && !wiring && confirm(a, "push the proposed file to the robot?", out, input)? {
         // robot-store's `wmr robot push` code path (write, read back,
         // reboot into it, check).
-        let path = a
-            .output
-            .as_deref()
-            .ok_or_else(|| LinkError::Io("--push needs -o FILE (the file pushed)".into()))?;
+        let path = a.output.as_deref().ok_or_else(|| {
+            CommissionError::Answer("--push needs -o FILE (the file pushed)".into())
+        })?;
         crate::robot::push(link, path, true, false, out)?;
-        writeln!(out, "pushed: run commission again on the fixed file").map_err(io)?;
+        writeln!(out, "pushed: run commission again on the fixed file").map_err(out_err)?;
     }
-    Err(LinkError::Io(format!(
-        "{} finding(s){}",
-        findings.len(),
-        if wiring {
-            ", a wiring fix among them"
-        } else {
-            ""
+    Err(CommissionError::Findings {
+        count: findings.len(),
+        wiring,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tb6612() -> Robot {
+        let t = std::fs::read_to_string(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../robots/tb6612-2kg.toml"
+        ))
+        .unwrap();
+        Robot::from_toml_str(&t).unwrap()
+    }
+
+    /// The first torque is above the file's Coulomb friction by at least
+    /// half of it, below 90 % of the cap; a frictionless robot gets a
+    /// tenth of stall (at the duty limit), as before.
+    #[test]
+    fn the_test_torque_is_above_the_friction_and_below_the_cap() {
+        let mut r = tb6612();
+        let stall = r.stall_torque_nm() * r.bridge.max_duty_fraction;
+        let cap = test_cap_nm(&r, 0.0);
+        assert_eq!(cap, r.limits.torque_nm.min(stall));
+        for c in [0.0f32, 0.03, 0.1, 0.15, 0.2] {
+            r.motors.coulomb_friction_nm = [c, 0.5 * c];
+            let t = test_torque_nm(&r, cap);
+            assert!(t <= 0.9 * cap + 1e-6, "{c}: {t}");
+            if c < 0.6 * cap {
+                assert!(t >= 1.5 * c - 1e-6, "{c}: {t}");
+            }
+            if c == 0.0 {
+                assert!((t - 0.1 * stall).abs() < 1e-6, "{t}");
+            }
         }
-    )))
+        // The robot's smaller limit caps it.
+        assert_eq!(test_cap_nm(&r, 0.1), 0.1);
+    }
+
+    /// `--torque-nm`: the value, or the limit and what to do.
+    #[test]
+    fn the_torque_option_is_checked_against_the_cap() {
+        assert_eq!(check_torque(0.05, 0.12).unwrap(), 0.05);
+        for bad in [0.0, -0.1, f32::NAN] {
+            let e = check_torque(bad, 0.12).unwrap_err().to_string();
+            assert!(e.contains("must be a torque > 0"), "{e}");
+        }
+        let e = check_torque(0.2, 0.12).unwrap_err().to_string();
+        assert!(
+            e.starts_with("--torque-nm 0.2: above the wheel test's cap 0.120 N·m")
+                && e.contains("give at most 0.120"),
+            "{e}"
+        );
+    }
+
+    /// The advice doubles the torque (rounded up to 0.01 N·m) within the
+    /// cap, the cap itself past it, and at the cap says what else to check.
+    #[test]
+    fn the_advice_names_the_torque_to_try() {
+        assert!(advice(0.029, 0.12, true).starts_with("try --torque-nm 0.06"));
+        assert!(advice(0.08, 0.12, true).starts_with("try --torque-nm 0.12"));
+        assert!(advice(0.12, 0.12, false).contains("it is the cap"));
+    }
 }

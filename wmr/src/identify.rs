@@ -95,6 +95,13 @@ pub struct FitArgs {
     /// Savitzky-Golay window [s].
     #[arg(long, default_value_t = 0.15)]
     pub filter_window: f64,
+    /// The robot's weighed mass [kg] (a kitchen scale; with its battery and
+    /// everything it carries): taken as known, it fixes the scale the log
+    /// cannot see, and the motor's torque per volt a = η_g·N·k/R is
+    /// identified (written as motors.gear_efficiency) [default: a from the
+    /// robot file; the report then says what is and is not identified].
+    #[arg(long, value_name = "KG")]
+    pub mass_kg: Option<f64>,
     /// For a trace CSV (`hil-sim run --csv`, `wmr record`): its pose column
     /// is a measurement of the true pose (hil-sim's traces), not the
     /// robot's own estimate, so the radii and the track are identified.
@@ -273,6 +280,7 @@ pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), FitError> {
     };
     let opts = FitOptions {
         filter_window_s: a.filter_window,
+        mass_kg: a.mass_kg,
         ..FitOptions::default()
     };
     if !(opts.filter_window_s.is_finite() && opts.filter_window_s > 0.0) {
@@ -299,7 +307,7 @@ pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), FitError> {
 }
 
 /// The pose the robot reports in hold (from one telemetry frame).
-fn current_pose(link: &mut Link) -> Result<controller_core::Pose, LinkError> {
+pub(crate) fn current_pose(link: &mut Link) -> Result<controller_core::Pose, LinkError> {
     let t0 = Instant::now();
     while t0.elapsed() < Duration::from_secs(2) {
         if let Some(Reply::Telemetry(t)) = link.next_stream(Duration::from_millis(20))? {
@@ -581,6 +589,7 @@ mod tests {
             timer_clock_hz: Some(96_000_000),
             out: None,
             filter_window: 0.15,
+            mass_kg: None,
             pose_measured: false,
         };
         let mut out = Vec::new();
@@ -636,6 +645,7 @@ mod tests {
             timer_clock_hz: None,
             out: None,
             filter_window: 0.15,
+            mass_kg: None,
             pose_measured: false,
         };
         let e = fit(&a, &mut Vec::new()).unwrap_err();

@@ -25,6 +25,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod bringup;
 pub mod cli;
 pub mod commission;
 pub mod drive;

@@ -1,0 +1,567 @@
+//! `wmr bringup`: the guided bring-up of a new robot (issue 34,
+//! docs/bringup.md): commission → identification run → fit → tune →
+//! push → verification, each step's result printed with its numbers and
+//! what to do next, each step resumable: its outcome is kept in a state
+//! file next to the robot file (`FILE.bringup.toml`), and a run starts at
+//! the first step not done (`--redo STEP` runs a step and those after it
+//! again). The tuning step runs `hil-sim tune` (its command line, the
+//! public entry point) on the identified file; everything else is the
+//! `wmr` commands' own code on one link.
+
+use crate::commission::{commission_with, CommissionArgs, CommissionError};
+use crate::link::{Link, LinkError};
+use serde::{Deserialize, Serialize};
+use std::io::{BufRead, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+/// The steps, in order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
+pub enum Step {
+    /// `wmr commission`: wiring, directions, resolution, gyro sign.
+    Commission,
+    /// `wmr identify run`: the excitation, recorded.
+    Identify,
+    /// `wmr identify fit`: the identified robot file.
+    Fit,
+    /// `hil-sim tune` on the identified file.
+    Tune,
+    /// The circle with the running file, then `wmr robot push` of the tuned file.
+    Push,
+    /// The circle again with the pushed file, compared.
+    Verify,
+}
+
+const STEPS: [Step; 6] = [
+    Step::Commission,
+    Step::Identify,
+    Step::Fit,
+    Step::Tune,
+    Step::Push,
+    Step::Verify,
+];
+
+impl Step {
+    fn name(self) -> &'static str {
+        match self {
+            Step::Commission => "commission",
+            Step::Identify => "identify",
+            Step::Fit => "fit",
+            Step::Tune => "tune",
+            Step::Push => "push",
+            Step::Verify => "verify",
+        }
+    }
+}
+
+/// `bringup` options.
+#[derive(Debug, clap::Args)]
+pub struct BringupArgs {
+    /// The robot file the robot runs (push it first: `wmr robot push`).
+    #[arg(long, value_name = "FILE.toml")]
+    pub robot: PathBuf,
+    /// Commission on the floor (a gyro fitted); without it on a stand,
+    /// where you are asked what the wheels did (or give --turns).
+    #[arg(long)]
+    pub floor: bool,
+    /// On a stand: the wheel turns you saw, `R,L` (see `wmr commission`).
+    #[arg(long, value_name = "R,L", allow_hyphen_values = true)]
+    pub turns: Option<String>,
+    /// Commissioning test torque [N·m] (see `wmr commission --torque-nm`).
+    #[arg(long, value_name = "N·m")]
+    pub torque_nm: Option<f32>,
+    /// The robot's weighed mass [kg]: fixes the fit's scale, the motor
+    /// identified (see `wmr identify fit --mass-kg`).
+    #[arg(long, value_name = "KG")]
+    pub mass_kg: Option<f64>,
+    /// Length of the identification run [s].
+    #[arg(long, default_value_t = 60.0, value_name = "S")]
+    pub identify_s: f32,
+    /// Peak yaw rate of the identification run [rad/s].
+    #[arg(long, default_value_t = 1.0, value_name = "RAD/S")]
+    pub identify_w_amp: f32,
+    /// Telemetry rate of the identification run [Hz] [default: probed].
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<u16>,
+    /// The tuning budget: cost evaluations per controller (`hil-sim tune
+    /// --evaluations`) [default: hil-sim tune's].
+    #[arg(long, value_name = "N")]
+    pub tune_evaluations: Option<u32>,
+    /// More `hil-sim tune` options, as one string split at spaces (e.g.
+    /// "--train 4 --validate 2 --duration 20 --controllers proposed").
+    #[arg(long, value_name = "ARGS", allow_hyphen_values = true)]
+    pub tune_args: Option<String>,
+    /// The `hil-sim` program [default: beside `wmr`, else on PATH].
+    #[arg(long, env = "WMR_HIL_SIM", value_name = "PATH")]
+    pub hil_sim: Option<PathBuf>,
+    /// Length of each verification circle [s].
+    #[arg(long, default_value_t = 20.0, value_name = "S")]
+    pub verify_s: f64,
+    /// Run this step and the ones after it again (their results are
+    /// replaced).
+    #[arg(long, value_enum, value_name = "STEP")]
+    pub redo: Option<Step>,
+    /// Answer every confirmation with yes (non-interactive).
+    #[arg(long)]
+    pub yes: bool,
+}
+
+/// What the steps done so far left: the state file.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct State {
+    /// Steps done, by name, in order.
+    pub done: Vec<String>,
+    /// The identification log.
+    pub log: Option<PathBuf>,
+    /// The identified robot file.
+    pub identified: Option<PathBuf>,
+    /// The tuned robot file.
+    pub tuned: Option<PathBuf>,
+    /// RMS position error after 5 s on the circle before the push \[m\].
+    pub before_rms_m: Option<f64>,
+    /// The same after the push \[m\].
+    pub after_rms_m: Option<f64>,
+}
+
+/// Why the bring-up stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum BringupError {
+    /// The link or the robot.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// Commissioning.
+    #[error("commission: {0}; fix it, then run `wmr bringup` again (it starts at commissioning)")]
+    Commission(#[from] CommissionError),
+    /// `identify fit`.
+    #[error("fit: {0}")]
+    Fit(#[from] crate::identify::FitError),
+    /// A file.
+    #[error("{path}: {err}")]
+    File {
+        /// The file.
+        path: String,
+        /// Why.
+        err: String,
+    },
+    /// The tuner.
+    #[error("tune: {0}")]
+    Tune(String),
+    /// The verification circle tracked worse with the tuned file.
+    #[error(
+        "verify: the tuned file tracks the circle to {after_m:.4} m RMS, the file before it to {before_m:.4} m \
+         ({:+.0} %, more than 10 % worse): push the file before it back (`wmr robot push {}`), then tune \
+         with a larger budget (--tune-evaluations) and `wmr bringup --redo tune`",
+        100.0 * (after_m / before_m - 1.0), previous.display()
+    )]
+    Worse {
+        /// Before \[m\].
+        before_m: f64,
+        /// After \[m\].
+        after_m: f64,
+        /// The file to push back.
+        previous: PathBuf,
+    },
+    /// Bad options.
+    #[error("{0}")]
+    Option(String),
+    /// Writing the output.
+    #[error("cannot write the output: {0}")]
+    Output(String),
+}
+
+fn out_err(e: std::io::Error) -> BringupError {
+    BringupError::Output(e.to_string())
+}
+
+/// `FILE.toml` → `FILE.<suffix>` beside it.
+pub fn beside(robot: &Path, suffix: &str) -> PathBuf {
+    let stem = robot
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "robot".into());
+    robot.with_file_name(format!("{stem}.{suffix}"))
+}
+
+/// The state file of a robot file: `FILE.bringup.toml` beside it.
+pub fn state_path(robot: &Path) -> PathBuf {
+    beside(robot, "bringup.toml")
+}
+
+fn load_state(path: &Path) -> Result<State, BringupError> {
+    match std::fs::read_to_string(path) {
+        Ok(t) => toml::from_str(&t).map_err(|e| BringupError::File {
+            path: path.display().to_string(),
+            err: format!(
+                "{} (a bring-up state file: delete it to start over)",
+                e.to_string().trim_end()
+            ),
+        }),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(State::default()),
+        Err(e) => Err(BringupError::File {
+            path: path.display().to_string(),
+            err: e.to_string(),
+        }),
+    }
+}
+
+fn save_state(path: &Path, s: &State) -> Result<(), BringupError> {
+    let text = toml::to_string(s).map_err(|e| BringupError::Output(e.to_string()))?;
+    std::fs::write(
+        path,
+        format!("# wmr bringup's state (docs/bringup.md); delete to start over\n{text}"),
+    )
+    .map_err(|e| BringupError::File {
+        path: path.display().to_string(),
+        err: e.to_string(),
+    })
+}
+
+/// The `hil-sim` program: `--hil-sim`, else beside this executable, else
+/// `hil-sim` on PATH.
+fn hil_sim_program(a: &BringupArgs) -> PathBuf {
+    if let Some(p) = &a.hil_sim {
+        return p.clone();
+    }
+    if let Some(dir) = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(Path::to_path_buf))
+    {
+        let p = dir.join("hil-sim");
+        if p.is_file() {
+            return p;
+        }
+    }
+    PathBuf::from("hil-sim")
+}
+
+/// The arguments of the tuning step's `hil-sim tune`.
+pub fn tune_argv(a: &BringupArgs, identified: &Path, tuned: &Path) -> Vec<String> {
+    let mut v = vec![
+        "tune".to_string(),
+        "--robot".into(),
+        identified.display().to_string(),
+        "--write".into(),
+        tuned.display().to_string(),
+        "--quiet".into(),
+    ];
+    if let Some(n) = a.tune_evaluations {
+        v.push("--evaluations".into());
+        v.push(n.to_string());
+    }
+    if let Some(extra) = &a.tune_args {
+        v.extend(extra.split_whitespace().map(str::to_string));
+    }
+    v
+}
+
+/// The circle from where the robot stands for `seconds`: the RMS position
+/// error after the first 5 s \[m\] (`wmr upload` + `wmr record --arm`, then
+/// a disarm: the circle goes on after the recording).
+fn circle(
+    link: &mut Link,
+    robot_file: &Path,
+    dir_file: &Path,
+    seconds: f64,
+    out: &mut dyn Write,
+) -> Result<f64, BringupError> {
+    link.command(&wmr_protocol::Request::SetTelemetry {
+        selection: wmr_protocol::TELEMETRY_ALL,
+        rate_hz: 50,
+    })?;
+    let p = crate::identify::current_pose(link)?;
+    let _ = link.command(&wmr_protocol::Request::SetTelemetry {
+        selection: wmr_protocol::TELEMETRY_ALL,
+        rate_hz: 0,
+    });
+    let traj = PathBuf::from(format!("{}.circle.toml", dir_file.display()));
+    let file_err = |path: &Path, e: std::io::Error| BringupError::File {
+        path: path.display().to_string(),
+        err: e.to_string(),
+    };
+    std::fs::write(
+        &traj,
+        format!(
+            "trajectory = \"circle\"\nstart_pose = [{}, {}, {}]\n",
+            p.x_m, p.y_m, p.theta_rad
+        ),
+    )
+    .map_err(|e| file_err(&traj, e))?;
+    let mut sink = Vec::new();
+    crate::upload::upload(
+        &crate::upload::UploadArgs {
+            file: traj.clone(),
+            arm: false,
+            robot: Some(robot_file.to_path_buf()),
+        },
+        link,
+        &mut sink,
+    )?;
+    let csv = PathBuf::from(format!("{}.csv", dir_file.display()));
+    let mut summary = Vec::new();
+    let r = crate::record::record(
+        &crate::record::RecordArgs {
+            seconds,
+            out: csv.clone(),
+            rate: 100,
+            arm: true,
+            quiet: true,
+            mcap: None,
+            com_offset_m: None,
+        },
+        link,
+        &mut summary,
+    );
+    // The circle goes on after the recording: a deliberate stop.
+    let _ = crate::session::Motion::Disarm.send(link);
+    r?;
+    let text = String::from_utf8_lossy(&summary);
+    let json: serde_json::Value = text
+        .lines()
+        .rev()
+        .find_map(|l| serde_json::from_str(l).ok())
+        .ok_or_else(|| BringupError::Output(format!("no recording summary in: {text}")))?;
+    let rms = json["metrics"]["rms_pos_err_after5_m"]
+        .as_f64()
+        .ok_or_else(|| BringupError::Output(format!("no rms_pos_err_after5_m in: {json}")))?;
+    writeln!(
+        out,
+        "  circle for {seconds:.0} s: RMS position error after 5 s {rms:.4} m, final {:.4} m, torque saturated {:.1} % ({})",
+        json["metrics"]["final_pos_err_m"].as_f64().unwrap_or(f64::NAN),
+        100.0 * json["metrics"]["saturated_fraction"].as_f64().unwrap_or(f64::NAN),
+        csv.display()
+    )
+    .map_err(out_err)?;
+    Ok(rms)
+}
+
+/// `wmr bringup` reading answers from stdin: see [`bringup_with`].
+pub fn bringup(a: &BringupArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), BringupError> {
+    let stdin = std::io::stdin();
+    let mut input = stdin.lock();
+    bringup_with(a, link, out, &mut input)
+}
+
+/// `wmr bringup`, the questions answered from `input`: every step not yet
+/// done, in order; `Ok` when all are done and the verification tracks no
+/// worse than 10 % above the file before the push.
+pub fn bringup_with(
+    a: &BringupArgs,
+    link: &mut Link,
+    out: &mut dyn Write,
+    input: &mut dyn BufRead,
+) -> Result<(), BringupError> {
+    if !(a.verify_s.is_finite() && a.verify_s >= 6.0 && a.verify_s <= 600.0) {
+        return Err(BringupError::Option(format!(
+            "--verify-s {}: must be in 6..=600 s (the error is measured after the first 5 s)",
+            a.verify_s
+        )));
+    }
+    if !(a.identify_s.is_finite() && a.identify_s >= 5.0) {
+        return Err(BringupError::Option(format!(
+            "--identify-s {}: must be at least 5 s (the fit needs a run; 60 s is the default)",
+            a.identify_s
+        )));
+    }
+    let spath = state_path(&a.robot);
+    let mut st = load_state(&spath)?;
+    if let Some(r) = a.redo {
+        st.done
+            .retain(|d| STEPS.iter().any(|s| s.name() == d && *s < r));
+    }
+    writeln!(
+        out,
+        "bring-up of {} (state: {}): {}",
+        a.robot.display(),
+        spath.display(),
+        STEPS
+            .iter()
+            .map(|s| format!(
+                "{}{}",
+                s.name(),
+                if st.done.iter().any(|d| d == s.name()) {
+                    " (done)"
+                } else {
+                    ""
+                }
+            ))
+            .collect::<Vec<_>>()
+            .join(" → ")
+    )
+    .map_err(out_err)?;
+    let log = st.log.clone().unwrap_or_else(|| beside(&a.robot, "id.csv"));
+    let identified = st
+        .identified
+        .clone()
+        .unwrap_or_else(|| beside(&a.robot, "identified.toml"));
+    let tuned = st
+        .tuned
+        .clone()
+        .unwrap_or_else(|| beside(&a.robot, "tuned.toml"));
+    for (n, step) in STEPS.iter().enumerate() {
+        if st.done.iter().any(|d| d == step.name()) {
+            continue;
+        }
+        writeln!(out, "step {}/6: {}", n + 1, step.name()).map_err(out_err)?;
+        match step {
+            Step::Commission => {
+                let c = CommissionArgs {
+                    robot: a.robot.clone(),
+                    floor: a.floor,
+                    output: Some(beside(&a.robot, "commissioned.toml")),
+                    push: false,
+                    yes: a.yes,
+                    turns: a.turns.clone(),
+                    duration_ms: 1500,
+                    torque_nm: a.torque_nm,
+                };
+                match commission_with(&c, link, out, input) {
+                    Ok(()) => writeln!(out, "  commissioned: wiring, directions and resolution agree with the file; next: the identification run").map_err(out_err)?,
+                    Err(CommissionError::Findings { count, wiring }) => {
+                        return Err(BringupError::Option(format!(
+                            "commission: {count} finding(s){}: {}",
+                            if wiring { ", a wiring fix among them" } else { "" },
+                            if wiring {
+                                "fix the wiring, then run `wmr bringup` again".to_string()
+                            } else {
+                                format!(
+                                    "the proposed file is {}: push it (`wmr robot push {}`), then run `wmr bringup --robot {}`",
+                                    c.output.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
+                                    c.output.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
+                                    c.output.as_ref().map(|p| p.display().to_string()).unwrap_or_default()
+                                )
+                            }
+                        )))
+                    }
+                    Err(e) => return Err(e.into()),
+                }
+            }
+            Step::Identify => {
+                let r = crate::identify::RunArgs {
+                    out: log.clone(),
+                    v_amp: 0.5,
+                    w_amp: a.identify_w_amp,
+                    w_base: 1.5,
+                    duration: a.identify_s,
+                    area: 2.5,
+                    rate: a.rate,
+                    robot: Some(a.robot.clone()),
+                };
+                crate::identify::run(&r, link, out)?;
+                st.log = Some(log.clone());
+                writeln!(out, "  next: the fit of {}", log.display()).map_err(out_err)?;
+            }
+            Step::Fit => {
+                let f = crate::identify::FitArgs {
+                    log: log.clone(),
+                    robot: Some(a.robot.clone()),
+                    timer_clock_hz: None,
+                    out: Some(identified.clone()),
+                    filter_window: 0.15,
+                    mass_kg: a.mass_kg,
+                    pose_measured: false,
+                };
+                crate::identify::fit(&f, out)?;
+                st.identified = Some(identified.clone());
+                writeln!(
+                    out,
+                    "  identified robot file: {}{}; next: tuning it",
+                    identified.display(),
+                    if a.mass_kg.is_none() {
+                        " (no --mass-kg: mass, inertia and friction carry the file's motor constant's error; see the notes)"
+                    } else {
+                        ""
+                    }
+                )
+                .map_err(out_err)?;
+            }
+            Step::Tune => {
+                let prog = hil_sim_program(a);
+                let argv = tune_argv(a, &identified, &tuned);
+                writeln!(out, "  {} {}", prog.display(), argv.join(" ")).map_err(out_err)?;
+                let _ = std::fs::remove_file(&tuned);
+                let o = Command::new(&prog)
+                    .args(&argv)
+                    .stdin(Stdio::null())
+                    .output()
+                    .map_err(|e| {
+                        BringupError::Tune(format!(
+                            "cannot run {}: {e} (give its path with --hil-sim or WMR_HIL_SIM)",
+                            prog.display()
+                        ))
+                    })?;
+                out.write_all(&o.stdout).map_err(out_err)?;
+                if !o.status.success() {
+                    return Err(BringupError::Tune(format!(
+                        "{} exited with {}: {}",
+                        prog.display(),
+                        o.status,
+                        String::from_utf8_lossy(&o.stderr).trim_end()
+                    )));
+                }
+                if !tuned.is_file() {
+                    return Err(BringupError::Tune(format!(
+                        "{} wrote no tuned file at {}: {}",
+                        prog.display(),
+                        tuned.display(),
+                        String::from_utf8_lossy(&o.stderr).trim_end()
+                    )));
+                }
+                st.tuned = Some(tuned.clone());
+                writeln!(
+                    out,
+                    "  tuned robot file: {}; next: the circle with the running file, then the push",
+                    tuned.display()
+                )
+                .map_err(out_err)?;
+            }
+            Step::Push => {
+                writeln!(
+                    out,
+                    "  the circle with the file the robot runs now ({}):",
+                    a.robot.display()
+                )
+                .map_err(out_err)?;
+                let before = circle(link, &a.robot, &beside(&a.robot, "before"), a.verify_s, out)?;
+                st.before_rms_m = Some(before);
+                crate::robot::push(link, &tuned, true, false, out)?;
+                writeln!(
+                    out,
+                    "  pushed {}; next: the circle with it",
+                    tuned.display()
+                )
+                .map_err(out_err)?;
+            }
+            Step::Verify => {
+                let after = circle(link, &tuned, &beside(&a.robot, "after"), a.verify_s, out)?;
+                st.after_rms_m = Some(after);
+                match st.before_rms_m {
+                    Some(before) if after > 1.1 * before => {
+                        save_state(&spath, &st)?;
+                        return Err(BringupError::Worse {
+                            before_m: before,
+                            after_m: after,
+                            previous: a.robot.clone(),
+                        });
+                    }
+                    Some(before) => writeln!(
+                        out,
+                        "  verified: {after:.4} m RMS with the tuned file, {before:.4} m before ({:+.0} %); the robot runs {}",
+                        100.0 * (after / before - 1.0),
+                        tuned.display()
+                    )
+                    .map_err(out_err)?,
+                    None => writeln!(out, "  verified: {after:.4} m RMS with the tuned file (no circle before it in the state)").map_err(out_err)?,
+                }
+            }
+        }
+        st.done.push(step.name().to_string());
+        save_state(&spath, &st)?;
+    }
+    writeln!(
+        out,
+        "bring-up done: the robot runs {} (`wmr bringup --redo STEP` repeats a step)",
+        tuned.display()
+    )
+    .map_err(out_err)?;
+    Ok(())
+}
