@@ -36,6 +36,7 @@ fn validation(r: &Robot, sensing: Sensing) -> Vec<Scenario> {
         torque_scale_min: 1.0,
         duration_s: 40.0,
         disturbance_max_fraction: hil_sim::tune::set::DISTURBANCE_FRACTION.1,
+        figure8: 0,
     }
     .scenarios(Part::Validation)
 }
@@ -320,6 +321,7 @@ fn small_job(restarts: u64) -> TuneJob {
             torque_scale_min: 1.0,
             duration_s: 20.0,
             disturbance_max_fraction: hil_sim::tune::set::DISTURBANCE_FRACTION.1,
+            figure8: 0,
         },
         optimizer: Optimizer::Cmaes,
         evaluations: 20,
