@@ -60,7 +60,9 @@ pub struct TuneArgs {
     /// How the cost combines the sensing presets' p95 window RMS (D119):
     /// their mean, or their geometric mean (a relative change of any
     /// preset counts alike).
-    #[arg(long, value_enum, default_value = "arithmetic")]
+    /// Default geometric (D169: the arithmetic mean let the gyro-only
+    /// drift steer the light robot's tuning into diverging gains).
+    #[arg(long, value_enum, default_value = "geometric")]
     pub preset_mean: crate::tune::cost::PresetMean,
     /// Cost of chatter (D129): the cost [m] of a mean chatter of 1 (N·m/s)
     /// per N·m of torque limit, in [0, 1e-2] m·s. The default costs the

@@ -860,3 +860,183 @@ pub fn read_shard_file(path: &Path) -> Result<TuneShardFile, String> {
     serde_json::from_str(&text)
         .map_err(|e| format!("{}: not a tuning shard file: {e}", path.display()))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::Sensing;
+    use controller_core::ControllerConfig;
+
+    fn job() -> TuneJob {
+        TuneJob {
+            set: TuneSet {
+                robot: Robot::paper(),
+                sensing: vec![Sensing::Mocap, Sensing::Imu],
+                seed: 1,
+                training: 2,
+                validation: 4,
+                torque_scale_min: 1.0,
+                duration_s: 35.0,
+                disturbance_max_fraction: set::DISTURBANCE_FRACTION.1,
+                figure8: 2,
+            },
+            optimizer: Optimizer::Cmaes,
+            evaluations: 10,
+            restarts: 1,
+            controllers: ControllerKind::ALL.to_vec(),
+            preset_mean: PresetMean::Geometric,
+            chatter_weight_m_s: CHATTER_WEIGHT_M_S,
+        }
+    }
+
+    fn eval(cost: f64) -> Evaluation {
+        Evaluation {
+            cost,
+            p95_rms_win_m: cost,
+            runs: 6,
+            run_rms_win_m: vec![cost; 6],
+            ..Evaluation::default()
+        }
+    }
+
+    fn scored(kind: ControllerKind, x: Option<&[f64]>, tr: f64, va: f64) -> Scored {
+        let base = ControllerConfig::paper(kind);
+        let c = x.map_or(base, |x| space::decode(&base, x));
+        Scored {
+            gains: robot_file::GainSet::of(&c),
+            training: eval(tr),
+            validation: eval(va),
+        }
+    }
+
+    /// A shard file whose start and tuned costs are given per controller
+    /// (smc, asmc, proposed): (start training, start validation, tuned
+    /// training, tuned validation), the tuned point `x` (None: the middle
+    /// of the box).
+    fn file(costs: [(f64, f64, f64, f64); 3], x: [Option<Vec<f64>>; 3]) -> TuneShardFile {
+        let j = job();
+        let mut start = Vec::new();
+        let mut results = Vec::new();
+        for ((k, c), x) in ControllerKind::ALL.into_iter().zip(costs).zip(x) {
+            let x = x.unwrap_or_else(|| vec![0.5; space::dims(k).len()]);
+            start.push((k.name().to_string(), scored(k, None, c.0, c.1)));
+            results.push(RestartResult {
+                controller: k.name().into(),
+                restart: 0,
+                tuned: scored(k, Some(&x), c.2, c.3),
+                x,
+                evaluations: 10,
+                history: vec![],
+                warm_start: "start".into(),
+            });
+        }
+        TuneShardFile {
+            format: TUNE_SHARD_FORMAT.into(),
+            version: TUNE_SHARD_VERSION,
+            hil_sim_version: env!("CARGO_PKG_VERSION").into(),
+            job: j,
+            shard: (0, 1),
+            restarts: 0..1,
+            start: Some(start),
+            results,
+            simulations: 0,
+            elapsed_s: 0.0,
+            threads: 1,
+        }
+    }
+
+    #[test]
+    fn tuned_gains_that_validate_worse_are_not_written_and_the_start_is_kept() {
+        // Every tuned controller trains better and validates worse than
+        // its start: the file keeps every start, runs the robot file's own
+        // controller (proposed, the best start) and says so.
+        let f = file(
+            [
+                (0.5, 0.40, 0.1, 0.45),
+                (0.5, 0.35, 0.1, 0.36),
+                (0.5, 0.30, 0.1, 0.31),
+            ],
+            [None, None, None],
+        );
+        let o = merge(&[f]).unwrap();
+        assert!(o.choices.iter().all(|c| c.kept_start));
+        assert_eq!(o.best, "proposed");
+        let why = o.kept_start.as_deref().expect("the start is kept");
+        assert!(why.contains("0.3000"), "{why}");
+        let robot = o.tuned_robot().unwrap();
+        for k in ControllerKind::ALL {
+            let g = robot_file::GainSet::of(&ControllerConfig::paper(k));
+            let written = match k {
+                ControllerKind::Smc => robot.gains.smc,
+                ControllerKind::Asmc => robot.gains.asmc,
+                ControllerKind::Proposed => robot.gains.proposed,
+            };
+            assert_eq!(written, Some(g), "{k:?}: the start gains are written");
+        }
+        assert_eq!(robot.control.controller, ControllerKind::Proposed);
+        assert!(o.findings().contains("the start is kept"));
+    }
+
+    #[test]
+    fn the_best_validating_controller_is_written_and_named() {
+        // Tuned ASMC validates best (0.20): written as the controller; the
+        // proposed controller's tuned gains (0.25 < its start 0.30) are
+        // written in its section all the same.
+        let f = file(
+            [
+                (0.5, 0.40, 0.1, 0.30),
+                (0.5, 0.35, 0.1, 0.20),
+                (0.5, 0.30, 0.1, 0.25),
+            ],
+            [None, None, None],
+        );
+        let o = merge(&[f]).unwrap();
+        assert_eq!(o.best, "asmc");
+        assert!(o.kept_start.is_none());
+        assert!(o.choices.iter().all(|c| !c.kept_start));
+        let robot = o.tuned_robot().unwrap();
+        assert_eq!(robot.control.controller, ControllerKind::Asmc);
+        let x = vec![0.5; space::dims(ControllerKind::Proposed).len()];
+        let want = space::decode(&ControllerConfig::paper(ControllerKind::Proposed), &x);
+        assert_eq!(robot.gains.proposed, Some(robot_file::GainSet::of(&want)));
+        // The file says it, and reads back as a robot file naming ASMC.
+        let text = o.robot_file_text("hil-sim tune").unwrap();
+        assert!(text.contains("best on validation: asmc"));
+        let back = Robot::from_toml_str(&text).unwrap();
+        assert_eq!(back.control.controller, ControllerKind::Asmc);
+    }
+
+    #[test]
+    fn a_gain_at_its_bound_and_heavy_saturation_are_flagged() {
+        // SMC's k_y at the top of its range (u = 1), k_th 3 % above its
+        // floor; ASMC in the middle of its box; proposed saturating 30 %
+        // of the ticks with a stopped figure-8 run.
+        let mut smc = vec![0.5; space::dims(ControllerKind::Smc).len()];
+        smc[1] = 1.0;
+        smc[2] = (1.03f64).ln() / (30.0f64 / 0.5).ln();
+        let mut f = file(
+            [
+                (0.5, 0.40, 0.1, 0.30),
+                (0.5, 0.35, 0.1, 0.20),
+                (0.5, 0.30, 0.1, 0.25),
+            ],
+            [Some(smc), None, None],
+        );
+        let p = &mut f.results[2].tuned.validation;
+        p.mean_saturated = 0.3;
+        p.mean_chatter_per_s = 250.0;
+        p.stopped_runs = vec![5];
+        let o = merge(&[f]).unwrap();
+        let flags = |n: &str| o.choices.iter().find(|c| c.controller == n).unwrap().flags.clone();
+        let s = flags("smc");
+        assert!(s.iter().any(|f| f.contains("kinematic.k_y") && f.contains("high bound")), "{s:?}");
+        assert!(s.iter().any(|f| f.contains("kinematic.k_th") && f.contains("low bound")), "{s:?}");
+        assert_eq!(s.len(), 2, "{s:?}");
+        assert!(flags("asmc").is_empty(), "{:?}", flags("asmc"));
+        let p = flags("proposed");
+        assert!(p.iter().any(|f| f.contains("saturated 30.0 %")), "{p:?}");
+        assert!(p.iter().any(|f| f.contains("chatter 250")), "{p:?}");
+        assert!(p.iter().any(|f| f.contains("run 5 (figure-8")), "{p:?}");
+        assert!(o.findings().contains("flag smc: kinematic.k_y"));
+    }
+}

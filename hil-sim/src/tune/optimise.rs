@@ -276,9 +276,12 @@ mod tests {
             let r = minimise(opt, &sphere, &x0, Some(0.0), 50, 7, &|_, _| {}).unwrap();
             assert_eq!(r.x, x0.to_vec(), "{opt:?}");
             assert_eq!(r.cost, 0.0);
-            // Without it the optimiser returns a point it evaluated.
-            let r = minimise(opt, &sphere, &x0, None, 50, 7, &|_, _| {}).unwrap();
-            assert!(r.cost > 0.0, "{opt:?}");
+            // Without it CMA-ES and the swarm return a point they drew
+            // (Nelder-Mead's simplex holds the start as a vertex).
+            if opt != Optimizer::NelderMead {
+                let r = minimise(opt, &sphere, &x0, None, 50, 7, &|_, _| {}).unwrap();
+                assert!(r.cost > 0.0, "{opt:?}");
+            }
         }
     }
 
