@@ -475,7 +475,11 @@ fn regenerated_files_hold_issue_34s_lines() {
         }
         let [smc, asmc, prop] = ControllerKind::ALL.map(|k| ev(&tuned, k));
         let mean = |e: &Evaluation| e.run_rms_win_m.iter().sum::<f64>() / e.runs as f64;
-        let best = if mean(&smc) <= mean(&asmc) { &smc } else { &asmc };
+        let best = if mean(&smc) <= mean(&asmc) {
+            &smc
+        } else {
+            &asmc
+        };
         let d: Vec<f64> = prop
             .run_rms_win_m
             .iter()
@@ -495,7 +499,9 @@ fn regenerated_files_hold_issue_34s_lines() {
             100.0 * dm / mean(best)
         );
         if dm > 0.05 * mean(best) + 2.0 * se {
-            failures.push(format!("{name}: proposed more than 5 % above the better baseline"));
+            failures.push(format!(
+                "{name}: proposed more than 5 % above the better baseline"
+            ));
         }
         let cases = [
             (Field::Mass, 0.6),
@@ -511,7 +517,8 @@ fn regenerated_files_hold_issue_34s_lines() {
                     base.par_iter().filter_map(move |s| {
                         let scn = apply(s.clone(), f, l);
                         let r = hil_sim::tune::cost::score(&scn, scn.controller_config(k));
-                        r.stopped.then(|| format!("{} x{l} seed {}", f.name(), s.seed))
+                        r.stopped
+                            .then(|| format!("{} x{l} seed {}", f.name(), s.seed))
                     })
                 })
                 .collect();

@@ -97,8 +97,7 @@ impl Margin {
             Some(l) => self.field.level_text(l),
             None => format!(
                 ">{}",
-                self.field
-                    .level_text(*self.levels.last().expect("levels"))
+                self.field.level_text(*self.levels.last().expect("levels"))
             ),
         }
     }

@@ -139,7 +139,10 @@ impl TuneJob {
     /// the best point on both parts, the start gains on both parts when it
     /// holds restart 0).
     pub fn simulations(&self, restarts: &Range<u64>) -> u64 {
-        let (t, v) = (self.set.training as u64, self.set.len(Part::Validation) as u64);
+        let (t, v) = (
+            self.set.training as u64,
+            self.set.len(Part::Validation) as u64,
+        );
         let warm = |k: ControllerKind| -> u64 {
             if k == ControllerKind::Proposed {
                 self.controllers
@@ -567,7 +570,12 @@ pub fn merge(files: &[TuneShardFile]) -> Result<TuneOutcome, String> {
     // The controller that validates best (ties: the paper's order).
     let best = choices
         .iter()
-        .min_by(|a, b| a.scored.validation.cost.total_cmp(&b.scored.validation.cost))
+        .min_by(|a, b| {
+            a.scored
+                .validation
+                .cost
+                .total_cmp(&b.scored.validation.cost)
+        })
         .map(|c| c.controller.clone())
         .ok_or("no controller")?;
     let file_kind = job.set.robot.control.controller.name();
@@ -656,8 +664,16 @@ impl TuneOutcome {
             .choices
             .iter()
             .filter(|c| c.controller != "proposed")
-            .min_by(|a, b| a.scored.validation.cost.total_cmp(&b.scored.validation.cost))?;
-        let (x, y) = (&p.scored.validation.run_rms_win_m, &b.scored.validation.run_rms_win_m);
+            .min_by(|a, b| {
+                a.scored
+                    .validation
+                    .cost
+                    .total_cmp(&b.scored.validation.cost)
+            })?;
+        let (x, y) = (
+            &p.scored.validation.run_rms_win_m,
+            &b.scored.validation.run_rms_win_m,
+        );
         let n = x.len().min(y.len());
         if n < 2 {
             return None;
@@ -687,7 +703,10 @@ impl TuneOutcome {
         };
         if let (Some(p), Some(b)) = (
             tr("proposed"),
-            ["smc", "asmc"].iter().filter_map(|n| tr(n)).reduce(f64::min),
+            ["smc", "asmc"]
+                .iter()
+                .filter_map(|n| tr(n))
+                .reduce(f64::min),
         ) {
             let _ = writeln!(
                 s,
@@ -745,7 +764,11 @@ impl TuneOutcome {
         for p in presets {
             let _ = write!(s, " {:>17}", format!("p95_va {}", p.name()));
         }
-        let _ = writeln!(s, " {:>6} {:>7} {:>6} {:>7}", "sat", "chatter", "stops", "written");
+        let _ = writeln!(
+            s,
+            " {:>6} {:>7} {:>6} {:>7}",
+            "sat", "chatter", "stops", "written"
+        );
         let _ = write!(
             s,
             "{:<10} {:>9} {:>9} {:>9} {:>9}",
@@ -1027,10 +1050,25 @@ mod tests {
         p.mean_chatter_per_s = 250.0;
         p.stopped_runs = vec![5];
         let o = merge(&[f]).unwrap();
-        let flags = |n: &str| o.choices.iter().find(|c| c.controller == n).unwrap().flags.clone();
+        let flags = |n: &str| {
+            o.choices
+                .iter()
+                .find(|c| c.controller == n)
+                .unwrap()
+                .flags
+                .clone()
+        };
         let s = flags("smc");
-        assert!(s.iter().any(|f| f.contains("kinematic.k_y") && f.contains("high bound")), "{s:?}");
-        assert!(s.iter().any(|f| f.contains("kinematic.k_th") && f.contains("low bound")), "{s:?}");
+        assert!(
+            s.iter()
+                .any(|f| f.contains("kinematic.k_y") && f.contains("high bound")),
+            "{s:?}"
+        );
+        assert!(
+            s.iter()
+                .any(|f| f.contains("kinematic.k_th") && f.contains("low bound")),
+            "{s:?}"
+        );
         assert_eq!(s.len(), 2, "{s:?}");
         assert!(flags("asmc").is_empty(), "{:?}", flags("asmc"));
         let p = flags("proposed");

@@ -293,7 +293,9 @@ mod tests {
                     .num_threads(threads)
                     .build()
                     .unwrap()
-                    .install(|| minimise(opt, &sphere, &[0.9; 4], None, 100, 3, &|_, _| {}).unwrap())
+                    .install(|| {
+                        minimise(opt, &sphere, &[0.9; 4], None, 100, 3, &|_, _| {}).unwrap()
+                    })
             };
             assert_eq!(run(1), run(3), "{opt:?}");
         }

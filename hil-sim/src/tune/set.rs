@@ -281,8 +281,10 @@ mod tests {
             c.validate().unwrap();
             crate::limits::check_scenario(c).unwrap();
         }
-        assert!(s.scenarios(Part::Training).iter().all(|c| c.trajectory
-            != crate::scenario::TrajectoryKind::Figure8));
+        assert!(s
+            .scenarios(Part::Training)
+            .iter()
+            .all(|c| c.trajectory != crate::scenario::TrajectoryKind::Figure8));
     }
 
     #[test]

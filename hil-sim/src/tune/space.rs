@@ -282,7 +282,12 @@ mod tests {
         assert_eq!(e.sliding.k_s, da.sliding.k_s);
         assert_eq!(e.sliding.switching, da.sliding.switching);
         // D̂ and F̂ are clamped to a few 1e-6: the compensation is off.
-        for m in e.eso.max_disturbance.into_iter().chain(e.fault_observer.max_estimate) {
+        for m in e
+            .eso
+            .max_disturbance
+            .into_iter()
+            .chain(e.fault_observer.max_estimate)
+        {
             assert!((CLAMP_MIN..=4e-6).contains(&m), "{m}");
         }
         e.validate().unwrap();
