@@ -6,7 +6,7 @@
 //! estimation, the pose estimator, the controller, torque-to-duty mapping
 //! and the safety supervisor are the code the firmware runs.
 
-use crate::closed_loop::{run_loop, trace_every, SimOutput};
+use crate::closed_loop::{run_loop_ending, trace_every, SimOutput};
 use crate::scenario::{Scenario, Sensing};
 use controller_core::{ControllerConfig, ControllerKind};
 
@@ -40,7 +40,7 @@ pub fn run_runtime(
         .unwrap_or_else(|| scn.derive(controller.kind).estimator);
     let mut side = RuntimeSide::new(cfg, est)?;
     let mut world = crate::closed_loop::world::hardware_world(scn, &cfg, opts.dead_encoder)?;
-    let mut sim = run_loop(scn, &mut world, &mut side, trace_every)?;
+    let mut sim = run_loop_ending(scn, &mut world, &mut side, trace_every, opts.end_at_stop)?;
     let sensing = SensingReport {
         estimator: side.estimator_status(),
         pose_source: world.pose_stats(),

@@ -69,6 +69,17 @@ pub enum Command {
 
 /// Executes a parsed command line, writing results to `out`.
 pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
+    execute_status(cli, out).map(|_| ())
+}
+
+/// [`execute`], returning the exit status of a command that finished
+/// without an error: 0, or `tune`'s [`tune::EXIT_KEPT_START`].
+pub fn execute_status(cli: &Cli, out: &mut dyn Write) -> Result<i32, String> {
+    match &cli.command {
+        Command::Tune(a) => return tune::tune_status(a, out),
+        Command::TuneMerge(a) => return tune::tune_merge_status(a, out),
+        _ => {}
+    }
     match &cli.command {
         Command::Compare(a) => compare::compare(a, out),
         Command::Run(a) => run::run(a, out),
@@ -81,16 +92,18 @@ pub fn execute(cli: &Cli, out: &mut dyn Write) -> Result<(), String> {
         Command::Tune(a) => tune::tune(a, out),
         Command::TuneMerge(a) => tune::tune_merge(a, out),
     }
+    .map(|_| 0)
 }
 
 /// The binary: parse (clap prints usage errors and exits 2), execute, print
-/// any error to stderr and return the exit code (0 or 1).
+/// any error to stderr and return the exit code (0, 1 on an error, or
+/// `tune`'s [`tune::EXIT_KEPT_START`]).
 pub fn main_entry() -> i32 {
     let cli = Cli::parse();
     let stdout = std::io::stdout();
     let mut lock = stdout.lock();
-    match execute(&cli, &mut lock) {
-        Ok(()) => 0,
+    match execute_status(&cli, &mut lock) {
+        Ok(code) => code,
         Err(e) => {
             let _ = lock.flush();
             eprintln!("error: {e}");

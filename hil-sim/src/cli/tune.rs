@@ -11,13 +11,16 @@ use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-/// Default training scenarios.
-pub const DEFAULT_TRAIN: usize = 12;
+/// Default training scenarios (D169: 10, five per default preset, for a
+/// job within 60 s on 2 idle cores).
+pub const DEFAULT_TRAIN: usize = 10;
 /// Default validation scenarios.
 pub const DEFAULT_VALIDATE: usize = 16;
-/// Default cost evaluations per controller (BENCHMARKS.md: a job within
-/// 10 minutes on 2 cores).
-pub const DEFAULT_EVALUATIONS: usize = 120;
+/// Default cost evaluations per controller (D169: 80, eight CMA-ES
+/// generations; the proposed controller starts from the tuned ASMC).
+pub const DEFAULT_EVALUATIONS: usize = 80;
+/// Default run length \[s\] (D169: the cost's window is 10-35 s).
+pub const DEFAULT_DURATION_S: f64 = 35.0;
 
 /// `tune` options.
 #[derive(Debug, Args)]
@@ -35,9 +38,16 @@ pub struct TuneArgs {
     /// Training scenarios (what the optimiser minimises over).
     #[arg(long, default_value_t = DEFAULT_TRAIN)]
     pub train: usize,
-    /// Validation scenarios (disjoint seeds; reported only).
+    /// Validation scenarios on the training path (disjoint seeds).
     #[arg(long = "validate", default_value_t = DEFAULT_VALIDATE)]
     pub validate: usize,
+    /// Validation scenarios on the figure-8 (a path unlike the training
+    /// one), after the --validate ones (D167).
+    #[arg(long, default_value_t = crate::tune::set::DEFAULT_FIGURE8)]
+    pub validate_figure8: usize,
+    /// Skip the mismatch sweep of the written gains (their margins, D167).
+    #[arg(long)]
+    pub no_margins: bool,
     /// Cost evaluations per controller and restart (each runs --train simulations).
     #[arg(long, default_value_t = DEFAULT_EVALUATIONS)]
     pub evaluations: usize,
@@ -50,7 +60,9 @@ pub struct TuneArgs {
     /// How the cost combines the sensing presets' p95 window RMS (D119):
     /// their mean, or their geometric mean (a relative change of any
     /// preset counts alike).
-    #[arg(long, value_enum, default_value = "arithmetic")]
+    /// Default geometric (D169: the arithmetic mean let the gyro-only
+    /// drift steer the light robot's tuning into diverging gains).
+    #[arg(long, value_enum, default_value = "geometric")]
     pub preset_mean: crate::tune::cost::PresetMean,
     /// Cost of chatter (D129): the cost [m] of a mean chatter of 1 (N·m/s)
     /// per N·m of torque limit, in [0, 1e-2] m·s. The default costs the
@@ -73,7 +85,7 @@ pub struct TuneArgs {
     #[arg(long, value_name = "N·m")]
     pub torque_limit: Option<f32>,
     /// Run length [s].
-    #[arg(long, value_name = "s", default_value_t = 40.0)]
+    #[arg(long, value_name = "s", default_value_t = DEFAULT_DURATION_S)]
     pub duration: f64,
     /// Run only shard I of N (0-based) of the restarts; write its results to --out.
     #[arg(long, value_name = "I/N", value_parser = Shard::parse)]
@@ -104,6 +116,9 @@ pub struct TuneMergeArgs {
     /// Print the outcome as JSON instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Skip the mismatch sweep of the written gains (their margins).
+    #[arg(long)]
+    pub no_margins: bool,
 }
 
 /// `FILE.toml` → `FILE.tuned.toml`.
@@ -143,15 +158,26 @@ fn report(o: &TuneOutcome, json: bool, wrote: Option<&Path>) -> Result<String, S
         o.elapsed_s,
     );
     s.push_str(&o.table());
+    s.push_str(&o.findings());
     if let Some(p) = wrote {
         s.push_str(&format!("wrote {}\n", p.display()));
     }
     Ok(s)
 }
 
+/// Exit status of `tune` and `tune-merge` when the start was kept (D165):
+/// no tuned gains validate better than the robot file's own controller
+/// with its own gains (the file is written with them, and says why).
+pub const EXIT_KEPT_START: i32 = 3;
+
 /// `tune`: run the job (or one shard of it), write the results and the
 /// tuned robot file.
 pub fn tune(a: &TuneArgs, out: &mut dyn Write) -> Result<(), String> {
+    tune_status(a, out).map(|_| ())
+}
+
+/// [`tune`], returning the exit status (0, or [`EXIT_KEPT_START`]).
+pub fn tune_status(a: &TuneArgs, out: &mut dyn Write) -> Result<i32, String> {
     let mut robot = super::robot_arg::load_robot(&a.robot)?;
     if let Some(t) = a.torque_limit {
         robot.limits.torque_nm = t;
@@ -183,6 +209,7 @@ pub fn tune(a: &TuneArgs, out: &mut dyn Write) -> Result<(), String> {
             torque_scale_min: a.torque_scale_min,
             duration_s: a.duration,
             disturbance_max_fraction: a.disturbance_max,
+            figure8: a.validate_figure8,
         },
         optimizer: a.optimizer,
         evaluations: a.evaluations,
@@ -227,29 +254,55 @@ pub fn tune(a: &TuneArgs, out: &mut dyn Write) -> Result<(), String> {
             file.threads,
             p.display()
         );
-        return out.write_all(text.as_bytes()).map_err(|e| e.to_string());
+        return out
+            .write_all(text.as_bytes())
+            .map(|_| 0)
+            .map_err(|e| e.to_string());
     }
-    let outcome = tune::merge(std::slice::from_ref(&file))?;
+    let mut outcome = tune::merge(std::slice::from_ref(&file))?;
+    if !a.no_margins {
+        let pb = Progress::new("margin simulations", outcome.margin_simulations(), a.quiet);
+        outcome.add_margins(&|| pb.inc())?;
+        pb.finish();
+    }
     let path = a
         .write
         .clone()
         .unwrap_or_else(|| default_tuned_path(&a.robot));
     tune::write_atomic(&path, &outcome.robot_file_text(&command_line())?)?;
     let text = report(&outcome, a.json, Some(&path))?;
-    out.write_all(text.as_bytes()).map_err(|e| e.to_string())
+    out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
+    Ok(status(&outcome))
+}
+
+fn status(o: &TuneOutcome) -> i32 {
+    if o.kept_start.is_some() {
+        EXIT_KEPT_START
+    } else {
+        0
+    }
 }
 
 /// `tune-merge`: combine shard files, write the tuned robot file.
 pub fn tune_merge(a: &TuneMergeArgs, out: &mut dyn Write) -> Result<(), String> {
+    tune_merge_status(a, out).map(|_| ())
+}
+
+/// [`tune_merge`], returning the exit status (0, or [`EXIT_KEPT_START`]).
+pub fn tune_merge_status(a: &TuneMergeArgs, out: &mut dyn Write) -> Result<i32, String> {
     let files = a
         .files
         .iter()
         .map(|p| tune::read_shard_file(p))
         .collect::<Result<Vec<_>, _>>()?;
-    let outcome = tune::merge(&files)?;
+    let mut outcome = tune::merge(&files)?;
+    if !a.no_margins {
+        outcome.add_margins(&|| {})?;
+    }
     if let Some(p) = &a.write {
         tune::write_atomic(p, &outcome.robot_file_text(&command_line())?)?;
     }
     let text = report(&outcome, a.json, a.write.as_deref())?;
-    out.write_all(text.as_bytes()).map_err(|e| e.to_string())
+    out.write_all(text.as_bytes()).map_err(|e| e.to_string())?;
+    Ok(status(&outcome))
 }

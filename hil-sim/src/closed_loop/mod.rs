@@ -68,8 +68,22 @@ pub struct SensingReport {
 pub fn run_loop(
     scn: &Scenario,
     world: &mut World,
+    side: impl ControlSide,
+    trace_every: usize,
+) -> Result<SimOutput, String> {
+    run_loop_ending(scn, world, side, trace_every, false)
+}
+
+/// [`run_loop`]; with `end_at_stop` the run ends at the step the control
+/// side latched its first stop (a tuning evaluation scores a stopped run
+/// by the stop alone: the rest of it would be simulated for nothing; the
+/// metrics then cover the steps run).
+pub fn run_loop_ending(
+    scn: &Scenario,
+    world: &mut World,
     mut side: impl ControlSide,
     trace_every: usize,
+    end_at_stop: bool,
 ) -> Result<SimOutput, String> {
     scn.validate()?;
     let perturbations = scn.perturbations();
@@ -159,6 +173,9 @@ pub fn run_loop(
         }
         last_tau_s = pace.tau_s as f64;
         last_scale = pace.scale as f64;
+        if end_at_stop && side.stop().is_some() {
+            break;
+        }
         // The world over [t, t + dt], actuation held (zero-order hold).
         world.advance(actuation, dt).map_err(|e| e.to_string())?;
     }

@@ -32,6 +32,9 @@ pub struct HilOptions {
     /// Estimator tuning (None = the derivation's, `Scenario::derive`); its initial
     /// pose and centre-of-mass offset are taken from the scenario.
     pub estimator: Option<EstimatorConfig>,
+    /// End the run at the first stop the runtime latches (tuning: a
+    /// stopped run's score is the stop; `closed_loop::run_loop_ending`).
+    pub end_at_stop: bool,
 }
 
 /// The runtime as the controller side of the closed loop, reading and

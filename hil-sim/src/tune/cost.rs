@@ -143,6 +143,13 @@ pub struct Evaluation {
     pub stops: usize,
     /// Runs evaluated.
     pub runs: usize,
+    /// Each run's window RMS position error \[m\], in scenario order
+    /// (paired comparisons between controllers on the same seeds).
+    #[serde(default)]
+    pub run_rms_win_m: Vec<f64>,
+    /// Indices (scenario order) of the runs that stopped.
+    #[serde(default)]
+    pub stopped_runs: Vec<usize>,
 }
 
 /// The outcome of one run that enters the cost.
@@ -167,7 +174,16 @@ pub struct RunScore {
 pub fn score(scn: &Scenario, cfg: ControllerConfig) -> RunScore {
     let out = match scn.sensing.preset {
         Sensing::Ideal => crate::sim::run_with(scn, cfg, 0),
-        _ => run_runtime(scn, cfg, HilOptions::default(), 0).map(|o| o.sim),
+        _ => run_runtime(
+            scn,
+            cfg,
+            HilOptions {
+                end_at_stop: true,
+                ..HilOptions::default()
+            },
+            0,
+        )
+        .map(|o| o.sim),
     }
     .map(|o| {
         let runtime_stop = o.stop.is_some();
@@ -268,6 +284,13 @@ pub fn aggregate_with(scores: &[RunScore], spec: CostSpec) -> Evaluation {
         mean_chatter_per_s: chat,
         stops,
         runs: scores.len(),
+        run_rms_win_m: rms,
+        stopped_runs: scores
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| s.stopped)
+            .map(|(i, _)| i)
+            .collect(),
     }
 }
 

@@ -18,6 +18,7 @@
 //! every choice) and writes the same robot file one process would.
 
 pub mod cost;
+pub mod margin;
 pub mod optimise;
 pub mod set;
 pub mod space;
@@ -138,11 +139,25 @@ impl TuneJob {
     /// the best point on both parts, the start gains on both parts when it
     /// holds restart 0).
     pub fn simulations(&self, restarts: &Range<u64>) -> u64 {
-        let (t, v) = (self.set.training as u64, self.set.validation as u64);
+        let (t, v) = (
+            self.set.training as u64,
+            self.set.len(Part::Validation) as u64,
+        );
+        let warm = |k: ControllerKind| -> u64 {
+            if k == ControllerKind::Proposed {
+                self.controllers
+                    .iter()
+                    .filter(|&&b| b != ControllerKind::Proposed)
+                    .count() as u64
+            } else {
+                0
+            }
+        };
+        // The search, the start candidates (D166), the result on both parts.
         let per: u64 = self
             .controllers
             .iter()
-            .map(|&k| (self.evaluations_used(space::dims(k).len()) as u64 + 1) * t + v)
+            .map(|&k| (self.evaluations_used(space::dims(k).len()) as u64 + 2 + warm(k)) * t + v)
             .sum();
         let start = if restarts.contains(&0) {
             self.controllers.len() as u64 * (t + v)
@@ -179,6 +194,12 @@ pub struct RestartResult {
     pub evaluations: usize,
     /// Best training cost after each generation: (evaluations, cost).
     pub history: Vec<(usize, f64)>,
+    /// Where the search started (D166): `start` (the robot file's gains,
+    /// or restart r's random point), `tuned asmc` or `tuned smc` (that
+    /// restart's tuned baseline embedded in the proposed controller's box),
+    /// whichever cost least on the training part.
+    #[serde(default)]
+    pub warm_start: String,
 }
 
 /// What a shard (or a whole job) wrote.
@@ -264,7 +285,7 @@ pub fn run_shard(
             })
             .collect::<Vec<_>>()
     });
-    let mut results = Vec::new();
+    let mut results: Vec<RestartResult> = Vec::new();
     for r in restarts.clone() {
         for &kind in &job.controllers {
             let base = train[0].controller_config(kind);
@@ -278,13 +299,57 @@ pub fn run_shard(
             let f = |u: &[f64]| {
                 evaluate_with(&train, kind, &|c| space::decode(c, u), tick, job.cost()).cost
             };
-            let seed = run_seed(job.set.seed ^ kind_salt(kind), r);
-            let opt = minimise(job.optimizer, &f, &x0, job.evaluations, seed, &|e, c| {
+            // The candidates the search may start from (D166): the start,
+            // and for the proposed controller this restart's tuned
+            // baselines embedded in its box; each evaluated, the cheapest
+            // is the search's start and stays a candidate of its result.
+            let tuned_x = |k: ControllerKind| {
+                results
+                    .iter()
+                    .find(|x| x.restart == r && x.controller == k.name())
+                    .map(|x| x.x.clone())
+            };
+            let mut cands = vec![("start".to_string(), x0.clone())];
+            if kind == ControllerKind::Proposed {
+                if let Some(xa) = tuned_x(ControllerKind::Asmc) {
+                    cands.push(("tuned asmc".into(), space::embed_asmc(&xa, &x0)));
+                }
+                if let Some(xs) = tuned_x(ControllerKind::Smc) {
+                    cands.push(("tuned smc".into(), space::embed_smc(&xs, &x0)));
+                }
+            }
+            let costs: Vec<f64> = cands.iter().map(|(_, x)| f(x)).collect();
+            let i0 = (0..cands.len())
+                .min_by(|&a, &b| costs[a].total_cmp(&costs[b]).then(a.cmp(&b)))
+                .expect("a candidate");
+            if cands.len() > 1 {
                 note(&format!(
-                    "{} restart {r}: {e} evaluations, best training cost {c:.4} m",
-                    kind.name()
-                ))
-            })?;
+                    "{} restart {r}: warm start {} (training cost {})",
+                    kind.name(),
+                    cands[i0].0,
+                    cands
+                        .iter()
+                        .zip(&costs)
+                        .map(|((n, _), c)| format!("{n} {c:.4} m"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+            }
+            let seed = run_seed(job.set.seed ^ kind_salt(kind), r);
+            let opt = minimise(
+                job.optimizer,
+                &f,
+                &cands[i0].1,
+                Some(costs[i0]),
+                job.evaluations,
+                seed,
+                &|e, c| {
+                    note(&format!(
+                        "{} restart {r}: {e} evaluations, best training cost {c:.4} m",
+                        kind.name()
+                    ))
+                },
+            )?;
             let tuned = score_gains(kind, Some(&opt.x), &train, &val, tick, job.cost());
             note(&format!(
                 "{} restart {r}: training {:.4} m, validation {:.4} m",
@@ -299,6 +364,7 @@ pub fn run_shard(
                 tuned,
                 evaluations: opt.evaluations,
                 history: opt.history,
+                warm_start: cands[i0].0.clone(),
             });
         }
     }
@@ -318,17 +384,119 @@ pub fn run_shard(
 }
 
 /// The outcome of a whole job: per controller the start and the best
-/// restart.
+/// restart, and what is written.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TuneOutcome {
     /// The job.
     pub job: TuneJob,
     /// Per controller: (name, start gains, best restart).
     pub controllers: Vec<(String, Scored, RestartResult)>,
+    /// Per controller (same order): the gains written (D165).
+    pub choices: Vec<Choice>,
+    /// The controller that validates best: the written file's
+    /// `[control] controller` (D168).
+    pub best: String,
+    /// Why the start was kept, when the written file runs the robot file's
+    /// own controller with its own gains (no tuned gains validated better).
+    pub kept_start: Option<String>,
     /// Simulations over all shards.
     pub simulations: u64,
     /// Summed shard time \[s\].
     pub elapsed_s: f64,
+}
+
+/// Flag a gain within this factor of a bound of its range (5 %).
+pub const BOUND_FLAG_FACTOR: f64 = 1.05;
+/// Flag a mean saturated fraction above this on the validation part.
+pub const SATURATION_FLAG: f64 = 0.10;
+/// Flag a mean chatter above this (torque limits per second: the torque
+/// swinging across its whole limit this often) on the validation part.
+pub const CHATTER_FLAG_PER_S: f64 = 100.0;
+
+/// One controller's written gains (D165).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Choice {
+    /// Controller name.
+    pub controller: String,
+    /// True when the start gains are written: the tuned ones validated
+    /// worse.
+    pub kept_start: bool,
+    /// The written gains and their costs.
+    pub scored: Scored,
+    /// What the report flags about them.
+    pub flags: Vec<String>,
+    /// Their mismatch margins (filled by [`TuneOutcome::add_margins`]).
+    pub margins: Vec<margin::Margin>,
+}
+
+/// The written gains of one controller: the tuned ones unless the start
+/// validates strictly better (D165).
+fn choose(job: &TuneJob, name: &str, start: &Scored, best: &RestartResult) -> Choice {
+    let kept = start.validation.cost < best.tuned.validation.cost;
+    let scored = if kept { start } else { &best.tuned }.clone();
+    let mut flags = Vec::new();
+    if kept {
+        flags.push(format!(
+            "kept the start gains: the tuned ones validate at {:.4} m, the start at {:.4} m",
+            best.tuned.validation.cost, start.validation.cost
+        ));
+    } else if let Ok(kind) = kind_named(name) {
+        for (d, &u) in space::dims(kind).iter().zip(&best.x) {
+            let g = space::value(d, u);
+            let authority = d.name.ends_with("(scale)");
+            if g <= d.lo * BOUND_FLAG_FACTOR {
+                flags.push(if authority {
+                    format!(
+                        "{} at its low bound ({g:.2e}): the {} is off",
+                        d.name,
+                        if d.name.starts_with("eso") {
+                            "ESO"
+                        } else {
+                            "fault observer"
+                        }
+                    )
+                } else {
+                    format!("{} = {g:.4} at its low bound {}", d.name, d.lo)
+                });
+            } else if g >= d.hi / BOUND_FLAG_FACTOR && !authority {
+                flags.push(format!("{} = {g:.4} at its high bound {}", d.name, d.hi));
+            }
+        }
+    }
+    let v = &scored.validation;
+    if v.mean_saturated > SATURATION_FLAG {
+        flags.push(format!(
+            "torque saturated {:.1} % of the validation ticks (flag above {:.0} %)",
+            100.0 * v.mean_saturated,
+            100.0 * SATURATION_FLAG
+        ));
+    }
+    if v.mean_chatter_per_s > CHATTER_FLAG_PER_S {
+        flags.push(format!(
+            "chatter {:.0} torque limits per second on the validation part (flag above {CHATTER_FLAG_PER_S:.0})",
+            v.mean_chatter_per_s
+        ));
+    }
+    for &i in &v.stopped_runs {
+        let scn = job.set.scenario(Part::Validation, i as u64);
+        flags.push(format!(
+            "validation run {i} ({}, {}, seed {}) stopped or diverged",
+            if job.set.is_figure8(i) {
+                "figure-8"
+            } else {
+                "training path"
+            },
+            scn.sensing.preset.name(),
+            scn.seed
+        ));
+    }
+    Choice {
+        controller: name.to_string(),
+        kept_start: kept,
+        scored,
+        flags,
+        margins: Vec::new(),
+    }
 }
 
 /// Combines shard files of one job: same job, same build, every restart
@@ -394,9 +562,38 @@ pub fn merge(files: &[TuneShardFile]) -> Result<TuneOutcome, String> {
             .ok_or(format!("no start gains for {name}"))?;
         controllers.push((name.to_string(), s.1.clone(), best.clone()));
     }
+    let job = first.job.clone();
+    let choices: Vec<Choice> = controllers
+        .iter()
+        .map(|(n, s, b)| choose(&job, n, s, b))
+        .collect();
+    // The controller that validates best (ties: the paper's order).
+    let best = choices
+        .iter()
+        .min_by(|a, b| {
+            a.scored
+                .validation
+                .cost
+                .total_cmp(&b.scored.validation.cost)
+        })
+        .map(|c| c.controller.clone())
+        .ok_or("no controller")?;
+    let file_kind = job.set.robot.control.controller.name();
+    let kept_start = choices
+        .iter()
+        .find(|c| c.controller == best && c.kept_start && best == file_kind)
+        .map(|c| {
+            format!(
+                "no tuned gains validate better than the robot file's own ({} with its gains, validation cost {:.4} m): the start is kept",
+                c.controller, c.scored.validation.cost
+            )
+        });
     Ok(TuneOutcome {
-        job: first.job.clone(),
+        job,
         controllers,
+        choices,
+        best,
+        kept_start,
         simulations: files.iter().map(|f| f.simulations).sum(),
         elapsed_s: files.iter().map(|f| f.elapsed_s).sum(),
     })
@@ -408,20 +605,146 @@ impl TuneOutcome {
     /// against the binary record's size.
     pub fn tuned_robot(&self) -> Result<Robot, String> {
         let mut robot = self.job.set.robot.clone();
-        for (name, _, best) in &self.controllers {
-            let g = Some(best.tuned.gains);
-            match kind_named(name)? {
+        for c in &self.choices {
+            let g = Some(c.scored.gains);
+            match kind_named(&c.controller)? {
                 ControllerKind::Smc => robot.gains.smc = g,
                 ControllerKind::Asmc => robot.gains.asmc = g,
                 ControllerKind::Proposed => robot.gains.proposed = g,
             }
         }
+        robot.control.controller = kind_named(&self.best)?;
         let back = Robot::from_toml_str(&robot.to_toml_string())
             .map_err(|e| format!("the tuned robot file is invalid: {e}"))?;
         let mut buf = [0u8; robot_file::MAX_ENCODED_LEN];
         back.encode(&mut buf)
             .map_err(|e| format!("the tuned robot does not fit the binary record: {e:?}"))?;
         Ok(back)
+    }
+
+    /// Runs the mismatch sweep of each controller's written gains
+    /// ([`margin::margins`]) and flags a stop within mass ±40 % or inertia
+    /// ×0.6-1.6 (the first level of those directions); `tick` once per run.
+    pub fn add_margins(&mut self, tick: &(dyn Fn() + Sync)) -> Result<(), String> {
+        // The scenarios of the set with the written file's gains.
+        let set = TuneSet {
+            robot: self.tuned_robot()?,
+            ..self.job.set.clone()
+        };
+        for c in &mut self.choices {
+            let kind = kind_named(&c.controller)?;
+            c.margins = margin::margins(&set, kind, &|c| *c, tick);
+            for m in &c.margins {
+                if matches!(m.field, margin::Field::Mass | margin::Field::Inertia)
+                    && m.fails_at == Some(m.levels[0])
+                {
+                    c.flags.push(format!(
+                        "stops with the plant's {} {}, within the range it must hold",
+                        m.field.name(),
+                        m.field.level_text(m.levels[0])
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Simulations [`Self::add_margins`] runs at most.
+    pub fn margin_simulations(&self) -> u64 {
+        self.choices.len() as u64 * margin::max_simulations(&self.job.set)
+    }
+
+    /// The paired difference proposed − the better baseline (by validation
+    /// cost) of the written gains' window RMS over the validation runs:
+    /// (baseline name, mean \[m\], standard error \[m\], runs); None without
+    /// the proposed controller and a baseline.
+    pub fn paired_validation(&self) -> Option<(String, f64, f64, usize)> {
+        let p = self.choices.iter().find(|c| c.controller == "proposed")?;
+        let b = self
+            .choices
+            .iter()
+            .filter(|c| c.controller != "proposed")
+            .min_by(|a, b| {
+                a.scored
+                    .validation
+                    .cost
+                    .total_cmp(&b.scored.validation.cost)
+            })?;
+        let (x, y) = (
+            &p.scored.validation.run_rms_win_m,
+            &b.scored.validation.run_rms_win_m,
+        );
+        let n = x.len().min(y.len());
+        if n < 2 {
+            return None;
+        }
+        let d: Vec<f64> = x.iter().zip(y).map(|(a, b)| a - b).collect();
+        let mean = d.iter().sum::<f64>() / n as f64;
+        let var = d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n as f64 - 1.0);
+        Some((b.controller.clone(), mean, (var / n as f64).sqrt(), n))
+    }
+
+    /// What the report says below the table: the controller written, the
+    /// proposed controller against the better baseline, each controller's
+    /// flags and margins.
+    pub fn findings(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "best on validation: {} (written as [control] controller)",
+            self.best
+        );
+        let tr = |n: &str| {
+            self.controllers
+                .iter()
+                .find(|c| c.0 == n)
+                .map(|c| c.2.tuned.training.cost)
+        };
+        if let (Some(p), Some(b)) = (
+            tr("proposed"),
+            ["smc", "asmc"]
+                .iter()
+                .filter_map(|n| tr(n))
+                .reduce(f64::min),
+        ) {
+            let _ = writeln!(
+                s,
+                "training cost: tuned proposed {p:.4} m, better tuned baseline {b:.4} m ({:+.1} %)",
+                100.0 * (p / b - 1.0)
+            );
+        }
+        if let Some((b, m, se, n)) = self.paired_validation() {
+            let _ = writeln!(
+                s,
+                "validation window RMS, proposed - {b} paired over {n} runs: {:+.2} ± {:.2} mm (standard error)",
+                1e3 * m,
+                1e3 * se
+            );
+        }
+        if let Some(k) = &self.kept_start {
+            let _ = writeln!(s, "{k}");
+        }
+        for c in &self.choices {
+            for f in &c.flags {
+                let _ = writeln!(s, "flag {}: {f}", c.controller);
+            }
+        }
+        if self.choices.iter().any(|c| !c.margins.is_empty()) {
+            let _ = writeln!(
+                s,
+                "mismatch margin (the first level at which a run stops; > : none up to it):"
+            );
+            for c in &self.choices {
+                let m: Vec<String> = c
+                    .margins
+                    .iter()
+                    .map(|m| format!("{} {}", m.field.name(), m.text()))
+                    .collect();
+                let _ = writeln!(s, "  {:<9} {}", c.controller, m.join(", "));
+            }
+        }
+        s
     }
 
     /// The table: per controller the start gains' and the tuned gains'
@@ -441,7 +764,11 @@ impl TuneOutcome {
         for p in presets {
             let _ = write!(s, " {:>17}", format!("p95_va {}", p.name()));
         }
-        let _ = writeln!(s, " {:>6} {:>7} {:>6}", "sat", "chatter", "stops");
+        let _ = writeln!(
+            s,
+            " {:>6} {:>7} {:>6} {:>7}",
+            "sat", "chatter", "stops", "written"
+        );
         let _ = write!(
             s,
             "{:<10} {:>9} {:>9} {:>9} {:>9}",
@@ -450,7 +777,7 @@ impl TuneOutcome {
         for _ in presets {
             let _ = write!(s, " {:>17}", "start->tuned [m]");
         }
-        let _ = writeln!(s, " {:>6} {:>7} {:>6}", "[%]", "[1/s]", "tr/va");
+        let _ = writeln!(s, " {:>6} {:>7} {:>6} {:>7}", "[%]", "[1/s]", "tr/va", "");
         for (name, st, best) in &self.controllers {
             let t = &best.tuned;
             let _ = write!(
@@ -471,13 +798,18 @@ impl TuneOutcome {
                     format!("{:.4}->{:.4}", of(&st.validation), of(&t.validation))
                 );
             }
+            let kept = self
+                .choices
+                .iter()
+                .any(|c| &c.controller == name && c.kept_start);
             let _ = writeln!(
                 s,
-                " {:>6.2} {:>7.1} {:>3}/{}",
+                " {:>6.2} {:>7.1} {:>3}/{:<2} {:>7}",
                 100.0 * t.validation.mean_saturated,
                 t.validation.mean_chatter_per_s,
                 t.training.stops,
                 t.validation.stops,
+                if kept { "start" } else { "tuned" },
             );
         }
         s
@@ -527,7 +859,7 @@ impl TuneOutcome {
                 "# Cost [m] = geometric mean over the presets of the p95 window RMS + saturation and chatter penalties + 100 per stop:\n"
             }
         });
-        for line in self.table().lines() {
+        for line in self.table().lines().chain(self.findings().lines()) {
             h.push_str("#   ");
             h.push_str(line);
             h.push('\n');
@@ -550,4 +882,199 @@ pub fn read_shard_file(path: &Path) -> Result<TuneShardFile, String> {
         .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     serde_json::from_str(&text)
         .map_err(|e| format!("{}: not a tuning shard file: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::Sensing;
+    use controller_core::ControllerConfig;
+
+    fn job() -> TuneJob {
+        TuneJob {
+            set: TuneSet {
+                robot: Robot::paper(),
+                sensing: vec![Sensing::Mocap, Sensing::Imu],
+                seed: 1,
+                training: 2,
+                validation: 4,
+                torque_scale_min: 1.0,
+                duration_s: 35.0,
+                disturbance_max_fraction: set::DISTURBANCE_FRACTION.1,
+                figure8: 2,
+            },
+            optimizer: Optimizer::Cmaes,
+            evaluations: 10,
+            restarts: 1,
+            controllers: ControllerKind::ALL.to_vec(),
+            preset_mean: PresetMean::Geometric,
+            chatter_weight_m_s: CHATTER_WEIGHT_M_S,
+        }
+    }
+
+    fn eval(cost: f64) -> Evaluation {
+        Evaluation {
+            cost,
+            p95_rms_win_m: cost,
+            runs: 6,
+            run_rms_win_m: vec![cost; 6],
+            ..Evaluation::default()
+        }
+    }
+
+    fn scored(kind: ControllerKind, x: Option<&[f64]>, tr: f64, va: f64) -> Scored {
+        let base = ControllerConfig::paper(kind);
+        let c = x.map_or(base, |x| space::decode(&base, x));
+        Scored {
+            gains: robot_file::GainSet::of(&c),
+            training: eval(tr),
+            validation: eval(va),
+        }
+    }
+
+    /// A shard file whose start and tuned costs are given per controller
+    /// (smc, asmc, proposed): (start training, start validation, tuned
+    /// training, tuned validation), the tuned point `x` (None: the middle
+    /// of the box).
+    fn file(costs: [(f64, f64, f64, f64); 3], x: [Option<Vec<f64>>; 3]) -> TuneShardFile {
+        let j = job();
+        let mut start = Vec::new();
+        let mut results = Vec::new();
+        for ((k, c), x) in ControllerKind::ALL.into_iter().zip(costs).zip(x) {
+            let x = x.unwrap_or_else(|| vec![0.5; space::dims(k).len()]);
+            start.push((k.name().to_string(), scored(k, None, c.0, c.1)));
+            results.push(RestartResult {
+                controller: k.name().into(),
+                restart: 0,
+                tuned: scored(k, Some(&x), c.2, c.3),
+                x,
+                evaluations: 10,
+                history: vec![],
+                warm_start: "start".into(),
+            });
+        }
+        TuneShardFile {
+            format: TUNE_SHARD_FORMAT.into(),
+            version: TUNE_SHARD_VERSION,
+            hil_sim_version: env!("CARGO_PKG_VERSION").into(),
+            job: j,
+            shard: (0, 1),
+            restarts: 0..1,
+            start: Some(start),
+            results,
+            simulations: 0,
+            elapsed_s: 0.0,
+            threads: 1,
+        }
+    }
+
+    #[test]
+    fn tuned_gains_that_validate_worse_are_not_written_and_the_start_is_kept() {
+        // Every tuned controller trains better and validates worse than
+        // its start: the file keeps every start, runs the robot file's own
+        // controller (proposed, the best start) and says so.
+        let f = file(
+            [
+                (0.5, 0.40, 0.1, 0.45),
+                (0.5, 0.35, 0.1, 0.36),
+                (0.5, 0.30, 0.1, 0.31),
+            ],
+            [None, None, None],
+        );
+        let o = merge(&[f]).unwrap();
+        assert!(o.choices.iter().all(|c| c.kept_start));
+        assert_eq!(o.best, "proposed");
+        let why = o.kept_start.as_deref().expect("the start is kept");
+        assert!(why.contains("0.3000"), "{why}");
+        let robot = o.tuned_robot().unwrap();
+        for k in ControllerKind::ALL {
+            let g = robot_file::GainSet::of(&ControllerConfig::paper(k));
+            let written = match k {
+                ControllerKind::Smc => robot.gains.smc,
+                ControllerKind::Asmc => robot.gains.asmc,
+                ControllerKind::Proposed => robot.gains.proposed,
+            };
+            assert_eq!(written, Some(g), "{k:?}: the start gains are written");
+        }
+        assert_eq!(robot.control.controller, ControllerKind::Proposed);
+        assert!(o.findings().contains("the start is kept"));
+    }
+
+    #[test]
+    fn the_best_validating_controller_is_written_and_named() {
+        // Tuned ASMC validates best (0.20): written as the controller; the
+        // proposed controller's tuned gains (0.25 < its start 0.30) are
+        // written in its section all the same.
+        let f = file(
+            [
+                (0.5, 0.40, 0.1, 0.30),
+                (0.5, 0.35, 0.1, 0.20),
+                (0.5, 0.30, 0.1, 0.25),
+            ],
+            [None, None, None],
+        );
+        let o = merge(&[f]).unwrap();
+        assert_eq!(o.best, "asmc");
+        assert!(o.kept_start.is_none());
+        assert!(o.choices.iter().all(|c| !c.kept_start));
+        let robot = o.tuned_robot().unwrap();
+        assert_eq!(robot.control.controller, ControllerKind::Asmc);
+        let x = vec![0.5; space::dims(ControllerKind::Proposed).len()];
+        let want = space::decode(&ControllerConfig::paper(ControllerKind::Proposed), &x);
+        assert_eq!(robot.gains.proposed, Some(robot_file::GainSet::of(&want)));
+        // The file says it, and reads back as a robot file naming ASMC.
+        let text = o.robot_file_text("hil-sim tune").unwrap();
+        assert!(text.contains("best on validation: asmc"));
+        let back = Robot::from_toml_str(&text).unwrap();
+        assert_eq!(back.control.controller, ControllerKind::Asmc);
+    }
+
+    #[test]
+    fn a_gain_at_its_bound_and_heavy_saturation_are_flagged() {
+        // SMC's k_y at the top of its range (u = 1), k_th 3 % above its
+        // floor; ASMC in the middle of its box; proposed saturating 30 %
+        // of the ticks with a stopped figure-8 run.
+        let mut smc = vec![0.5; space::dims(ControllerKind::Smc).len()];
+        smc[1] = 1.0;
+        smc[2] = (1.03f64).ln() / (30.0f64 / 0.5).ln();
+        let mut f = file(
+            [
+                (0.5, 0.40, 0.1, 0.30),
+                (0.5, 0.35, 0.1, 0.20),
+                (0.5, 0.30, 0.1, 0.25),
+            ],
+            [Some(smc), None, None],
+        );
+        let p = &mut f.results[2].tuned.validation;
+        p.mean_saturated = 0.3;
+        p.mean_chatter_per_s = 250.0;
+        p.stopped_runs = vec![5];
+        let o = merge(&[f]).unwrap();
+        let flags = |n: &str| {
+            o.choices
+                .iter()
+                .find(|c| c.controller == n)
+                .unwrap()
+                .flags
+                .clone()
+        };
+        let s = flags("smc");
+        assert!(
+            s.iter()
+                .any(|f| f.contains("kinematic.k_y") && f.contains("high bound")),
+            "{s:?}"
+        );
+        assert!(
+            s.iter()
+                .any(|f| f.contains("kinematic.k_th") && f.contains("low bound")),
+            "{s:?}"
+        );
+        assert_eq!(s.len(), 2, "{s:?}");
+        assert!(flags("asmc").is_empty(), "{:?}", flags("asmc"));
+        let p = flags("proposed");
+        assert!(p.iter().any(|f| f.contains("saturated 30.0 %")), "{p:?}");
+        assert!(p.iter().any(|f| f.contains("chatter 250")), "{p:?}");
+        assert!(p.iter().any(|f| f.contains("run 5 (figure-8")), "{p:?}");
+        assert!(o.findings().contains("flag smc: kinematic.k_y"));
+    }
 }

@@ -133,10 +133,14 @@ impl<'a> Objective<'a> {
 /// (CMA-ES and the swarm use whole generations: `budget` rounded down to a
 /// multiple of [`POPULATION`], at least one); `batch_done` is called after
 /// each generation (or Nelder-Mead iteration) with (evaluations, best).
+/// `x0_cost`, when given, is `f(x0)` already evaluated: `x0` is then a
+/// candidate like any evaluated point (not counted in the budget), so the
+/// result is never worse than the start (issue 34).
 pub fn minimise(
     opt: Optimizer,
     f: &(dyn Fn(&[f64]) -> f64 + Sync),
     x0: &[f64],
+    x0_cost: Option<f64>,
     budget: usize,
     seed: u64,
     batch_done: &(dyn Fn(usize, f64) + Sync),
@@ -148,6 +152,11 @@ pub fn minimise(
         _ => gens * POPULATION,
     };
     let obj = Objective::new(f, budget);
+    if let Some(c) = x0_cost {
+        let x: Vec<f64> = x0.iter().map(|v| v.clamp(0.0, 1.0)).collect();
+        let c = if c.is_nan() { OVER_BUDGET } else { c } + box_penalty(x0);
+        obj.state.lock().expect("objective state").best = Some((c, x));
+    }
     let mut history = Vec::new();
     match opt {
         Optimizer::Cmaes => {
@@ -251,10 +260,28 @@ mod tests {
     fn each_optimiser_improves_on_the_start_within_its_budget() {
         let x0 = [0.9; 4];
         for opt in [Optimizer::Cmaes, Optimizer::NelderMead, Optimizer::Pso] {
-            let r = minimise(opt, &sphere, &x0, 300, 7, &|_, _| {}).unwrap();
+            let r = minimise(opt, &sphere, &x0, None, 300, 7, &|_, _| {}).unwrap();
             assert!(r.evaluations <= 300, "{opt:?}: {}", r.evaluations);
             assert!(r.cost < 0.01 * sphere(&x0), "{opt:?}: {}", r.cost);
             assert!((sphere(&r.x) - r.cost).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn a_start_no_evaluation_can_beat_is_the_result() {
+        // The start is the sphere's minimum: every point the optimiser
+        // tries costs more, so the start (given with its cost) is returned.
+        let x0 = [0.3, 0.7, 0.5, 0.2];
+        for opt in [Optimizer::Cmaes, Optimizer::NelderMead, Optimizer::Pso] {
+            let r = minimise(opt, &sphere, &x0, Some(0.0), 50, 7, &|_, _| {}).unwrap();
+            assert_eq!(r.x, x0.to_vec(), "{opt:?}");
+            assert_eq!(r.cost, 0.0);
+            // Without it CMA-ES and the swarm return a point they drew
+            // (Nelder-Mead's simplex holds the start as a vertex).
+            if opt != Optimizer::NelderMead {
+                let r = minimise(opt, &sphere, &x0, None, 50, 7, &|_, _| {}).unwrap();
+                assert!(r.cost > 0.0, "{opt:?}");
+            }
         }
     }
 
@@ -266,7 +293,9 @@ mod tests {
                     .num_threads(threads)
                     .build()
                     .unwrap()
-                    .install(|| minimise(opt, &sphere, &[0.9; 4], 100, 3, &|_, _| {}).unwrap())
+                    .install(|| {
+                        minimise(opt, &sphere, &[0.9; 4], None, 100, 3, &|_, _| {}).unwrap()
+                    })
             };
             assert_eq!(run(1), run(3), "{opt:?}");
         }

@@ -18,7 +18,10 @@
 //!   ×(0.6, 1.6) (log-uniform) against the controller's model, and, with
 //!   `torque_scale_min` < 1, the torque limit ×(torque_scale_min, 1)
 //!   (a weak battery or a derated bridge);
-//! - the sensing preset: the set's presets in turn (i mod n).
+//! - the sensing preset: the set's presets in turn (i mod n);
+//! - the validation part ends with [`TuneSet::figure8`] runs of the same
+//!   draws on the figure-8 (issue 34, D167): a path unlike the training
+//!   one (both turning directions, curvature through zero).
 
 use crate::montecarlo::run_seed;
 use crate::rng::Rng;
@@ -78,7 +81,14 @@ pub struct TuneSet {
     /// 0.5 (`--disturbance-max`).
     #[serde(default = "default_disturbance_max")]
     pub disturbance_max_fraction: f64,
+    /// Validation runs on the figure-8 after the `validation` runs of the
+    /// training path (D167; shard files without it have none).
+    #[serde(default)]
+    pub figure8: usize,
 }
+
+/// Default number of figure-8 validation runs (`--validate-figure8`).
+pub const DEFAULT_FIGURE8: usize = 4;
 
 impl TuneSet {
     /// Refuses sets no scenario could be built from (no sensing preset,
@@ -120,7 +130,7 @@ impl TuneSet {
     pub fn len(&self, part: Part) -> usize {
         match part {
             Part::Training => self.training,
-            Part::Validation => self.validation,
+            Part::Validation => self.validation + self.figure8,
         }
     }
 
@@ -164,7 +174,17 @@ impl TuneSet {
         let scale = within((self.torque_scale_min, 1.0));
         s.plant.torque_limit_nm = (self.torque_scale_min < 1.0).then_some(tau * scale);
         s.sensing.preset = self.sensing[i as usize % self.sensing.len()];
+        if part == Part::Validation && i >= self.validation as u64 {
+            s.trajectory = crate::scenario::TrajectoryKind::Figure8;
+            s.initial_pose = [0.0, 0.0, std::f64::consts::FRAC_PI_4];
+            s.name = format!("{}-figure8", s.name);
+        }
         s
+    }
+
+    /// True when validation run `i` is on the figure-8.
+    pub fn is_figure8(&self, i: usize) -> bool {
+        i >= self.validation
     }
 
     /// Every scenario of `part`, in index order.
@@ -189,6 +209,7 @@ mod tests {
             torque_scale_min: 0.5,
             duration_s: 40.0,
             disturbance_max_fraction: DISTURBANCE_FRACTION.1,
+            figure8: 2,
         }
     }
 
@@ -247,6 +268,23 @@ mod tests {
             assert_eq!(c, s.scenario(Part::Validation, i));
             c.validate().unwrap();
         }
+    }
+
+    #[test]
+    fn validation_ends_with_the_figure8_on_its_own_seeds() {
+        let s = set(Robot::paper());
+        assert_eq!(s.len(Part::Validation), 52);
+        let v = s.scenarios(Part::Validation);
+        for (i, c) in v.iter().enumerate() {
+            let f8 = c.trajectory == crate::scenario::TrajectoryKind::Figure8;
+            assert_eq!(f8, s.is_figure8(i), "{i}");
+            c.validate().unwrap();
+            crate::limits::check_scenario(c).unwrap();
+        }
+        assert!(s
+            .scenarios(Part::Training)
+            .iter()
+            .all(|c| c.trajectory != crate::scenario::TrajectoryKind::Figure8));
     }
 
     #[test]

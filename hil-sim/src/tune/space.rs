@@ -60,6 +60,26 @@ const OBSERVER: [Dim; 2] = [
     dim("observer.l_v", 0.5, 50.0),
     dim("observer.l_omega", 0.5, 50.0),
 ];
+/// The authority of the ESO and of the fault observer (D166): the scale
+/// of their clamps (`eso.max_disturbance`, `observer.max_estimate`)
+/// against the robot file's, floored at the parameter table's 1e-6. At the
+/// low end the estimates D̂ and F̂ are bounded by a few 1e-6 (m/s², m/s):
+/// the proposed controller is then ASMC, so the proposed controller's box
+/// holds the ASMC's (issue 34: the baselines are special cases).
+const AUTHORITY: [Dim; 2] = [
+    dim(ESO_AUTHORITY, AUTHORITY_MIN, 1.0),
+    dim(OBSERVER_AUTHORITY, AUTHORITY_MIN, 1.0),
+];
+/// Name of the ESO's authority (the scale of `eso.max_disturbance`).
+pub const ESO_AUTHORITY: &str = "eso.max_disturbance (scale)";
+/// Name of the fault observer's authority (the scale of
+/// `observer.max_estimate`).
+pub const OBSERVER_AUTHORITY: &str = "observer.max_estimate (scale)";
+/// Smallest authority scale: the paper's clamps (20, 40 m/s²; 1.5, 2 m/s)
+/// become at most 4e-6.
+pub const AUTHORITY_MIN: f64 = 1e-7;
+/// Smallest clamp the robot file takes (docs/parameters.md).
+const CLAMP_MIN: f32 = 1e-6;
 
 /// The tuned gains of `kind`, in the order of the optimiser's vector.
 pub fn dims(kind: ControllerKind) -> Vec<Dim> {
@@ -72,9 +92,47 @@ pub fn dims(kind: ControllerKind) -> Vec<Dim> {
             v.extend(ADAPTIVE);
             v.extend(ESO);
             v.extend(OBSERVER);
+            v.extend(AUTHORITY);
         }
     }
     v
+}
+
+/// Index of the first gain after the kinematic law and k_s (the switching
+/// gain: SMC's K, or ASMC's and the proposed controller's γ).
+const SWITCHING: usize = 4;
+
+/// The ASMC point `asmc` (unit box of [`dims`]`(Asmc)`) embedded in the
+/// proposed controller's box: the same kinematic and sliding gains, the
+/// ESO's and the fault observer's gains of `proposed` (a point of the
+/// proposed controller's box), and both authorities at their low end (the
+/// estimates off, D166).
+pub fn embed_asmc(asmc: &[f64], proposed: &[f64]) -> Vec<f64> {
+    let n = dims(ControllerKind::Proposed).len();
+    assert_eq!(asmc.len(), dims(ControllerKind::Asmc).len(), "ASMC point");
+    assert_eq!(proposed.len(), n, "proposed point");
+    let mut x = proposed.to_vec();
+    x[..asmc.len()].copy_from_slice(asmc);
+    x[n - 2] = 0.0;
+    x[n - 1] = 0.0;
+    x
+}
+
+/// The SMC point `smc` near the proposed controller's box: its kinematic
+/// gains and k_s, the slowest adaptation (γ at its low end) with ρ_max at
+/// SMC's K (ρ0 is lowered to it), the estimates off. Not SMC exactly (ρ̂
+/// still adapts, slowly, and starts at min(ρ0, K)): a warm start only.
+pub fn embed_smc(smc: &[f64], proposed: &[f64]) -> Vec<f64> {
+    let n = dims(ControllerKind::Proposed).len();
+    assert_eq!(smc.len(), dims(ControllerKind::Smc).len(), "SMC point");
+    let mut x = proposed.to_vec();
+    x[..SWITCHING].copy_from_slice(&smc[..SWITCHING]);
+    let k = f64::from(from_u(&K_FIXED, smc[SWITCHING]));
+    x[SWITCHING] = 0.0;
+    x[SWITCHING + 1] = to_u(&ADAPTIVE[1], k);
+    x[n - 2] = 0.0;
+    x[n - 1] = 0.0;
+    x
 }
 
 fn to_u(d: &Dim, g: f64) -> f64 {
@@ -90,7 +148,8 @@ fn from_u(d: &Dim, u: f64) -> f32 {
     (d.lo.ln() + u * (d.hi.ln() - d.lo.ln())).exp() as f32
 }
 
-/// The gains of `c` as a point of the unit box (each clamped to its range).
+/// The gains of `c` as a point of the unit box (each clamped to its range;
+/// the authorities are relative to `c`'s own clamps: 1).
 pub fn encode(c: &ControllerConfig) -> Vec<f64> {
     let g = gains_of(c);
     dims(c.kind)
@@ -100,7 +159,13 @@ pub fn encode(c: &ControllerConfig) -> Vec<f64> {
         .collect()
 }
 
-/// The tuned gains of `c` in [`dims`] order.
+/// The gain of `d` at the unit-box coordinate `u` (clamped into the box).
+pub fn value(d: &Dim, u: f64) -> f64 {
+    f64::from(from_u(d, u))
+}
+
+/// The tuned gains of `c` in [`dims`] order (the authorities: 1, `c`'s
+/// own clamps).
 pub fn gains_of(c: &ControllerConfig) -> Vec<f32> {
     let mut v = vec![
         c.kinematic.k_x,
@@ -115,6 +180,7 @@ pub fn gains_of(c: &ControllerConfig) -> Vec<f32> {
     if c.kind == ControllerKind::Proposed {
         v.extend(c.eso.lambda);
         v.extend([c.fault_observer.l_v, c.fault_observer.l_omega]);
+        v.extend([1.0, 1.0]);
     }
     v
 }
@@ -145,6 +211,9 @@ pub fn decode(base: &ControllerConfig, u: &[f64]) -> ControllerConfig {
         c.eso.lambda = [g[6], g[7], g[8]];
         c.fault_observer.l_v = g[9];
         c.fault_observer.l_omega = g[10];
+        let scaled = |m: [f32; 2], s: f32| m.map(|x| (x * s).max(CLAMP_MIN));
+        c.eso.max_disturbance = scaled(c.eso.max_disturbance, g[11]);
+        c.fault_observer.max_estimate = scaled(c.fault_observer.max_estimate, g[12]);
     }
     c
 }
@@ -173,7 +242,11 @@ mod tests {
                 c.validate()
                     .expect("every point of the box is a valid configuration");
                 let back = encode(&c);
-                for (a, b) in back.iter().zip(&x) {
+                let d = dims(kind);
+                for ((a, b), d) in back.iter().zip(&x).zip(&d) {
+                    // An authority is relative to the configuration's own
+                    // clamps: encoded, it is always 1 (the box's top).
+                    let b = if d.name.ends_with("(scale)") { 1.0 } else { *b };
                     assert!((a - b).abs() < 1e-5, "{kind:?}: {a} vs {b}");
                 }
             }
@@ -194,6 +267,38 @@ mod tests {
         }
         let e = controller_core::eso::EsoParams::DEFAULT;
         assert!(ESO[0].hi * f64::from(e.fal_slope()) * t <= 0.5);
+    }
+
+    #[test]
+    fn the_asmc_point_embedded_is_asmc_with_the_estimates_bounded_near_zero() {
+        let (a, p) = (
+            ControllerConfig::paper(ControllerKind::Asmc),
+            ControllerConfig::paper(ControllerKind::Proposed),
+        );
+        let xa = vec![0.3, 0.6, 0.2, 0.7, 0.4, 0.55];
+        let e = decode(&p, &embed_asmc(&xa, &encode(&p)));
+        let da = decode(&a, &xa);
+        assert_eq!(e.kinematic, da.kinematic);
+        assert_eq!(e.sliding.k_s, da.sliding.k_s);
+        assert_eq!(e.sliding.switching, da.sliding.switching);
+        // D̂ and F̂ are clamped to a few 1e-6: the compensation is off.
+        for m in e
+            .eso
+            .max_disturbance
+            .into_iter()
+            .chain(e.fault_observer.max_estimate)
+        {
+            assert!((CLAMP_MIN..=4e-6).contains(&m), "{m}");
+        }
+        e.validate().unwrap();
+        // The SMC warm start: K becomes ρ_max (ρ0 lowered to it), γ slowest.
+        let xs = vec![0.3, 0.6, 0.2, 0.7, to_u(&K_FIXED, 3.0)];
+        let es = decode(&p, &embed_smc(&xs, &encode(&p)));
+        let Switching::Adaptive(ad) = es.sliding.switching else {
+            panic!("adaptive")
+        };
+        assert!((ad.rho_max - 3.0).abs() < 1e-4 && ad.rho0 <= ad.rho_max);
+        assert_eq!(ad.gamma as f64, ADAPTIVE[0].lo as f32 as f64);
     }
 
     #[test]
