@@ -216,6 +216,11 @@ fn save_state(path: &Path, s: &State) -> Result<(), BringupError> {
     })
 }
 
+/// `hil-sim tune`'s exit status when it keeps the start gains (hil-sim's
+/// `cli::tune::EXIT_KEPT_START`; wmr runs hil-sim as a program and does not
+/// link it).
+const HIL_SIM_TUNE_KEPT_START: i32 = 3;
+
 /// The `hil-sim` program: `--hil-sim`, else beside this executable, else
 /// `hil-sim` on PATH.
 fn hil_sim_program(a: &BringupArgs) -> PathBuf {
@@ -490,7 +495,17 @@ pub fn bringup_with(
                         ))
                     })?;
                 out.write_all(&o.stdout).map_err(out_err)?;
-                if !o.status.success() {
+                // Exit 3 (hil-sim's EXIT_KEPT_START): the file's own gains and
+                // controller validated best and were written back: not a failure.
+                let kept_start = o.status.code() == Some(HIL_SIM_TUNE_KEPT_START);
+                if kept_start {
+                    writeln!(
+                        out,
+                        "  hil-sim tune kept the file's own gains (they validated best; its report above says why)"
+                    )
+                    .map_err(out_err)?;
+                }
+                if !o.status.success() && !kept_start {
                     return Err(BringupError::Tune(format!(
                         "{} exited with {}: {}",
                         prog.display(),
