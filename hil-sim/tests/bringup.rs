@@ -165,3 +165,14 @@ fn bringup_walks_every_step_resumes_and_verifies() {
     let sim = robot.finish().unwrap();
     assert!(sim.reboots() >= 1, "the push rebooted the robot");
 }
+
+/// `wmr bringup` runs `hil-sim tune` as a program and reads its exit status:
+/// the status that means "kept the start gains" is the same number on both
+/// sides.
+#[test]
+fn bringup_reads_tunes_kept_start_status() {
+    assert_eq!(
+        wmr::bringup::HIL_SIM_TUNE_KEPT_START,
+        hil_sim::cli::tune::EXIT_KEPT_START
+    );
+}

@@ -219,7 +219,7 @@ fn save_state(path: &Path, s: &State) -> Result<(), BringupError> {
 /// `hil-sim tune`'s exit status when it keeps the start gains (hil-sim's
 /// `cli::tune::EXIT_KEPT_START`; wmr runs hil-sim as a program and does not
 /// link it).
-const HIL_SIM_TUNE_KEPT_START: i32 = 3;
+pub const HIL_SIM_TUNE_KEPT_START: i32 = 3;
 
 /// The `hil-sim` program: `--hil-sim`, else beside this executable, else
 /// `hil-sim` on PATH.
