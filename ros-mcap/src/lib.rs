@@ -8,7 +8,7 @@
 //!
 //! | topic | type | content |
 //! |---|---|---|
-//! | `/odom` | `nav_msgs/msg/Odometry` | frame `odom`, child `base_link` (the axle midpoint), the estimator's pose converted from G (see below), η as the twist, fixed covariances [`POSE_COVARIANCE`], [`TWIST_COVARIANCE`] |
+//! | `/odom` | `nav_msgs/msg/Odometry` | frame `odom`, child `base_link` (the axle midpoint), the estimator's pose converted from G (see below), η as the twist, the robot estimator's pose and twist covariance (telemetry group 8, [`odom_covariances`]; fixed [`POSE_COVARIANCE`], [`TWIST_COVARIANCE`] without it) |
 //! | `/tf` | `tf2_msgs/msg/TFMessage` | `odom` → `base_link`, the same pose |
 //! | `/joint_states` | `sensor_msgs/msg/JointState` | `right_wheel_joint`, `left_wheel_joint`: wheel rates from η, angles their integral, effort the torque |
 //! | `/diagnostics` | `diagnostic_msgs/msg/DiagnosticArray` | run state, health and reason, last stop, fault estimates, counters: on a change and every [`DIAGNOSTICS_PERIOD_NS`] |
@@ -42,7 +42,8 @@ mod telemetry;
 mod writer;
 
 pub use frames::{
-    counter_values, diagnostic_status, health_name, DiagFrame, LogFrame, RosFrames, RosMessages,
+    counter_values, diagnostic_status, health_name, odom_covariances, DiagFrame,
+    EstimatorCovariance, LogFrame, RosFrames, RosMessages,
 };
 pub use reader::sample_of_tracking;
 pub use reader::{is_mcap, read_log, read_messages, read_trace, LoggedMessage};
@@ -71,13 +72,14 @@ pub const WHEEL_JOINTS: [&str; 2] = ["right_wheel_joint", "left_wheel_joint"];
 pub const DIAGNOSTICS_PERIOD_NS: u64 = 1_000_000_000;
 
 /// `/odom`'s pose covariance diagonal (x, y, z, roll, pitch, yaw) \[m²,
-/// rad²\]: the telemetry carries no covariance (the robot's estimator has
-/// one, `EstimatorStatus::covariance_diag`, not sent), so a fixed one:
-/// 1 cm in x and y, 0.01 rad in yaw, and 10⁶ for the three coordinates a
-/// planar robot does not estimate (REP-105's "unknown" convention).
+/// rad²\] when a frame has no estimator covariance (a simulated trace,
+/// or telemetry without group 8; protocol 5 robots send the estimator's:
+/// [`odom_covariances`]): 1 cm in x and y, 0.01 rad in yaw, and 10⁶ for
+/// the three coordinates a planar robot does not estimate (REP-105's
+/// "unknown" convention).
 pub const POSE_COVARIANCE: [f64; 6] = [1e-4, 1e-4, 1e6, 1e6, 1e6, 1e-4];
-/// `/odom`'s twist covariance diagonal \[(m/s)², (rad/s)²\]: 0.01 m/s in
-/// v, 0.01 rad/s in ω, 10⁶ for the rest (the encoders' speed, fixed).
+/// `/odom`'s twist covariance diagonal \[(m/s)², (rad/s)²\] without an
+/// estimator covariance: 0.01 m/s in v, 0.01 rad/s in ω, 10⁶ for the rest.
 pub const TWIST_COVARIANCE: [f64; 6] = [1e-4, 1e6, 1e6, 1e6, 1e6, 1e-4];
 
 /// Why a log could not be written or read.
@@ -240,6 +242,7 @@ pub fn write_sim_trace(
                 last_stop: None,
                 counters: None,
             },
+            covariance: None,
         })?;
     }
     log.finish()
