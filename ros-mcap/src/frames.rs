@@ -105,6 +105,25 @@ pub struct RosMessages {
     pub diagnostics: Option<DiagnosticArray>,
 }
 
+impl RosMessages {
+    /// Each message CDR-encoded with its index in [`crate::CHANNELS`]:
+    /// `/odom`, `/tf`, `/joint_states`, `/wmr/tracking`, then
+    /// `/diagnostics` when due.
+    pub fn encoded(&self) -> Result<Vec<(usize, Vec<u8>)>, crate::LogError> {
+        let e = |m: Result<Vec<u8>, String>| m.map_err(crate::LogError::Cdr);
+        let mut out = vec![
+            (0, e(encode(&self.odom))?),
+            (1, e(encode(&self.tf))?),
+            (2, e(encode(&self.joints))?),
+            (3, e(encode(&self.tracking))?),
+        ];
+        if let Some(d) = &self.diagnostics {
+            out.push((4, e(encode(d))?));
+        }
+        Ok(out)
+    }
+}
+
 /// What makes a new `/diagnostics` message due at once.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct DiagKey {

@@ -36,6 +36,8 @@
 #![deny(missing_docs)]
 
 mod frames;
+#[cfg(feature = "live")]
+pub mod live;
 pub mod msg;
 mod reader;
 mod telemetry;
@@ -62,6 +64,16 @@ pub const TOPIC_JOINT_STATES: &str = "/joint_states";
 pub const TOPIC_DIAGNOSTICS: &str = "/diagnostics";
 /// Topic of the tracking and estimator telemetry.
 pub const TOPIC_TRACKING: &str = "/wmr/tracking";
+/// Every topic with its message type, in one order: the MCAP writer's
+/// channels and the live view's (`live`), so both carry the same topics
+/// and schemas ([`RosMessages::encoded`] gives the messages in this order).
+pub const CHANNELS: [(&str, &str); 5] = [
+    (TOPIC_ODOM, "nav_msgs/msg/Odometry"),
+    (TOPIC_TF, "tf2_msgs/msg/TFMessage"),
+    (TOPIC_JOINT_STATES, "sensor_msgs/msg/JointState"),
+    (TOPIC_TRACKING, "wmr_msgs/msg/Tracking"),
+    (TOPIC_DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray"),
+];
 /// The odometry frame.
 pub const FRAME_ODOM: &str = "odom";
 /// The robot's frame: the axle midpoint.
@@ -230,22 +242,28 @@ pub fn write_sim_trace(
 ) -> Result<LogStats, LogError> {
     let mut log = McapLog::create(path, geometry, "hil-sim run")?;
     for s in trace {
-        let stamp_ns = start_ns + (s.t_s.max(0.0) * 1e9).round() as u64;
-        log.write(&LogFrame {
-            stamp_ns,
-            sample: *s,
-            duty: None,
-            external_pose: false,
-            input_fault: false,
-            diag: DiagFrame {
-                state: wmr_protocol::RunStateMsg::Running,
-                last_stop: None,
-                counters: None,
-            },
-            covariance: None,
-        })?;
+        log.write(&sim_frame(s, start_ns))?;
     }
     log.finish()
+}
+
+/// The log frame of a simulated trace row at Unix time `start_ns` + its
+/// t: the running state, no duty, counters, stop or covariance (the
+/// simulator has none). `hil-sim run --mcap` and `--live` both use it.
+pub fn sim_frame(s: &TraceSample, start_ns: u64) -> LogFrame {
+    LogFrame {
+        stamp_ns: start_ns + (s.t_s.max(0.0) * 1e9).round() as u64,
+        sample: *s,
+        duty: None,
+        external_pose: false,
+        input_fault: false,
+        diag: DiagFrame {
+            state: wmr_protocol::RunStateMsg::Running,
+            last_stop: None,
+            counters: None,
+        },
+        covariance: None,
+    }
 }
 
 #[cfg(test)]
