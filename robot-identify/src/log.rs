@@ -249,6 +249,7 @@ mod tests {
             }),
             estimators: None,
             counters: None,
+            covariance: None,
         };
         let row = IdRow::from_telemetry(&t, &info).unwrap();
         for (got, want) in row.wheel_rate_radps.iter().zip(rates) {
@@ -294,6 +295,7 @@ mod tests {
                 external_poses: [5, 6, 6, 7, 7][n as usize],
                 ..Default::default()
             }),
+            covariance: None,
         };
         let mut b = RowBuilder::new(info);
         let flags: Vec<bool> = (0..5)

@@ -23,6 +23,60 @@ pub struct LogFrame {
     pub input_fault: bool,
     /// State, stop and counters for `/diagnostics`.
     pub diag: DiagFrame,
+    /// The robot estimator's covariance (telemetry group 8, protocol 5),
+    /// when sent; without it `/odom` carries the fixed
+    /// [`crate::POSE_COVARIANCE`] and [`crate::TWIST_COVARIANCE`].
+    pub covariance: Option<EstimatorCovariance>,
+}
+
+/// The robot estimator's covariance of `base_link` (the axle midpoint).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EstimatorCovariance {
+    /// Upper triangle of the covariance of (x, y, yaw), row by row: xx
+    /// \[m²\], xy \[m²\], x·yaw \[m·rad\], yy \[m²\], y·yaw \[m·rad\], yaw·yaw
+    /// \[rad²\].
+    pub pose: [f64; 6],
+    /// Variances of v \[(m/s)²\] and ω \[(rad/s)²\].
+    pub twist: [f64; 2],
+}
+
+/// `/odom`'s pose and twist covariances (6×6, row major: x, y, z, roll,
+/// pitch, yaw): the estimator's where the frame has them, in the x, y, yaw
+/// rows and columns (v and ω for the twist), 10⁶ on the diagonal for what
+/// a planar robot does not estimate (REP-105's "unknown"); the fixed
+/// diagonals otherwise. The one place both the MCAP logs and the ROS 2
+/// bridge fill them.
+pub fn odom_covariances(c: Option<&EstimatorCovariance>) -> (Covariance, Covariance) {
+    let Some(c) = c else {
+        return (
+            Covariance::diagonal(crate::POSE_COVARIANCE),
+            Covariance::diagonal(crate::TWIST_COVARIANCE),
+        );
+    };
+    const UNKNOWN: f64 = 1e6;
+    // Row-major index of (i, j) in the 6×6; the planar axes x, y, yaw.
+    let at = |i: usize, j: usize| 6 * i + j;
+    let axes = [0, 1, 5];
+    let mut pose = [0.0; 36];
+    let mut twist = [0.0; 36];
+    for i in [2, 3, 4] {
+        pose[at(i, i)] = UNKNOWN;
+    }
+    for i in 1..5 {
+        twist[at(i, i)] = UNKNOWN;
+    }
+    let mut k = 0;
+    for a in 0..3 {
+        for b in a..3 {
+            let (i, j) = (axes[a], axes[b]);
+            pose[at(i, j)] = c.pose[k];
+            pose[at(j, i)] = c.pose[k];
+            k += 1;
+        }
+    }
+    twist[at(0, 0)] = c.twist[0];
+    twist[at(5, 5)] = c.twist[1];
+    (Covariance::from_array(pose), Covariance::from_array(twist))
 }
 
 /// What `/diagnostics` reports beyond the tracking row.
@@ -49,6 +103,25 @@ pub struct RosMessages {
     pub tracking: Tracking,
     /// `/diagnostics`, when due (a change, or the period elapsed).
     pub diagnostics: Option<DiagnosticArray>,
+}
+
+impl RosMessages {
+    /// Each message CDR-encoded with its index in [`crate::CHANNELS`]:
+    /// `/odom`, `/tf`, `/joint_states`, `/wmr/tracking`, then
+    /// `/diagnostics` when due.
+    pub fn encoded(&self) -> Result<Vec<(usize, Vec<u8>)>, crate::LogError> {
+        let e = |m: Result<Vec<u8>, String>| m.map_err(crate::LogError::Cdr);
+        let mut out = vec![
+            (0, e(encode(&self.odom))?),
+            (1, e(encode(&self.tf))?),
+            (2, e(encode(&self.joints))?),
+            (3, e(encode(&self.tracking))?),
+        ];
+        if let Some(d) = &self.diagnostics {
+            out.push((4, e(encode(d))?));
+        }
+        Ok(out)
+    }
 }
 
 /// What makes a new `/diagnostics` message due at once.
@@ -105,12 +178,13 @@ impl RosFrames {
             },
             orientation: Quaternion::from_yaw(b[2]),
         };
+        let (pose_cov, twist_cov) = odom_covariances(f.covariance.as_ref());
         let odom = Odometry {
             header: header(crate::FRAME_ODOM),
             child_frame_id: crate::FRAME_BASE.into(),
             pose: PoseWithCovariance {
                 pose,
-                covariance: Covariance::diagonal(crate::POSE_COVARIANCE),
+                covariance: pose_cov,
             },
             twist: TwistWithCovariance {
                 twist: Twist {
@@ -125,7 +199,7 @@ impl RosFrames {
                         z: s.eta[1],
                     },
                 },
-                covariance: Covariance::diagonal(crate::TWIST_COVARIANCE),
+                covariance: twist_cov,
             },
         };
         let tf = TfMessage {

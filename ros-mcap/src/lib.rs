@@ -8,7 +8,7 @@
 //!
 //! | topic | type | content |
 //! |---|---|---|
-//! | `/odom` | `nav_msgs/msg/Odometry` | frame `odom`, child `base_link` (the axle midpoint), the estimator's pose converted from G (see below), η as the twist, fixed covariances [`POSE_COVARIANCE`], [`TWIST_COVARIANCE`] |
+//! | `/odom` | `nav_msgs/msg/Odometry` | frame `odom`, child `base_link` (the axle midpoint), the estimator's pose converted from G (see below), η as the twist, the robot estimator's pose and twist covariance (telemetry group 8, [`odom_covariances`]; fixed [`POSE_COVARIANCE`], [`TWIST_COVARIANCE`] without it) |
 //! | `/tf` | `tf2_msgs/msg/TFMessage` | `odom` → `base_link`, the same pose |
 //! | `/joint_states` | `sensor_msgs/msg/JointState` | `right_wheel_joint`, `left_wheel_joint`: wheel rates from η, angles their integral, effort the torque |
 //! | `/diagnostics` | `diagnostic_msgs/msg/DiagnosticArray` | run state, health and reason, last stop, fault estimates, counters: on a change and every [`DIAGNOSTICS_PERIOD_NS`] |
@@ -36,13 +36,16 @@
 #![deny(missing_docs)]
 
 mod frames;
+#[cfg(feature = "live")]
+pub mod live;
 pub mod msg;
 mod reader;
 mod telemetry;
 mod writer;
 
 pub use frames::{
-    counter_values, diagnostic_status, health_name, DiagFrame, LogFrame, RosFrames, RosMessages,
+    counter_values, diagnostic_status, health_name, odom_covariances, DiagFrame,
+    EstimatorCovariance, LogFrame, RosFrames, RosMessages,
 };
 pub use reader::sample_of_tracking;
 pub use reader::{is_mcap, read_log, read_messages, read_trace, LoggedMessage};
@@ -61,6 +64,16 @@ pub const TOPIC_JOINT_STATES: &str = "/joint_states";
 pub const TOPIC_DIAGNOSTICS: &str = "/diagnostics";
 /// Topic of the tracking and estimator telemetry.
 pub const TOPIC_TRACKING: &str = "/wmr/tracking";
+/// Every topic with its message type, in one order: the MCAP writer's
+/// channels and the live view's (`live`), so both carry the same topics
+/// and schemas ([`RosMessages::encoded`] gives the messages in this order).
+pub const CHANNELS: [(&str, &str); 5] = [
+    (TOPIC_ODOM, "nav_msgs/msg/Odometry"),
+    (TOPIC_TF, "tf2_msgs/msg/TFMessage"),
+    (TOPIC_JOINT_STATES, "sensor_msgs/msg/JointState"),
+    (TOPIC_TRACKING, "wmr_msgs/msg/Tracking"),
+    (TOPIC_DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray"),
+];
 /// The odometry frame.
 pub const FRAME_ODOM: &str = "odom";
 /// The robot's frame: the axle midpoint.
@@ -71,13 +84,14 @@ pub const WHEEL_JOINTS: [&str; 2] = ["right_wheel_joint", "left_wheel_joint"];
 pub const DIAGNOSTICS_PERIOD_NS: u64 = 1_000_000_000;
 
 /// `/odom`'s pose covariance diagonal (x, y, z, roll, pitch, yaw) \[m²,
-/// rad²\]: the telemetry carries no covariance (the robot's estimator has
-/// one, `EstimatorStatus::covariance_diag`, not sent), so a fixed one:
-/// 1 cm in x and y, 0.01 rad in yaw, and 10⁶ for the three coordinates a
-/// planar robot does not estimate (REP-105's "unknown" convention).
+/// rad²\] when a frame has no estimator covariance (a simulated trace,
+/// or telemetry without group 8; protocol 5 robots send the estimator's:
+/// [`odom_covariances`]): 1 cm in x and y, 0.01 rad in yaw, and 10⁶ for
+/// the three coordinates a planar robot does not estimate (REP-105's
+/// "unknown" convention).
 pub const POSE_COVARIANCE: [f64; 6] = [1e-4, 1e-4, 1e6, 1e6, 1e6, 1e-4];
-/// `/odom`'s twist covariance diagonal \[(m/s)², (rad/s)²\]: 0.01 m/s in
-/// v, 0.01 rad/s in ω, 10⁶ for the rest (the encoders' speed, fixed).
+/// `/odom`'s twist covariance diagonal \[(m/s)², (rad/s)²\] without an
+/// estimator covariance: 0.01 m/s in v, 0.01 rad/s in ω, 10⁶ for the rest.
 pub const TWIST_COVARIANCE: [f64; 6] = [1e-4, 1e6, 1e6, 1e6, 1e6, 1e-4];
 
 /// Why a log could not be written or read.
@@ -228,21 +242,28 @@ pub fn write_sim_trace(
 ) -> Result<LogStats, LogError> {
     let mut log = McapLog::create(path, geometry, "hil-sim run")?;
     for s in trace {
-        let stamp_ns = start_ns + (s.t_s.max(0.0) * 1e9).round() as u64;
-        log.write(&LogFrame {
-            stamp_ns,
-            sample: *s,
-            duty: None,
-            external_pose: false,
-            input_fault: false,
-            diag: DiagFrame {
-                state: wmr_protocol::RunStateMsg::Running,
-                last_stop: None,
-                counters: None,
-            },
-        })?;
+        log.write(&sim_frame(s, start_ns))?;
     }
     log.finish()
+}
+
+/// The log frame of a simulated trace row at Unix time `start_ns` + its
+/// t: the running state, no duty, counters, stop or covariance (the
+/// simulator has none). `hil-sim run --mcap` and `--live` both use it.
+pub fn sim_frame(s: &TraceSample, start_ns: u64) -> LogFrame {
+    LogFrame {
+        stamp_ns: start_ns + (s.t_s.max(0.0) * 1e9).round() as u64,
+        sample: *s,
+        duty: None,
+        external_pose: false,
+        input_fault: false,
+        diag: DiagFrame {
+            state: wmr_protocol::RunStateMsg::Running,
+            last_stop: None,
+            counters: None,
+        },
+        covariance: None,
+    }
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 //! diagnostics' counters. What the robot cannot know is `NaN`: the true
 //! fault `f_true`. The pose is the robot's estimate of G.
 
-use crate::{DiagFrame, LogFrame, TraceSample};
+use crate::{DiagFrame, EstimatorCovariance, LogFrame, TraceSample};
 use wmr_protocol::{PoseMsg, StopCode, Telemetry};
 
 /// The trace row of a telemetry frame, whatever the run state; `None`
@@ -56,6 +56,10 @@ impl LogFrame {
                 last_stop,
                 counters: t.counters,
             },
+            covariance: t.covariance.map(|c| EstimatorCovariance {
+                pose: c.pose_f32().map(f64::from),
+                twist: c.twist_f32().map(f64::from),
+            }),
         })
     }
 }

@@ -43,6 +43,7 @@ fn frame(k: usize, state: RunStateMsg) -> LogFrame {
             last_stop: None,
             counters: None,
         },
+        covariance: None,
     }
 }
 
@@ -260,4 +261,56 @@ fn sim_trace_file_reads_back() {
         .find(|m| m.topic == TOPIC_TRACKING)
         .unwrap();
     assert_eq!(last.log_time_ns, 1_000_000_000 + 490_000_000);
+}
+
+/// A protocol-5 frame's covariance group reaches `/odom`: the x, y, yaw
+/// block is the estimator's (symmetric, at the 6×6 positions x = 0,
+/// y = 1, yaw = 5), the twist's v and ω variances likewise, 10⁶ for the
+/// axes a planar robot does not estimate; a frame without it keeps the
+/// fixed diagonals.
+#[test]
+fn estimator_covariance_fills_odom() {
+    use wmr_protocol::{CovarianceTelemetry, Telemetry, TrackingTelemetry};
+    let pose = [4e-4, 1e-5, -2e-4, 9e-4, 3e-4, 2.5e-3];
+    let twist = [1e-3, 4e-6];
+    let mut t = Telemetry {
+        seq: 1,
+        t_robot_us: 1000,
+        t_ref_s: 0.0,
+        state: RunStateMsg::Running,
+        tracking: Some(TrackingTelemetry::default()),
+        estimators: None,
+        counters: None,
+        covariance: Some(CovarianceTelemetry::from_f32(pose, twist)),
+    };
+    let f = LogFrame::of_telemetry(&t, 1_000, None).unwrap();
+    let m = RosFrames::new(geom()).messages(&f);
+    let p = m.odom.pose.covariance.to_array();
+    let w = m.odom.twist.covariance.to_array();
+    let at = |i: usize, j: usize| 6 * i + j;
+    let want = [(0, 0), (0, 1), (0, 5), (1, 1), (1, 5), (5, 5)];
+    for (k, (i, j)) in want.into_iter().enumerate() {
+        // bfloat16 on the wire: within 2^-8 relative.
+        assert!((p[at(i, j)] - pose[k] as f64).abs() <= pose[k].abs() as f64 / 256.0);
+        assert_eq!(p[at(i, j)], p[at(j, i)], "symmetric at ({i}, {j})");
+    }
+    for i in 2..5 {
+        assert_eq!(p[at(i, i)], 1e6);
+        assert_eq!(w[at(i, i)], 1e6);
+    }
+    assert!((w[0] - 1e-3).abs() <= 1e-3 / 256.0);
+    assert!((w[35] - 4e-6).abs() <= 4e-6 / 256.0);
+    // 3 variances, 3 covariances twice, 3 unknowns: nothing else.
+    assert_eq!(p.iter().filter(|v| **v != 0.0).count(), 3 + 2 * 3 + 3);
+    t.covariance = None;
+    let f = LogFrame::of_telemetry(&t, 1_000, None).unwrap();
+    let m = RosFrames::new(geom()).messages(&f);
+    assert_eq!(
+        m.odom.pose.covariance,
+        msg::Covariance::diagonal(POSE_COVARIANCE)
+    );
+    assert_eq!(
+        m.odom.twist.covariance,
+        msg::Covariance::diagonal(TWIST_COVARIANCE)
+    );
 }

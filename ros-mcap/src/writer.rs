@@ -18,18 +18,11 @@ pub struct LogStats {
     pub messages: u64,
 }
 
-struct Channels {
-    odom: u16,
-    tf: u16,
-    joints: u16,
-    diag: u16,
-    tracking: u16,
-}
-
 /// An MCAP log being written.
 pub struct McapLog<W: Write + Seek> {
     writer: mcap::Writer<W>,
-    ch: Channels,
+    /// MCAP channel ids in the order of [`crate::CHANNELS`].
+    ch: [u16; 5],
     frames: RosFrames,
     stats: LogStats,
     seq: u32,
@@ -70,16 +63,10 @@ impl<W: Write + Seek> McapLog<W> {
                 .add_channel(schema, topic, "cdr", &BTreeMap::new())
                 .map_err(mcap_err)
         };
-        let ch = Channels {
-            odom: channel(crate::TOPIC_ODOM, "nav_msgs/msg/Odometry")?,
-            tf: channel(crate::TOPIC_TF, "tf2_msgs/msg/TFMessage")?,
-            joints: channel(crate::TOPIC_JOINT_STATES, "sensor_msgs/msg/JointState")?,
-            diag: channel(
-                crate::TOPIC_DIAGNOSTICS,
-                "diagnostic_msgs/msg/DiagnosticArray",
-            )?,
-            tracking: channel(crate::TOPIC_TRACKING, "wmr_msgs/msg/Tracking")?,
-        };
+        let mut ch = [0u16; 5];
+        for (id, (topic, ty)) in ch.iter_mut().zip(crate::CHANNELS) {
+            *id = channel(topic, ty)?;
+        }
         let meta = BTreeMap::from([
             ("source".to_string(), source.to_string()),
             (
@@ -112,13 +99,7 @@ impl<W: Write + Seek> McapLog<W> {
         })
     }
 
-    fn put<T: serde::Serialize>(
-        &mut self,
-        channel: u16,
-        stamp_ns: u64,
-        m: &T,
-    ) -> Result<(), LogError> {
-        let data = msg::encode(m).map_err(LogError::Cdr)?;
+    fn put(&mut self, channel: u16, stamp_ns: u64, data: &[u8]) -> Result<(), LogError> {
         self.writer
             .write_to_known_channel(
                 &mcap::records::MessageHeader {
@@ -127,7 +108,7 @@ impl<W: Write + Seek> McapLog<W> {
                     log_time: stamp_ns,
                     publish_time: stamp_ns,
                 },
-                &data,
+                data,
             )
             .map_err(mcap_err)?;
         self.stats.messages += 1;
@@ -137,16 +118,13 @@ impl<W: Write + Seek> McapLog<W> {
     /// Writes one frame on every topic (`/diagnostics` when due).
     pub fn write(&mut self, f: &LogFrame) -> Result<(), LogError> {
         self.seq = self.seq.wrapping_add(1);
-        let m = self.frames.messages(f);
-        self.put(self.ch.odom, f.stamp_ns, &m.odom)?;
-        self.put(self.ch.tf, f.stamp_ns, &m.tf)?;
-        self.put(self.ch.joints, f.stamp_ns, &m.joints)?;
-        self.put(self.ch.tracking, f.stamp_ns, &m.tracking)?;
-        self.stats.frames += 1;
-        if let Some(d) = &m.diagnostics {
-            self.put(self.ch.diag, f.stamp_ns, d)?;
-            self.stats.diagnostics += 1;
+        for (i, data) in self.frames.messages(f).encoded()? {
+            self.put(self.ch[i], f.stamp_ns, &data)?;
+            if i == 4 {
+                self.stats.diagnostics += 1;
+            }
         }
+        self.stats.frames += 1;
         Ok(())
     }
 

@@ -627,6 +627,7 @@ impl<const H: usize> Handler<H> {
         self.report_state(framing);
         let state = self.state();
         let period_s = self.period_s();
+        let estimator = self.control.estimator();
         self.telemetry.tick(
             framing,
             &self.cfg.link,
@@ -635,6 +636,7 @@ impl<const H: usize> Handler<H> {
             state,
             self.control.status(),
             rep,
+            || estimator.odom_covariance(),
         );
     }
 

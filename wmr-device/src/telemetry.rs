@@ -5,10 +5,12 @@
 use crate::framing::{bump, Framing, LinkCounters};
 use crate::params::LinkConfig;
 use crate::reference::pose_to_msg;
+use controller_core::estimator::OdomCovariance;
 use controller_core::runtime::{Status, TickReport};
 use wmr_protocol::{
-    Counters, EstimatorTelemetry, Event, Reply, RunStateMsg, StopCode, Telemetry,
-    TrackingTelemetry, MAX_FRAME, TELEMETRY_COUNTERS, TELEMETRY_ESTIMATORS, TELEMETRY_TRACKING,
+    Counters, CovarianceTelemetry, EstimatorTelemetry, Event, Reply, RunStateMsg, StopCode,
+    Telemetry, TrackingTelemetry, MAX_FRAME, TELEMETRY_COUNTERS, TELEMETRY_COVARIANCE,
+    TELEMETRY_ESTIMATORS, TELEMETRY_TRACKING,
 };
 
 /// Every counter: the runtime's and the link's.
@@ -82,7 +84,9 @@ impl TelemetryScheduler {
         }
     }
 
-    /// The telemetry frame of this tick, when one is due and fits.
+    /// The telemetry frame of this tick, when one is due and fits;
+    /// `covariance` is called only for a frame that carries it (never on
+    /// the other ticks: D155).
     // Out of line: one copy (smaller firmware; the call costs nothing here).
     #[inline(never)]
     #[allow(clippy::too_many_arguments)]
@@ -95,6 +99,7 @@ impl TelemetryScheduler {
         state: RunStateMsg,
         status: &Status,
         rep: &TickReport,
+        covariance: impl FnOnce() -> OdomCovariance,
     ) {
         let rate = link.telemetry_rate_hz;
         if rate == 0 {
@@ -149,6 +154,10 @@ impl TelemetryScheduler {
                 input_fault: d.fault.is_some(),
             }),
             counters: (sel & TELEMETRY_COUNTERS != 0).then(|| counters(status, &framing.counters)),
+            covariance: (sel & TELEMETRY_COVARIANCE != 0).then(|| {
+                let c = covariance();
+                CovarianceTelemetry::from_f32(c.pose, c.twist)
+            }),
         };
         self.seq = self.seq.wrapping_add(1);
         // Nothing non-finite goes on the wire: the frame is skipped (its
@@ -217,6 +226,7 @@ mod tests {
                 RunStateMsg::Running,
                 &status,
                 r,
+                OdomCovariance::default,
             );
         }
         assert_eq!(framing.tx_len(), 0, "a non-finite frame went out");
@@ -229,6 +239,7 @@ mod tests {
             RunStateMsg::Running,
             &status,
             &rep,
+            OdomCovariance::default,
         );
         assert!(framing.tx_len() > 0, "a finite frame is sent");
         assert_eq!(t.seq, 4, "sequence numbers of withheld frames are skipped");

@@ -29,7 +29,7 @@ use serde::{de::DeserializeOwned, Deserialize, Serialize};
 /// The protocol version. Bumped on any change to a message other than an
 /// addition at the end of an enum that old peers never receive (see
 /// `docs/protocol.md`, "Versioning").
-pub const PROTOCOL_VERSION: u16 = 4;
+pub const PROTOCOL_VERSION: u16 = 5;
 
 /// Largest serialized message body \[bytes\].
 pub const MAX_BODY: usize = 240;

@@ -140,8 +140,10 @@ pub const TELEMETRY_TRACKING: TelemetrySelection = 1;
 pub const TELEMETRY_ESTIMATORS: TelemetrySelection = 2;
 /// Telemetry group: tick and fault counters.
 pub const TELEMETRY_COUNTERS: TelemetrySelection = 4;
+/// Telemetry group: the pose estimator's covariance (protocol 5).
+pub const TELEMETRY_COVARIANCE: TelemetrySelection = 8;
 /// Every telemetry group.
-pub const TELEMETRY_ALL: TelemetrySelection = 7;
+pub const TELEMETRY_ALL: TelemetrySelection = 15;
 
 /// Host → robot.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -765,6 +767,68 @@ pub struct EstimatorTelemetry {
     pub input_fault: bool,
 }
 
+/// A compact `f32` on the wire: bfloat16, the upper 16 bits of the IEEE
+/// 754 single (sign, 8-bit exponent, 7-bit mantissa), rounded to nearest
+/// even: the range of an `f32`, a relative error of at most 2⁻⁸ (0.4 %),
+/// two bytes (D155). Non-finite values stay non-finite.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Bf16(pub [u8; 2]);
+
+impl Bf16 {
+    /// `x` rounded to the nearest bfloat16 (ties to even).
+    pub fn from_f32(x: f32) -> Self {
+        let b = x.to_bits();
+        let h = if x.is_nan() {
+            (b >> 16) | 0x40 // a quiet NaN whatever the payload
+        } else {
+            let round = 0x7FFF + ((b >> 16) & 1);
+            (b + round) >> 16 // an overflow rounds to infinity, as it should
+        };
+        Self((h as u16).to_le_bytes())
+    }
+
+    /// The value as an `f32` (exact).
+    pub fn to_f32(self) -> f32 {
+        f32::from_bits((u16::from_le_bytes(self.0) as u32) << 16)
+    }
+}
+
+/// Telemetry group [`TELEMETRY_COVARIANCE`]: the pose estimator's
+/// uncertainty as ROS's `/odom` reports it, for the axle midpoint O_B
+/// (`base_link`), each value a [`Bf16`]. Computed by the robot only when a
+/// frame carrying it is sent.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CovarianceTelemetry {
+    /// Upper triangle of the covariance of (x, y, θ) of O_B, row by row:
+    /// xx \[m²\], xy \[m²\], xθ \[m·rad\], yy \[m²\], yθ \[m·rad\], θθ \[rad²\].
+    pub pose: [Bf16; 6],
+    /// Variances of v \[(m/s)²\] and ω \[(rad/s)²\].
+    pub twist: [Bf16; 2],
+}
+
+impl CovarianceTelemetry {
+    /// Rounds the pose covariance's upper triangle and the twist variances
+    /// (units as in the fields).
+    pub fn from_f32(pose: [f32; 6], twist: [f32; 2]) -> Self {
+        Self {
+            pose: pose.map(Bf16::from_f32),
+            twist: twist.map(Bf16::from_f32),
+        }
+    }
+
+    /// The pose covariance's upper triangle (xx, xy, xθ, yy, yθ, θθ).
+    pub fn pose_f32(&self) -> [f32; 6] {
+        self.pose.map(Bf16::to_f32)
+    }
+
+    /// The twist variances (v, ω).
+    pub fn twist_f32(&self) -> [f32; 2] {
+        self.twist.map(Bf16::to_f32)
+    }
+}
+
 /// One telemetry frame.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -783,6 +847,8 @@ pub struct Telemetry {
     pub estimators: Option<EstimatorTelemetry>,
     /// Group [`TELEMETRY_COUNTERS`].
     pub counters: Option<Counters>,
+    /// Group [`TELEMETRY_COVARIANCE`] (protocol 5).
+    pub covariance: Option<CovarianceTelemetry>,
 }
 
 fn all_finite(xs: &[f32]) -> bool {
@@ -808,7 +874,11 @@ impl Telemetry {
                 && all_finite(&e.d_hat)
                 && all_finite(&e.f_hat)
         });
-        self.t_ref_s.is_finite() && tracking && estimators
+        let covariance = self
+            .covariance
+            .as_ref()
+            .is_none_or(|c| all_finite(&c.pose_f32()) && all_finite(&c.twist_f32()));
+        self.t_ref_s.is_finite() && tracking && estimators && covariance
     }
 }
 

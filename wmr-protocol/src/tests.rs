@@ -199,6 +199,7 @@ fn every_message_round_trips_through_a_frame() {
             nacks: u32::MAX,
             ..Default::default()
         }),
+        covariance: Some(CovarianceTelemetry::default()),
     }));
     for r in replies {
         let bytes = frame(&r, 7);
@@ -411,6 +412,7 @@ fn telemetry_finiteness_checks_every_float() {
         tracking: Some(TrackingTelemetry::default()),
         estimators: Some(EstimatorTelemetry::default()),
         counters: Some(Counters::default()),
+        covariance: Some(CovarianceTelemetry::default()),
     };
     assert!(ok.is_finite());
     let mut bad: StdVec<Telemetry> = StdVec::new();
@@ -481,6 +483,17 @@ fn telemetry_finiteness_checks_every_float() {
             });
         }
         bad.push(Telemetry { t_ref_s: x, ..ok });
+        for k in 0..8 {
+            let mut c = [0.0f32; 8];
+            c[k] = x;
+            bad.push(Telemetry {
+                covariance: Some(CovarianceTelemetry::from_f32(
+                    [c[0], c[1], c[2], c[3], c[4], c[5]],
+                    [c[6], c[7]],
+                )),
+                ..ok
+            });
+        }
     }
     for t in bad {
         assert!(!t.is_finite(), "{t:?}");
@@ -543,4 +556,97 @@ fn param_table_in_the_docs() {
         "docs/protocol.md's parameter table differs from the parameter table: run \
          WMR_WRITE_PARAMS_DOC=1 cargo test --release -p wmr-protocol param_table_in_the_docs"
     );
+}
+
+/// The largest telemetry frame the robot can send (every group, every
+/// varint at its longest, a signed duty at both extremes) fits the body
+/// limit: a frame that did not would never leave the robot. Protocol 5's
+/// covariance group is what had to fit (16 bytes, D155).
+#[test]
+fn the_largest_telemetry_frame_fits() {
+    let m = u32::MAX;
+    let t = Telemetry {
+        seq: m,
+        t_robot_us: m,
+        t_ref_s: f32::MAX,
+        state: RunStateMsg::Stopped,
+        tracking: Some(TrackingTelemetry {
+            duty: [i32::MIN, i32::MIN],
+            saturated: true,
+            health: u8::MAX,
+            health_reason: u8::MAX,
+            ..Default::default()
+        }),
+        estimators: Some(EstimatorTelemetry {
+            external_pose: true,
+            input_fault: true,
+            ..Default::default()
+        }),
+        counters: Some(Counters {
+            ticks: m,
+            run_ticks: m,
+            overruns: m,
+            max_loop_time_us: m,
+            encoder_jumps: m,
+            input_faults: m,
+            torque_saturated: m,
+            duty_saturated: m,
+            external_poses: m,
+            stops: m,
+            rx_frames: m,
+            rx_errors: m,
+            rx_overflow: m,
+            tx_dropped: m,
+            nacks: m,
+        }),
+        covariance: Some(CovarianceTelemetry::from_f32([f32::MAX; 6], [f32::MIN; 2])),
+    };
+    let mut buf = [0u8; 512];
+    let body = postcard::to_slice(&Reply::Telemetry(t), &mut buf).unwrap();
+    assert!(body.len() <= MAX_BODY, "{} > {MAX_BODY}", body.len());
+    let bytes = frame(&Reply::Telemetry(t), u16::MAX);
+    assert!(bytes.len() <= MAX_FRAME);
+    let c = CovarianceTelemetry::default();
+    assert_eq!(postcard::to_slice(&c, &mut buf).unwrap().len(), 16);
+}
+
+/// bfloat16 against its definition: every value within 2^-8 relative
+/// (round to nearest), the values bfloat16 holds exactly kept exactly,
+/// ties to even, NaN and infinities kept, f32::MAX rounded up to infinity.
+#[test]
+fn bf16_rounds_to_nearest() {
+    let mut x = 1.0e-30f32;
+    while x < 1.0e30 {
+        for v in [x, -x, x * 1.2345, x * 1.999] {
+            let r = Bf16::from_f32(v).to_f32();
+            assert!((r - v).abs() <= v.abs() / 256.0, "{v} -> {r}");
+        }
+        x *= 3.7;
+    }
+    for v in [
+        0.0f32,
+        -0.0,
+        1.0,
+        -2.5,
+        0.0078125,
+        3.0e38_f32.min(f32::MAX / 2.0),
+    ] {
+        let exact = f32::from_bits(v.to_bits() & 0xFFFF_0000);
+        assert_eq!(Bf16::from_f32(exact).to_f32().to_bits(), exact.to_bits());
+    }
+    // 1 + 2^-8 lies halfway between 1 and 1 + 2^-7: ties to even (1).
+    assert_eq!(Bf16::from_f32(1.0 + 1.0 / 256.0).to_f32(), 1.0);
+    assert_eq!(
+        Bf16::from_f32(1.0 + 3.0 / 256.0).to_f32(),
+        1.0 + 4.0 / 256.0
+    );
+    assert!(Bf16::from_f32(f32::NAN).to_f32().is_nan());
+    let nan_low = f32::from_bits(0x7F80_0001);
+    assert!(Bf16::from_f32(nan_low).to_f32().is_nan());
+    assert_eq!(Bf16::from_f32(f32::INFINITY).to_f32(), f32::INFINITY);
+    assert_eq!(
+        Bf16::from_f32(f32::NEG_INFINITY).to_f32(),
+        f32::NEG_INFINITY
+    );
+    assert_eq!(Bf16::from_f32(f32::MAX).to_f32(), f32::INFINITY);
 }

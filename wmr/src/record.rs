@@ -300,6 +300,7 @@ mod tests {
             }),
             estimators: None,
             counters: None,
+            covariance: None,
         };
         assert!(trace_sample(&t).is_none());
         t.state = RunStateMsg::Running;

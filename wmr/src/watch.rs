@@ -173,6 +173,7 @@ mod tests {
                 nacks: 2,
                 ..Default::default()
             }),
+            covariance: None,
         };
         let l = live.line(&t);
         for part in [

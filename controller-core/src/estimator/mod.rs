@@ -58,6 +58,7 @@
 mod config;
 mod gyro_scale;
 mod history;
+mod odom_covariance;
 mod predict;
 mod repropagation;
 mod types;
@@ -65,6 +66,7 @@ mod types;
 use repropagation::Repropagation;
 
 pub use config::{EstimatorConfig, EstimatorConfigError, CHI2_999_2DOF, CHI2_999_3DOF};
+pub use odom_covariance::OdomCovariance;
 pub use types::{
     Estimate, EstimatorStatus, GyroSample, GyroState, PoseMeasurement, RejectCounts, RejectReason,
 };

@@ -10,6 +10,7 @@ pub mod bench;
 pub mod compare;
 pub mod controller_arg;
 pub mod device;
+pub mod live;
 pub mod merge;
 pub mod montecarlo;
 pub mod report;

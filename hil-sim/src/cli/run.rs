@@ -29,6 +29,23 @@ pub struct RunArgs {
     /// /joint_states, /diagnostics, /wmr/tracking), the topics of `wmr record --mcap`.
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<PathBuf>,
+    /// Stream the run as it runs to Foxglove (a ws-protocol WebSocket
+    /// server; the topics and schemas of --mcap; docs/foxglove.md), paced at
+    /// real time: each row published when the wall clock reaches its
+    /// time since the start.
+    #[arg(long)]
+    pub live: bool,
+    /// Address the live view binds (loopback unless you open it).
+    #[arg(long, value_name = "HOST", default_value = ros_mcap::live::DEFAULT_LIVE_HOST)]
+    pub live_host: String,
+    /// Port of the live view (0: any free port; the one taken is printed).
+    #[arg(long, value_name = "PORT", default_value_t = ros_mcap::live::DEFAULT_LIVE_PORT)]
+    pub live_port: u16,
+    /// With --live: wait until a client has subscribed to every topic
+    /// before simulating (nothing is missed), and after the run (and its
+    /// --mcap log) until the clients have left.
+    #[arg(long, requires = "live")]
+    pub live_wait: bool,
     /// Print exactly one JSON object (the metrics plus "controller", "scenario", "rejected_steps").
     #[arg(long)]
     pub json: bool,
@@ -48,22 +65,50 @@ pub fn run(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
         eprintln!("note: --eps with --case 1 injects the actuator fault of Case 2");
     }
     let kind: ControllerKind = a.controller.into();
-    let every = match (a.csv.is_some() || a.mcap.is_some(), a.csv_every) {
+    let traced = a.csv.is_some() || a.mcap.is_some() || a.live;
+    let every = match (traced, a.csv_every) {
         (false, _) => 0,
         (true, Some(n)) => n.max(1),
         (true, None) => crate::sim::trace_every(&scn),
     };
-    if a.csv.is_some() || a.mcap.is_some() {
+    if traced {
         crate::limits::check_csv(&scn, every, a.force)?;
     }
+    let r = controller_config(&scn, kind).robot;
+    let geometry = || {
+        ros_mcap::Geometry::new(
+            r.wheel_radius_m as f64,
+            r.half_track_m as f64,
+            r.com_offset_m as f64,
+        )
+        .map_err(|e| e.to_string())
+    };
+    let live = if a.live {
+        Some(super::live::LiveRun::start(
+            &a.live_host,
+            a.live_port,
+            geometry()?,
+            a.live_wait,
+        )?)
+    } else {
+        None
+    };
+    // One start for the live stamps and the log's: the same messages.
+    let start_ns = ros_mcap::unix_now_ns();
     let what = format!(
         "run: simulating {:.0} s of robot time ({:.2e} plant steps)",
         scn.duration_s,
         crate::limits::plant_steps(&scn)
     );
-    let res = Progress::during(&what, false, || {
-        run_with(&scn, controller_config(&scn, kind), every)
-    })?;
+    let sim = || run_with(&scn, controller_config(&scn, kind), every);
+    // The live view serves until the end of this function: after the log.
+    let (res, view) = match live {
+        None => (Progress::during(&what, false, sim)?, None),
+        Some(l) => {
+            let (res, view) = l.run(start_ns, sim)?;
+            (res, Some(view))
+        }
+    };
     if let Some(path) = &a.csv {
         let f = std::fs::File::create(path)
             .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
@@ -71,14 +116,12 @@ pub fn run(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     }
     if let Some(path) = &a.mcap {
-        let r = controller_config(&scn, kind).robot;
-        let g = ros_mcap::Geometry::new(
-            r.wheel_radius_m as f64,
-            r.half_track_m as f64,
-            r.com_offset_m as f64,
-        )
-        .and_then(|g| ros_mcap::write_sim_trace(path, g, &res.trace, ros_mcap::unix_now_ns()));
-        g.map_err(|e| format!("{}: {e}", path.display()))?;
+        ros_mcap::write_sim_trace(path, geometry()?, &res.trace, start_ns)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    if let (Some(v), true) = (&view, a.live_wait) {
+        eprintln!("live view: run over; serving until the clients leave");
+        v.wait_for_clients_to_leave();
     }
     let text = run_text(kind, &scn, &res, a.csv.as_deref(), a.json);
     out.write_all(text.as_bytes()).map_err(|e| e.to_string())

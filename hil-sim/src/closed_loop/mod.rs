@@ -63,6 +63,26 @@ pub struct SensingReport {
     pub pose_source: Option<PoseSourceStats>,
 }
 
+/// A trace row's consumer.
+type TraceHook = Box<dyn FnMut(&TraceSample)>;
+
+thread_local! {
+    /// Called with each trace row as the loop makes it (`hil-sim run
+    /// --live`): set by [`with_trace_hook`] for one run on this thread.
+    static TRACE_HOOK: std::cell::RefCell<Option<TraceHook>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+/// Runs `f` with `hook` called on every trace row the closed loop of this
+/// thread makes while `f` runs, in time order, as it makes it (before the
+/// world advances past it): a simulation streamed as it runs.
+pub fn with_trace_hook<R>(hook: impl FnMut(&TraceSample) + 'static, f: impl FnOnce() -> R) -> R {
+    TRACE_HOOK.with(|h| *h.borrow_mut() = Some(Box::new(hook)));
+    let r = f();
+    TRACE_HOOK.with(|h| *h.borrow_mut() = None);
+    r
+}
+
 /// The closed loop: `world`, `side`, the world over each period; metrics
 /// at every step, a trace every `trace_every` steps (0 = none).
 pub fn run_loop(
@@ -170,6 +190,13 @@ pub fn run_loop_ending(
                 health: pace.mode.level(),
                 health_reason: pace.reason as u8,
             });
+            if let Some(row) = trace.last() {
+                TRACE_HOOK.with(|h| {
+                    if let Some(hook) = h.borrow_mut().as_mut() {
+                        hook(row)
+                    }
+                });
+            }
         }
         last_tau_s = pace.tau_s as f64;
         last_scale = pace.scale as f64;

@@ -49,6 +49,7 @@
 //! stays lost beyond `--give-up-after`.
 
 mod core;
+mod live;
 mod mux;
 mod server;
 
@@ -82,6 +83,21 @@ pub struct ServeArgs {
     /// this long [s] (default: keep trying).
     #[arg(long, value_name = "S")]
     pub give_up_after: Option<f64>,
+    /// Also serve a live view to Foxglove (a ws-protocol WebSocket server:
+    /// the topics and schemas of `wmr record --mcap`; docs/foxglove.md).
+    /// The server then asks the robot for every telemetry group at
+    /// --live-rate-hz itself.
+    #[arg(long)]
+    pub live: bool,
+    /// Address the live view binds (loopback unless you open it).
+    #[arg(long, value_name = "HOST", default_value = ros_mcap::live::DEFAULT_LIVE_HOST)]
+    pub live_host: String,
+    /// Port of the live view (0: any free port; the one taken is logged).
+    #[arg(long, value_name = "PORT", default_value_t = ros_mcap::live::DEFAULT_LIVE_PORT)]
+    pub live_port: u16,
+    /// Telemetry rate the live view asks for [Hz].
+    #[arg(long, value_name = "HZ", default_value_t = 50, value_parser = clap::value_parser!(u16).range(1..=1000))]
+    pub live_rate_hz: u16,
 }
 
 /// The user's runtime directory for sockets: `$XDG_RUNTIME_DIR/wmr`, else

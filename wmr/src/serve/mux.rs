@@ -11,6 +11,9 @@ use wmr_protocol::{ParamId, Reply, Request, TelemetrySelection, TELEMETRY_ALL};
 /// A connected client (numbered from 1 in connection order).
 pub type ClientId = u64;
 
+/// The id under which the server's own telemetry subscription is held.
+pub const OWN_CLIENT: ClientId = 0;
+
 /// How long an answer is waited for before its routing entry is dropped:
 /// above the longest answer any command waits for (`RobotCommit`, a flash
 /// write: `wmr` waits 15 s).
@@ -104,7 +107,7 @@ pub enum Out {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Note {
     /// The answer to one of the server's own requests.
-    Own(Own, Reply),
+    Own(Own, Box<Reply>),
     /// The robot acknowledged a new link timeout \[ms\].
     LinkTimeoutSet(f32),
     /// The robot acknowledged a reboot request: the next reset is expected.
@@ -222,6 +225,13 @@ impl Mux {
             robot_tel: None,
             counters: MuxCounters::default(),
         }
+    }
+
+    /// The server's own telemetry subscription (`wmr serve --live`): part
+    /// of the union like a client's, under [`OWN_CLIENT`], which no client
+    /// gets (client ids start at 1).
+    pub fn set_own_telemetry(&mut self, sub: TelemetrySub) {
+        self.subs.insert(OWN_CLIENT, sub);
     }
 
     /// A client connected.
@@ -478,7 +488,10 @@ impl Mux {
                 self.counters.answers_routed += 1;
                 (vec![Out::Client(id, with_seq(reply, cseq))], note)
             }
-            Origin::Own(own) => (Vec::new(), Some(note.unwrap_or(Note::Own(own, reply)))),
+            Origin::Own(own) => (
+                Vec::new(),
+                Some(note.unwrap_or(Note::Own(own, Box::new(reply)))),
+            ),
         }
     }
 
@@ -510,6 +523,7 @@ mod tests {
             tracking: None,
             estimators: None,
             counters: None,
+            covariance: None,
         })
     }
 
@@ -757,7 +771,10 @@ mod tests {
         let s = robot_seq(&m.own(Own::KeepAlive, Request::GetStatus, now));
         let (out, note) = m.from_robot(Reply::Ack { seq: s });
         assert!(out.is_empty());
-        assert_eq!(note, Some(Note::Own(Own::KeepAlive, Reply::Ack { seq: s })));
+        assert_eq!(
+            note,
+            Some(Note::Own(Own::KeepAlive, Box::new(Reply::Ack { seq: s })))
+        );
     }
 
     /// An unanswered request is sent again under its number, `max` times,

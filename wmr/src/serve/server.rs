@@ -152,6 +152,7 @@ struct Server<'a> {
     empty_reads: u32,
     s: ServeSummary,
     stop: &'a AtomicBool,
+    live: Option<super::live::ServeLive>,
 }
 
 /// Why `wmr serve` ended with status 1.
@@ -282,7 +283,16 @@ pub fn serve_until(
             ..Default::default()
         },
         stop,
+        live: a
+            .live
+            .then(|| super::live::ServeLive::new(&a.live_host, a.live_port)),
     };
+    if a.live {
+        server.mux.set_own_telemetry(super::mux::TelemetrySub {
+            selection: wmr_protocol::TELEMETRY_ALL,
+            rate_hz: a.live_rate_hz,
+        });
+    }
     server.log(&format!(
         "serving {port} on {shown} (clients: `wmr --serve {shown} CMD`, or `wmr --port {port} CMD`)"
     ));
@@ -758,6 +768,9 @@ impl Server<'_> {
             Reply::Telemetry(t) => {
                 self.observe_clock(t.t_robot_us);
                 self.robot_state = Some(t.state);
+                if let Some(Err(e)) = self.live.as_mut().map(|l| l.telemetry(t)) {
+                    self.unexpected(e);
+                }
             }
             Reply::ClockSync { robot_time_us, .. } => self.observe_clock(*robot_time_us),
             Reply::Status { status, .. } => {
@@ -805,7 +818,7 @@ impl Server<'_> {
             None => {}
             Some(Note::LinkTimeoutSet(v)) => self.set_link_timeout(v),
             Some(Note::RebootAcked) => self.reboot_acked = Some(Instant::now()),
-            Some(Note::Own(own, r)) => self.own_reply(own, r),
+            Some(Note::Own(own, r)) => self.own_reply(own, *r),
         }
     }
 
@@ -845,6 +858,9 @@ impl Server<'_> {
                     "connected to the robot on {} ({chip}, protocol {version})",
                     self.port_path
                 ));
+                if let Some(line) = self.live.as_mut().and_then(|l| l.on_hello(&h)) {
+                    self.log(&line);
+                }
                 self.hello = Some(h);
                 self.link = LinkState::Up;
                 if self.ever_up {
