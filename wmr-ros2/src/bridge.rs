@@ -424,7 +424,7 @@ impl Bridge {
     /// Reads the link for up to `wait`: keeps it alive, streams pending
     /// path segments, and returns the messages of each telemetry frame
     /// (with the bridge's own status on `/diagnostics`).
-    pub fn poll(&mut self, wait: Duration) -> Result<Vec<RosMessages>, Fatal> {
+    pub fn poll(&mut self, wait: Duration) -> Result<Vec<(LogFrame, RosMessages)>, Fatal> {
         if self.clock.last_sync().elapsed() >= self.link.timing().keep_alive {
             self.resync()?;
         }
@@ -479,7 +479,7 @@ impl Bridge {
 
     /// The messages of one telemetry frame (`None` without the tracking
     /// group); also the frame as the MCAP log writes it.
-    fn telemetry(&mut self, t: &Telemetry) -> Option<RosMessages> {
+    fn telemetry(&mut self, t: &Telemetry) -> Option<(LogFrame, RosMessages)> {
         self.last_frame = Instant::now();
         self.stats.frames += 1;
         if let Some(s) = self.last_seq {
@@ -507,13 +507,7 @@ impl Bridge {
         if let Some(d) = &mut m.diagnostics {
             d.status.push(self.bridge_status());
         }
-        Some(m)
-    }
-
-    /// The frame of the last telemetry with the tracking group (for an
-    /// MCAP log of what was bridged).
-    pub fn last_log_frame(&self) -> Option<LogFrame> {
-        self.last_log_frame
+        Some((f, m))
     }
 
     /// The bridge's own `/diagnostics` status.

@@ -122,6 +122,16 @@ struct Args {
     /// Also log what is bridged to this MCAP file (the `wmr record --mcap` format).
     #[arg(long)]
     mcap: Option<PathBuf>,
+    /// Also serve a live view to Foxglove (a ws-protocol WebSocket server
+    /// with the topics and schemas of the MCAP logs; docs/foxglove.md).
+    #[arg(long)]
+    live: bool,
+    /// Address the live view binds (loopback unless you open it).
+    #[arg(long, value_name = "HOST", default_value = ros_mcap::live::DEFAULT_LIVE_HOST)]
+    live_host: String,
+    /// Port of the live view (0: any free port; the one taken is printed).
+    #[arg(long, value_name = "PORT", default_value_t = ros_mcap::live::DEFAULT_LIVE_PORT)]
+    live_port: u16,
     /// Run this long, then disarm and exit 0 [s] (default: until SIGINT/SIGTERM, which also disarm and exit 0, or a link failure, exit 1).
     #[arg(long)]
     for_s: Option<f64>,
@@ -406,6 +416,20 @@ fn run(a: &Args) -> Result<(), String> {
                 .map_err(|e| format!("{}: {e}", p.display()))?,
         ),
     };
+    let mut live = match a.live {
+        false => None,
+        true => {
+            let v = ros_mcap::live::LiveView::start(
+                &a.live_host,
+                a.live_port,
+                b.geometry(),
+                "wmr-ros2",
+            )
+            .map_err(|e| e.to_string())?;
+            eprintln!("live view: ws://{}:{}", a.live_host, v.port());
+            Some(v)
+        }
+    };
     let ctx = Context::with_options(ContextOptions::new().domain_id(a.domain_id))
         .map_err(|e| format!("DDS participant: {e:?}"))?;
     let mut node = ctx
@@ -476,10 +500,15 @@ fn run(a: &Args) -> Result<(), String> {
         {
             return Ok(());
         }
-        for m in b.poll(Duration::from_millis(5))? {
-            if let (Some(l), Some(f)) = (&mut log, b.last_log_frame()) {
+        // Each frame with its own messages (a poll may return several).
+        for (f, m) in b.poll(Duration::from_millis(5))? {
+            if let Some(l) = &mut log {
                 l.write(&f)
                     .map_err(|e| Fatal::Robot(format!("MCAP log: {e}")))?;
+            }
+            if let Some(v) = &mut live {
+                v.publish(&f)
+                    .map_err(|e| Fatal::Robot(format!("live view: {e}")))?;
             }
             pubs.publish(m);
         }
