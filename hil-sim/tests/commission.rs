@@ -194,7 +194,7 @@ motor_inverted = [false, true]
 yaw_axis = "+z"
 [limits]
 torque_nm = 0.12
-max_speed_mps = 0.6
+max_speed_mps = 0.4
 max_yaw_rate_radps = 6.0
 max_accel_mps2 = 1.0
 link_timeout_ms = 500

@@ -457,7 +457,7 @@ fn regenerated_files_hold_issue_34s_lines() {
     use rayon::prelude::*;
     let spec = PresetMean::Geometric.into();
     let mut failures = Vec::new();
-    for name in ["n20-1kg", "tb6612-2kg", "bts7960-10kg"] {
+    for name in ["n20-0p85kg", "tb6612-2kg", "bts7960-10kg"] {
         let (start, tuned) = (robot(name), robot(&format!("{name}.tuned")));
         let val = |r: &Robot| issue34_set(r).scenarios(Part::Validation);
         let ev = |r: &Robot, k| evaluate_with(&val(r), k, &|c| *c, &|| {}, spec);
