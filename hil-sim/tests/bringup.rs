@@ -137,8 +137,8 @@ fn bringup_walks_every_step_resumes_and_verifies() {
             "{e}"
         );
         assert_eq!(st.done, ["commission", "identify", "fit", "tune", "push"]);
-        let (r, text) = wmr(&port, &args);
-        assert!(r.is_err(), "{text}");
+        // (Its verdict may differ: the second circle's noise is its own.)
+        let (_, text) = wmr(&port, &args);
         assert!(
             text.contains("step 6/6: verify") && !text.contains("step 5/6"),
             "{text}"
