@@ -97,7 +97,7 @@ impl TuneSet {
     /// --disturbance-max F --preset-mean P --chatter-weight W`, checked
     /// as the CLI checks it.
     #[new]
-    #[pyo3(signature = (robot, *, sensing=vec!["mocap".to_string(), "imu".to_string()], seed=1, train=hil_sim::cli::tune::DEFAULT_TRAIN, validate=hil_sim::cli::tune::DEFAULT_VALIDATE, torque_scale_min=1.0, duration_s=40.0, disturbance_max=hil_sim::tune::set::DISTURBANCE_FRACTION.1, preset_mean="arithmetic", chatter_weight=hil_sim::tune::cost::CHATTER_WEIGHT_M_S))]
+    #[pyo3(signature = (robot, *, sensing=vec!["mocap".to_string(), "imu".to_string()], seed=1, train=hil_sim::cli::tune::DEFAULT_TRAIN, validate=hil_sim::cli::tune::DEFAULT_VALIDATE, figure8=hil_sim::tune::set::DEFAULT_FIGURE8, torque_scale_min=1.0, duration_s=hil_sim::cli::tune::DEFAULT_DURATION_S, disturbance_max=hil_sim::tune::set::DISTURBANCE_FRACTION.1, preset_mean="geometric", chatter_weight=hil_sim::tune::cost::CHATTER_WEIGHT_M_S))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         robot: Robot,
@@ -105,6 +105,7 @@ impl TuneSet {
         seed: u64,
         train: usize,
         validate: usize,
+        figure8: usize,
         torque_scale_min: f64,
         duration_s: f64,
         disturbance_max: f64,
@@ -127,6 +128,7 @@ impl TuneSet {
             seed,
             training: train,
             validation: validate,
+            figure8,
             torque_scale_min,
             duration_s,
             disturbance_max_fraction: disturbance_max,

@@ -164,12 +164,13 @@ class TuneSet:
         *,
         sensing: Sequence[str] = ("mocap", "imu"),
         seed: int = 1,
-        train: int = 12,
+        train: int = 10,
         validate: int = 16,
+        figure8: int = 4,
         torque_scale_min: float = 1.0,
-        duration_s: float = 40.0,
+        duration_s: float = 35.0,
         disturbance_max: float = 0.15,
-        preset_mean: str = "arithmetic",
+        preset_mean: str = "geometric",
         chatter_weight: float = 2e-5,
     ) -> None: ...
     @staticmethod
