@@ -33,7 +33,10 @@ def main() -> None:
     if a.address:
         ray.init(address=a.address)
     else:
-        ray.init(num_cpus=a.cpus, include_dashboard=False)
+        # A local cluster on loopback: without the node address Ray probes
+        # 8.8.8.8 to find this machine's outward IP (the project talks to
+        # nothing but loopback).
+        ray.init(num_cpus=a.cpus, include_dashboard=False, _node_ip_address="127.0.0.1")
     print(f"ray: {ray.cluster_resources().get('CPU', 0):g} CPUs on {len(ray.nodes())} node(s)")
 
     mc = wmrsim.MonteCarlo(a.runs, duration_s=a.duration, seed=1, vary_mass=True)

@@ -41,7 +41,10 @@ def _ray() -> Any:
     except ImportError as e:  # pragma: no cover - depends on the environment
         raise ImportError("wmrsim.distributed needs ray: pip install 'ray==2.60.0'") from e
     if not ray.is_initialized():
-        ray.init()
+        # A local cluster on loopback (Ray otherwise probes 8.8.8.8 for this
+        # machine's outward address); call ray.init(address=...) first to
+        # use a real cluster.
+        ray.init(_node_ip_address="127.0.0.1")
     return ray
 
 
