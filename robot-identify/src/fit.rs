@@ -270,8 +270,9 @@ pub enum FitError {
     BadLog(String),
     /// A regression failed.
     Lsq(&'static str, LsqError),
-    /// The weighed mass is not a mass.
-    BadMass(f64),
+    /// The weighed mass is outside the robot file's `body.mass_kg` range
+    /// (the parameter table's: a mass no robot this firmware drives has).
+    BadMass(controller_core::runtime::param_table::RangeError),
     /// The weighed mass was given but the run does not determine the
     /// translational term it scales (its fitted M_v/a not positive).
     NoScale(f64),
@@ -282,9 +283,10 @@ impl std::fmt::Display for FitError {
         match self {
             Self::TooShort(s) | Self::BadLog(s) => f.write_str(s),
             Self::Lsq(what, e) => write!(f, "{what}: {e}"),
-            Self::BadMass(m) => write!(
+            Self::BadMass(e) => write!(
                 f,
-                "--mass-kg {m}: must be a mass > 0 kg (the robot on a scale, with its battery and everything it carries)"
+                "--mass-kg: {} (the robot's mass on a scale, in kg, with its battery and everything it carries)",
+                e.reason()
             ),
             Self::NoScale(v) => write!(
                 f,
@@ -415,9 +417,12 @@ pub fn identify(
     opts: &FitOptions,
 ) -> Result<Identification, FitError> {
     if let Some(m) = opts.mass_kg {
-        if !(m.is_finite() && m > 0.0) {
-            return Err(FitError::BadMass(m));
-        }
+        // The file's own range (the one parameter table): a weighed mass the
+        // robot file would refuse is refused here, with the same limits.
+        use controller_core::runtime::param_table::{RobotBounds, BODY_MASS_KG};
+        BODY_MASS_KG
+            .check(m as f32, &RobotBounds::ABSOLUTE)
+            .map_err(FitError::BadMass)?;
     }
     if rows.len() < 100 {
         return Err(FitError::TooShort(format!(
@@ -898,5 +903,41 @@ mod tests {
         // At rest the whole run: nothing is excited.
         let e = identify(&rows(20_000), &p, &o).unwrap_err().to_string();
         assert!(e.contains("not excited") || e.contains("zero"), "{e}");
+    }
+
+    /// A weighed mass the robot file would refuse is refused with the file's
+    /// own limits (the parameter table's `body.mass_kg`: 0.1-500 kg), the
+    /// value and what to do; a plausible one passes the check.
+    #[test]
+    fn a_weighed_mass_outside_the_files_range_is_refused() {
+        let p = Prior::paper();
+        for (m, limit) in [(0.02, "0.1 kg"), (-1.0, "0.1 kg"), (2000.0, "500 kg")] {
+            let o = FitOptions {
+                mass_kg: Some(m),
+                ..FitOptions::default()
+            };
+            let e = identify(&rows(500), &p, &o).unwrap_err();
+            assert!(matches!(e, FitError::BadMass(_)), "{e:?}");
+            let s = e.to_string();
+            assert!(
+                s.starts_with("--mass-kg: ") && s.contains(&format!("{m} kg")) && s.contains(limit),
+                "{s}"
+            );
+            assert!(s.contains("set a value in [0.1, 500] kg"), "{s}");
+        }
+        let o = FitOptions {
+            mass_kg: Some(f64::NAN),
+            ..FitOptions::default()
+        };
+        let e = identify(&rows(500), &p, &o).unwrap_err().to_string();
+        assert!(e.contains("not a finite number"), "{e}");
+        // 0.85 kg (the light example robot) passes the mass check and fails
+        // only for the log (all at rest).
+        let o = FitOptions {
+            mass_kg: Some(0.85),
+            ..FitOptions::default()
+        };
+        let e = identify(&rows(20_000), &p, &o).unwrap_err();
+        assert!(!matches!(e, FitError::BadMass(_)), "{e:?}");
     }
 }
