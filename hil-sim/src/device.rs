@@ -93,6 +93,11 @@ pub struct SimRobot {
 /// device, and what a robot from flash is combined with.
 struct BootConfig {
     kind: ControllerKind,
+    /// A flash robot runs its own `[control] controller` and starts its
+    /// odometry at its own `initial_*`, as the firmware's boot does
+    /// ([`SimRobot::follow_flash_robot`]); otherwise `kind` and the
+    /// scenario's initial pose.
+    follow_flash_robot: bool,
     dev_cfg: DeviceConfig,
     runtime: RuntimeConfig,
     estimator: EstimatorConfig,
@@ -133,10 +138,12 @@ fn boot_device(boot: &BootConfig, store: &mut FlashRecord<SimFlash>) -> Result<D
                 // As the firmware's boot: the one derivation on this board
                 // (its PWM timer read back for the robot's frequency), with
                 // the device's controller and the scenario's start pose.
-                let p = boot.runtime.initial_pose;
-                r.control.controller = boot.kind;
-                (r.control.initial_x_m, r.control.initial_y_m) = (p.x_m, p.y_m);
-                r.control.initial_heading_rad = p.theta_rad;
+                if !boot.follow_flash_robot {
+                    let p = boot.runtime.initial_pose;
+                    r.control.controller = boot.kind;
+                    (r.control.initial_x_m, r.control.initial_y_m) = (p.x_m, p.y_m);
+                    r.control.initial_heading_rad = p.theta_rad;
+                }
                 let facts = robot_file::BoardFacts {
                     pwm_full_scale: r.pwm_full_scale(SIM_TIMER_CLOCK_HZ).ok()?,
                     control_period_s: boot.runtime.controller.period_s,
@@ -230,6 +237,7 @@ impl SimRobot {
         };
         let boot = BootConfig {
             kind,
+            follow_flash_robot: false,
             dev_cfg,
             runtime: cfg,
             estimator,
@@ -262,6 +270,16 @@ impl SimRobot {
     pub fn set_speed(&mut self, speed: f64) {
         self.robot_us_per_host_ms = (speed * 1000.0).round().clamp(1.0, u32::MAX as f64) as u32;
         self.device.set_host_clock(self.robot_us_per_host_ms);
+    }
+
+    /// From now on, a robot file in the simulated flash runs as the
+    /// firmware runs it: its own `[control] controller` and its odometry
+    /// starting at its own `[control] initial_*` at every boot (`hil-sim
+    /// device` without `--controller`). By default a flash robot takes the
+    /// controller and initial pose this device was built with (tests that
+    /// push a file and keep their scenario's frame).
+    pub fn follow_flash_robot(&mut self) {
+        self.boot.follow_flash_robot = true;
     }
 
     /// Restarts the simulated MCU: a new device and control task (hold,

@@ -144,3 +144,64 @@ fn push_reset_pull_and_a_refused_bad_file() {
     let robot = handle.join().unwrap();
     assert_eq!(robot.reboots(), 2);
 }
+
+/// `hil-sim device` (which calls [`SimRobot::follow_flash_robot`] unless
+/// `--controller` is given) boots a pushed file as the firmware does: its
+/// own `[control] controller` and odometry from its own `[control]
+/// initial_*`, not the device's start-up controller and the paper case's
+/// 2.5 m start. Without the call, the device keeps its own (the library
+/// default the other tests rely on).
+#[test]
+fn a_pushed_file_runs_its_own_controller_from_its_own_start_pose() {
+    let file = robots("tb6612-2kg.toml");
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(!text.contains("[control]"), "the test adds the section");
+    let text = text
+        + "\n[control]\ncontroller = \"asmc\"\n\
+           initial_x_m = 1.25\ninitial_y_m = -0.5\ninitial_heading_rad = 0.75\n";
+    let pushed = std::env::temp_dir().join(format!("wmr-own-start-{}.toml", std::process::id()));
+    std::fs::write(&pushed, &text).unwrap();
+    let r = wmr::robot::read_file(&pushed).unwrap();
+    assert_eq!(r.control.controller, ControllerKind::Asmc, "{text}");
+    assert_eq!(r.control.initial_x_m, 1.25, "{text}");
+
+    for follow in [true, false] {
+        let (mut master, _slave, path) = open_pty().unwrap();
+        // The paper case's scenario: start pose (2.5, 0, 0), proposed.
+        let mut robot = SimRobot::new(&Scenario::default(), ControllerKind::Proposed).unwrap();
+        if follow {
+            robot.follow_flash_robot();
+        }
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        let handle = std::thread::spawn(move || {
+            serve(&mut robot, &mut master, 4.0, &s).unwrap();
+            robot
+        });
+        let mut link = Link::open(&path, Duration::from_millis(1000)).unwrap();
+        link.hello().unwrap();
+        robot_cmd(
+            &mut link,
+            RobotOp::Push {
+                file: pushed.clone(),
+                no_reboot: false,
+                no_local_check: false,
+            },
+        )
+        .unwrap();
+        assert_eq!(status(&mut link).robot.source, RobotSource::Flash);
+        stop.store(true, Ordering::Relaxed);
+        let mut robot = handle.join().unwrap();
+        assert_eq!(robot.reboots(), 1);
+        let cfg = *robot.device().control().config();
+        let p = cfg.initial_pose;
+        if follow {
+            assert_eq!(cfg.controller.kind, ControllerKind::Asmc);
+            assert_eq!((p.x_m, p.y_m, p.theta_rad), (1.25, -0.5, 0.75));
+        } else {
+            assert_eq!(cfg.controller.kind, ControllerKind::Proposed);
+            assert_eq!((p.x_m, p.y_m, p.theta_rad), (2.5, 0.0, 0.0));
+        }
+    }
+    let _ = std::fs::remove_file(&pushed);
+}

@@ -19,9 +19,11 @@ pub struct DeviceArgs {
     /// host's durations, link_timeout_ms and velocity timeouts, count real time).
     #[arg(long, default_value_t = 1.0, value_name = "N")]
     pub speed: f64,
-    /// Controller the runtime runs.
-    #[arg(long, value_enum, default_value = "proposed")]
-    pub controller: ControllerArg,
+    /// Controller the runtime runs, at every boot [default: the robot
+    /// file's `[control] controller`, the pushed file's after `wmr robot
+    /// push`, as the firmware]
+    #[arg(long, value_enum)]
+    pub controller: Option<ControllerArg>,
     /// Stop after this much robot time [s] (default: run until killed).
     #[arg(long, value_name = "s")]
     pub for_s: Option<f64>,
@@ -60,18 +62,47 @@ pub fn parse_miswire(s: &str) -> Result<Miswire, String> {
     Ok(m)
 }
 
+/// The scenario and controller `hil-sim device` serves: with `--robot FILE`
+/// and no `--scenario`, the robot starts where its file says odometry
+/// starts (`[control] initial_*`, as the firmware boots), not at the paper
+/// case's 2.5 m (`--initial-pose` overrides); the controller is
+/// `--controller`, else the file's `[control] controller`.
+pub fn device_scenario(
+    a: &DeviceArgs,
+) -> Result<(crate::scenario::Scenario, ControllerKind), String> {
+    let mut scn = a.scenario.build()?;
+    if a.scenario.scenario.is_none()
+        && a.scenario.robots.robot.is_some()
+        && a.scenario.flags.get::<[f64; 3]>("initial_pose").is_none()
+    {
+        let c = &scn.robot.control;
+        scn.initial_pose = [
+            c.initial_x_m as f64,
+            c.initial_y_m as f64,
+            c.initial_heading_rad as f64,
+        ];
+    }
+    crate::limits::check_scenario(&scn)?;
+    let kind: ControllerKind = match a.controller {
+        Some(c) => c.into(),
+        None => scn.robot.control.controller,
+    };
+    Ok((scn, kind))
+}
+
 /// `hil-sim device --pty`.
 pub fn device(a: &DeviceArgs, out: &mut dyn Write) -> Result<(), String> {
     if !(a.speed.is_finite() && a.speed > 0.0 && a.speed <= 1000.0) {
         return Err("--speed must be in (0, 1000]".into());
     }
-    let scn = a.scenario.build()?;
-    crate::limits::check_scenario(&scn)?;
+    let (scn, kind) = device_scenario(a)?;
     if let Some(t) = a.for_s {
         crate::limits::check_device_for_s(t)?;
     }
-    let kind: ControllerKind = a.controller.into();
     let mut robot = SimRobot::miswired(&scn, kind, &a.miswire.unwrap_or_default(), |_| {})?;
+    if a.controller.is_none() {
+        robot.follow_flash_robot();
+    }
     let (mut master, _slave, path) = open_pty()?;
     writeln!(out, "{path}").map_err(|e| e.to_string())?;
     out.flush().map_err(|e| e.to_string())?;

@@ -494,3 +494,48 @@ fn a_safe_stop_is_named_in_the_run_text() {
     assert!(text.contains("DirectionMismatch"), "{text}");
     assert!(text.contains("after the safe stop above"), "{text}");
 }
+
+/// `hil-sim device --robot FILE` serves the file's robot from the file's
+/// start pose and controller (the paper case's 2.5 m start and the
+/// proposed controller only for the paper's robot); the flags override.
+#[test]
+fn the_device_starts_where_its_robot_file_says() {
+    let dir = std::env::temp_dir().join(format!("hil-sim-dev-start-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let base = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../robots/tb6612-2kg.toml"
+    ))
+    .unwrap();
+    let f = dir.join("r.toml");
+    std::fs::write(
+        &f,
+        base + "\n[control]\ncontroller = \"smc\"\ninitial_x_m = -1.5\ninitial_y_m = 0.25\ninitial_heading_rad = 2.0\n",
+    )
+    .unwrap();
+    let f = f.to_str().unwrap();
+    let scn_of = |args: &[&str]| match parse(args).unwrap().command {
+        Command::Device(a) => device::device_scenario(&a).unwrap(),
+        _ => unreachable!(),
+    };
+    let (scn, kind) = scn_of(&["device", "--pty", "--robot", f]);
+    assert_eq!(scn.initial_pose, [-1.5, 0.25, 2.0]);
+    assert_eq!(kind, ControllerKind::Smc);
+    let (scn, kind) = scn_of(&[
+        "device",
+        "--pty",
+        "--robot",
+        f,
+        "--initial-pose",
+        "1,2,0.5",
+        "--controller",
+        "asmc",
+    ]);
+    assert_eq!(scn.initial_pose, [1.0, 2.0, 0.5]);
+    assert_eq!(kind, ControllerKind::Asmc);
+    // No robot file: the paper case as before.
+    let (scn, kind) = scn_of(&["device", "--pty"]);
+    assert_eq!(scn.initial_pose, [2.5, 0.0, 0.0]);
+    assert_eq!(kind, ControllerKind::Proposed);
+    let _ = std::fs::remove_dir_all(&dir);
+}
