@@ -15,3 +15,4 @@ python3 .ci/book_links.py --self-test
 rm -rf book/book
 mdbook build book
 python3 .ci/book_links.py
+python3 .ci/book_links.py --sources --compare

@@ -13,7 +13,11 @@ print.html, which repeats every chapter), every relative `href`/`src`:
 
 Absolute URLs (http:, https:, mailto:) are not fetched. Exits 1 naming the page, the
 link and what is wrong for every broken link. `--self-test` checks the checker on a
-small book of its own with one good and three broken links.
+small book of its own with good and broken links, in both modes.
+
+`--sources`: the same check on the markdown sources without mdBook (chapters from
+SUMMARY.md, mdBook's heading-id rule); `--sources --compare` also checks that rule
+against the rendered book (every chapter's heading ids equal).
 """
 
 import html.parser
@@ -31,6 +35,7 @@ class Page(html.parser.HTMLParser):
         super().__init__()
         self.links = []
         self.ids = set()
+        self.heading_ids = []
 
     def handle_starttag(self, tag, attrs):
         for name, value in attrs:
@@ -38,6 +43,8 @@ class Page(html.parser.HTMLParser):
                 continue
             if name in ("id", "name"):
                 self.ids.add(value)
+                if re.fullmatch(r"h[1-6]", tag) and name == "id":
+                    self.heading_ids.append(value)
             if (name == "href" and tag in ("a", "link")) or (name == "src" and tag in ("img", "script")):
                 self.links.append(value)
 
@@ -123,6 +130,129 @@ def check(repo, book_dir, out_dir):
     return errors, checked
 
 
+# ---- Source mode: the same check on the markdown sources, without mdBook ----
+# (the cheap alternative when mdBook is not installed: see D180). Chapters are the
+# links of SUMMARY.md outside HTML comments; {{#include}} is expanded; a heading's id
+# is its explicit {#id} or mdBook's rule (id_from_content: tags and markdown markup
+# dropped, alphanumerics, '_' and '-' kept and ASCII-lowercased, whitespace to '-',
+# the rest dropped; a repeated id gets -1, -2, ...). `--sources --compare` checks this
+# rule against a rendered book: every page's heading ids equal.
+
+def mdbook_id(text):
+    text = re.sub(r"<[^>]*>", "", text)
+    text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", text)
+    text = text.replace("`", "").replace("*", "")
+    text = text.replace("&amp;", "&").replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", '"').replace("&#39;", "'")
+    out = []
+    for ch in text.strip():
+        if ch.isalnum() or ch in "_-":
+            out.append(ch.lower() if ch.isascii() else ch)
+        elif ch.isspace():
+            out.append("-")
+    return "".join(out)
+
+
+def strip_comments(text):
+    return re.sub(r"<!--.*?-->", "", text, flags=re.S)
+
+
+def expand_includes(text, base_dir):
+    def inc(m):
+        with open(os.path.normpath(os.path.join(base_dir, m.group(1).strip())), encoding="utf-8") as f:
+            return f.read()
+    return re.sub(r"\{\{#include ([^}]+)\}\}", inc, text)
+
+
+def source_chapters(src_dir):
+    with open(os.path.join(src_dir, "SUMMARY.md"), encoding="utf-8") as f:
+        summary = strip_comments(f.read())
+    return [m.group(1) for m in re.finditer(r"\]\(([^)#]+\.md)\)", summary)]
+
+
+def source_page(path):
+    """(links, heading ids) of one chapter's markdown, code blocks and spans left out."""
+    with open(path, encoding="utf-8") as f:
+        text = expand_includes(f.read(), os.path.dirname(path))
+    links, ids, seen = [], [], {}
+    fence = False
+    for line in text.split("\n"):
+        if re.match(r"^\s*(```|~~~)", line):
+            fence = not fence
+            continue
+        if fence:
+            continue
+        m = re.match(r"^#{1,6}\s+(.*?)\s*$", line)
+        if m:
+            head = m.group(1)
+            explicit = re.search(r"\s*\{#([^}\s]+)\}\s*$", head)
+            if explicit:
+                ident = explicit.group(1)
+            else:
+                ident = mdbook_id(head)
+                if ident in seen:
+                    seen[ident] += 1
+                    ident = f"{ident}-{seen[ident]}"
+                else:
+                    seen[ident] = 0
+            ids.append(ident)
+        line = re.sub(r"`[^`]*`", "", line)
+        links += re.findall(r"\]\(([^)\s]+)\)", line)
+        links += re.findall(r"<a\s[^>]*href=\"([^\"]+)\"", line)
+        ids += re.findall(r"<a\s[^>]*(?:id|name)=\"([^\"]+)\"", line)
+    return links, ids
+
+
+def check_sources(repo, book_dir):
+    src_dir = os.path.join(book_dir, "src")
+    chapters = source_chapters(src_dir)
+    errors, checked = [], 0
+    pages = {}
+    for ch in chapters:
+        path = os.path.normpath(os.path.join(src_dir, ch))
+        if not os.path.isfile(path):
+            errors.append(f"SUMMARY.md: chapter {ch} does not exist")
+            continue
+        pages[path] = source_page(path)
+    for path, (links, _ids) in sorted(pages.items()):
+        rel_page = os.path.relpath(path, src_dir)
+        for link in links:
+            parts = urllib.parse.urlsplit(link)
+            if parts.scheme or parts.netloc or link.startswith("//"):
+                continue
+            checked += 1
+            target_rel = urllib.parse.unquote(parts.path)
+            fragment = urllib.parse.unquote(parts.fragment)
+            where = f"{rel_page}: link {link!r}"
+            target = path if target_rel == "" else os.path.normpath(os.path.join(os.path.dirname(path), target_rel))
+            in_src = os.path.commonpath([os.path.abspath(target), os.path.abspath(src_dir)]) == os.path.abspath(src_dir)
+            if in_src and target.endswith(".md"):
+                if target not in pages:
+                    errors.append(f"{where}: {os.path.relpath(target, repo)} is not a chapter of SUMMARY.md")
+                elif fragment and fragment not in pages[target][1]:
+                    errors.append(f"{where}: no heading with id {fragment!r} in {os.path.relpath(target, src_dir)}")
+            elif not os.path.exists(target):
+                errors.append(f"{where}: {os.path.relpath(target, repo)} does not exist")
+            elif fragment and target.endswith(".md") and fragment not in github_anchors(target):
+                errors.append(f"{where}: {os.path.relpath(target, repo)} has no heading with anchor {fragment!r}")
+    return errors, checked, pages
+
+
+def compare_ids(book_dir, out_dir, pages):
+    """The source mode's heading ids against the rendered pages' (the rule's check)."""
+    src_dir = os.path.join(book_dir, "src")
+    diffs = []
+    for path, (_links, ids) in sorted(pages.items()):
+        rel = os.path.relpath(path, src_dir)
+        html_path = os.path.join(out_dir, rel[: -len(".md")] + ".html")
+        if os.path.basename(rel) == "README.md":
+            html_path = os.path.join(out_dir, os.path.dirname(rel), "index.html")
+        rendered = parse(html_path)
+        heads = set(rendered.heading_ids)
+        if set(ids) - rendered.ids or heads - set(ids):
+            diffs.append(f"{rel}: only in the sources {sorted(set(ids) - rendered.ids)[:5]}, only rendered {sorted(heads - set(ids))[:5]}")
+    return diffs
+
+
 def self_test():
     with tempfile.TemporaryDirectory() as repo:
         book = os.path.join(repo, "book")
@@ -146,6 +276,19 @@ def self_test():
         assert any("no id 'nowhere'" in e for e in errors), errors
         assert any("no heading with anchor 'three'" in e for e in errors), errors
         assert any("missing.toml does not exist" in e for e in errors), errors
+        src = os.path.join(book, "src")
+        with open(os.path.join(src, "SUMMARY.md"), "w") as f:
+            f.write("# Summary\n\n- [A](how-to/a.md)\n<!-- pending: - [B](how-to/b.md) -->\n")
+        with open(os.path.join(src, "how-to", "a.md"), "w") as f:
+            f.write(
+                "# Run `wmr serve` twice\n\n## D1. One {#d1}\n\n[ok](#run-wmr-serve-twice) [ok](#d1) "
+                "[bad](#d2) [repo](../../../NOTES.md#two-words) [pending](b.md)\n\n```\n[code](nowhere.md)\n```\n"
+            )
+        errors, checked, _pages = check_sources(repo, book)
+        assert checked == 5, checked
+        assert len(errors) == 2, errors
+        assert any("no heading with id 'd2'" in e for e in errors), errors
+        assert any("b.md is not a chapter" in e for e in errors), errors
     print("book_links self-test: ok")
 
 
@@ -156,6 +299,17 @@ def main():
     repo = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
     book = os.path.join(repo, "book")
     out = os.path.join(book, "book")
+    if sys.argv[1:2] == ["--sources"]:
+        errors, checked, pages = check_sources(repo, book)
+        if sys.argv[2:] == ["--compare"]:
+            errors += [f"heading ids differ from mdBook's: {d}" for d in compare_ids(book, out, pages)]
+        for e in errors:
+            print(f"broken link: {e}", file=sys.stderr)
+        if errors:
+            print(f"book_links --sources: {len(errors)} problems, {checked} relative links", file=sys.stderr)
+            return 1
+        print(f"book_links --sources: {checked} relative links of {len(pages)} chapters resolve")
+        return 0
     if not os.path.isfile(os.path.join(out, "index.html")):
         print(f"book_links: {out}/index.html missing: run `mdbook build book` first", file=sys.stderr)
         return 1

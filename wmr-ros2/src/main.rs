@@ -34,7 +34,7 @@ enum CmdVelType {
 }
 
 /// The ROS 2 distribution whose Nav2 defaults the bridge follows
-/// (book/src/how-to/ros2.md, "Conventions").
+/// (book/src/explanation/ros2.md, "Conventions").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum Distro {
     /// Jazzy Jalisco (Nav2 publishes Twist).
@@ -98,7 +98,7 @@ struct Args {
     /// Topic of the paths to follow (nav_msgs/Path).
     #[arg(long, default_value = topics::DEFAULT_PATH)]
     path_topic: String,
-    /// Topic of a localiser's poses (geometry_msgs/PoseWithCovarianceStamped; AMCL's by default), fused by the robot's estimator at their stamps when in the `odom` frame (a pose in another frame, such as AMCL's `map`, is refused: book/src/how-to/ros2.md, "Frames").
+    /// Topic of a localiser's poses (geometry_msgs/PoseWithCovarianceStamped; AMCL's by default), fused by the robot's estimator at their stamps when in the `odom` frame (a pose in another frame, such as AMCL's `map`, is refused: book/src/explanation/ros2.md, "Poses").
     #[arg(long, default_value = topics::DEFAULT_LOCALISER)]
     localiser_topic: String,
     /// d, G ahead of the axle midpoint [m] [default: body.com_offset_m of the robot file the robot runs, read from its store; the bridge does not start when the robot cannot tell].
