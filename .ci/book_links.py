@@ -11,6 +11,8 @@ print.html, which repeats every chapter), every relative `href`/`src`:
   path ending in .html the .md is accepted. A fragment on a repository .md file must be
   one of its headings' GitHub anchors.
 
+The repository's entry pages (README.md, firmware/README.md, docs/DECISIONS.md) are
+checked too: their relative links exist, their anchors name a heading.
 Absolute URLs (http:, https:, mailto:) are not fetched. Exits 1 naming the page, the
 link and what is wrong for every broken link. `--self-test` checks the checker on a
 small book of its own with good and broken links, in both modes.
@@ -237,6 +239,37 @@ def check_sources(repo, book_dir):
     return errors, checked, pages
 
 
+# Repository pages that point into the book: their relative links are checked too.
+ENTRY_PAGES = ["README.md", "firmware/README.md", "docs/DECISIONS.md"]
+
+
+def check_entry_pages(repo, book_dir, pages):
+    """Links of the repository's entry pages: the file exists; an anchor on a chapter is
+    one of its heading ids, on another markdown file one of its GitHub anchors."""
+    errors, checked = [], 0
+    for name in ENTRY_PAGES:
+        path = os.path.join(repo, name)
+        if not os.path.isfile(path):
+            continue
+        links, _ids = source_page(path)
+        for link in links:
+            parts = urllib.parse.urlsplit(link)
+            if parts.scheme or parts.netloc or link.startswith("//"):
+                continue
+            checked += 1
+            target_rel = urllib.parse.unquote(parts.path)
+            fragment = urllib.parse.unquote(parts.fragment)
+            target = path if target_rel == "" else os.path.normpath(os.path.join(os.path.dirname(path), target_rel))
+            where = f"{name}: link {link!r}"
+            if not os.path.exists(target):
+                errors.append(f"{where}: {os.path.relpath(target, repo)} does not exist")
+            elif fragment and target in pages and fragment not in pages[target][1]:
+                errors.append(f"{where}: no heading with id {fragment!r} in {os.path.relpath(target, repo)}")
+            elif fragment and target not in pages and target.endswith(".md") and fragment not in github_anchors(target):
+                errors.append(f"{where}: {os.path.relpath(target, repo)} has no heading with anchor {fragment!r}")
+    return errors, checked
+
+
 def compare_ids(book_dir, out_dir, pages):
     """The source mode's heading ids against the rendered pages' (the rule's check)."""
     src_dir = os.path.join(book_dir, "src")
@@ -301,6 +334,8 @@ def main():
     out = os.path.join(book, "book")
     if sys.argv[1:2] == ["--sources"]:
         errors, checked, pages = check_sources(repo, book)
+        more, n = check_entry_pages(repo, book, pages)
+        errors, checked = errors + more, checked + n
         if sys.argv[2:] == ["--compare"]:
             errors += [f"heading ids differ from mdBook's: {d}" for d in compare_ids(book, out, pages)]
         for e in errors:
@@ -314,6 +349,9 @@ def main():
         print(f"book_links: {out}/index.html missing: run `mdbook build book` first", file=sys.stderr)
         return 1
     errors, checked = check(repo, book, out)
+    _errors, _checked, pages = check_sources(repo, book)
+    more, n = check_entry_pages(repo, book, pages)
+    errors, checked = errors + more, checked + n
     for e in errors:
         print(f"broken link: {e}", file=sys.stderr)
     if errors:
