@@ -229,7 +229,7 @@ impl Scenario {
 
     /// `hil-sim sweep`'s base scenario for `robot`: the 2 m circle at
     /// 0.5 m/s, a disturbance in 10-35 s, motion capture through the
-    /// firmware runtime (book/src/how-to/sweeps.md).
+    /// firmware runtime (book/src/how-to/mismatch-sweeps.md).
     #[staticmethod]
     #[pyo3(signature = (robot, *, seed=1, duration_s=40.0))]
     fn sweep_base(robot: Robot, seed: u64, duration_s: f64) -> Result<Self> {
