@@ -3,7 +3,7 @@
 # with and without the `imu` feature (MPU-6050 gyro), prints flash and
 # static RAM use, and fails when any build exceeds the project's budget:
 # 128 KiB flash, 32 KiB static RAM, on both chips, for every feature set
-# (firmware/README.md, "Size").
+# (book/src/explanation/firmware.md, "Size" under "IMU").
 #
 # Then, on every image, the fault-entry check (issue 21 item 9): the first
 # instructions of HardFault, NonMaskableInt, DefaultHandler, _defmt_panic

@@ -632,7 +632,7 @@ clean_pose="$(pose "$(cat "$OUT_DIR/imu_f446re.json")")"
 # plausible rate (1 rad/s on the yaw axis for 300 ms while the robot runs
 # the circle) must move the robot (the estimator believed it); a full-scale
 # one (32767 counts: saturated) must not (the estimator uses the wheels for
-# a saturated reading, firmware/README "How it runs").
+# a saturated reading, book/src/explanation/firmware.md "How it runs").
 pose_diff() { awk -v a="$1" -v b="$2" 'BEGIN { split(a, p, ","); split(b, q, ","); d = 0; for (i = 1; i <= 3; i++) { x = p[i] - q[i]; if (x < 0) x = -x; if (x > d) d = x } printf "%.4f", d }'; }
 s="$(headless imu_wrong_rate --elf "$ELF446IMU" --press 0.5 --seconds 3 --imu-implausible "$IMU_AT:300:1.0")"
 [ "$(json ok "$s")" = true ] || fail "imu wrong-rate run failed: $s"

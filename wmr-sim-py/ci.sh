@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# CI step of the Python package wmrsim (issue 36, docs/python.md): the
+# CI step of the Python package wmrsim (issue 36, book/src/how-to/python.md): the
 # wheel built with maturin, installed into a venv of pinned versions (made
 # anew on a fresh clone), then in a private network namespace (Ray's
 # servers see only the loopback): pytest over the API (bad input
 # included), equality with the hil-sim CLI of the test step, a Monte-Carlo
 # and a tuning generation over a local 2-CPU Ray cluster, and the worked
-# example of docs/python.md (the wheel-radius sweep plotted with
+# example of book/src/how-to/python.md (the wheel-radius sweep plotted with
 # matplotlib). Run after `cargo test --release --workspace`: it uses
 # target/release/hil-sim, and maturin reuses hil-sim's build (D161).
 set -euo pipefail
@@ -53,7 +53,7 @@ export HIL_SIM="$ROOT/target/release/hil-sim" WMRSIM_REQUIRE_RAY=1
 step "pytest: the API, equality with the hil-sim CLI, Ray (2 CPUs, loopback)"
 # From outside the source tree: the installed wheel is what is imported.
 (cd "$OUT" && "$PY" -m pytest -q -p no:cacheprovider "$ROOT/wmr-sim-py/tests") || fail "pytest"
-step "docs/python.md's worked example: wheel-radius mismatch sweep (matplotlib)"
+step "book/src/how-to/python.md's worked example: wheel-radius mismatch sweep (matplotlib)"
 (cd "$OUT" && "$PY" "$ROOT/wmr-sim-py/examples/wheel_radius_sweep.py" --duration 15 --seeds 1 \
     --out "$OUT/wheel_radius_sweep.png") || fail "examples/wheel_radius_sweep.py"
 test -s "$OUT/wheel_radius_sweep.png" || fail "no figure written"

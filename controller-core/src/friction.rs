@@ -1,5 +1,5 @@
 //! Wheel friction in the dynamic loop: a departure from the paper's model (7)
-//! (docs/DECISIONS.md, D175).
+//! (book/src/explanation/paper-departures.md, D175).
 //!
 //! The paper's reduced model η̇ = Mη + Nτ (7) has no friction. A real
 //! gearmotor loses a Coulomb torque c and a viscous torque b·φ̇ at each

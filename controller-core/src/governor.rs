@@ -2,7 +2,7 @@
 //! s·Δt per control period with the time scale s ∈ \[0, 1\], so the robot
 //! follows the same path more slowly (and may stop on it) instead of leaving
 //! it when the wheels saturate or the tracking error grows. Not in the paper
-//! (docs/DECISIONS.md, D22).
+//! (book/src/explanation/decisions.md, D22).
 //!
 //! The controller tracks r(τ) with derivatives consistent with the scaled
 //! clock (τ̇ = s):

@@ -1,6 +1,6 @@
 //! Health state machine: nominal, degraded (reference slowed through the
 //! governor's speed cap, reason published) or safe stop (hard faults only).
-//! Not in the paper (docs/DECISIONS.md, D24).
+//! Not in the paper (book/src/explanation/decisions.md, D24).
 //!
 //! Inputs, each low-pass filtered with `filter_s` (one multiply-add each):
 //!

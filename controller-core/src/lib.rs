@@ -11,7 +11,7 @@
 //!   adaptive sliding-mode torque law (eq. 24).
 //!
 //! The same [`Controller`] runs in the firmware and in the simulator. Every
-//! departure from the printed paper is recorded in `docs/DECISIONS.md`.
+//! departure from the printed paper is recorded in `book/src/explanation/paper-departures.md`.
 //!
 //! Conventions: SI units, named in identifiers (`torque_nm`, `wheel_radius_m`).
 //! Wheel-indexed arrays are `[right, left]`; velocity arrays are `[v, ω]`.

@@ -3,7 +3,7 @@
 //! With the printed M0 (m11 = m22 = m, m13 = −m·d·sθ, m23 = m·d·cθ, m33 = I,
 //! m44 = m55 = I_w), C0 (c13 = −m·d·ω·cθ, c23 = −m·d·ω·sθ), B0 (wheel torques
 //! on φ_R, φ_L) and S(q) of eq. (3), the products of eq. (6) reduce to
-//! constant or ω-linear 2x2 matrices (derivation in `docs/DECISIONS.md`, D1):
+//! constant or ω-linear 2x2 matrices (derivation in `book/src/explanation/paper-departures.md`, D1):
 //!
 //! * M1 = SᵀM0S = diag(m + 2I_w/r², I + 3md² + 2I_w h²/r²)
 //! * N1 = SᵀM0Ṡ + SᵀC0S = 2mdω·\[\[0, −1\], \[1, 0\]\] (skew: does no work)

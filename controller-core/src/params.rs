@@ -132,7 +132,7 @@ pub fn eta_from_wheel_rates<T: Real>(
     ]
 }
 
-/// Diagonal of M1 = SᵀM0S (eq. 6; derivation in `docs/DECISIONS.md`, D1):
+/// Diagonal of M1 = SᵀM0S (eq. 6; derivation in `book/src/explanation/paper-departures.md`, D1):
 /// \[m + 2I_w/r², I + 3md² + 2I_w h²/r²\] from m, I, I_w, r, h, d.
 #[inline]
 pub fn m1_diagonal<T: Real>(

@@ -63,7 +63,7 @@ pub fn tangent_sample(p: [f32; 2], d1: [f32; 2], d2: [f32; 2], d3: [f32; 2]) -> 
 }
 
 /// How the paper's curve gets a heading (NOTES: the printed θ_d = 0.2t does
-/// not follow the curve). See `docs/DECISIONS.md`, D3.
+/// not follow the curve). See `book/src/explanation/paper-departures.md`, D3.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PaperHeading {
@@ -286,7 +286,7 @@ pub const EXCITATION_OMEGA_RATIOS: [f32; 3] = [0.866_025_4, 2.236_068, 3.605_551
 /// peaks of the components do not line up at the end of the ramp-in).
 const EXCITATION_PHASES: [[f32; 3]; 2] = [[0.0, 2.1, 4.2], [1.0, 3.1, 5.2]];
 
-/// Identification excitation (beyond the paper; `docs/identification.md`,
+/// Identification excitation (beyond the paper; `book/src/how-to/identification.md`,
 /// D80): v and ω each a sum of three sinusoids at incommensurate
 /// frequencies ([`EXCITATION_V_RATIOS`], [`EXCITATION_OMEGA_RATIOS`] times
 /// `w_radps`), each third of its amplitude, under a raised-cosine envelope

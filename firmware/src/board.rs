@@ -25,7 +25,7 @@
 //! the fault and panic entries (`fault.rs`) cut everything with
 //! register-only stores before they touch the stack. Between reset
 //! and the first instruction only the external pull-downs hold them (see
-//! the README's pin-state table).
+//! the pin-state table of book/src/how-to/wire-a-board.md).
 
 use controller_core::runtime::{BridgeParams, Encoder, WheelOdometryOnly};
 use embassy_stm32::gpio::{Input, Pull};
@@ -95,7 +95,7 @@ const HSE: rcc::Hse = rcc::Hse {
 pub const HSE_STARTUP_TIMEOUT_MS: u32 = 100;
 
 /// Encoder input pulls. `Up` for open-collector encoders (add external
-/// 2.2-4.7 kΩ pull-ups to 3.3 V, see the README). Set `None` for encoders
+/// 2.2-4.7 kΩ pull-ups to 3.3 V, see book/src/how-to/wire-a-board.md). Set `None` for encoders
 /// with 5 V push-pull outputs on the 5 V tolerant pins: an FT pin only
 /// tolerates more than VDD + 0.3 V with its internal pulls disabled.
 pub const ENCODER_PULL: Pull = Pull::Up;

@@ -1,5 +1,5 @@
 //! The firmware's configuration: the compiled-in robot (a robot file,
-//! `robot_file::Robot`, docs/robot.md: geometry, motors, encoders, bridge,
+//! `robot_file::Robot`, book/src/how-to/robot-file.md: geometry, motors, encoders, bridge,
 //! IMU mounting, limits, gains) and what is the firmware's own (loop rate,
 //! watchdog, logs, the IMU's bus). Everything the runtime and the link need
 //! is built from a `Robot` by the one derivation ([`derive`], [`device`]),
@@ -32,7 +32,7 @@ pub const BUTTON_DEBOUNCE_TICKS: u16 = 20;
 /// paths from `firmware/`), validates it (a bad file fails the build with
 /// the field, line and reason) and writes it to `OUT_DIR`. Body, motors,
 /// encoders, bridge, IMU mounting, limits and gains all come from it
-/// (docs/robot.md); nothing here repeats a value of it. The firmware's
+/// (book/src/how-to/robot-file.md); nothing here repeats a value of it. The firmware's
 /// `BRIDGE_MODE=pwm-dir|two-pwm|pwm-in1-in2` at build time replaces the
 /// file's `bridge.mode` in this record (CI builds an image of each for
 /// stm32-emu); a robot stored in flash runs with its own `[bridge]`
@@ -51,7 +51,7 @@ pub fn default_robot() -> Robot {
 /// Ticks of pose-estimator history: the oldest external pose (sent over the
 /// host link, `wmr pose-feed`) the runtime can still use. The history keeps
 /// 16 B of inputs per tick and a posterior snapshot (80 B) every 17 ticks
-/// (docs/DECISIONS.md D31): 272 ticks are 5.6 KiB and cover poses up to
+/// (book/src/explanation/decisions.md D31): 272 ticks are 5.6 KiB and cover poses up to
 /// 255 ms late at 1 kHz (`PoseEstimator::<272>::GUARANTEED_DEPTH_TICKS`),
 /// above the 250 ms latency bound of issue 9 (UWB, a lidar localiser).
 pub const POSE_HISTORY_TICKS: usize = controller_core::estimator::HISTORY_LEN;

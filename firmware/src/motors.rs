@@ -4,7 +4,7 @@
 //! (drive/brake), so the mean armature voltage is ±duty × V_supply as the
 //! runtime's motor model assumes.
 //!
-//! Pins (the same on both chips; README "Wiring" has the per-mode table):
+//! Pins (the same on both chips; book/src/how-to/wire-a-board.md has the per-mode table):
 //!
 //! | pin | PwmDir | TwoPwm | PwmIn1In2 |
 //! |---|---|---|---|

@@ -230,7 +230,7 @@ pub fn human_summary(kind: ControllerKind, scn: &Scenario, out: &crate::SimOutpu
     if let Some((step, reason)) = out.stop {
         let _ = writeln!(
             s,
-            "  SAFE STOP at t = {:.3} s: {reason:?}; the runtime held the motors off from there (docs/DECISIONS.md D133; `hil-sim run --csv` traces the lead-up)",
+            "  SAFE STOP at t = {:.3} s: {reason:?}; the runtime held the motors off from there (book/src/explanation/decisions.md D133; `hil-sim run --csv` traces the lead-up)",
             step as f64 * scn.control_period_s
         );
     }
@@ -403,7 +403,7 @@ pub fn compare_sensing_text(results: &[(Sensing, Scenario, Vec<SimOutput>)]) -> 
         })
         .collect();
     let mut text = String::from(
-        "\ncase 2 through the firmware runtime, paper setting (what sensing costs on a robot; docs/scenario.md):\n",
+        "\ncase 2 through the firmware runtime, paper setting (what sensing costs on a robot; book/src/reference/scenario-file.md):\n",
     );
     text += &metrics_table(&["sensing", "controller"], &rows);
     text += "mocap: encoders, gyro, pose at 100 Hz 10 ms late 2 mm / 0.005 rad; odometry: encoders only\n";

@@ -107,7 +107,7 @@ pub struct Scenario {
     /// The robot the controller is configured for: its model, gains, motor,
     /// encoder and limits, and (unless [`PlantPart`] says otherwise) the
     /// simulated robot too. The paper's robot ([`Robot::paper`]) unless
-    /// `--robot FILE` (a robot file, docs/robot.md) names another; not a
+    /// `--robot FILE` (a robot file, book/src/how-to/robot-file.md) names another; not a
     /// key of the scenario file.
     #[serde(skip, default = "Robot::paper")]
     #[arg(skip = Robot::paper())]
@@ -293,7 +293,7 @@ pub struct SensingPart {
     /// Sensor preset between plant and controller: the paper's ideal
     /// measurements, or the firmware runtime behind simulated encoders and
     /// PWM with a gyro (imu) and an external pose (mocap, uwb); the
-    /// --gyro-* and --pose-* flags override the preset (docs/scenario.md).
+    /// --gyro-* and --pose-* flags override the preset (book/src/reference/scenario-file.md).
     #[arg(long = "sensing", value_enum)]
     pub preset: Sensing,
     /// Encoder counts per wheel revolution after ×4 decoding (firmware
@@ -573,13 +573,13 @@ impl Scenario {
         ];
         if let Some(key) = self.sensing.unknown_keys.keys().next() {
             return Err(format!(
-                "scenario '{}': unknown key `{key}` in [sensing] (schema: docs/scenario.md)",
+                "scenario '{}': unknown key `{key}` in [sensing] (schema: book/src/reference/scenario-file.md)",
                 self.name
             ));
         }
         if self.version != SCENARIO_VERSION {
             return Err(format!(
-                "scenario '{}': version = {} is not a scenario schema this build reads (1 = flat keys, upgraded on load; {SCENARIO_VERSION} = nested parts: docs/scenario.md)",
+                "scenario '{}': version = {} is not a scenario schema this build reads (1 = flat keys, upgraded on load; {SCENARIO_VERSION} = nested parts: book/src/reference/scenario-file.md)",
                 self.name, self.version
             ));
         }
@@ -795,7 +795,7 @@ impl Scenario {
             for (k, v) in over {
                 if !t.contains_key(k) {
                     return Err(format!(
-                        "plant.{name}.{k}: not a field of the robot file's [{name}] (docs/robot.md)"
+                        "plant.{name}.{k}: not a field of the robot file's [{name}] (book/src/how-to/robot-file.md)"
                     ));
                 }
                 t.insert(k.clone(), v.clone());

@@ -1,10 +1,10 @@
-//! Scenario files: TOML deserialised into [`Scenario`] (schema: docs/scenario.md).
+//! Scenario files: TOML deserialised into [`Scenario`] (schema: book/src/reference/scenario-file.md).
 //!
 //! Version 2 (`version = 2`) has the run's keys at the top and one table per
 //! part (`[plant]`, `[perturbations]`, `[sensing]`, `[controller]`,
 //! `[governor]`). A file without `version` is version 1, the flat schema of
 //! before (every key top-level): it is upgraded on load, each key moved into
-//! the table of the part that declares it ([`upgrade_v1`]; DECISIONS D65).
+//! the table of the part that declares it ([`upgrade_v1`]; book/src/explanation/decisions.md D65).
 //! Every key is optional (missing keys take [`Scenario::default`]'s value);
 //! unknown keys are errors, so a typo never silently falls back to a default.
 
@@ -68,12 +68,12 @@ pub fn upgrade_v1(flat: toml::Table) -> Result<toml::Table, String> {
             }
             None if value.is_table() && crate::scenario::PARTS.contains(&key.as_str()) => {
                 return Err(format!(
-                    "`[{key}]` is a table of the version-2 schema: add `version = {SCENARIO_VERSION}` at the top of the file (docs/scenario.md)"
+                    "`[{key}]` is a table of the version-2 schema: add `version = {SCENARIO_VERSION}` at the top of the file (book/src/reference/scenario-file.md)"
                 ))
             }
             None => {
                 return Err(format!(
-                    "unknown key `{key}` (a version-1 file: no `version` key; schema: docs/scenario.md)"
+                    "unknown key `{key}` (a version-1 file: no `version` key; schema: book/src/reference/scenario-file.md)"
                 ))
             }
         }
@@ -304,19 +304,20 @@ mod tests {
 
     #[test]
     fn every_field_is_documented() {
-        let doc = std::fs::read_to_string(repo_file("docs/scenario.md")).unwrap();
+        let doc =
+            std::fs::read_to_string(repo_file("book/src/reference/scenario-file.md")).unwrap();
         let full = crate::scenario::every_key_set();
         let table: toml::Table = toml::from_str(&to_toml(&full)).unwrap();
         for (key, v) in &table {
             assert!(
                 doc.contains(&format!("`{key}`")),
-                "docs/scenario.md lacks `{key}`"
+                "book/src/reference/scenario-file.md lacks `{key}`"
             );
             if let toml::Value::Table(part) = v {
                 for k in part.keys() {
                     assert!(
                         doc.contains(&format!("`{key}.{k}`")),
-                        "docs/scenario.md lacks `{key}.{k}`"
+                        "book/src/reference/scenario-file.md lacks `{key}.{k}`"
                     );
                 }
             }

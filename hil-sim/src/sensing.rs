@@ -1,5 +1,5 @@
 //! The sensing presets: which simulated sensors sit between the plant and
-//! the firmware runtime, with what parameters (docs/scenario.md lists them),
+//! the firmware runtime, with what parameters (book/src/reference/scenario-file.md lists them),
 //! and the `gyro_*`/`pose_*` overrides on top ([`GyroOverrides`],
 //! [`PoseOverrides`]: each knob one field, read by serde for scenario files
 //! and by clap for the command line, inside the scenario's `[sensing]` part).
@@ -10,7 +10,7 @@ use sim_robot::{GyroModel, PoseSourceModel};
 pub use sim_robot::sensors::{PRESET_GYRO, PRESET_MOCAP, PRESET_UWB};
 
 /// What the controller gets from the simulated robot, and how it drives it:
-/// a named sensor preset (values in docs/scenario.md; each field
+/// a named sensor preset (values in book/src/reference/scenario-file.md; each field
 /// overridable by the `gyro_*` and `pose_*` keys).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]

@@ -7,7 +7,7 @@
 //! in every split, so merged shards equal one run bit for bit.
 //!
 //! Shard file (JSON Lines): line 1 is a [`ShardHeader`], then one
-//! [`SimRecord`] per line. Usage: docs/sweeps.md.
+//! [`SimRecord`] per line. Usage: book/src/how-to/sweeps.md.
 
 use crate::montecarlo::{
     run_seed, stats_from_records, ControllerStats, McConfig, Outcome, SimRecord, MAX_RUNS, METRICS,

@@ -4,7 +4,7 @@
 //! delay 1-3 ms), each case run with the three controllers over a few
 //! seeds through the firmware runtime (`mocap` sensing), through the same
 //! plant-override path a scenario file's `[plant.*]` tables take
-//! ([`Scenario::plant_robot`]). docs/sweeps.md has the table and command.
+//! ([`Scenario::plant_robot`]). book/src/how-to/mismatch-sweeps.md has the table and command.
 
 use crate::scenario::{PerturbationPart, Robot, Scenario, Sensing, TrajectoryKind};
 use controller_core::ControllerKind;
@@ -92,7 +92,7 @@ impl Mismatch {
             Self::Track(x) => {
                 let t = f64::from(r.body.track_m) * (1.0 + x);
                 let mut fields = vec![("track_m", toml::Value::Float(t))];
-                // robot-file's bound I ≤ m·(track² + r²) (docs/robot.md): a
+                // robot-file's bound I ≤ m·(track² + r²) (book/src/how-to/robot-file.md): a
                 // narrower robot near it (the paper's: 2.5 of 2.55 kg·m²) has
                 // its inertia scaled down with the bound (also a mismatch).
                 let rr = f64::from(r.mean_wheel_radius_m());

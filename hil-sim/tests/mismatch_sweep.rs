@@ -4,7 +4,7 @@
 //! three example robots, through the firmware runtime, the proposed
 //! controller's window RMS position error is at most [`MARGIN`] times the
 //! better baseline's (SMC, ASMC), over two seeds. The measured ratios
-//! (docs/sweeps.md) are 0.08-0.55; the margin 0.8 leaves room for noise
+//! (book/src/how-to/mismatch-sweeps.md) are 0.08-0.55; the margin 0.8 leaves room for noise
 //! without admitting a proposed controller that is merely as good. No run
 //! of any controller may stop (the runtime's stops count: the bts7960 robot
 //! with the plant's motor constant +20 % was a false direction-check stop

@@ -1,4 +1,4 @@
-//! Issue 19's tuning acceptance (docs/tuning.md): the committed tuned robot
+//! Issue 19's tuning acceptance (book/src/how-to/tuning.md): the committed tuned robot
 //! files evaluated on validation seeds (disjoint from the seeds they were
 //! tuned on) against the paper's gains and the tuned baselines, and a
 //! small tuning job showing improvement, determinism over thread counts
@@ -46,7 +46,7 @@ fn eval(scns: &[Scenario], kind: ControllerKind) -> Evaluation {
 }
 
 /// Acceptance lines of issue 19 that the committed files do not meet,
-/// measured by this test (README.md, "Tuning"): (robot, sensing, line).
+/// measured by this test (book/src/explanation/results.md, "Tuning the gains for a robot"): (robot, sensing, line).
 /// For these the test asserts the weaker bound given (a ratio), so that a
 /// regression still fails, and checks the explanation: both are gyro-only
 /// (`imu`), where the paper gains' p95 window RMS is the p95 of their own
@@ -285,7 +285,7 @@ fn gyro_only_with_inertia_mismatch_tuned_proposed_not_worse_than_the_better_base
 #[test]
 fn at_a_2_nm_torque_limit_tuned_proposed_not_worse_than_the_better_baseline() {
     // The paper robot with a 2 N·m limit is its own robot: its file is
-    // tuned for that limit (robots/paper-2nm.tuned.toml, docs/tuning.md).
+    // tuned for that limit (robots/paper-2nm.tuned.toml, book/src/how-to/tuning.md).
     let tuned = robot("paper-2nm.tuned");
     assert_eq!(tuned.limits.torque_nm, 2.0);
     let line = Case2Line::measure(&tuned, Sensing::Imu, |_| {});

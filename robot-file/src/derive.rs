@@ -1,5 +1,5 @@
 //! What the runtime, the simulator and the firmware take from a robot:
-//! every derived value with its formula (docs/robot.md, "Derived values").
+//! every derived value with its formula (book/src/explanation/robot-file.md, "Derived values").
 
 use crate::error::{Reason, RobotError};
 use crate::sections::Robot;

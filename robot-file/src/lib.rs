@@ -1,6 +1,6 @@
 //! The robot file: one description of a differential-drive robot, validated
 //! as a whole, from which the runtime, the simulator, the emulated board and
-//! the firmware take every robot-dependent value (docs/robot.md).
+//! the firmware take every robot-dependent value (book/src/how-to/robot-file.md).
 //!
 //! - [`Robot`]: the sections of the file (body, motors, encoders, bridge,
 //!   IMU, limits, gains), field names with units.

@@ -1,5 +1,5 @@
 //! The sections of the robot file. Every field is documented with its unit;
-//! the ranges are in [`crate::validate`] and docs/robot.md.
+//! the ranges are in [`crate::validate`] and book/src/how-to/robot-file.md.
 
 use controller_core::asmc::{AdaptiveGain, SlidingParams, Switching};
 use controller_core::eso::EsoParams;

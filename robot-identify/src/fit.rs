@@ -1,6 +1,6 @@
 //! The fit: kinematic calibration, then the dynamic parameters of the
 //! reduced model (D1) with per-wheel friction and the motor, by linear
-//! least squares (`docs/identification.md` has the equations; D82).
+//! least squares (`book/src/how-to/identification.md` has the equations; D82).
 //!
 //! 1. **Alignment.** Each signal is put on the rows' time grid with its own
 //!    delay: the runtime's wheel rate is the mean over its last W ticks

@@ -18,7 +18,7 @@
 //! * [`fit`]: the fit itself; [`report`]: its text and robot-file output.
 //!
 //! The equations and what is identifiable from which sensors:
-//! `docs/identification.md`.
+//! `book/src/how-to/identification.md`.
 #![deny(missing_docs)]
 
 pub mod excitation;

@@ -184,7 +184,7 @@ pub fn robot_toml(id: &Identification, prior: &Prior) -> String {
     );
     let _ = writeln!(
         out,
-        "# value ± half-width of the 95 % confidence interval; see docs/identification.md"
+        "# value ± half-width of the 95 % confidence interval; see book/src/how-to/identification.md"
     );
     let mut kv = |key: &str, e: Option<&Estimate>, prior_value: f64| match e {
         Some(e) if e.ci95.is_finite() && !e.consistent_with_zero() => {
@@ -307,7 +307,7 @@ pub fn robot_file(
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "# Identified by `wmr identify fit` from {} rows over {:.1} s (docs/identification.md);",
+        "# Identified by `wmr identify fit` from {} rows over {:.1} s (book/src/how-to/identification.md);",
         id.rows, id.duration_s
     );
     let _ = writeln!(

@@ -339,7 +339,7 @@ fn identifies_the_paper_robot_with_mocap_and_gyro() {
 /// track from the prior, and the report says the track was not identified.
 /// The heading is the gyro's, which reads `scale_error` (0.5 %) high: the
 /// radii read high by the same factor (within the 0.5 % margin of it),
-/// the limit of a gyro-only calibration (docs/identification.md).
+/// the limit of a gyro-only calibration (book/src/how-to/identification.md).
 #[test]
 fn gyro_only_keeps_the_track_from_the_prior_and_says_so() {
     let scn = scenario(1.2, 1.2, Sensing::Imu, 4);

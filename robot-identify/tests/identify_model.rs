@@ -5,7 +5,7 @@
 //! from the prior, quantised encoders with the runtime's 4-tick rate
 //! window, PWM-quantised duties on a mirrored left motor, and noisy
 //! external poses at 100 Hz. The generator below is written from the
-//! equations of docs/identification.md, not from the fit's code.
+//! equations of book/src/how-to/identification.md, not from the fit's code.
 
 use robot_identify::{identify, FitOptions, IdRow, Prior};
 
@@ -246,7 +246,7 @@ fn example_robots_are_identified_and_written_back() {
             // reported so, the viscous friction is a small fraction of the
             // motor's own back-EMF damping a·N·k, with which it shares the
             // regressor φ̇: the 2 kg robot's 0.0005 N·m·s/rad is 4 % of it,
-            // the 10 kg robot's 0.02 about 1 % (docs/identification.md has
+            // the 10 kg robot's 0.02 about 1 % (book/src/how-to/identification.md has
             // the numbers; the latter's interval misses the truth).
             let e = d.viscous_nms_per_rad[w];
             let flagged = id

@@ -4,7 +4,7 @@
 # live_check.py: PyPI `websockets`, written from the Foxglove WebSocket
 # protocol's published spec) while the same run writes its MCAP log; the
 # client's messages must equal the log's (topics, schemas, times, bytes,
-# decoded /odom values) and the shipped layout (docs/foxglove-layout.json)
+# decoded /odom values) and the shipped layout (book/src/how-to/foxglove-layout.json)
 # must name only advertised topics and fields. Loopback only, a free port.
 set -euo pipefail
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
@@ -40,7 +40,7 @@ done
 echo "live view at $URL"
 # The client reads until the server closes, which hil-sim does once the
 # MCAP log of the run is written.
-"$PY" ros-mcap/check/live_check.py "$URL" "$OUT/live.mcap" docs/foxglove-layout.json
+"$PY" ros-mcap/check/live_check.py "$URL" "$OUT/live.mcap" book/src/how-to/foxglove-layout.json
 wait "$SIM_PID" || fail "hil-sim run --live: $(cat "$OUT/run.err")"
 SIM_PID=""
 echo "live check: all passed ($OUT)"

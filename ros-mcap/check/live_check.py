@@ -24,7 +24,7 @@ Checks against the log (read by the PyPI `mcap` package, decoded by
 3. every /odom message decodes (rosbags, the Jazzy definition) to the
    log's values, field by field, and its stamp equals the message time.
 
-4. with LAYOUT (docs/foxglove-layout.json): every topic the layout's
+4. with LAYOUT (book/src/how-to/foxglove-layout.json): every topic the layout's
    panels name is advertised, and every message path's first field is a
    field of that topic's schema (so the layout shows this stream and the
    log alike).
@@ -44,7 +44,7 @@ from rosbags.typesys import Stores, get_typestore
 
 # The spec's name, and the name the `foxglove` crate (0.30.3) negotiates
 # for the same v1 messages (it answers HTTP 400 to the spec's name alone:
-# measured; docs/foxglove.md).
+# measured; book/src/how-to/foxglove.md).
 SUBPROTOCOLS = ["foxglove.websocket.v1", "foxglove.sdk.v1"]
 OP_MESSAGE_DATA = 0x01
 

@@ -2,7 +2,7 @@
 //! (ws-protocol `foxglove.websocket.v1`, the `foxglove` crate) carrying
 //! the MCAP logs' topics with the same `ros2msg` schemas and CDR bytes
 //! ([`crate::CHANNELS`], [`crate::RosMessages::encoded`]), so one Foxglove
-//! layout (`docs/foxglove-layout.json`) shows a log and a live robot or
+//! layout (`book/src/how-to/foxglove-layout.json`) shows a log and a live robot or
 //! simulation alike. `wmr serve --live`, `wmr-ros2 --live` and `hil-sim
 //! run --live` start it; it binds 127.0.0.1 unless told otherwise (D158).
 

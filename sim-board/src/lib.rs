@@ -24,7 +24,7 @@
 //! [`World`] but not this board: there the peripherals are registers the
 //! world's readings are latched into by a plant task half a period after
 //! each tick, so that the tick's measured instruction count is the
-//! firmware's alone (DECISIONS D140).
+//! firmware's alone (book/src/explanation/decisions.md D140).
 //!
 //! `no_std`, no allocation.
 #![no_std]

@@ -386,7 +386,7 @@ impl PoseSource for SimPoseSource {
 }
 
 /// The named sensing presets of the simulator (hil-sim `--sensing`,
-/// docs/scenario.md), also used by the Cortex-M4F benchmark.
+/// book/src/reference/scenario-file.md), also used by the Cortex-M4F benchmark.
 /// The gyro of the `imu`, `mocap` and `uwb` presets: a MEMS gyro of the
 /// BMI088 / ICM-42688 class at its 2000 °/s range, read every tick.
 pub const PRESET_GYRO: GyroModel = GyroModel {

@@ -103,7 +103,7 @@ impl Robot {
         }
     }
 
-    /// The robot of a robot file (docs/robot.md) at rest at the origin:
+    /// The robot of a robot file (book/src/how-to/robot-file.md) at rest at the origin:
     /// sim-robot's plant with the file's body, per-wheel radii and
     /// friction, its motors, encoders (counting the true wheel angle) and
     /// motor directions, as `sim_robot::WorldConfig::of_robot` builds

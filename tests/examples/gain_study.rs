@@ -1,4 +1,4 @@
-//! Evidence for the decisions in docs/DECISIONS.md: k_y (D8), heading
+//! Evidence for the decisions in book/src/explanation/paper-departures.md: k_y (D8), heading
 //! reading (D3), torque limit (D14), SMC gain (D13).
 //! `cargo run --release -p closed-loop-tests --example gain_study`
 use controller_core::ControllerKind;

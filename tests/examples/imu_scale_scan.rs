@@ -1,4 +1,4 @@
-//! The gyro-vs-wheel speed scale (docs/DECISIONS.md D36) off and on: window
+//! The gyro-vs-wheel speed scale (book/src/explanation/decisions.md D36) off and on: window
 //! RMS of the three controllers (smc, asmc, proposed), the proposed's final
 //! speed scale and gyro bias, per Case 2 scenario of tests/tests/sensing.rs,
 //! and the worst ratio proposed / better baseline. A development aid.

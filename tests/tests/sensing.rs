@@ -100,7 +100,7 @@ fn mocap_proposed_near_ideal_and_half_of_baselines() {
 /// invisible and every controller tracks a drifting estimate (window RMS
 /// 0.86-0.98 m). The actuator fault's 20 % loss of body speed is seen by
 /// the gyro against the wheels' yaw (the estimator's gyro-vs-wheel speed
-/// scale, docs/DECISIONS.md D36), so the fused pose shows it and the
+/// scale, book/src/explanation/decisions.md D36), so the fused pose shows it and the
 /// proposed controller's fault observer compensates it (seed 1: proposed
 /// 0.866 m, baselines 0.926 and 0.927 m; without that update all three were
 /// ≈ 1.6 m and the proposed 0.5 % above the better baseline).

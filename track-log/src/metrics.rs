@@ -1,4 +1,4 @@
-//! Run metrics. Every metric's definition is here and in the README.
+//! Run metrics. Every metric's definition is here and in book/src/explanation/results.md.
 //!
 //! Position error = Euclidean distance between the true position of G and the
 //! reference point, sampled at every control step.

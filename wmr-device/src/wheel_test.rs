@@ -17,7 +17,7 @@ use controller_core::runtime::{DutyCommand, Gyro, MotorDriver, MotorModel, Runti
 use wmr_protocol::{ErrorCode, WheelTestCmd, WheelTestEnd, WheelTestResult, WHEEL_TEST_MAX_MS};
 
 /// The largest wheel-test torque of a robot \[N·m\]: the commissioning cap,
-/// the torque limit (the current the driver is rated for, docs/robot.md)
+/// the torque limit (the current the driver is rated for, book/src/how-to/robot-file.md)
 /// and never above the motor's stall torque at its duty limit (the duty of
 /// a larger torque at standstill does not exist). It was a fifth of stall
 /// (D88), below the Coulomb friction of small plastic gearboxes (issue 34,

@@ -3,7 +3,8 @@
 //! A ROS 2 bridge for the trajectory-tracking robot on a pure-Rust ROS 2
 //! client (`ros2-client` over RustDDS: no ROS installation), talking to
 //! the robot through wmr's checked link ([`wmr::Link`]). See
-//! `docs/ros2.md` for the topics, services, QoS, frames and how G is
+//! `book/src/reference/ros2-interface.md` for the topics, services, QoS, and
+//! `book/src/explanation/ros2.md` for the frames and how G is
 //! handled; this library is the mapping, testable without DDS:
 //!
 //! - [`convert`]: base_link ↔ G, covariances, velocity commands, stamps;

@@ -1,4 +1,4 @@
-//! `wmr-ros2`: the ROS 2 bridge's binary (docs/ros2.md). The wiring only:
+//! `wmr-ros2`: the ROS 2 bridge's binary (book/src/how-to/ros2.md). The wiring only:
 //! DDS entities from [`wmr_ros2::topics`], messages moved between them
 //! and [`wmr_ros2::Bridge`].
 
@@ -34,7 +34,7 @@ enum CmdVelType {
 }
 
 /// The ROS 2 distribution whose Nav2 defaults the bridge follows
-/// (docs/ros2.md, "Conventions").
+/// (book/src/explanation/ros2.md, "Conventions").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum Distro {
     /// Jazzy Jalisco (Nav2 publishes Twist).
@@ -66,7 +66,7 @@ enum Mapping {
     Cyclone,
 }
 
-/// ROS 2 bridge for the trajectory-tracking robot (docs/ros2.md): /odom,
+/// ROS 2 bridge for the trajectory-tracking robot (book/src/how-to/ros2.md): /odom,
 /// /tf, /joint_states, /diagnostics, /wmr/tracking out; cmd_vel, a path,
 /// localiser poses and /initialpose in; arm, disarm, emergency stop and
 /// clear stop as std_srvs/Trigger services. Exits non-zero when the link
@@ -77,7 +77,7 @@ struct Args {
     /// The robot's serial port or pty (`hil-sim device --pty` prints one); through its `wmr serve` when one listens on the port's default socket.
     #[arg(long, env = "WMR_PORT")]
     port: Option<String>,
-    /// A `wmr serve` socket to connect through (docs/serve.md).
+    /// A `wmr serve` socket to connect through (book/src/how-to/serve.md).
     #[arg(long, env = "WMR_SERVE")]
     serve: Option<PathBuf>,
     /// Telemetry (/odom, /tf, /joint_states) rate [Hz].
@@ -98,7 +98,7 @@ struct Args {
     /// Topic of the paths to follow (nav_msgs/Path).
     #[arg(long, default_value = topics::DEFAULT_PATH)]
     path_topic: String,
-    /// Topic of a localiser's poses (geometry_msgs/PoseWithCovarianceStamped; AMCL's by default), fused by the robot's estimator at their stamps when in the `odom` frame (a pose in another frame, such as AMCL's `map`, is refused: docs/ros2.md, "Frames").
+    /// Topic of a localiser's poses (geometry_msgs/PoseWithCovarianceStamped; AMCL's by default), fused by the robot's estimator at their stamps when in the `odom` frame (a pose in another frame, such as AMCL's `map`, is refused: book/src/explanation/ros2.md, "Poses").
     #[arg(long, default_value = topics::DEFAULT_LOCALISER)]
     localiser_topic: String,
     /// d, G ahead of the axle midpoint [m] [default: body.com_offset_m of the robot file the robot runs, read from its store; the bridge does not start when the robot cannot tell].
@@ -123,7 +123,7 @@ struct Args {
     #[arg(long)]
     mcap: Option<PathBuf>,
     /// Also serve a live view to Foxglove (a ws-protocol WebSocket server
-    /// with the topics and schemas of the MCAP logs; docs/foxglove.md).
+    /// with the topics and schemas of the MCAP logs; book/src/how-to/foxglove.md).
     #[arg(long)]
     live: bool,
     /// Address the live view binds (loopback unless you open it).
@@ -399,7 +399,7 @@ fn run(a: &Args) -> Result<(), String> {
             return Err(format!("--for-s {s}: must be > 0"));
         }
     }
-    // The port itself, or the `wmr serve` that owns it (docs/serve.md):
+    // The port itself, or the `wmr serve` that owns it (book/src/how-to/serve.md):
     // the same `Link` either way.
     let endpoint = wmr::serve::Endpoint::resolve(a.port.as_deref(), a.serve.as_deref())
         .map_err(|e| e.to_string())?;

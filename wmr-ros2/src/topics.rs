@@ -1,5 +1,5 @@
 //! Every topic and service of the bridge: name, ROS type and QoS, in one
-//! table (`main.rs` creates them from it; `docs/ros2.md` lists it).
+//! table (`main.rs` creates them from it; `book/src/reference/ros2-interface.md` lists it).
 //!
 //! QoS as Nav2 expects it (Jazzy):
 //! - `/odom`, `/joint_states`, `/diagnostics`, `/wmr/tracking`: reliable,

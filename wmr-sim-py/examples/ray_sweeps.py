@@ -1,5 +1,5 @@
 """A Monte-Carlo and one generation of a tuning population over a Ray
-cluster, checked against the single-process run (docs/python.md).
+cluster, checked against the single-process run (book/src/how-to/python.md).
 
 On one machine this starts a local cluster (`ray.init()`, real worker
 processes); with `--address auto` it joins the cluster `ray start` made

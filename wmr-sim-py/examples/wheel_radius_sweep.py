@@ -1,4 +1,4 @@
-"""Worked example of docs/python.md: how much does a wrong wheel radius in
+"""Worked example of book/src/how-to/python.md: how much does a wrong wheel radius in
 the controller's model cost each controller?
 
 The plant's wheels are made larger or smaller than the robot file says (the

@@ -5,7 +5,7 @@
 //! batch across threads (the GIL released), traces as numpy arrays, the
 //! CLI's metrics keys, the paper comparison, Monte-Carlo statistics and
 //! the tuner's cost. Nothing is simulated here: every call goes to
-//! hil-sim's library functions, the ones its CLI calls (docs/python.md).
+//! hil-sim's library functions, the ones its CLI calls (book/src/how-to/python.md).
 //!
 //! The native module is `wmrsim._native`; the Python side
 //! (`python/wmrsim/`) adds the `Trace` wrapper, pandas, and the Ray

@@ -34,7 +34,7 @@ fn existing(path: &Path, what: &str) -> Result<()> {
     }
 }
 
-/// A robot file (docs/robot.md): the controller's model, gains, motor,
+/// A robot file (book/src/how-to/robot-file.md): the controller's model, gains, motor,
 /// encoder and limits, validated as `hil-sim --robot FILE` validates it.
 ///
 /// Build one with `Robot.from_file(path)`, `Robot.from_toml(text)`,
@@ -126,7 +126,7 @@ impl Robot {
 }
 
 /// A scenario: every knob of one run except the controller (the paper's
-/// presets, scenario files of docs/scenario.md, any field changed with
+/// presets, scenario files of book/src/reference/scenario-file.md, any field changed with
 /// `replace`), validated as `hil-sim run` validates it.
 #[pyclass(module = "wmrsim", frozen, from_py_object)]
 #[derive(Clone)]
@@ -229,7 +229,7 @@ impl Scenario {
 
     /// `hil-sim sweep`'s base scenario for `robot`: the 2 m circle at
     /// 0.5 m/s, a disturbance in 10-35 s, motion capture through the
-    /// firmware runtime (docs/sweeps.md).
+    /// firmware runtime (book/src/how-to/mismatch-sweeps.md).
     #[staticmethod]
     #[pyo3(signature = (robot, *, seed=1, duration_s=40.0))]
     fn sweep_base(robot: Robot, seed: u64, duration_s: f64) -> Result<Self> {

@@ -1,5 +1,5 @@
 //! [`TuneSet`]: the tuner's scenario set and cost (`hil-sim tune`,
-//! docs/tuning.md) for an outside optimiser or scheduler: the gains it
+//! book/src/how-to/tuning.md) for an outside optimiser or scheduler: the gains it
 //! tunes and their bounds, the start point, and the cost of one gain
 //! vector of the unit box (what the optimiser minimises) or of a whole
 //! population. hil-sim's `tune::cost::evaluate_with` and `tune::space`

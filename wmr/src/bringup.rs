@@ -1,5 +1,5 @@
 //! `wmr bringup`: the guided bring-up of a new robot (issue 34,
-//! docs/bringup.md): commission → identification run → fit → tune →
+//! book/src/how-to/bringup.md): commission → identification run → fit → tune →
 //! push → verification, each step's result printed with its numbers and
 //! what to do next, each step resumable: its outcome is kept in a state
 //! file next to the robot file (`FILE.bringup.toml`), and a run starts at
@@ -208,7 +208,7 @@ fn save_state(path: &Path, s: &State) -> Result<(), BringupError> {
     let text = toml::to_string(s).map_err(|e| BringupError::Output(e.to_string()))?;
     std::fs::write(
         path,
-        format!("# wmr bringup's state (docs/bringup.md); delete to start over\n{text}"),
+        format!("# wmr bringup's state (book/src/how-to/bringup.md); delete to start over\n{text}"),
     )
     .map_err(|e| BringupError::File {
         path: path.display().to_string(),

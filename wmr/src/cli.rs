@@ -80,10 +80,10 @@ pub enum Command {
     /// needed): the numbers `record` prints.
     Metrics(crate::record::MetricsArgs),
     /// Guided first power-up: each wheel driven alone, wiring and the robot
-    /// file checked, the corrected file proposed (docs/commissioning.md).
+    /// file checked, the corrected file proposed (book/src/how-to/commissioning.md).
     Commission(crate::commission::CommissionArgs),
     /// Guided bring-up: commission, identification run, fit, tune, push,
-    /// verification; each step resumable (docs/bringup.md).
+    /// verification; each step resumable (book/src/how-to/bringup.md).
     Bringup(crate::bringup::BringupArgs),
     /// The robot file in the robot's flash: push, pull, diff, check.
     Robot(crate::robot::RobotArgs),

@@ -1,5 +1,5 @@
 //! `wmr commission`: the guided first power-up (issue 18,
-//! docs/commissioning.md). Each wheel is driven alone in each direction
+//! book/src/how-to/commissioning.md). Each wheel is driven alone in each direction
 //! with the robot's wheel test (`Request::WheelTest`: hold only, open
 //! loop, at most the torque limit, at most 2 s, ended by the robot) at a
 //! torque above the wheel's breakaway friction (the file's, raised step by

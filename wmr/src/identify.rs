@@ -1,6 +1,6 @@
 //! `wmr identify run` and `wmr identify fit`: drive the identification
 //! excitation and record it, then fit the robot's parameters from the log
-//! (robot-identify; docs/identification.md).
+//! (robot-identify; book/src/how-to/identification.md).
 //!
 //! `run` uploads the excitation as streamed waypoints (the `upload --arm`
 //! path: no protocol change), records every telemetry frame at the asked
@@ -61,7 +61,7 @@ pub struct RunArgs {
     /// 100 Hz the link carried without loss in a 0.5 s probe in hold].
     #[arg(long)]
     pub rate: Option<u16>,
-    /// The robot file of the robot (docs/robot.md): its mass, inertia,
+    /// The robot file of the robot (book/src/how-to/robot-file.md): its mass, inertia,
     /// wheel inertia and d enter the torque check of the excitation
     /// [default: the handshake's r, h and mass with the paper robot's
     /// inertias, which overstate a small robot's torque many times].
@@ -76,7 +76,7 @@ pub struct FitArgs {
     #[arg(value_name = "LOG.csv")]
     pub log: PathBuf,
     /// The robot as configured when the log was recorded: a robot file
-    /// (docs/robot.md), or a flat TOML of `RobotParams` and `MotorParams`
+    /// (book/src/how-to/robot-file.md), or a flat TOML of `RobotParams` and `MotorParams`
     /// keys (`mass_kg`, ..., `duty_full_scale`, `control_period_s`,
     /// `speed_window_ticks`) [default: robots/paper.toml's robot].
     #[arg(long, value_name = "PRIOR.toml")]

@@ -2,7 +2,7 @@
 //!
 //! Host tool for the trajectory-tracking robot: talks [`wmr_protocol`] over a
 //! serial port, a USB CDC-ACM port or the pseudo-terminal of the simulated
-//! robot (`hil-sim device --pty`). See `wmr --help` and the README.
+//! robot (`hil-sim device --pty`). See `wmr --help` and book/src/how-to/talk-to-the-robot.md.
 //!
 //! ## Through `wmr serve`
 //!
@@ -14,7 +14,7 @@
 //! [`serve::open_link`] opens it and shakes hands as every `wmr` command
 //! does; [`Link::connect`] takes a known socket. The link behaves as over
 //! the port (the server routes answers by sequence number and fans
-//! telemetry out; docs/serve.md):
+//! telemetry out; book/src/how-to/serve.md):
 //!
 //! ```no_run
 //! use wmr::serve::{open_link, Endpoint};

@@ -26,7 +26,7 @@ pub enum RobotOp {
     /// Validate FILE locally, store it in the robot's flash (hold only),
     /// read it back and compare, then reboot the robot into it.
     Push {
-        /// Robot file (TOML, docs/robot.md).
+        /// Robot file (TOML, book/src/how-to/robot-file.md).
         file: PathBuf,
         /// Store only: the robot runs it from its next boot.
         #[arg(long)]

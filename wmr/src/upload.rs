@@ -1,6 +1,6 @@
 //! `wmr upload FILE.toml`: a reference file into requests.
 //!
-//! The schema follows the simulator's scenario files (docs/scenario.md)
+//! The schema follows the simulator's scenario files (book/src/reference/scenario-file.md)
 //! where it applies: `trajectory` names the same shapes, so
 //! `wmr upload scenarios/example.toml` loads the reference that
 //! `hil-sim run --scenario scenarios/example.toml` tracks. Keys that
@@ -42,7 +42,7 @@ pub enum Upload {
 
 /// Scenario keys that describe the simulated world, not the reference:
 /// the flat keys of version-1 scenario files and the `version` key and part
-/// tables of version 2 (docs/scenario.md).
+/// tables of version 2 (book/src/reference/scenario-file.md).
 const SIMULATOR_KEYS: [&str; 26] = [
     "version",
     "plant",

@@ -1,4 +1,4 @@
-//! The speed scale seen by the gyro (docs/DECISIONS.md D36): a
+//! The speed scale seen by the gyro (book/src/explanation/decisions.md D36): a
 //! pseudo-measurement of s from the gyro's yaw against the wheels'.
 //!
 //! The actuator fault ε of the paper (eq. 10) moves the body at (1 − ε)·η,
@@ -55,7 +55,7 @@ pub(super) struct Window {
 // Without it (the firmware built without an IMU, where no tick uses a gyro
 // and the update could never run) it is left out of the image, and `Window`
 // is empty: 0.9 KiB of flash and 192 B of RAM on the STM32F411
-// (docs/DECISIONS.md D36).
+// (book/src/explanation/decisions.md D36).
 
 impl Window {
     /// Adds the tick `u` whose wheels turned by `wheel_dth_rad`.

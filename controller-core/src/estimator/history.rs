@@ -1,4 +1,4 @@
-//! The history a late measurement is applied to (docs/DECISIONS.md D31):
+//! The history a late measurement is applied to (book/src/explanation/decisions.md D31):
 //! per tick only what the prediction needs to replay it ([`Tick`], 16 B:
 //! stamp, Δt with the gyro and standstill flags, Δs, the gyro rate or the
 //! wheels' Δθ), and every `K` ticks a snapshot of the posterior (state and

@@ -26,7 +26,7 @@
 //!   [`PoseEstimator::GUARANTEED_DEPTH_TICKS`] ticks ago: 255 for the
 //!   default [`HISTORY_LEN`] = 272). The filter keeps, per tick, only the
 //!   inputs of the prediction (16 B), and every 17 ticks a snapshot of the
-//!   state and covariance (`history.rs`, docs/DECISIONS.md D31). The
+//!   state and covariance (`history.rs`, book/src/explanation/decisions.md D31). The
 //!   measurement restores the snapshot at or before its stamp, replays the
 //!   stored inputs to the stamp, updates there, then the later ticks are
 //!   re-propagated from the stored inputs with the same arithmetic as the

@@ -1,7 +1,7 @@
 //! The estimate's uncertainty in the shape ROS's `/odom` reports it
 //! (`base_link` = the axle midpoint O_B, the filter's own state), computed
 //! on demand: only when a telemetry frame carrying it is sent, never in the
-//! control tick (docs/DECISIONS.md D155, D156).
+//! control tick (book/src/explanation/decisions.md D155, D156).
 
 use super::{ix, PoseEstimator};
 use crate::estimator::GyroState;

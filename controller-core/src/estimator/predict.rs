@@ -1,5 +1,5 @@
 //! The prediction of one tick in closed form (the EKF's time update, used
-//! live and to replay and re-propagate the history; docs/DECISIONS.md D31).
+//! live and to replay and re-propagate the history; book/src/explanation/decisions.md D31).
 //!
 //! State x = \[x, y, θ, b, k\] (axle midpoint, heading, gyro bias, speed
 //! scale), covariance P stored as its packed upper triangle. With the

@@ -58,7 +58,7 @@ impl SafetyLimits {
     /// jump > 400 counts/tick, stall at >= 2 N·m for 250 ms, a tick more
     /// than 0.5 ms behind schedule late with 5 in a row latching, the first
     /// NaN/implausible input latching; the direction check at >= 1 N·m
-    /// against >= 10 rad/s² for 4 blocks of 20 ms (80 ms; DECISIONS D74).
+    /// against >= 10 rad/s² for 4 blocks of 20 ms (80 ms; book/src/explanation/decisions.md D74).
     pub const EXAMPLE: Self = Self {
         max_counts_per_tick: 400,
         stall_torque_nm: 2.0,

@@ -37,7 +37,7 @@ pub struct EncoderParams {
     /// Per wheel `[right, left]`: the wheel's radius over the controller
     /// model's (mean) radius, r_i/r̄, in [`Self::RADIUS_SCALE_RANGE`]. The
     /// runtime's wheel angle per count is `2π·radius_scale/cpr`, so the
-    /// model's r̄ times it is the wheel's true arc per count (docs/DECISIONS.md
+    /// model's r̄ times it is the wheel's true arc per count (book/src/explanation/decisions.md
     /// D60). 1 for equal wheels.
     pub radius_scale: [f32; 2],
 }

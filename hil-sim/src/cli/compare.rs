@@ -168,7 +168,7 @@ pub fn paper_cases_beyond(r: &Robot) -> Option<String> {
         format!(
             "note: the paper's cases are beyond robot {:?}: {why}. The table shows saturation, not tracking. \
              For a reference and disturbances within the robot's limits: `hil-sim sweep --robot FILE` \
-             (docs/sweeps.md) and `hil-sim tune --robot FILE` (docs/tuning.md)",
+             (book/src/how-to/mismatch-sweeps.md) and `hil-sim tune --robot FILE` (book/src/how-to/tuning.md)",
             r.name,
         )
     })

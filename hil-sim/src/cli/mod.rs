@@ -62,7 +62,7 @@ pub enum Command {
     /// friction, motor constant, actuation delay; the three controllers.
     Sweep(sweep::SweepArgs),
     /// Tunes the gains of the three controllers for a robot file over a
-    /// Monte-Carlo set drawn around it (docs/tuning.md); writes FILE.tuned.toml.
+    /// Monte-Carlo set drawn around it (book/src/how-to/tuning.md); writes FILE.tuned.toml.
     Tune(Box<tune::TuneArgs>),
     /// Combines shard files of `tune --shard` into the tuned robot file.
     TuneMerge(tune::TuneMergeArgs),

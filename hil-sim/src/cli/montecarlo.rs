@@ -29,7 +29,7 @@ pub struct McArgs {
     /// Run length [s] [default: the paper's 40 s].
     #[arg(long, value_name = "s")]
     pub duration: Option<f64>,
-    /// Sensing preset of every run (docs/scenario.md).
+    /// Sensing preset of every run (book/src/reference/scenario-file.md).
     #[arg(long, value_enum, default_value = "ideal")]
     pub sensing: Sensing,
     /// Every run in the paper's setting (no governor or health machine, law (14)

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 /// The robot files of a command.
 #[derive(Debug, Args, Default, Clone)]
 pub struct RobotArgs {
-    /// Robot file (docs/robot.md, examples in robots/): the controller's
+    /// Robot file (book/src/how-to/robot-file.md, examples in robots/): the controller's
     /// model, gains, motor, encoder and limits, and the simulated robot
     /// unless --plant names another [default: the paper's robot].
     #[arg(long, value_name = "FILE.toml")]

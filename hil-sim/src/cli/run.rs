@@ -30,7 +30,7 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE.mcap")]
     pub mcap: Option<PathBuf>,
     /// Stream the run as it runs to Foxglove (a ws-protocol WebSocket
-    /// server; the topics and schemas of --mcap; docs/foxglove.md), paced at
+    /// server; the topics and schemas of --mcap; book/src/how-to/foxglove.md), paced at
     /// real time: each row published when the wall clock reaches its
     /// time since the start.
     #[arg(long)]

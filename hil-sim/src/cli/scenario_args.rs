@@ -64,13 +64,13 @@ pub struct ScenarioArgs {
     /// Paper preset: 1 = disturbance + slip, 2 = + actuator fault [default: 2].
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=2), conflicts_with = "scenario")]
     pub case: Option<u8>,
-    /// Scenario TOML file (schema: docs/scenario.md); the flags below override it.
+    /// Scenario TOML file (schema: book/src/reference/scenario-file.md); the flags below override it.
     #[arg(long, value_name = "FILE.toml")]
     pub scenario: Option<PathBuf>,
     /// The robot files (`--robot`, `--plant`).
     #[command(flatten)]
     pub robots: super::robot_arg::RobotArgs,
-    /// Every knob of the scenario (docs/scenario.md): the fields of
+    /// Every knob of the scenario (book/src/reference/scenario-file.md): the fields of
     /// [`Scenario`] and of its parts.
     #[command(flatten)]
     pub flags: Flags<Scenario>,

@@ -1,5 +1,5 @@
 //! `hil-sim tune` and `hil-sim tune-merge`: gains for a robot file
-//! (docs/tuning.md).
+//! (book/src/how-to/tuning.md).
 
 use crate::progress::Progress;
 use crate::scenario::Sensing;
@@ -25,7 +25,7 @@ pub const DEFAULT_DURATION_S: f64 = 35.0;
 /// `tune` options.
 #[derive(Debug, Args)]
 pub struct TuneArgs {
-    /// The robot file to tune (docs/robot.md): its model is the
+    /// The robot file to tune (book/src/how-to/robot-file.md): its model is the
     /// controllers', its gains the start.
     #[arg(long, value_name = "FILE.toml")]
     pub robot: PathBuf,

@@ -1,5 +1,5 @@
 //! `hil-sim tune`: gains for a robot chosen by minimising a robust cost
-//! over a Monte-Carlo set drawn around it (issue 19, docs/tuning.md).
+//! over a Monte-Carlo set drawn around it (issue 19, book/src/how-to/tuning.md).
 //!
 //! In layers: [`space`] (which gains, their bounds, the unit box),
 //! [`set`] (the training and validation scenarios), [`cost`] (one
@@ -822,7 +822,7 @@ impl TuneOutcome {
         let j = &self.job;
         let mut h = String::new();
         h.push_str(&format!(
-            "# {}: gains tuned by `hil-sim tune` (docs/tuning.md).\n# Command:\n#   {command}\n",
+            "# {}: gains tuned by `hil-sim tune` (book/src/how-to/tuning.md).\n# Command:\n#   {command}\n",
             robot.name
         ));
         h.push_str(&format!(

@@ -21,7 +21,7 @@ same inputs and seed.
 Bad input raises ``InvalidInputError`` (a ``ValueError``; ``err.field``
 names the field when known) with the CLI's message; a run that cannot
 finish raises ``SimulationError``; a missing file ``FileNotFoundError``.
-See docs/python.md.
+See book/src/how-to/python.md.
 """
 
 from typing import Any, Dict, Iterator, Sequence, Tuple

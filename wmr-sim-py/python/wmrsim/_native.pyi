@@ -22,7 +22,7 @@ class SimulationError(RuntimeError):
     """A simulation that could not run to its end."""
 
 class Robot:
-    """A robot file (docs/robot.md), validated as `hil-sim --robot FILE`."""
+    """A robot file (book/src/how-to/robot-file.md), validated as `hil-sim --robot FILE`."""
 
     @staticmethod
     def paper() -> Robot: ...
@@ -38,7 +38,7 @@ class Robot:
     def name(self) -> str: ...
 
 class Scenario:
-    """Every knob of one run except the controller (docs/scenario.md)."""
+    """Every knob of one run except the controller (book/src/reference/scenario-file.md)."""
 
     @staticmethod
     def paper_case(
@@ -156,7 +156,7 @@ class MonteCarlo:
     def describe(self) -> str: ...
 
 class TuneSet:
-    """The tuner's scenario set and cost (`hil-sim tune`, docs/tuning.md)."""
+    """The tuner's scenario set and cost (`hil-sim tune`, book/src/how-to/tuning.md)."""
 
     def __init__(
         self,

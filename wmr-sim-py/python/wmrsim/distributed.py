@@ -14,7 +14,7 @@ number, on one machine or many.
 
 Start a multi-node cluster with ``ray start --head`` on one machine and
 ``ray start --address=HEAD:6379`` on the others (each with this package
-installed); the same calls then spread over every node (docs/python.md).
+installed); the same calls then spread over every node (book/src/how-to/python.md).
 """
 
 from typing import Any, List, Optional, Sequence

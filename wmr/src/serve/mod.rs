@@ -84,7 +84,7 @@ pub struct ServeArgs {
     #[arg(long, value_name = "S")]
     pub give_up_after: Option<f64>,
     /// Also serve a live view to Foxglove (a ws-protocol WebSocket server:
-    /// the topics and schemas of `wmr record --mcap`; docs/foxglove.md).
+    /// the topics and schemas of `wmr record --mcap`; book/src/how-to/foxglove.md).
     /// The server then asks the robot for every telemetry group at
     /// --live-rate-hz itself.
     #[arg(long)]
