@@ -190,6 +190,23 @@ fn a_pushed_file_runs_its_own_controller_from_its_own_start_pose() {
         )
         .unwrap();
         assert_eq!(status(&mut link).robot.source, RobotSource::Flash);
+        // Where the robot stands, as the host reads it to start a path
+        // there: motion capture (this scenario's sensing) puts the robot at
+        // the paper case's (2.5, 0, 0) where the plant stands, whatever
+        // pose odometry booted at. (The host's wait for a settled estimate
+        // guards a race this in-process link does not reproduce: `wmr
+        // bringup` over a pty read the boot pose and started its circle
+        // 2.6 m from the robot.)
+        link.command(&Request::SetTelemetry {
+            selection: TELEMETRY_ALL,
+            rate_hz: 50,
+        })
+        .unwrap();
+        let p = wmr::identify::current_pose(&mut link).unwrap();
+        assert!(
+            (p.x_m - 2.5).abs() < 0.02 && p.y_m.abs() < 0.02 && p.theta_rad.abs() < 0.02,
+            "follow {follow}: {p:?}"
+        );
         stop.store(true, Ordering::Relaxed);
         let mut robot = handle.join().unwrap();
         assert_eq!(robot.reboots(), 1);

@@ -306,18 +306,45 @@ pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), FitError> {
     Ok(())
 }
 
-/// The pose the robot reports in hold (from one telemetry frame).
-pub(crate) fn current_pose(link: &mut Link) -> Result<controller_core::Pose, LinkError> {
+/// Two telemetry poses of a robot in hold this far apart in robot time
+/// \[µs\] that agree within [`SETTLED_POS_M`] and [`SETTLED_HEADING_RAD`]
+/// give its pose: in hold the robot does not move, so a pose that still
+/// changes is its estimator correcting (the first external poses fused
+/// after a boot move it from the file's start pose to where the robot
+/// stands).
+const SETTLED_GAP_US: u32 = 200_000;
+/// See [`SETTLED_GAP_US`] \[m\] (motion capture's noise is ~2 mm).
+const SETTLED_POS_M: f32 = 0.01;
+/// See [`SETTLED_GAP_US`] \[rad\].
+const SETTLED_HEADING_RAD: f32 = 0.01;
+
+/// The pose the robot reports in hold, once its estimate has settled
+/// ([`SETTLED_GAP_US`]); the latest after 3 s if it never does.
+pub fn current_pose(link: &mut Link) -> Result<controller_core::Pose, LinkError> {
     let t0 = Instant::now();
-    while t0.elapsed() < Duration::from_secs(2) {
+    let mut anchor: Option<(u32, controller_core::Pose)> = None;
+    let mut latest = None;
+    while t0.elapsed() < Duration::from_secs(3) {
         if let Some(Reply::Telemetry(t)) = link.next_stream(Duration::from_millis(20))? {
             if let Some(tr) = t.tracking {
-                let p = tr.pose;
-                return Ok(controller_core::Pose::new(p.x_m, p.y_m, p.theta_rad));
+                let p = controller_core::Pose::new(tr.pose.x_m, tr.pose.y_m, tr.pose.theta_rad);
+                latest = Some(p);
+                match anchor {
+                    Some((t_us, a)) if t.t_robot_us.wrapping_sub(t_us) >= SETTLED_GAP_US => {
+                        let moved_m = ((p.x_m - a.x_m).powi(2) + (p.y_m - a.y_m).powi(2)).sqrt();
+                        let turned = controller_core::math::wrap_angle(p.theta_rad - a.theta_rad);
+                        if moved_m <= SETTLED_POS_M && turned.abs() <= SETTLED_HEADING_RAD {
+                            return Ok(p);
+                        }
+                        anchor = Some((t.t_robot_us, p));
+                    }
+                    Some(_) => {}
+                    None => anchor = Some((t.t_robot_us, p)),
+                }
             }
         }
     }
-    Err(LinkError::NoAnswer("telemetry (no frame for 2 s)".into()))
+    latest.ok_or_else(|| LinkError::NoAnswer("telemetry (no frame for 3 s)".into()))
 }
 
 /// Rates the probe tries, fastest first \[Hz\].

@@ -65,16 +65,17 @@ pub fn parse_miswire(s: &str) -> Result<Miswire, String> {
 /// The scenario and controller `hil-sim device` serves: with `--robot FILE`
 /// and no `--scenario`, the robot starts where its file says odometry
 /// starts (`[control] initial_*`, as the firmware boots), not at the paper
-/// case's 2.5 m (`--initial-pose` overrides); the controller is
+/// case's 2.5 m (`--initial-pose` overrides), and without the paper case's
+/// perturbations unless `--case` or their flags ask (its 1 N·m disturbance
+/// alone is 4x a TB6612 robot's torque limit); the controller is
 /// `--controller`, else the file's `[control] controller`.
 pub fn device_scenario(
     a: &DeviceArgs,
 ) -> Result<(crate::scenario::Scenario, ControllerKind), String> {
-    let mut scn = a.scenario.build()?;
-    if a.scenario.scenario.is_none()
-        && a.scenario.robots.robot.is_some()
-        && a.scenario.flags.get::<[f64; 3]>("initial_pose").is_none()
-    {
+    let s = &a.scenario;
+    let robot_only = s.scenario.is_none() && s.robots.robot.is_some();
+    let mut scn = s.build_from(robot_only && s.case.is_none())?;
+    if robot_only && s.flags.get::<[f64; 3]>("initial_pose").is_none() {
         let c = &scn.robot.control;
         scn.initial_pose = [
             c.initial_x_m as f64,

@@ -61,7 +61,8 @@ impl<T: Args> Args for Flags<T> {
 /// Scenario selection and overrides shared by `run` and `device`.
 #[derive(Debug, Args, Default, Clone)]
 pub struct ScenarioArgs {
-    /// Paper preset: 1 = disturbance + slip, 2 = + actuator fault [default: 2].
+    /// Paper preset: 1 = disturbance + slip, 2 = + actuator fault [default:
+    /// 2; `device --robot FILE`: none, the robot unperturbed].
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=2), conflicts_with = "scenario")]
     pub case: Option<u8>,
     /// Scenario TOML file (schema: book/src/reference/scenario-file.md); the flags below override it.
@@ -80,6 +81,15 @@ impl ScenarioArgs {
     /// The scenario: the file or the paper preset (whose β, ε are drawn
     /// from `--seed`), then the flags given on top; validated.
     pub fn build(&self) -> Result<Scenario, String> {
+        self.build_from(false)
+    }
+
+    /// [`Self::build`]; with `nominal`, the preset's perturbations are
+    /// dropped before the flags apply (`hil-sim device --robot FILE`: the
+    /// paper case's 1 N·m disturbance, slip and fault are for the paper's
+    /// 15 kg robot; `--case`, a scenario file or the perturbation flags
+    /// bring them back).
+    pub fn build_from(&self, nominal: bool) -> Result<Scenario, String> {
         let mut scn = match &self.scenario {
             Some(path) => load_scenario(path)?,
             None => Scenario::paper_case(
@@ -89,6 +99,9 @@ impl ScenarioArgs {
                 None,
             ),
         };
+        if nominal {
+            scn.perturbations = crate::scenario::PerturbationPart::none();
+        }
         let (robot, plant) = self.robots.load()?;
         scn = scn.with_robots(robot.as_ref(), plant.as_ref());
         self.flags.apply(&mut scn)?;

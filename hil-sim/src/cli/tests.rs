@@ -521,6 +521,21 @@ fn the_device_starts_where_its_robot_file_says() {
     let (scn, kind) = scn_of(&["device", "--pty", "--robot", f]);
     assert_eq!(scn.initial_pose, [-1.5, 0.25, 2.0]);
     assert_eq!(kind, ControllerKind::Smc);
+    // Unperturbed: the paper case's 1 N·m disturbance is 4x this robot's
+    // 0.25 N·m torque limit.
+    assert_eq!(scn.perturbations, crate::scenario::PerturbationPart::none());
+    // --case brings the paper's perturbations back; a flag sets its own.
+    let (scn, _) = scn_of(&["device", "--pty", "--robot", f, "--case", "2"]);
+    assert_eq!(scn.perturbations.disturbance_nm, 1.0);
+    assert!(scn.perturbations.eps > 0.0);
+    let (scn, _) = scn_of(&[
+        "device", "--pty", "--robot", f, "--window", "5,9", "--beta", "0.05",
+    ]);
+    assert_eq!(scn.perturbations.window_s, [5.0, 9.0]);
+    assert_eq!(
+        (scn.perturbations.beta, scn.perturbations.disturbance_nm),
+        (0.05, 0.0)
+    );
     let (scn, kind) = scn_of(&[
         "device",
         "--pty",
@@ -536,6 +551,7 @@ fn the_device_starts_where_its_robot_file_says() {
     // No robot file: the paper case as before.
     let (scn, kind) = scn_of(&["device", "--pty"]);
     assert_eq!(scn.initial_pose, [2.5, 0.0, 0.0]);
+    assert_eq!(scn.perturbations.disturbance_nm, 1.0);
     assert_eq!(kind, ControllerKind::Proposed);
     let _ = std::fs::remove_dir_all(&dir);
 }
