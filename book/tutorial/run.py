@@ -39,7 +39,9 @@ ROS 2 bridge starts a DDS participant. Fails loudly with the step (section
 and line), the command and what differed; never hangs (a timeout per command,
 the background processes killed at the end).
 
-Usage: python3 book/tutorial/run.py [PAGE]
+Usage: python3 book/tutorial/run.py [--show] [PAGE]   (--show: print every
+command's output, to write the page from)
+       python3 book/tutorial/run.py --self-test        (the matching rules)
 """
 
 import os
@@ -88,7 +90,12 @@ class File:
 def parse(path):
     """The page's steps in order: File and Command objects, and the ```sh
     blocks not run."""
-    lines = open(path, encoding="utf-8").read().split("\n")
+    return parse_text(open(path, encoding="utf-8").read(), path)
+
+
+def parse_text(text, path):
+    """parse() of the page's text."""
+    lines = text.split("\n")
     steps, skipped = [], []
     section = "(top)"
     pending = {}
@@ -328,8 +335,51 @@ def in_private_network():
     os.execvp("unshare", ["unshare", "-n", "bash", "-c", setup])
 
 
+def self_test():
+    """The matching rules on made-up output: each case could fail for a
+    real bug in pattern() or compare()."""
+    def ok(shown, output):
+        try:
+            compare(Command("cmd", 1, "s", shown, 0, 1.0), output)
+            return True
+        except Failure:
+            return False
+    out = "a 1.5 m\nnoise\nb -3e-4 rad (x 12)\nc done"
+    cases = [
+        (["a 2.25 m", "b 7 rad (x 1)"], True),      # numbers vary, lines between
+        (["a 2.25 m", "c done"], True),
+        (["b 7 rad (x 1)", "a 2.25 m"], False),     # order
+        (["a 2.25 km"], False),                     # a unit is text
+        (["a m"], False),                           # a number left out
+        (["b ... (x 1)"], True),                    # ... is any text
+        (["...", "c done"], True),                  # a line of ... skips
+        (["c   done"], True),                       # whitespace collapsed
+        (["c done!"], False),
+        (["d"], False),
+    ]
+    for shown, want in cases:
+        if ok(shown, out) != want:
+            print(f"tutorial: self-test FAIL: {shown} against {out!r}: expected "
+                  f"{'a match' if want else 'no match'}", file=sys.stderr)
+            return 1
+    steps, _ = parse_text("<!-- tutorial: exit 1 -->\n```console\n$ false \\\n  x\nshown\n$ true\n```\n"
+                          "<!-- tutorial: check /v=([0-9.]+)/ < 2 -->\n", "self-test")
+    if ([(c.text, c.exit_code, c.expected, len(c.checks)) for c in steps]
+            != [("false \n  x", 1, ["shown"], 0), ("true", 0, [], 1)]):
+        print(f"tutorial: self-test FAIL: parse gave {[(c.text, c.exit_code, c.expected) for c in steps]}",
+              file=sys.stderr)
+        return 1
+    print(f"tutorial: runner self-test passed ({len(cases) + 1} cases)")
+    return 0
+
+
 def main():
-    page = os.path.abspath(sys.argv[1]) if len(sys.argv) > 1 else PAGE
+    args = sys.argv[1:]
+    if "--self-test" in args:
+        return self_test()
+    show = "--show" in args
+    args = [a for a in args if a != "--show"]
+    page = os.path.abspath(args[0]) if args else PAGE
     missing = [b for b in BINARIES if not os.access(os.path.join(ROOT, "target", "release", b), os.X_OK)]
     if missing:
         print(f"tutorial: FAIL: target/release/{', '.join(missing)} missing: build them as the page "
@@ -368,6 +418,8 @@ def main():
                 shell.background(step)
                 continue
             rc, out = shell.run(step)
+            if show:
+                print(out.rstrip("\n"))
             if rc != step.exit_code:
                 raise Failure(f"{step.where()}: `{step.text}` exited with status {rc}, the page "
                               f"expects {step.exit_code}\n--- output:\n{out}")
