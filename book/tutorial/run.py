@@ -47,6 +47,7 @@ command's output, to write the page from)
 import os
 import re
 import shlex
+import shutil
 import signal
 import subprocess
 import sys
@@ -432,8 +433,9 @@ def main():
         return 1
     finally:
         shell.stop()
-    print(f"tutorial: all {n_cmd} commands of {rel} passed in {time.monotonic() - t0:.1f} s "
-          f"(files in {home})")
+        shutil.rmtree(shell.state, ignore_errors=True)
+    print(f"tutorial: all {n_cmd} commands of {rel} passed in {time.monotonic() - t0:.1f} s")
+    shutil.rmtree(home, ignore_errors=True)
     return 0
 
 
