@@ -18,7 +18,8 @@ The page is the script: nothing here repeats a command of it. In page order:
   group, searched in the output of the block's last command, must satisfy OP
   (<, <=, >, >=) NUMBER: the bounds the page states in words;
 * ``<!-- tutorial: timeout S -->`` before a block: its commands' ceiling
-  (default 180 s each);
+  (default 90 s each; the longest takes 16 s), and the whole run stops after
+  400 s (it takes about 55 s);
 * a command ending in `` &`` runs in the background; its stdout must go to a
   file (``> FILE``), which the runner waits for (its first line, 15 s at most)
   before the next command, as the reader waits for the line to appear. It is
@@ -57,7 +58,8 @@ import time
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 PAGE = os.path.join(ROOT, "book", "src", "tutorial", "your-robot.md")
 BINARIES = ["wmr", "hil-sim", "wmr-ros2"]
-DEFAULT_TIMEOUT_S = 180.0
+DEFAULT_TIMEOUT_S = 90.0
+TOTAL_TIMEOUT_S = 400.0
 BACKGROUND_READY_S = 15.0
 DIRECTIVE = re.compile(r"<!--\s*tutorial:\s*(.*?)\s*-->")
 NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
@@ -256,18 +258,18 @@ class Shell:
             raw = f.read().decode(errors="replace")
         self.env = dict(kv.split("=", 1) for kv in raw.split("\0") if "=" in kv)
 
-    def run(self, cmd):
+    def run(self, cmd, timeout_s):
         proc = subprocess.Popen(
             ["bash", "-c", self.script(cmd.text)], cwd=self.cwd, env=self.env,
             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
             start_new_session=True,
         )
         try:
-            out, _ = proc.communicate(timeout=cmd.timeout_s)
+            out, _ = proc.communicate(timeout=timeout_s)
         except subprocess.TimeoutExpired:
             kill_group(proc)
             out, _ = proc.communicate()
-            raise Failure(f"{cmd.where()}: `{cmd.text}` did not end within {cmd.timeout_s:g} s "
+            raise Failure(f"{cmd.where()}: `{cmd.text}` did not end within {timeout_s:.0f} s "
                           f"(killed)\n--- output so far:\n{out.decode(errors='replace')}")
         self.carry()
         return proc.returncode, out.decode(errors="replace")
@@ -418,7 +420,11 @@ def main():
             if step.text.rstrip().endswith("&") and not step.text.rstrip().endswith("&&"):
                 shell.background(step)
                 continue
-            rc, out = shell.run(step)
+            left_s = TOTAL_TIMEOUT_S - (time.monotonic() - t0)
+            if left_s <= 0:
+                raise Failure(f"{step.where()}: the run took more than {TOTAL_TIMEOUT_S:g} s before "
+                              f"reaching `{step.text}`")
+            rc, out = shell.run(step, min(step.timeout_s, left_s))
             if show:
                 print(out.rstrip("\n"))
             if rc != step.exit_code:
