@@ -1,4 +1,4 @@
-//! docs/parameters.md is the parameter table's reference (controller-core
+//! book/src/reference/parameters.md is the parameter table's reference (controller-core
 //! `runtime::param_table`, D144): generated, and checked here.
 //! `WMR_WRITE_PARAMS_DOC=1 cargo test --release -p robot-file --test
 //! params_doc` rewrites it.
@@ -11,8 +11,8 @@ const END: &str = "<!-- param-table end -->";
 
 #[test]
 fn docs_parameters_md_is_the_table() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/parameters.md");
-    let doc = std::fs::read_to_string(&path).expect("docs/parameters.md");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../book/src/reference/parameters.md");
+    let doc = std::fs::read_to_string(&path).expect("book/src/reference/parameters.md");
     let mut table = String::new();
     param_table::write_reference(&mut table).unwrap();
     let (head, rest) = doc.split_once(BEGIN).expect("the begin marker");
@@ -24,7 +24,7 @@ fn docs_parameters_md_is_the_table() {
     }
     assert!(
         doc == want,
-        "docs/parameters.md differs from the parameter table: run \
+        "book/src/reference/parameters.md differs from the parameter table: run \
          WMR_WRITE_PARAMS_DOC=1 cargo test --release -p robot-file --test params_doc"
     );
 }
