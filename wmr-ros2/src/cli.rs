@@ -6,6 +6,25 @@ use crate::{bridge, topics};
 use clap::{Parser, ValueEnum};
 use std::path::PathBuf;
 
+/// Exit status when the bridge stops on a failure (the link, a DDS
+/// entity, a robot that cannot tell its `body.com_offset_m`): the line
+/// after `wmr-ros2: ` on stderr says why; the robot brakes to a stop
+/// after its link timeout.
+pub const EXIT_FAILURE: u8 = 1;
+
+/// Every exit status of the bridge but clap's usage error (the book's
+/// reference, errors.md, adds it from clap).
+pub const EXIT_CODES: [(i32, &str); 2] = [
+    (
+        0,
+        "ended on purpose: SIGINT, SIGTERM or `--for-s` (the robot disarmed, the MCAP log finished)",
+    ),
+    (
+        EXIT_FAILURE as i32,
+        "a failure: the line after `wmr-ros2:` on stderr says why (the robot brakes to a stop after its link timeout)",
+    ),
+];
+
 /// The cmd_vel message type (`--cmd-vel-type`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum CmdVelType {

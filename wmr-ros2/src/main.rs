@@ -505,7 +505,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("wmr-ros2: {e}");
-            ExitCode::FAILURE
+            ExitCode::from(wmr_ros2::cli::EXIT_FAILURE)
         }
     }
 }
