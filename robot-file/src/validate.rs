@@ -2,7 +2,7 @@
 //! parameter table, controller-core `param_table`: the ranges the device
 //! and the ROS bridge check, D144), then the fields against each other,
 //! then the gains through controller-core's own validation. Ranges and
-//! their reasons: book/src/how-to/robot-file.md, docs/parameters.md.
+//! their reasons: book/src/how-to/robot-file.md, book/src/reference/parameters.md.
 
 use crate::derive::CONTROL_PERIOD_S;
 use crate::error::{Reason, RobotError};

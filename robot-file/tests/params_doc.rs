@@ -1,33 +1,9 @@
-//! docs/parameters.md is the parameter table's reference (controller-core
-//! `runtime::param_table`, D144): generated, and checked here.
-//! `WMR_WRITE_PARAMS_DOC=1 cargo test --release -p robot-file --test
-//! params_doc` rewrites it.
+//! The parameter table (controller-core `runtime::param_table`, D144)
+//! covers the robot file: its reference page,
+//! book/src/reference/parameters.md, is generated and checked by
+//! tests/reference.rs.
 
 use controller_core::runtime::param_table;
-use std::path::Path;
-
-const BEGIN: &str = "<!-- param-table begin: generated, do not edit -->\n";
-const END: &str = "<!-- param-table end -->";
-
-#[test]
-fn docs_parameters_md_is_the_table() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/parameters.md");
-    let doc = std::fs::read_to_string(&path).expect("docs/parameters.md");
-    let mut table = String::new();
-    param_table::write_reference(&mut table).unwrap();
-    let (head, rest) = doc.split_once(BEGIN).expect("the begin marker");
-    let (_, tail) = rest.split_once(END).expect("the end marker");
-    let want = format!("{head}{BEGIN}{table}{END}{tail}");
-    if std::env::var_os("WMR_WRITE_PARAMS_DOC").is_some() {
-        std::fs::write(&path, &want).unwrap();
-        return;
-    }
-    assert!(
-        doc == want,
-        "docs/parameters.md differs from the parameter table: run \
-         WMR_WRITE_PARAMS_DOC=1 cargo test --release -p robot-file --test params_doc"
-    );
-}
 
 /// Every numeric field of the robot file is in the parameter table, and
 /// every parameter the table puts in the file is a field of it: a new

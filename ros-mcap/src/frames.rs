@@ -365,7 +365,7 @@ pub fn diagnostic_status(f: &LogFrame) -> DiagnosticStatus {
     }
 }
 
-/// Every counter by its protocol name (docs/protocol.md).
+/// Every counter by its protocol name (book/src/reference/protocol.md).
 pub fn counter_values(c: &Counters) -> [(&'static str, u32); 15] {
     [
         ("ticks", c.ticks),

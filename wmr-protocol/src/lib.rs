@@ -11,7 +11,7 @@
 //!   a zero byte; [`FrameDecoder`] reassembles frames from any byte chunks
 //!   with postcard's COBS accumulator and checks the version and the
 //!   CRC-16/CCITT-FALSE ([`crc`]) over version, seq and body.
-//! * Versioning: [`PROTOCOL_VERSION`]; the rule is in `docs/protocol.md`.
+//! * Versioning: [`PROTOCOL_VERSION`]; the rule is in `book/src/reference/protocol.md`.
 //!
 //! Bad input never panics: every decode outcome is a [`Decoded`] value.
 #![no_std]
@@ -28,7 +28,7 @@ use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
 /// The protocol version. Bumped on any change to a message other than an
 /// addition at the end of an enum that old peers never receive (see
-/// `docs/protocol.md`, "Versioning").
+/// `book/src/reference/protocol.md`, "Versioning").
 pub const PROTOCOL_VERSION: u16 = 5;
 
 /// Largest serialized message body \[bytes\].

@@ -1,7 +1,7 @@
 //! Every message of the link, typed. Host → robot: [`Request`] (each with a
 //! sequence number chosen by the host, echoed in the reply). Robot → host:
 //! [`Reply`] (answers, telemetry and events). Units are in the field names;
-//! `docs/protocol.md` documents every variant and field.
+//! `book/src/reference/protocol.md` documents every variant and field.
 
 use controller_core::runtime::param_table::Param;
 use heapless::Vec;
@@ -455,7 +455,7 @@ pub enum ErrorCode {
     /// A safe stop is latched: clear it first.
     Latched,
     /// A value is NaN, infinite or outside its physical range
-    /// (docs/protocol.md, "Parameters" and the requests' rows).
+    /// (book/src/reference/protocol.md, "Parameters" and the requests' rows).
     InvalidValue,
     /// The parameter cannot be written.
     ReadOnly,

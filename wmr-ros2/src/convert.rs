@@ -145,7 +145,7 @@ pub fn std_dev_of_g(
     let sy = var(1).max(0.0).sqrt();
     let st = if yaw_known { s[2][2].sqrt() } else { 0.0 };
     // The robot takes σ in (0, 1000] m for positions, [0, 1000] rad for the
-    // heading (docs/protocol.md, ExternalPose).
+    // heading (book/src/reference/protocol.md, ExternalPose).
     if !(sx > 0.0 && sx <= 1000.0 && sy > 0.0 && sy <= 1000.0) {
         return Err(Refusal::Implausible(format!(
             "position std dev ({sx:.3e}, {sy:.3e}) m not in (0, 1000] m"

@@ -13,6 +13,7 @@
 //!   services), producing the messages ros-mcap builds for the MCAP logs
 //!   ([`ros_mcap::RosFrames`]), so the logs and the live topics agree;
 //! - [`params`]: the robot's parameters as ROS parameters;
+//! - [`cli`]: the binary's command line;
 //! - [`topics`]: every topic and service with its type and QoS;
 //! - [`msg`]: the message types the bridge subscribes to;
 //! - [`rpc`]: each service caller's request/reply mapping (D150);
@@ -20,6 +21,7 @@
 #![deny(missing_docs)]
 
 pub mod bridge;
+pub mod cli;
 pub mod convert;
 pub mod msg;
 pub mod params;

@@ -2,7 +2,7 @@
 //! DDS entities from [`wmr_ros2::topics`], messages moved between them
 //! and [`wmr_ros2::Bridge`].
 
-use clap::{Parser, ValueEnum};
+use clap::Parser;
 use controller_core::runtime::param_table::RobotBounds;
 use ros2_client::parameters::raw::{ParameterType, SetParametersResult};
 use ros2_client::rcl_interfaces as rcl;
@@ -11,11 +11,11 @@ use ros2_client::{
     Subscription,
 };
 use serde::{de::DeserializeOwned, Serialize};
-use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
-use wmr_ros2::bridge::{self, Bridge, Config, Fatal, Outcome};
+use wmr_ros2::bridge::{Bridge, Config, Fatal, Outcome};
+use wmr_ros2::cli::{Args, CmdVelType, Mapping};
 use wmr_ros2::msg::{
     Path, PoseWithCovarianceStamped, SetOdometryRequest, SetOdometryResponse, TriggerRequest,
     TriggerResponse, TwistStamped,
@@ -24,118 +24,6 @@ use wmr_ros2::params;
 use wmr_ros2::rpc::{self, Accept};
 use wmr_ros2::services::{self, Service, ServiceHost};
 use wmr_ros2::topics::{self, TopicSpec};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-enum CmdVelType {
-    /// geometry_msgs/TwistStamped: what Nav2's controller_server and velocity_smoother publish by default from Kilted on (enable_stamped_cmd_vel true; false in Jazzy), and the only cmd_vel diff_drive_controller takes since Jazzy.
-    Stamped,
-    /// geometry_msgs/Twist: what Jazzy's Nav2 publishes by default (enable_stamped_cmd_vel false), and teleop_twist_keyboard.
-    Twist,
-}
-
-/// The ROS 2 distribution whose Nav2 defaults the bridge follows
-/// (book/src/explanation/ros2.md, "Conventions").
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-enum Distro {
-    /// Jazzy Jalisco (Nav2 publishes Twist).
-    Jazzy,
-    /// Kilted Kaiju (Nav2 publishes TwistStamped).
-    Kilted,
-    /// Lyrical Luth (Nav2 publishes TwistStamped).
-    Lyrical,
-}
-
-impl Distro {
-    /// The cmd_vel type Nav2's controller_server publishes by default
-    /// (nav2_util/twist_publisher.hpp: enable_stamped_cmd_vel).
-    fn nav2_cmd_vel(self) -> CmdVelType {
-        match self {
-            Self::Jazzy => CmdVelType::Twist,
-            Self::Kilted | Self::Lyrical => CmdVelType::Stamped,
-        }
-    }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-enum Mapping {
-    /// Each request's own: rmw_fastrtps's (a related sample identity) or rmw_cyclonedds's (its header); anything else refused.
-    Auto,
-    /// Only rmw_fastrtps's (RPC over DDS "enhanced"); others refused.
-    Enhanced,
-    /// Only rmw_cyclonedds's request header; others refused.
-    Cyclone,
-}
-
-/// ROS 2 bridge for the trajectory-tracking robot (book/src/how-to/ros2.md): /odom,
-/// /tf, /joint_states, /diagnostics, /wmr/tracking out; cmd_vel, a path,
-/// localiser poses and /initialpose in; arm, disarm, emergency stop and
-/// clear stop as std_srvs/Trigger services. Exits non-zero when the link
-/// fails (the robot brakes to a stop after its link timeout).
-#[derive(Debug, Parser)]
-#[command(name = "wmr-ros2", version)]
-struct Args {
-    /// The robot's serial port or pty (`hil-sim device --pty` prints one); through its `wmr serve` when one listens on the port's default socket.
-    #[arg(long, env = "WMR_PORT")]
-    port: Option<String>,
-    /// A `wmr serve` socket to connect through (book/src/how-to/serve.md).
-    #[arg(long, env = "WMR_SERVE")]
-    serve: Option<PathBuf>,
-    /// Telemetry (/odom, /tf, /joint_states) rate [Hz].
-    #[arg(long, default_value_t = bridge::DEFAULT_RATE_HZ)]
-    rate_hz: u16,
-    /// Timeout of each cmd_vel on the robot [ms]: a silent publisher stops the robot this long after its last command (then it brakes).
-    #[arg(long, default_value_t = bridge::DEFAULT_CMD_TIMEOUT_MS)]
-    cmd_timeout_ms: u16,
-    /// The ROS 2 distribution whose Nav2 defaults to follow (the cmd_vel type); ROS sets ROS_DISTRO.
-    #[arg(long, value_enum, env = "ROS_DISTRO", default_value_t = Distro::Jazzy)]
-    ros_distro: Distro,
-    /// cmd_vel message type [default: the one Nav2 of --ros-distro publishes: twist for jazzy, stamped for kilted and lyrical].
-    #[arg(long, value_enum)]
-    cmd_vel_type: Option<CmdVelType>,
-    /// cmd_vel topic.
-    #[arg(long, default_value = topics::DEFAULT_CMD_VEL)]
-    cmd_vel_topic: String,
-    /// Topic of the paths to follow (nav_msgs/Path).
-    #[arg(long, default_value = topics::DEFAULT_PATH)]
-    path_topic: String,
-    /// Topic of a localiser's poses (geometry_msgs/PoseWithCovarianceStamped; AMCL's by default), fused by the robot's estimator at their stamps when in the `odom` frame (a pose in another frame, such as AMCL's `map`, is refused: book/src/explanation/ros2.md, "Poses").
-    #[arg(long, default_value = topics::DEFAULT_LOCALISER)]
-    localiser_topic: String,
-    /// d, G ahead of the axle midpoint [m] [default: body.com_offset_m of the robot file the robot runs, read from its store; the bridge does not start when the robot cannot tell].
-    #[arg(long)]
-    com_offset_m: Option<f64>,
-    /// Fraction of the robot's speed and acceleration limits a path's profile uses.
-    #[arg(long, default_value_t = bridge::DEFAULT_PATH_LIMIT_FRACTION)]
-    path_limit_fraction: f64,
-    /// Enable motion at start (else call the arm service first).
-    #[arg(long)]
-    enable: bool,
-    /// Service request/reply mapping of the callers (their RMW's).
-    #[arg(long, value_enum, default_value_t = Mapping::Auto)]
-    service_mapping: Mapping,
-    /// Node name.
-    #[arg(long, default_value = "wmr_bridge")]
-    node_name: String,
-    /// DDS domain (ROS_DOMAIN_ID).
-    #[arg(long, env = "ROS_DOMAIN_ID", default_value_t = 0)]
-    domain_id: u16,
-    /// Also log what is bridged to this MCAP file (the `wmr record --mcap` format).
-    #[arg(long)]
-    mcap: Option<PathBuf>,
-    /// Also serve a live view to Foxglove (a ws-protocol WebSocket server
-    /// with the topics and schemas of the MCAP logs; book/src/how-to/foxglove.md).
-    #[arg(long)]
-    live: bool,
-    /// Address the live view binds (loopback unless you open it).
-    #[arg(long, value_name = "HOST", default_value = ros_mcap::live::DEFAULT_LIVE_HOST)]
-    live_host: String,
-    /// Port of the live view (0: any free port; the one taken is printed).
-    #[arg(long, value_name = "PORT", default_value_t = ros_mcap::live::DEFAULT_LIVE_PORT)]
-    live_port: u16,
-    /// Run this long, then disarm and exit 0 [s] (default: until SIGINT/SIGTERM, which also disarm and exit 0, or a link failure, exit 1).
-    #[arg(long)]
-    for_s: Option<f64>,
-}
 
 /// Set by SIGINT or SIGTERM: the bridge ends on purpose.
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -617,7 +505,7 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("wmr-ros2: {e}");
-            ExitCode::FAILURE
+            ExitCode::from(wmr_ros2::cli::EXIT_FAILURE)
         }
     }
 }

@@ -92,6 +92,20 @@ pub enum Command {
     Serve(crate::serve::ServeArgs),
 }
 
+/// Exit status of a command that failed: the one line after `error: ` on
+/// stderr says why.
+pub const EXIT_ERROR: i32 = 1;
+
+/// Every exit status of `wmr` but clap's usage error (the book's
+/// reference, errors.md, adds it from clap).
+pub const EXIT_CODES: [(i32, &str); 2] = [
+    (0, "the command succeeded"),
+    (
+        EXIT_ERROR,
+        "the command failed: the line after `error:` on stderr says why (the link, the robot's refusal, a file)",
+    ),
+];
+
 /// Why a command line failed.
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {

@@ -10,6 +10,6 @@ fn main() {
         use std::io::Write;
         let _ = lock.flush();
         eprintln!("error: {e}");
-        std::process::exit(1);
+        std::process::exit(wmr::cli::EXIT_ERROR);
     }
 }

@@ -48,7 +48,7 @@ impl std::fmt::Display for ParamsError {
                 let names: Vec<&str> = ParamId::ALL.iter().map(|p| p.name()).collect();
                 write!(
                     f,
-                    "unknown parameter {name:?} (one of: {}; docs/parameters.md)",
+                    "unknown parameter {name:?} (one of: {}; book/src/reference/parameters.md)",
                     names.join(", ")
                 )
             }
@@ -116,7 +116,7 @@ pub fn resolve(name: &str) -> Result<Resolved, ParamsError> {
         Some(id) => Ok(Resolved {
             id,
             note: Some(format!(
-                "note: {name} was renamed to {} (docs/parameters.md)",
+                "note: {name} was renamed to {} (book/src/reference/parameters.md)",
                 id.name()
             )),
         }),
@@ -197,7 +197,7 @@ mod tests {
         assert_eq!(r.id, ParamId::TorqueLimitNm);
         assert_eq!(
             r.note.as_deref(),
-            Some("note: torque_limit_nm was renamed to limits.torque_nm (docs/parameters.md)")
+            Some("note: torque_limit_nm was renamed to limits.torque_nm (book/src/reference/parameters.md)")
         );
         let r = resolve("accel_mps2").unwrap();
         assert_eq!(r.id, ParamId::AccelMps2);
@@ -250,7 +250,7 @@ pub struct ParamsArgs {
 pub enum ParamsOp {
     /// Print one parameter, or all.
     Get {
-        /// Parameter name (docs/parameters.md; the names before issue 32
+        /// Parameter name (book/src/reference/parameters.md; the names before issue 32
         /// are taken with a "renamed to" note); all when omitted.
         name: Option<String>,
     },

@@ -1,5 +1,5 @@
 //! `wmr robot push|pull|diff|check`: the robot file in the robot's flash
-//! (protocol 4, docs/protocol.md "The robot record").
+//! (protocol 4, book/src/reference/protocol.md "The robot record").
 
 use crate::link::{Link, LinkError};
 use crate::session::{has_store, status};

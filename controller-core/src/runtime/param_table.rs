@@ -12,7 +12,7 @@
 //! checks (wmr-device), the protocol's parameter names (wmr-protocol
 //! `ParamId::param`), `wmr params` (old names accepted with a "renamed to"
 //! note), the ROS parameter descriptors (wmr-ros2) and the reference table
-//! of docs/parameters.md (a test fails when they disagree).
+//! of book/src/reference/parameters.md (a test fails when they disagree).
 //!
 //! Every check of a range goes through [`Param::check`], so a value is
 //! refused with the same [`RangeError`] — name, value, limit, what to do —
@@ -501,7 +501,7 @@ impl Param {
     }
 }
 
-/// The reference table of every parameter, in Markdown (docs/parameters.md
+/// The reference table of every parameter, in Markdown (book/src/reference/parameters.md
 /// holds it; robot-file's test `params_doc` fails when they differ).
 #[cfg(feature = "describe")]
 pub fn write_reference(out: &mut dyn core::fmt::Write) -> core::fmt::Result {

@@ -96,6 +96,24 @@ pub fn execute_status(cli: &Cli, out: &mut dyn Write) -> Result<i32, String> {
     .map(|_| 0)
 }
 
+/// Exit status of a command that failed (the line after `error: ` on
+/// stderr says why).
+pub const EXIT_ERROR: i32 = 1;
+
+/// Every exit status of `hil-sim` but clap's usage error (the book's
+/// reference, errors.md, adds it from clap).
+pub const EXIT_CODES: [(i32, &str); 3] = [
+    (0, "the command succeeded"),
+    (
+        EXIT_ERROR,
+        "the command failed: the line after `error:` on stderr says why",
+    ),
+    (
+        tune::EXIT_KEPT_START,
+        "`tune`, `tune-merge`: no tuned gains validated better than the robot file's own; the file is written with them and says why",
+    ),
+];
+
 /// The binary: parse (clap prints usage errors and exits 2), execute, print
 /// any error to stderr and return the exit code (0, 1 on an error, or
 /// `tune`'s [`tune::EXIT_KEPT_START`]).
@@ -108,7 +126,7 @@ pub fn main_entry() -> i32 {
         Err(e) => {
             let _ = lock.flush();
             eprintln!("error: {e}");
-            1
+            EXIT_ERROR
         }
     }
 }

@@ -78,7 +78,7 @@ pub const OBSERVER_AUTHORITY: &str = "observer.max_estimate (scale)";
 /// Smallest authority scale: the paper's clamps (20, 40 m/s²; 1.5, 2 m/s)
 /// become at most 4e-6.
 pub const AUTHORITY_MIN: f64 = 1e-7;
-/// Smallest clamp the robot file takes (docs/parameters.md).
+/// Smallest clamp the robot file takes (book/src/reference/parameters.md).
 const CLAMP_MIN: f32 = 1e-6;
 
 /// The tuned gains of `kind`, in the order of the optimiser's vector.

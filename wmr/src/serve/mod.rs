@@ -21,7 +21,7 @@
 //! [`open_link`], or [`crate::Link::connect`] for a known socket: the
 //! result is an ordinary [`crate::Link`] (D95).
 //!
-//! **On the socket** run the link's own frames (docs/protocol.md), so that
+//! **On the socket** run the link's own frames (book/src/reference/protocol.md), so that
 //! the client side is the existing [`crate::Link`] over a
 //! [`std::os::unix::net::UnixStream`]: no command has code of its own for
 //! the server. The server gives each request a sequence number of its own
