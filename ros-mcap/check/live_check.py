@@ -15,6 +15,10 @@ subscription per channel; then reads binary `Message Data` frames (opcode
 has every message of the run's log (complete once the run ended) and
 closes, or until the server closes the connection.
 
+First, the subprotocols docs/foxglove.md states: a client offering only
+`foxglove.websocket.v1` refused with HTTP 400, `foxglove.sdk.v1` alone
+taken.
+
 Checks against the log (read by the PyPI `mcap` package, decoded by
 `rosbags`, neither ours):
 1. the advertised channels are the log's: same topics, CDR, ros2msg, the
@@ -133,6 +137,24 @@ async def receive(url, log, until_closed=False, ready=None):
         except websockets.ConnectionClosed:
             pass
     return channels, got
+
+
+async def spec_name_refused(url):
+    """docs/foxglove.md's claim about the subprotocols: a client offering
+    only the spec's name is refused with HTTP 400 (the `foxglove` crate
+    0.30.3 negotiates only `foxglove.sdk.v1` and `foxglove.sdk.v1.1`),
+    and `foxglove.sdk.v1` alone is taken. If a server version takes the
+    spec's name, this fails and the document must change."""
+    try:
+        async with websockets.connect(url, subprotocols=[SUBPROTOCOLS[0]], proxy=None) as ws:
+            fail(f"the server took a client offering only {SUBPROTOCOLS[0]!r} (chose {ws.subprotocol!r}): docs/foxglove.md says it refuses it")
+    except websockets.InvalidStatus as e:
+        if e.response.status_code != 400:
+            fail(f"offering only {SUBPROTOCOLS[0]!r}: HTTP {e.response.status_code}, not 400")
+    async with websockets.connect(url, subprotocols=[SUBPROTOCOLS[1]], proxy=None) as ws:
+        if ws.subprotocol != SUBPROTOCOLS[1]:
+            fail(f"offering only {SUBPROTOCOLS[1]!r}: the server chose {ws.subprotocol!r}")
+    print(f"subprotocols: only {SUBPROTOCOLS[0]} refused (HTTP 400), only {SUBPROTOCOLS[1]} taken")
 
 
 def read_log(path):
@@ -322,6 +344,7 @@ def main():
     ap.add_argument("log")
     ap.add_argument("layout", nargs="?")
     args = ap.parse_args()
+    asyncio.run(spec_name_refused(args.url))
     channels, got = asyncio.run(receive(args.url, args.log, args.tail or args.aligned, args.ready))
     schemas, logged = read_log(args.log)
     topics = {ch["topic"]: ch for ch in channels.values()}
