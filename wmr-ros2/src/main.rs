@@ -126,12 +126,8 @@ struct Args {
     /// with the topics and schemas of the MCAP logs; docs/foxglove.md).
     #[arg(long)]
     live: bool,
-    /// Address the live view binds (loopback unless you open it).
-    #[arg(long, value_name = "HOST", default_value = ros_mcap::live::DEFAULT_LIVE_HOST)]
-    live_host: String,
-    /// Port of the live view (0: any free port; the one taken is printed).
-    #[arg(long, value_name = "PORT", default_value_t = ros_mcap::live::DEFAULT_LIVE_PORT)]
-    live_port: u16,
+    #[command(flatten)]
+    live_at: ros_mcap::live::LiveArgs,
     /// Run this long, then disarm and exit 0 [s] (default: until SIGINT/SIGTERM, which also disarm and exit 0, or a link failure, exit 1).
     #[arg(long)]
     for_s: Option<f64>,
@@ -419,14 +415,11 @@ fn run(a: &Args) -> Result<(), String> {
     let mut live = match a.live {
         false => None,
         true => {
-            let v = ros_mcap::live::LiveView::start(
-                &a.live_host,
-                a.live_port,
-                b.geometry(),
-                "wmr-ros2",
-            )
-            .map_err(|e| e.to_string())?;
-            eprintln!("live view: ws://{}:{}", a.live_host, v.port());
+            let v = a
+                .live_at
+                .start(b.geometry(), "wmr-ros2")
+                .map_err(|e| e.to_string())?;
+            eprintln!("live view: {}", a.live_at.url(v.port()));
             Some(v)
         }
     };
