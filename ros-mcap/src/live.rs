@@ -16,6 +16,32 @@ pub const DEFAULT_LIVE_HOST: &str = "127.0.0.1";
 /// The ws-protocol's customary port (Foxglove's "Open connection" default).
 pub const DEFAULT_LIVE_PORT: u16 = 8765;
 
+/// The live view's address flags, one declaration for `hil-sim run`,
+/// `wmr serve` and `wmr-ros2` (each flattens it beside its own `--live`,
+/// whose help says what that program streams).
+#[derive(Clone, Debug, PartialEq, Eq, clap::Args)]
+pub struct LiveArgs {
+    /// Address the live view binds (loopback unless you open it).
+    #[arg(long, value_name = "HOST", default_value = DEFAULT_LIVE_HOST)]
+    pub live_host: String,
+    /// Port of the live view (0: any free port; the one taken is printed).
+    #[arg(long, value_name = "PORT", default_value_t = DEFAULT_LIVE_PORT)]
+    pub live_port: u16,
+}
+
+impl LiveArgs {
+    /// Starts a view on these flags' address (see [`LiveView::start`]).
+    pub fn start(&self, geometry: Geometry, name: &str) -> Result<LiveView, LiveError> {
+        LiveView::start(&self.live_host, self.live_port, geometry, name)
+    }
+
+    /// The address a client opens, for a view listening on `port` (the
+    /// one taken when the flag said 0): the line each program prints.
+    pub fn url(&self, port: u16) -> String {
+        format!("ws://{}:{port}", self.live_host)
+    }
+}
+
 /// Why the live view could not start.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]

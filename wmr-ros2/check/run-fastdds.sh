@@ -12,20 +12,21 @@ ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 cd "$ROOT"
 FAIL_PREFIX="ros2 fastdds interop: "
 . scripts/check-lib.sh
+. wmr-ros2/check/netns.sh
 
 CLIENT="$ROOT/target/fastdds-check/wmr_fastdds_client"
 if [ -z "${WMR_ROS2_IN_NETNS:-}" ]; then
-    command -v unshare >/dev/null || fail "unshare (util-linux) not found"
-    command -v ip >/dev/null || fail "ip not found (apt-get install iproute2)"
+    netns_tools
     command -v fastddsgen >/dev/null || fail "fastddsgen not found (apt-get install fastddsgen libfastrtps-dev libfastcdr-dev g++)"
     [ -x target/release/hil-sim ] || fail "target/release/hil-sim not built (the workspace's test build)"
     (cd wmr-ros2 && cargo build --release --locked)
     wmr-ros2/check/fastdds/build.sh "$CLIENT"
-    exec unshare -n bash -c "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && WMR_ROS2_IN_NETNS=1 bash '$0'"
+    in_netns bash "'$0'"
+    exit
 fi
 
 # --- inside the private network namespace ---
-ip -o link show | grep -v ' lo:' | grep -q . && fail "the namespace has an interface other than lo"
+check_netns
 OUT="$(mktemp -d)"
 DEV_PID=""
 BRIDGE_PID=""

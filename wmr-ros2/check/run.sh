@@ -11,22 +11,21 @@ cd "$ROOT"
 FAIL_PREFIX="ros2 interop: "
 . scripts/check-lib.sh
 . ros-mcap/check/lib.sh
+. wmr-ros2/check/netns.sh
 
 if [ -z "${WMR_ROS2_IN_NETNS:-}" ]; then
-    command -v unshare >/dev/null || fail "unshare (util-linux) not found"
-    if ! command -v ip >/dev/null; then
-        apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq iproute2 ||
-            fail "apt-get install iproute2 (the namespace's loopback needs ip)"
-    fi
+    netns_tools
     check_venv "${ROS2_CHECK_VENV:-$ROOT/target/ros-check-venv}"
     build_host_tools
     (cd wmr-ros2 && cargo build --release --locked)
     # Everything below runs in the namespace (this script again).
-    exec unshare -n bash -c "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && WMR_ROS2_IN_NETNS=1 ROS2_PY='$PY' bash '$0'"
+    export ROS2_PY="$PY"
+    in_netns bash "'$0'"
+    exit
 fi
 
 # --- inside the private network namespace ---
-ip -o link show | grep -v ' lo:' | grep -q . && fail "the namespace has an interface other than lo"
+check_netns
 OUT="$(mktemp -d)"
 DEV_PID=""
 BRIDGE_PID=""

@@ -129,12 +129,9 @@ pub struct Args {
     /// with the topics and schemas of the MCAP logs; book/src/how-to/foxglove.md).
     #[arg(long)]
     pub live: bool,
-    /// Address the live view binds (loopback unless you open it).
-    #[arg(long, value_name = "HOST", default_value = ros_mcap::live::DEFAULT_LIVE_HOST)]
-    pub live_host: String,
-    /// Port of the live view (0: any free port; the one taken is printed).
-    #[arg(long, value_name = "PORT", default_value_t = ros_mcap::live::DEFAULT_LIVE_PORT)]
-    pub live_port: u16,
+    /// Where the live view listens (`--live-host`, `--live-port`).
+    #[command(flatten)]
+    pub live_at: ros_mcap::live::LiveArgs,
     /// Run this long, then disarm and exit 0 [s] (default: until SIGINT/SIGTERM, which also disarm and exit 0, or a link failure, exit 1).
     #[arg(long)]
     pub for_s: Option<f64>,

@@ -307,14 +307,11 @@ fn run(a: &Args) -> Result<(), String> {
     let mut live = match a.live {
         false => None,
         true => {
-            let v = ros_mcap::live::LiveView::start(
-                &a.live_host,
-                a.live_port,
-                b.geometry(),
-                "wmr-ros2",
-            )
-            .map_err(|e| e.to_string())?;
-            eprintln!("live view: ws://{}:{}", a.live_host, v.port());
+            let v = a
+                .live_at
+                .start(b.geometry(), "wmr-ros2")
+                .map_err(|e| e.to_string())?;
+            eprintln!("live view: {}", a.live_at.url(v.port()));
             Some(v)
         }
     };

@@ -16,18 +16,18 @@ pub struct LiveRun {
 }
 
 impl LiveRun {
-    /// Starts the server on `host:port`, prints its address to stderr
-    /// (`live view: ws://HOST:PORT`), and with `wait` waits until a client
-    /// has subscribed to every topic.
+    /// Starts the server on `at`'s address, prints it to stderr (`live
+    /// view: ws://HOST:PORT`), and with `wait` waits until a client has
+    /// subscribed to every topic.
     pub fn start(
-        host: &str,
-        port: u16,
+        at: &ros_mcap::live::LiveArgs,
         geometry: ros_mcap::Geometry,
         wait: bool,
     ) -> Result<Self, String> {
-        let view =
-            LiveView::start(host, port, geometry, "hil-sim run").map_err(|e| e.to_string())?;
-        eprintln!("live view: ws://{host}:{}", view.port());
+        let view = at
+            .start(geometry, "hil-sim run")
+            .map_err(|e| e.to_string())?;
+        eprintln!("live view: {}", at.url(view.port()));
         if wait {
             eprintln!("live view: waiting for a client to subscribe to every topic");
             while !view.subscribed_to_all() {

@@ -35,12 +35,9 @@ pub struct RunArgs {
     /// time since the start.
     #[arg(long)]
     pub live: bool,
-    /// Address the live view binds (loopback unless you open it).
-    #[arg(long, value_name = "HOST", default_value = ros_mcap::live::DEFAULT_LIVE_HOST)]
-    pub live_host: String,
-    /// Port of the live view (0: any free port; the one taken is printed).
-    #[arg(long, value_name = "PORT", default_value_t = ros_mcap::live::DEFAULT_LIVE_PORT)]
-    pub live_port: u16,
+    /// --live-host, --live-port.
+    #[command(flatten)]
+    pub live_at: ros_mcap::live::LiveArgs,
     /// With --live: wait until a client has subscribed to every topic
     /// before simulating (nothing is missed), and after the run (and its
     /// --mcap log) until the clients have left.
@@ -85,8 +82,7 @@ pub fn run(a: &RunArgs, out: &mut dyn Write) -> Result<(), String> {
     };
     let live = if a.live {
         Some(super::live::LiveRun::start(
-            &a.live_host,
-            a.live_port,
+            &a.live_at,
             geometry()?,
             a.live_wait,
         )?)

@@ -4,24 +4,22 @@
 //! paper's, as `wmr record --mcap`); stamps are host Unix time mapped
 //! from the first frame's arrival.
 
-use ros_mcap::live::LiveView;
+use ros_mcap::live::{LiveArgs, LiveView};
 use ros_mcap::{Geometry, LogFrame, TimeMap};
 use wmr_protocol::{Reply, RobotInfo, Telemetry};
 
 /// The live view of a server.
 pub(crate) struct ServeLive {
-    host: String,
-    port: u16,
+    at: LiveArgs,
     view: Option<LiveView>,
     time_map: Option<TimeMap>,
 }
 
 impl ServeLive {
-    /// A view to start on `host:port` once the robot is known.
-    pub fn new(host: &str, port: u16) -> Self {
+    /// A view to start on `at`'s address once the robot is known.
+    pub fn new(at: LiveArgs) -> Self {
         Self {
-            host: host.to_string(),
-            port,
+            at,
             view: None,
             time_map: None,
         }
@@ -47,12 +45,10 @@ impl ServeLive {
             ros_mcap::default_com_offset_m(),
         )
         .map_err(|e| e.to_string())
-        .and_then(|g| {
-            LiveView::start(&self.host, self.port, g, "wmr serve").map_err(|e| e.to_string())
-        });
+        .and_then(|g| self.at.start(g, "wmr serve").map_err(|e| e.to_string()));
         Some(match started {
             Ok(v) => {
-                let line = format!("live view: ws://{}:{}", self.host, v.port());
+                let line = format!("live view: {}", self.at.url(v.port()));
                 self.view = Some(v);
                 line
             }

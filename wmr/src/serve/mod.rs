@@ -89,12 +89,9 @@ pub struct ServeArgs {
     /// --live-rate-hz itself.
     #[arg(long)]
     pub live: bool,
-    /// Address the live view binds (loopback unless you open it).
-    #[arg(long, value_name = "HOST", default_value = ros_mcap::live::DEFAULT_LIVE_HOST)]
-    pub live_host: String,
-    /// Port of the live view (0: any free port; the one taken is logged).
-    #[arg(long, value_name = "PORT", default_value_t = ros_mcap::live::DEFAULT_LIVE_PORT)]
-    pub live_port: u16,
+    /// --live-host, --live-port.
+    #[command(flatten)]
+    pub live_at: ros_mcap::live::LiveArgs,
     /// Telemetry rate the live view asks for [Hz].
     #[arg(long, value_name = "HZ", default_value_t = 50, value_parser = clap::value_parser!(u16).range(1..=1000))]
     pub live_rate_hz: u16,

@@ -285,7 +285,7 @@ pub fn serve_until(
         stop,
         live: a
             .live
-            .then(|| super::live::ServeLive::new(&a.live_host, a.live_port)),
+            .then(|| super::live::ServeLive::new(a.live_at.clone())),
     };
     if a.live {
         server.mux.set_own_telemetry(super::mux::TelemetrySub {
