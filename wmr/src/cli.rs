@@ -241,10 +241,51 @@ mod tests {
         let e = Link::open("/dev/no-such-port", Duration::from_millis(10))
             .err()
             .unwrap();
-        assert_eq!(e.to_string(), "no such port: /dev/no-such-port");
-        assert!(!LinkError::NoAnswer("Hello".into())
-            .to_string()
-            .contains('\n'));
+        // What happened, the port, what to do.
+        let s = e.to_string();
+        assert!(
+            s.starts_with("no such port: /dev/no-such-port: ") && s.contains("--port PATH"),
+            "{s}"
+        );
+        // Not a terminal: /dev/null exists everywhere and is no tty.
+        let e = Link::open("/dev/null", Duration::from_millis(10))
+            .err()
+            .unwrap();
+        assert!(
+            matches!(
+                e,
+                LinkError::Open {
+                    kind: crate::OpenFailure::NotATerminal,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("not a serial port"), "{e}");
+        for e in [
+            LinkError::NoAnswer("Hello".into()),
+            LinkError::Silent {
+                port: "/dev/pts/9".into(),
+                request: "Hello".into(),
+                tries: 3,
+                each_ms: 100,
+            },
+            LinkError::Lost {
+                port: "/dev/pts/9".into(),
+                detail: "Broken pipe".into(),
+            },
+        ] {
+            let s = e.to_string();
+            assert!(!s.contains('\n') && !s.contains("link error"), "{s}");
+        }
+        let s = LinkError::Silent {
+            port: "/dev/pts/9".into(),
+            request: "Hello".into(),
+            tries: 3,
+            each_ms: 100,
+        }
+        .to_string();
+        assert!(s.contains("/dev/pts/9 to Hello (sent 3 times, 100 ms apart)"), "{s}");
     }
 
     /// Every subcommand parses to the variant `run` or `dispatch` handles

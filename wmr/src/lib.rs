@@ -42,4 +42,4 @@ pub mod timing;
 pub mod upload;
 pub mod watch;
 
-pub use link::{HelloInfo, Link, LinkError};
+pub use link::{HelloInfo, Link, LinkError, OpenFailure};
