@@ -62,6 +62,14 @@ pub enum LinkError {
     UnexpectedStop(String),
     /// No `wmr serve` at this socket (the socket, why).
     NoServer(String, String),
+    /// `wmr upload` refused the file (what, by how much, what to do).
+    Upload(Box<crate::upload::UploadError>),
+}
+
+impl From<crate::upload::UploadError> for LinkError {
+    fn from(e: crate::upload::UploadError) -> Self {
+        Self::Upload(Box::new(e))
+    }
 }
 
 impl std::fmt::Display for LinkError {
@@ -119,16 +127,52 @@ impl std::fmt::Display for LinkError {
                 f,
                 "version mismatch: the robot speaks protocol {robot}, wmr speaks {PROTOCOL_VERSION}"
             ),
-            Self::Nack(what, e) => write!(f, "the robot refused {what}: {}", e.reason()),
+            Self::Nack(what, e) => {
+                write!(f, "the robot refused {what}: {}", e.reason())?;
+                match nack_advice(what, *e) {
+                    Some(a) => write!(f, "; {a}"),
+                    None => Ok(()),
+                }
+            }
             Self::Unexpected(what) => write!(f, "unexpected answer: {what}"),
             Self::Io(e) => write!(f, "{e}"),
             Self::UnexpectedStop(s) => write!(f, "the robot stopped unexpectedly: {s}"),
             Self::NoServer(p, e) => write!(f, "cannot connect to wmr serve at {p}: {e}"),
+            Self::Upload(e) => write!(f, "{e}"),
         }
     }
 }
 
 impl std::error::Error for LinkError {}
+
+/// The command that gets out of a refusal, where there is one.
+pub fn nack_advice(request: &str, e: ErrorCode) -> Option<&'static str> {
+    Some(match e {
+        ErrorCode::Latched => {
+            "`wmr status` shows why it stopped; fix that, then `wmr clear` releases the stop"
+        }
+        ErrorCode::Busy => "`wmr disarm` stops it first (or wait for the run to end)",
+        ErrorCode::NoReference => {
+            "load one first: `wmr upload FILE` (a trajectory or scenario file), or drive with \
+             `wmr drive`"
+        }
+        ErrorCode::UploadIncomplete => {
+            "upload it again (`wmr upload FILE`); a path longer than the robot's buffer runs \
+             with `wmr upload FILE --arm`, which streams the rest"
+        }
+        ErrorCode::InvalidValue if request == "SetParam" => {
+            "`wmr params get` lists every parameter with its range"
+        }
+        ErrorCode::ReadOnly => "`wmr params get` marks the writable parameters",
+        ErrorCode::WrongMode => "`wmr status` shows the mode loaded",
+        ErrorCode::NoStore => {
+            "this firmware has no robot store: its robot file is compiled in (firmware/README.md)"
+        }
+        ErrorCode::BufferFull => "send it again once the robot has passed some waypoints",
+        ErrorCode::VersionMismatch => "update wmr or the firmware so that both speak one protocol",
+        _ => return None,
+    })
+}
 
 /// Why a port could not be opened, as far as wmr can tell.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -24,11 +24,14 @@
 //! ```
 
 use crate::link::{Link, LinkError};
-use crate::session::{expect_cause, io, until_rest, Motion, Pump, SegmentStream, Watch};
+use crate::session::{
+    expect_cause, io, until_rest, Motion, Pump, SegmentStream, StreamError, Watch,
+};
 use clap::Args;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
+use wmr_device::reference::WAYPOINT_CAPACITY;
 use wmr_protocol::{named_shape, BuiltinReference, PoseMsg, Request, StopCode, Waypoint};
 
 /// What a file asks the robot to drive.
@@ -178,18 +181,117 @@ pub fn parse_upload(text: &str, origin: &str) -> Result<(Upload, Vec<String>), S
     }
 }
 
-/// Checks every waypoint and the curve between each two against the
-/// limits of `robot` (its no-load speed and yaw rate, the acceleration its
-/// stall torque gives) with the device's own check
-/// (`wmr_device::reference::check_segment`, issue 31 item 1), so that a
-/// refusal names the segment, the value and the limit before anything is
-/// sent.
-pub fn check_waypoints(points: &[Waypoint], robot: &robot_file::Robot) -> Result<(), String> {
+/// A waypoint or the curve between two beyond a robot's limits, with the
+/// value, the limit and what to do.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum WaypointError {
+    /// The robot file does not give a board to derive the limits with.
+    #[error("robot {robot}: {error}")]
+    Robot {
+        /// The robot's name.
+        robot: String,
+        /// Why.
+        error: robot_file::RobotError,
+    },
+    /// A waypoint's own speed or yaw rate is beyond the robot's.
+    #[error(
+        "waypoint {index} (t {t_s:.3} s): v {v_mps} m/s, ω {omega_radps} rad/s; robot {robot} \
+         goes at most {top_speed_mps:.3} m/s and {top_yaw_rate_radps:.3} rad/s (its no-load \
+         speed): {}", ScaleHint(*.scale)
+    )]
+    Waypoint {
+        /// Its index in the file.
+        index: usize,
+        /// Its time [s].
+        t_s: f32,
+        /// Its speed [m/s].
+        v_mps: f32,
+        /// Its yaw rate [rad/s].
+        omega_radps: f32,
+        /// The robot's name.
+        robot: String,
+        /// The robot's top speed [m/s].
+        top_speed_mps: f32,
+        /// The robot's top yaw rate [rad/s].
+        top_yaw_rate_radps: f32,
+        /// The least `--scale-time` with which the whole path fits.
+        scale: Option<f32>,
+    },
+    /// The curve between two waypoints is beyond the robot's limits.
+    #[error(
+        "segment {index} (waypoints {index} to {}, t {t0_s:.3} to {t1_s:.3} s): the curve \
+         between them reaches a {quantity} of {value:.3} {unit}, above robot {robot}'s \
+         {limit:.3} {unit}: {}", .index + 1, ScaleHint(*.scale)
+    )]
+    Segment {
+        /// Index of its first waypoint.
+        index: usize,
+        /// Its start [s].
+        t0_s: f32,
+        /// Its end [s].
+        t1_s: f32,
+        /// What is too large (speed, acceleration, yaw rate).
+        quantity: &'static str,
+        /// Its unit.
+        unit: &'static str,
+        /// The curve's value.
+        value: f32,
+        /// The robot's limit.
+        limit: f32,
+        /// The robot's name.
+        robot: String,
+        /// The least `--scale-time` with which the whole path fits.
+        scale: Option<f32>,
+    },
+}
+
+impl WaypointError {
+    /// The error of a path already run `k` times slower: its hint counts
+    /// from the file as written.
+    pub fn times(mut self, k: f32) -> Self {
+        if let Self::Waypoint { scale, .. } | Self::Segment { scale, .. } = &mut self {
+            *scale = scale.map(|s| (s * k * 100.0).ceil() / 100.0);
+        }
+        self
+    }
+}
+
+/// What to do about a path too fast for a robot.
+struct ScaleHint(Option<f32>);
+
+impl std::fmt::Display for ScaleHint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            Some(k) => write!(
+                f,
+                "slow the path down: `--scale-time {k:.2}` (of the file as written) runs it {k:.2} \
+                 times slower (every speed ÷{k:.2}, acceleration ÷{:.2}), the least within this \
+                 robot's limits (a path at its limits leaves no torque to correct errors: take \
+                 more), or edit the waypoints",
+                k * k
+            ),
+            None => write!(
+                f,
+                "give the waypoints more time between them, or more of them along the path \
+                 (`--scale-time K` runs the whole path K times slower)"
+            ),
+        }
+    }
+}
+
+/// The first waypoint or segment of `points` beyond the limits of `robot`
+/// (without the scale hint).
+fn first_beyond(points: &[Waypoint], robot: &robot_file::Robot) -> Result<(), WaypointError> {
     use controller_core::trajectory::{Line, Reference};
     use wmr_device::limits::RobotLimits;
     // The reference and the timer clock do not enter the limits.
-    let board = robot_file::BoardFacts::of_timer(robot, 96_000_000)
-        .map_err(|e| format!("robot {}: {e}", robot.name))?;
+    let board =
+        robot_file::BoardFacts::of_timer(robot, 96_000_000).map_err(|error| {
+            WaypointError::Robot {
+                robot: robot.name.to_string(),
+                error,
+            }
+        })?;
     let rt = robot
         .derive(
             &board,
@@ -204,35 +306,158 @@ pub fn check_waypoints(points: &[Waypoint], robot: &robot_file::Robot) -> Result
         let (v, om) = (w.v_mps.abs(), w.omega_radps.abs());
         let within = v <= lim.top_speed_mps && om <= lim.top_yaw_rate_radps;
         if !within {
-            return Err(format!(
-                "waypoint {i} (t {:.3} s): v {} m/s, ω {} rad/s; robot {} goes at most {:.3} m/s \
-                 and {:.3} rad/s (its no-load speed): give it a slower waypoint",
-                w.t_s,
-                w.v_mps,
-                w.omega_radps,
-                robot.name,
-                lim.top_speed_mps,
-                lim.top_yaw_rate_radps
-            ));
+            return Err(WaypointError::Waypoint {
+                index: i,
+                t_s: w.t_s,
+                v_mps: w.v_mps,
+                omega_radps: w.omega_radps,
+                robot: robot.name.to_string(),
+                top_speed_mps: lim.top_speed_mps,
+                top_yaw_rate_radps: lim.top_yaw_rate_radps,
+                scale: None,
+            });
         }
     }
     for (i, pair) in points.windows(2).enumerate() {
         if let Err(e) = wmr_device::reference::check_segment(&pair[0], &pair[1], &lim) {
-            let (name, unit) = e.quantity.describe();
-            return Err(format!(
-                "segment {i} (waypoints {i} to {}, t {:.3} to {:.3} s): the curve between them \
-                 reaches a {name} of {:.3} {unit}, above robot {}'s {:.3} {unit}: give the \
-                 waypoints more time between them, or more of them along the path",
-                i + 1,
-                pair[0].t_s,
-                pair[1].t_s,
-                e.value,
-                robot.name,
-                e.limit
-            ));
+            let (quantity, unit) = e.quantity.describe();
+            return Err(WaypointError::Segment {
+                index: i,
+                t0_s: pair[0].t_s,
+                t1_s: pair[1].t_s,
+                quantity,
+                unit,
+                value: e.value,
+                limit: e.limit,
+                robot: robot.name.to_string(),
+                scale: None,
+            });
         }
     }
     Ok(())
+}
+
+/// `points` run `k` times slower: times ×k, speeds and yaw rates ÷k (the
+/// same curve in space; accelerations ÷k²).
+pub fn scale_time(points: &[Waypoint], k: f32) -> Vec<Waypoint> {
+    points
+        .iter()
+        .map(|w| Waypoint {
+            t_s: w.t_s * k,
+            pose: w.pose,
+            v_mps: w.v_mps / k,
+            omega_radps: w.omega_radps / k,
+        })
+        .collect()
+}
+
+/// Largest time scale [`least_scale`] tries.
+pub const MAX_SCALE_TIME: f32 = 100.0;
+
+/// The least time scale (rounded up to 0.01, at most
+/// [`MAX_SCALE_TIME`]) with which `points` fit `robot`; `None` when none
+/// does. Speeds fall as 1/k and accelerations as 1/k², so a path that fits
+/// at k fits at every larger k: bisection.
+pub fn least_scale(points: &[Waypoint], robot: &robot_file::Robot) -> Option<f32> {
+    let fits = |k: f32| first_beyond(&scale_time(points, k), robot).is_ok();
+    if fits(1.0) {
+        return Some(1.0);
+    }
+    if !fits(MAX_SCALE_TIME) {
+        return None;
+    }
+    let (mut lo, mut hi) = (1.0f32, MAX_SCALE_TIME);
+    while hi - lo > 1e-3 {
+        let mid = 0.5 * (lo + hi);
+        if fits(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let k = (hi * 100.0).ceil() / 100.0;
+    fits(k).then_some(k)
+}
+
+/// Checks every waypoint and the curve between each two against the
+/// limits of `robot` (its no-load speed and yaw rate, the acceleration its
+/// stall torque gives) with the device's own check
+/// (`wmr_device::reference::check_segment`, issue 31 item 1), so that a
+/// refusal names the segment, the value and the limit before anything is
+/// sent, and the `--scale-time` that makes the whole path fit.
+pub fn check_waypoints(
+    points: &[Waypoint],
+    robot: &robot_file::Robot,
+) -> Result<(), WaypointError> {
+    first_beyond(points, robot).map_err(|mut e| {
+        let k = least_scale(points, robot);
+        if let WaypointError::Waypoint { scale, .. } | WaypointError::Segment { scale, .. } =
+            &mut e
+        {
+            *scale = k;
+        }
+        e
+    })
+}
+
+/// Why `upload` refused a file.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum UploadError {
+    /// Longer than the robot's buffer without `--arm`.
+    #[error(
+        "{file}: {points} waypoints ({duration_s:.1} s) do not fit the robot's buffer of \
+         {capacity}: the rest must stream while the robot runs, so `upload` alone cannot load \
+         it (and a later `record --arm` would run only the first part). Stream it while it \
+         runs:\n  wmr {link} upload {file} --arm\nand to record it meanwhile, through a \
+         server:\n  wmr {link} serve &\n  wmr {link} record --seconds {record_s:.0} --out \
+         run.csv &\n  wmr {link} upload {file} --arm"
+    )]
+    BeyondBuffer {
+        /// The file.
+        file: String,
+        /// Its waypoints.
+        points: usize,
+        /// Its duration [s].
+        duration_s: f32,
+        /// The robot's buffer [waypoints].
+        capacity: usize,
+        /// `--port PATH` or `--serve SOCKET`.
+        link: String,
+        /// Robot time to record: the path and its stop [s].
+        record_s: f32,
+    },
+    /// A waypoint or segment beyond the robot's limits.
+    #[error("{file}: {error}")]
+    Waypoints {
+        /// The file.
+        file: String,
+        /// What and by how much.
+        error: WaypointError,
+    },
+    /// The robot refused a segment and cannot tell its robot file.
+    #[error(
+        "{file}: {error}; the robot's own file is not readable ({why}): give it with --robot \
+         ROBOT.toml, or slow the path down with --scale-time K (K times slower)"
+    )]
+    Unexplained {
+        /// The file.
+        file: String,
+        /// The robot's refusal.
+        error: String,
+        /// Why its file is not known.
+        why: String,
+    },
+    /// `--scale-time` out of range.
+    #[error("--scale-time {0}: give a factor in (0, {MAX_SCALE_TIME}] (2 runs the path twice as slowly)")]
+    BadScale(f32),
+}
+
+/// `--port PATH` or `--serve SOCKET` for the link, as commands to suggest.
+fn link_flag(link: &Link) -> String {
+    match link.name().strip_prefix("wmr serve at ") {
+        Some(sock) => format!("--serve {sock}"),
+        None => format!("--port {}", link.name()),
+    }
 }
 
 /// `upload` options.
@@ -248,9 +473,14 @@ pub struct UploadArgs {
     pub arm: bool,
     /// The robot's file: check every waypoint and the curve between each
     /// two against its limits before sending (the robot checks them too,
-    /// but its refusal cannot say which limit).
+    /// but its refusal cannot say which limit; without it wmr reads the
+    /// robot's own file from its store when the robot refuses).
     #[arg(long, value_name = "ROBOT.toml")]
     pub robot: Option<PathBuf>,
+    /// Run the path K times slower: waypoint times ×K, speeds and yaw
+    /// rates ÷K (accelerations ÷K²), a built-in reference's speed_scale ÷K.
+    #[arg(long, value_name = "K", default_value_t = 1.0)]
+    pub scale_time: f32,
 }
 
 /// `upload`: loads a built-in reference or streams waypoints (with
@@ -268,8 +498,14 @@ pub fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
             ignored.join(", ")
         );
     }
+    let k = a.scale_time;
+    if !(k.is_finite() && k > 0.0 && k <= MAX_SCALE_TIME) {
+        return Err(UploadError::BadScale(k).into());
+    }
+    let file = a.file.display().to_string();
     match up {
-        Upload::Builtin(r) => {
+        Upload::Builtin(mut r) => {
+            r.speed_scale /= k;
             link.command(&Request::SetReference(r))?;
             writeln!(out, "reference loaded: {:?}", r.shape).map_err(io)?;
             if a.arm {
@@ -283,13 +519,32 @@ pub fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
             }
         }
         Upload::Waypoints(pts) => {
+            let pts = if k == 1.0 { pts } else { scale_time(&pts, k) };
             if let Some(path) = &a.robot {
                 let robot = crate::robot::read_file(path)?;
-                crate::upload::check_waypoints(&pts, &robot)
-                    .map_err(|e| LinkError::Io(format!("{}: {e}", a.file.display())))?;
+                check_waypoints(&pts, &robot).map_err(|error| UploadError::Waypoints {
+                    file: file.clone(),
+                    error: error.times(k),
+                })?;
+            }
+            let duration_s = pts.last().map_or(0.0, |w| w.t_s) - pts[0].t_s;
+            if pts.len() > WAYPOINT_CAPACITY && !a.arm {
+                // Refused before anything is sent: a part of it loaded
+                // would run truncated under a later `arm`.
+                return Err(UploadError::BeyondBuffer {
+                    file,
+                    points: pts.len(),
+                    duration_s,
+                    capacity: WAYPOINT_CAPACITY,
+                    link: link_flag(link),
+                    record_s: (duration_s + 5.0).ceil(),
+                }
+                .into());
             }
             let mut stream = SegmentStream::begin(link, &pts)?;
-            stream.pump(link)?;
+            if let Err(e) = stream.pump(link) {
+                return Err(explain_refusal(e, &pts, k, link, &file));
+            }
             writeln!(
                 out,
                 "{} of {} waypoints loaded",
@@ -298,9 +553,15 @@ pub fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
             )
             .map_err(io)?;
             if !stream.done() && !a.arm {
-                return Err(LinkError::Io(
-                    "the trajectory is longer than the robot's buffer: use --arm to stream the rest while running".into(),
-                ));
+                return Err(UploadError::BeyondBuffer {
+                    file,
+                    points: pts.len(),
+                    duration_s,
+                    capacity: stream.points_sent(),
+                    link: link_flag(link),
+                    record_s: (duration_s + 5.0).ceil(),
+                }
+                .into());
             }
             if a.arm {
                 Motion::Arm.send(link)?;
@@ -320,6 +581,40 @@ pub fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
         }
     }
     Ok(())
+}
+
+/// A segment the robot refused as beyond its limits, explained by the
+/// robot's own file (read from its store) when it can tell.
+fn explain_refusal(
+    e: StreamError,
+    pts: &[Waypoint],
+    k: f32,
+    link: &mut Link,
+    file: &str,
+) -> LinkError {
+    if !matches!(e, StreamError::BeyondLimits { .. }) {
+        return e.into();
+    }
+    let why = match crate::session::robot_in_force(link) {
+        Ok(Ok(robot)) => match check_waypoints(pts, &robot) {
+            Err(error) => {
+                return UploadError::Waypoints {
+                    file: file.into(),
+                    error: error.times(k),
+                }
+                .into()
+            }
+            Ok(()) => format!("robot {}'s file passes the path", robot.name),
+        },
+        Ok(Err(why)) => why.to_string(),
+        Err(l) => l.to_string(),
+    };
+    UploadError::Unexplained {
+        file: file.into(),
+        error: e.to_string(),
+        why,
+    }
+    .into()
 }
 
 /// Pumps `stream` until every segment is acknowledged, waiting (up to
@@ -436,7 +731,7 @@ mod tests {
                 omega_radps: 0.0,
             })
             .collect();
-        let e = check_waypoints(&slalom, &robot).unwrap_err();
+        let e = check_waypoints(&slalom, &robot).unwrap_err().to_string();
         assert!(
             e.contains("segment 0 (waypoints 0 to 1")
                 && e.contains("yaw rate")
