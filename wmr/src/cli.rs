@@ -143,6 +143,9 @@ pub fn dispatch(cli: &Cli, out: &mut dyn Write) -> Result<(), CliError> {
         }) => Ok(crate::identify::fit(a, out)?), // a log, no robot
         Command::Metrics(a) => {
             let m = crate::record::metrics_of_file(&a.file)?;
+            if let Some(r) = &m.report {
+                eprintln!("{r}");
+            }
             let json = serde_json::to_string(&m).map_err(|e| CliError::Output(e.to_string()))?;
             writeln!(out, "{json}").map_err(|e| CliError::Output(e.to_string()))
         }
