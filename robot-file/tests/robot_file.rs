@@ -936,14 +936,13 @@ fn refusals_say_the_value_the_computed_limit_and_what_to_do() {
     // d beyond half the track, 0.07 m.
     let e = refuse("com_offset_m = 0.01", "com_offset_m = 0.09");
     assert!(
-        e.contains("body.com_offset_m: 0.09 m") && e.contains("0.0700 m") && e.contains("measure d again"),
+        e.contains("body.com_offset_m: 0.09 m")
+            && e.contains("0.0700 m")
+            && e.contains("measure d again"),
         "{e}"
     );
     // The wheel inertia above m·r² = 0.85·0.03² = 0.000765 kg·m².
-    let e = refuse(
-        "wheel_inertia_kgm2 = ",
-        "wheel_inertia_kgm2 = 0.01 # ",
-    );
+    let e = refuse("wheel_inertia_kgm2 = ", "wheel_inertia_kgm2 = 0.01 # ");
     assert!(
         e.contains("body.wheel_inertia_kgm2: 0.01 kg·m²") && e.contains("0.0008 kg·m²"),
         "{e}"

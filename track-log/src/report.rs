@@ -77,9 +77,7 @@ pub fn log_report(trace: &[TraceSample]) -> Option<LogReport> {
 /// [`LogReport::end_lag_s`].
 pub fn end_lag_s(trace: &[TraceSample]) -> Option<(f64, f64)> {
     let last = trace.last()?;
-    let dist = |s: &TraceSample| {
-        (s.ref_pose[0] - last.pose[0]).hypot(s.ref_pose[1] - last.pose[1])
-    };
+    let dist = |s: &TraceSample| (s.ref_pose[0] - last.pose[0]).hypot(s.ref_pose[1] - last.pose[1]);
     let recent = trace
         .iter()
         .filter(|s| s.t_s >= last.t_s - LAG_SEARCH_S && dist(s).is_finite());
@@ -243,7 +241,10 @@ mod tests {
         assert_eq!((h.nominal, h.degraded, h.safe_stop), (0.65, 0.25, 0.1));
         assert_eq!(
             h.reasons,
-            vec![("saturation".to_string(), 0.25), ("lost path".to_string(), 0.1)]
+            vec![
+                ("saturation".to_string(), 0.25),
+                ("lost path".to_string(), 0.1)
+            ]
         );
     }
 }

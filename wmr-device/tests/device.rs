@@ -1649,8 +1649,5 @@ fn a_trajectory_that_runs_out_of_streamed_waypoints_is_not_its_end() {
         rig.request(&line_seg(first, n), 2);
     }
     assert_eq!(rig.request(&Request::Arm, 3), Reply::Ack { seq: 3 });
-    assert_eq!(
-        run_to_hold(&mut rig, 6_000),
-        Some(StopCode::TrajectoryEnd)
-    );
+    assert_eq!(run_to_hold(&mut rig, 6_000), Some(StopCode::TrajectoryEnd));
 }

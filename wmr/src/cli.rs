@@ -237,10 +237,11 @@ mod tests {
     #[test]
     fn one_line_errors() {
         let e = LinkError::Nack("Arm".into(), ErrorCode::NoReference);
-        assert_eq!(
-            e.to_string(),
-            "the robot refused Arm: no reference, trajectory or velocity command loaded"
-        );
+        // The refusal, then the command that gets out of it.
+        assert!(e.to_string().starts_with(
+            "the robot refused Arm: no reference, trajectory or velocity command loaded; \
+             load one first: `wmr upload FILE`"
+        ));
         let e = Link::open("/dev/no-such-port", Duration::from_millis(10))
             .err()
             .unwrap();
@@ -288,7 +289,10 @@ mod tests {
             each_ms: 100,
         }
         .to_string();
-        assert!(s.contains("/dev/pts/9 to Hello (sent 3 times, 100 ms apart)"), "{s}");
+        assert!(
+            s.contains("/dev/pts/9 to Hello (sent 3 times, 100 ms apart)"),
+            "{s}"
+        );
     }
 
     /// Every subcommand parses to the variant `run` or `dispatch` handles

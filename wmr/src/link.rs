@@ -365,9 +365,7 @@ impl Link {
 
     /// Writes raw bytes (tests: garbage on the wire).
     pub fn write_raw(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        self.port
-            .write_all(bytes)
-            .map_err(|e| self.lost(e))
+        self.port.write_all(bytes).map_err(|e| self.lost(e))
     }
 
     /// Reads what the port has (waiting at most its read timeout) and

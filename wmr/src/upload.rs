@@ -285,13 +285,12 @@ fn first_beyond(points: &[Waypoint], robot: &robot_file::Robot) -> Result<(), Wa
     use controller_core::trajectory::{Line, Reference};
     use wmr_device::limits::RobotLimits;
     // The reference and the timer clock do not enter the limits.
-    let board =
-        robot_file::BoardFacts::of_timer(robot, 96_000_000).map_err(|error| {
-            WaypointError::Robot {
-                robot: robot.name.to_string(),
-                error,
-            }
-        })?;
+    let board = robot_file::BoardFacts::of_timer(robot, 96_000_000).map_err(|error| {
+        WaypointError::Robot {
+            robot: robot.name.to_string(),
+            error,
+        }
+    })?;
     let rt = robot
         .derive(
             &board,
@@ -391,8 +390,7 @@ pub fn check_waypoints(
 ) -> Result<(), WaypointError> {
     first_beyond(points, robot).map_err(|mut e| {
         let k = least_scale(points, robot);
-        if let WaypointError::Waypoint { scale, .. } | WaypointError::Segment { scale, .. } =
-            &mut e
+        if let WaypointError::Waypoint { scale, .. } | WaypointError::Segment { scale, .. } = &mut e
         {
             *scale = k;
         }
@@ -738,6 +736,80 @@ mod tests {
                 && e.contains("20.000 rad/s"),
             "{e}"
         );
+    }
+
+    /// Issue 37: the project's square on the n20 robot (no-load speed
+    /// 0.969 m/s, below the square's 1 m/s) is refused naming waypoint 4,
+    /// its speed and the limit, with the least `--scale-time`: the square
+    /// run that much slower fits, 2 % less does not (feasibility is
+    /// monotone in the scale: speeds ÷k, accelerations ÷k²).
+    #[test]
+    fn a_too_fast_path_says_how_much_slower_fits() {
+        let read = |rel: &str| {
+            std::fs::read_to_string(format!("{}/../{rel}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+        };
+        let (u, _) = parse_upload(&read("trajectories/square.toml"), "square.toml").unwrap();
+        let Upload::Waypoints(square) = u else {
+            panic!()
+        };
+        let robot = robot_file::Robot::from_toml_str(&read("robots/n20-0p85kg.toml")).unwrap();
+        let e = check_waypoints(&square, &robot).unwrap_err();
+        let WaypointError::Waypoint {
+            index,
+            scale: Some(k),
+            top_speed_mps,
+            ..
+        } = e
+        else {
+            panic!("{e}")
+        };
+        assert_eq!(index, 4);
+        // V/(k·N)·r = 7.4/(0.00191·120)·0.03 m/s.
+        assert!((top_speed_mps - 7.4 / (0.00191 * 120.0) * 0.03).abs() < 1e-3);
+        assert!(k >= 1.0 / top_speed_mps, "{k}");
+        let s = e.to_string();
+        assert!(
+            s.contains("waypoint 4") && s.contains("0.969 m/s") && s.contains("--scale-time"),
+            "{s}"
+        );
+        assert!(check_waypoints(&scale_time(&square, k), &robot).is_ok());
+        assert!(check_waypoints(&scale_time(&square, k - 0.02), &robot).is_err());
+        // Counted from the file as written when already scaled (rounded
+        // up twice: at most 0.01 more).
+        let e = check_waypoints(&scale_time(&square, 1.01), &robot)
+            .unwrap_err()
+            .times(1.01);
+        let WaypointError::Waypoint {
+            scale: Some(k2), ..
+        } = e
+        else {
+            panic!("{e}")
+        };
+        assert!(k2 >= k && k2 <= k + 0.0101, "{k2} vs {k}");
+    }
+
+    /// A path beyond the buffer without `--arm`: the commands that stream
+    /// it, with the port.
+    #[test]
+    fn beyond_the_buffer_says_how_to_stream_it() {
+        let s = UploadError::BeyondBuffer {
+            file: "long.toml".into(),
+            points: 133,
+            duration_s: 33.0,
+            capacity: 64,
+            link: "--port /dev/pts/3".into(),
+            record_s: 38.0,
+        }
+        .to_string();
+        for want in [
+            "133 waypoints (33.0 s)",
+            "buffer of 64",
+            "wmr --port /dev/pts/3 upload long.toml --arm",
+            "wmr --port /dev/pts/3 serve &",
+            "wmr --port /dev/pts/3 record --seconds 38 --out run.csv &",
+        ] {
+            assert!(s.contains(want), "{want}: {s}");
+        }
     }
 
     #[test]
