@@ -34,6 +34,7 @@ pub mod link;
 pub mod params;
 pub mod pose_feed;
 pub mod record;
+pub mod refusal;
 pub mod robot;
 pub mod serve;
 pub mod session;

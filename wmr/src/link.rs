@@ -63,11 +63,11 @@ pub enum LinkError {
     /// No `wmr serve` at this socket (the socket, why).
     NoServer(String, String),
     /// `wmr upload` refused the file (what, by how much, what to do).
-    Upload(Box<crate::upload::UploadError>),
+    Upload(Box<crate::refusal::UploadError>),
 }
 
-impl From<crate::upload::UploadError> for LinkError {
-    fn from(e: crate::upload::UploadError) -> Self {
+impl From<crate::refusal::UploadError> for LinkError {
+    fn from(e: crate::refusal::UploadError) -> Self {
         Self::Upload(Box::new(e))
     }
 }
