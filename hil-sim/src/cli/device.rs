@@ -63,7 +63,10 @@ pub fn parse_miswire(s: &str) -> Result<Miswire, String> {
 /// `hil-sim device --pty`.
 pub fn device(a: &DeviceArgs, out: &mut dyn Write) -> Result<(), String> {
     if !(a.speed.is_finite() && a.speed > 0.0 && a.speed <= 1000.0) {
-        return Err("--speed must be in (0, 1000]".into());
+        return Err(format!(
+            "--speed {} must be in (0, 1000] (times real time; 1 runs at real time)",
+            a.speed
+        ));
     }
     let scn = a.scenario.build()?;
     crate::limits::check_scenario(&scn)?;
