@@ -513,63 +513,110 @@ impl Scenario {
         let pos = |x: f64| x.is_finite() && x > 0.0;
         let nonneg = |x: f64| x.is_finite() && x >= 0.0;
         let ideal = self.sensing.preset == Sensing::Ideal;
-        let checks: [(bool, &str); 18] = [
-            (pos(self.duration_s), "duration_s must be > 0"),
+        let (pt, pl, se) = (&self.perturbations, &self.plant, &self.sensing);
+        // Each rule with the values found (issue 37: a refusal says the
+        // value, the limit and what to do).
+        let checks: [(bool, &dyn Fn() -> String); 18] = [
+            (pos(self.duration_s), &|| {
+                format!("duration_s = {} must be > 0 s", self.duration_s)
+            }),
             (
                 pos(self.control_period_s) && self.control_period_s <= 0.1,
-                "control_period_s must be in (0, 0.1]",
+                &|| {
+                    format!(
+                        "control_period_s = {} must be in (0, 0.1] s",
+                        self.control_period_s
+                    )
+                },
             ),
-            (self.substeps >= 1, "substeps must be >= 1"),
+            (self.substeps >= 1, &|| {
+                format!("substeps = {} must be >= 1", self.substeps)
+            }),
             (
-                self.perturbations.window_s.iter().all(|x| x.is_finite()) && self.perturbations.window_s[0] <= self.perturbations.window_s[1],
-                "window_s must be finite, start <= end",
+                pt.window_s.iter().all(|x| x.is_finite()) && pt.window_s[0] <= pt.window_s[1],
+                &|| format!("window_s = {:?} must be finite, start <= end", pt.window_s),
+            ),
+            (self.initial_pose.iter().all(|x| x.is_finite()), &|| {
+                format!("initial_pose = {:?} must be finite", self.initial_pose)
+            }),
+            (nonneg(pt.beta), &|| {
+                format!("beta = {} must be >= 0", pt.beta)
+            }),
+            (nonneg(pt.eps) && pt.eps < 1.0, &|| {
+                format!(
+                    "eps = {} must be in [0, 1) (the lost share of a wheel's torque)",
+                    pt.eps
+                )
+            }),
+            (pt.eps_end.is_none_or(|e| nonneg(e) && e < 1.0), &|| {
+                format!("eps_end = {:?} must be in [0, 1)", pt.eps_end)
+            }),
+            (
+                pt.wheel_torque_scale.iter().all(|&k| nonneg(k) && k <= 1.0),
+                &|| {
+                    format!(
+                        "wheel_torque_scale = {:?} must be in [0, 1] each",
+                        pt.wheel_torque_scale
+                    )
+                },
+            ),
+            (nonneg(pt.skid_scale) && nonneg(pt.disturbance_nm), &|| {
+                format!(
+                    "skid_scale = {} and disturbance_nm = {} must be >= 0",
+                    pt.skid_scale, pt.disturbance_nm
+                )
+            }),
+            (pos(pl.mass_scale) && pos(pl.inertia_scale), &|| {
+                format!(
+                    "mass_scale = {} and inertia_scale = {} must be > 0",
+                    pl.mass_scale, pl.inertia_scale
+                )
+            }),
+            (pl.torque_limit_nm.is_none_or(pos), &|| {
+                format!("torque_limit_nm = {:?} must be > 0 N·m", pl.torque_limit_nm)
+            }),
+            (
+                nonneg(pl.actuation_delay_s)
+                    && pl.actuation_delay_s <= 1.0
+                    && nonneg(pl.electrical_time_constant_s)
+                    && pl.electrical_time_constant_s <= 1.0,
+                &|| {
+                    format!(
+                        "actuation_delay_s = {} and electrical_time_constant_s = {} must be in [0, 1] s",
+                        pl.actuation_delay_s, pl.electrical_time_constant_s
+                    )
+                },
             ),
             (
-                self.initial_pose.iter().all(|x| x.is_finite()),
-                "initial_pose must be finite",
+                nonneg(se.pose_noise_m) && nonneg(se.heading_noise_rad),
+                &|| {
+                    format!(
+                        "pose_noise_m = {} and heading_noise_rad = {} must be >= 0",
+                        se.pose_noise_m, se.heading_noise_rad
+                    )
+                },
             ),
-            (nonneg(self.perturbations.beta), "beta must be >= 0"),
-            (nonneg(self.perturbations.eps) && self.perturbations.eps < 1.0, "eps must be in [0, 1)"),
+            (self.controller.k_y.is_none_or(pos), &|| {
+                format!("k_y = {:?} must be > 0", self.controller.k_y)
+            }),
             (
-                self.perturbations.eps_end.is_none_or(|e| nonneg(e) && e < 1.0),
-                "eps_end must be in [0, 1)",
-            ),
-            (
-                self.perturbations.wheel_torque_scale.iter().all(|&k| nonneg(k) && k <= 1.0),
-                "wheel_torque_scale must be in [0, 1]",
-            ),
-            (
-                nonneg(self.perturbations.skid_scale) && nonneg(self.perturbations.disturbance_nm),
-                "skid_scale and disturbance_nm must be >= 0",
-            ),
-            (
-                pos(self.plant.mass_scale) && pos(self.plant.inertia_scale),
-                "mass_scale and inertia_scale must be > 0",
-            ),
-            (self.plant.torque_limit_nm.is_none_or(pos), "torque_limit_nm must be > 0"),
-            (
-                nonneg(self.plant.actuation_delay_s) && self.plant.actuation_delay_s <= 1.0
-                    && nonneg(self.plant.electrical_time_constant_s)
-                    && self.plant.electrical_time_constant_s <= 1.0,
-                "actuation_delay_s and electrical_time_constant_s must be in [0, 1] s",
+                !ideal || (se.encoder_cpr == 0 && se.pwm_levels == 0 && se.speed_window_ticks == 0),
+                &|| {
+                    "encoder_cpr, pwm_levels and speed_window_ticks need a firmware sensing preset (ideal sensing has no encoders or PWM)".into()
+                },
             ),
             (
-                nonneg(self.sensing.pose_noise_m) && nonneg(self.sensing.heading_noise_rad),
-                "noise must be >= 0",
+                ideal || (se.pose_noise_m == 0.0 && se.heading_noise_rad == 0.0),
+                &|| {
+                    "pose_noise_m and heading_noise_rad are the noise of ideal sensing; the external pose of mocap/uwb takes pose_std_m and pose_heading_std_rad".into()
+                },
             ),
-            (self.controller.k_y.is_none_or(pos), "k_y must be > 0"),
-            (
-                !ideal || (self.sensing.encoder_cpr == 0 && self.sensing.pwm_levels == 0 && self.sensing.speed_window_ticks == 0),
-                "encoder_cpr, pwm_levels and speed_window_ticks need a firmware sensing preset (ideal sensing has no encoders or PWM)",
-            ),
-            (
-                ideal || (self.sensing.pose_noise_m == 0.0 && self.sensing.heading_noise_rad == 0.0),
-                "pose_noise_m and heading_noise_rad are the noise of ideal sensing; the external pose of mocap/uwb takes pose_std_m and pose_heading_std_rad",
-            ),
-            (
-                self.sensing.pwm_levels <= u16::MAX as u32,
-                "pwm_levels must be <= 65535 (a 16-bit timer)",
-            ),
+            (se.pwm_levels <= u16::MAX as u32, &|| {
+                format!(
+                    "pwm_levels = {} must be <= 65535 (a 16-bit timer)",
+                    se.pwm_levels
+                )
+            }),
         ];
         if let Some(key) = self.sensing.unknown_keys.keys().next() {
             return Err(format!(
@@ -584,7 +631,7 @@ impl Scenario {
             ));
         }
         match checks.iter().find(|(ok, _)| !ok) {
-            Some((_, msg)) => Err(format!("scenario '{}': {msg}", self.name)),
+            Some((_, msg)) => Err(format!("scenario '{}': {}", self.name, msg())),
             None => self
                 .sensor_setup()
                 .map(|_| ())

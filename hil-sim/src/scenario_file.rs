@@ -150,7 +150,7 @@ mod tests {
         let e = parse_scenario("trajectory = \"spiral\"\n", "x.toml").unwrap_err();
         assert!(e.contains("spiral"), "{e}");
         let e = parse_scenario("eps = 1.5\n", "x.toml").unwrap_err();
-        assert!(e.contains("eps must be"), "{e}");
+        assert!(e.contains("eps = 1.5 must be in [0, 1)"), "{e}");
     }
 
     #[test]

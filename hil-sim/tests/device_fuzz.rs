@@ -347,6 +347,7 @@ impl Fuzz {
                             StopCode::TrajectoryEnd
                                 | StopCode::VelocityTimeout
                                 | StopCode::LinkSilence
+                                | StopCode::Other
                         )
                     );
                 if ended_itself && self.ticks - start + 1 >= bound {

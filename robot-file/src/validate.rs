@@ -123,6 +123,32 @@ fn check(p: &Param, field: &'static str, x: f32, b: &RobotBounds) -> Result<(), 
         .map_err(|e| RobotError::new(field, Reason::Range(e)))
 }
 
+/// `Ok` when `ok`, else [`Reason::Exceeds`]: `field` is `value` (in
+/// `unit`), beyond `limit` computed from `with`; `why` says the rule and
+/// what to do.
+fn bounded(
+    ok: bool,
+    field: &'static str,
+    (value, limit, unit): (f32, f32, &'static str),
+    with: &'static str,
+    why: &'static str,
+) -> Result<(), RobotError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(RobotError::new(
+            field,
+            Reason::Exceeds {
+                value,
+                limit,
+                unit,
+                with,
+                why,
+            },
+        ))
+    }
+}
+
 fn consistent(
     ok: bool,
     field: &'static str,
@@ -371,38 +397,52 @@ impl Robot {
         let r_mean = 0.5 * (r0 + r1);
         let r_max = r0.max(r1);
         let m = b.mass_kg;
-        consistent(
+        bounded(
             (r0 - r1).abs() <= MAX_WHEEL_RADIUS_MISMATCH * r_mean,
             "body.wheel_radius_m[1]",
-            "body.wheel_radius_m[0]",
-            "the wheel radii differ by more than 10 % of their mean",
+            ((r0 - r1).abs(), MAX_WHEEL_RADIUS_MISMATCH * r_mean, "m"),
+            "10 % of the mean of body.wheel_radius_m",
+            "the wheel radii differ by more than that: measure both wheels again (a typo in one \
+             is the usual cause)",
         )?;
-        consistent(
+        bounded(
             b.com_offset_m < 0.5 * b.track_m,
             "body.com_offset_m",
-            "body.track_m",
-            "the centre of mass is half a track or more ahead of the axle (the plant model needs d < track/2)",
+            (b.com_offset_m, 0.5 * b.track_m, "m"),
+            "body.track_m / 2",
+            "the centre of mass is half a track or more ahead of the axle (the plant model needs \
+             d < track/2): measure d again, from the axle's midpoint",
         )?;
         // All of the mass within sqrt(track² + r²) of G bounds the yaw
         // inertia from above; a robot with all of its mass within 3 % of
         // the track of G (1/1000 of m·track²) is not a robot.
-        consistent(
+        bounded(
             b.inertia_kgm2 <= m * (b.track_m * b.track_m + r_max * r_max),
             "body.inertia_kgm2",
-            "body.mass_kg",
-            "above m·(track² + r²): more than the whole mass at the wheels' reach",
+            (
+                b.inertia_kgm2,
+                m * (b.track_m * b.track_m + r_max * r_max),
+                "kg·m²",
+            ),
+            "body.mass_kg·(track² + r²)",
+            "more than the whole mass at the wheels' reach: check the unit (kg·m²) or estimate \
+             it as m·(length² + width²)/12",
         )?;
-        consistent(
+        bounded(
             b.inertia_kgm2 >= 1e-3 * m * b.track_m * b.track_m,
             "body.inertia_kgm2",
-            "body.mass_kg",
-            "below m·track²/1000: the mass would sit within 3 % of the track of G",
+            (b.inertia_kgm2, 1e-3 * m * b.track_m * b.track_m, "kg·m²"),
+            "body.mass_kg·track²/1000 (a lower bound)",
+            "below it the mass would sit within 3 % of the track of G: check the unit (kg·m²) \
+             or estimate it as m·(length² + width²)/12",
         )?;
-        consistent(
+        bounded(
             b.wheel_inertia_kgm2 <= m * r_max * r_max,
             "body.wheel_inertia_kgm2",
-            "body.mass_kg",
-            "above m·r²: a wheel heavier than the robot as a ring at its rim",
+            (b.wheel_inertia_kgm2, m * r_max * r_max, "kg·m²"),
+            "body.mass_kg·r²",
+            "a wheel heavier than the robot as a ring at its rim: check the unit (kg·m²; a wheel \
+             of mass m_w is about m_w·r²/2)",
         )?;
         let stall = self.stall_torque_nm();
         let w0 = self.no_load_wheel_speed_radps();
@@ -414,11 +454,17 @@ impl Robot {
         .into_iter()
         .enumerate()
         {
-            consistent(
+            bounded(
                 mo.viscous_friction_nms_per_rad[i] * w0 <= 0.5 * stall,
                 f,
-                "motors (stall torque η·N·k·V/R, no-load speed V/(k·N))",
-                "at the no-load speed it takes more than half the stall torque",
+                (
+                    mo.viscous_friction_nms_per_rad[i],
+                    0.5 * stall / w0,
+                    "N·m·s/rad",
+                ),
+                "half the stall torque η·N·k·V/R over the no-load speed V/(k·N)",
+                "at the no-load speed it would take more than half the stall torque: measure it \
+                 again (`wmr identify`), or check the motor's constants",
             )?;
         }
         for (i, f) in [
@@ -428,11 +474,13 @@ impl Robot {
         .into_iter()
         .enumerate()
         {
-            consistent(
+            bounded(
                 mo.coulomb_friction_nm[i] <= 0.5 * stall,
                 f,
-                "motors (stall torque η·N·k·V/R)",
-                "more than half the stall torque",
+                (mo.coulomb_friction_nm[i], 0.5 * stall, "N·m"),
+                "half the stall torque η·N·k·V/R",
+                "more than half of what the motor gives at stall: measure it again (`wmr \
+                 commission`), or check the motor's constants (gear ratio, k, V, R)",
             )?;
         }
         // limits.torque_nm ≤ the stall torque: its range (validate_ranges).
@@ -473,30 +521,41 @@ impl Robot {
                 },
             ));
         }
-        consistent(
+        bounded(
             l.max_speed_mps <= self.no_load_speed_mps(),
             "limits.max_speed_mps",
-            "motors and body.wheel_radius_m (no-load speed r·V/(k·N))",
-            "faster than the motors turn without load",
+            (l.max_speed_mps, self.no_load_speed_mps(), "m/s"),
+            "the no-load speed r·V/(k·N) of motors and body.wheel_radius_m",
+            "faster than the motors turn without load: lower limits.max_speed_mps to the bound \
+             or less",
         )?;
-        consistent(
+        bounded(
             l.max_yaw_rate_radps <= 2.0 * self.no_load_speed_mps() / b.track_m,
             "limits.max_yaw_rate_radps",
-            "motors and body (2·r·V/(k·N)/track)",
-            "faster than the wheels turning in opposite directions at no-load speed",
+            (
+                l.max_yaw_rate_radps,
+                2.0 * self.no_load_speed_mps() / b.track_m,
+                "rad/s",
+            ),
+            "2·r·V/(k·N)/track, the wheels in opposite directions at no-load speed",
+            "faster than the robot can turn: lower limits.max_yaw_rate_radps to the bound or less",
         )?;
-        consistent(
+        bounded(
             l.max_accel_mps2 <= 2.0 * l.torque_nm / (r_max * m),
             "limits.max_accel_mps2",
-            "limits.torque_nm (2·τ/(r·m))",
-            "more than both wheels at the torque limit can give",
+            (l.max_accel_mps2, 2.0 * l.torque_nm / (r_max * m), "m/s²"),
+            "2·limits.torque_nm/(r·m), both wheels at the torque limit",
+            "more than the wheels can give: lower limits.max_accel_mps2 to the bound or less \
+             (or raise limits.torque_nm if the motors allow)",
         )?;
         let cpt = self.counts_per_tick(l.max_speed_mps / r0.min(r1), CONTROL_PERIOD_S);
-        consistent(
+        bounded(
             cpt <= i16::MAX as f32,
             "encoders.counts_per_wheel_rev",
-            "limits.max_speed_mps",
-            "more counts per 1 ms tick at the top speed than half the 16-bit counter",
+            (cpt, i16::MAX as f32, "counts per 1 ms tick"),
+            "half the 16-bit counter, at limits.max_speed_mps",
+            "the counter would wrap between two ticks: check counts_per_wheel_rev (counts per \
+             wheel turn, after the gearbox) or lower limits.max_speed_mps",
         )?;
         // The direction check's derived thresholds (derive.rs, D112): a
         // block of at most DIRECTION_MAX_BLOCK_S must resolve the runaway's
@@ -506,12 +565,14 @@ impl Robot {
         let w = controller_core::model::ReducedModel::new(&self.robot_params())
             .map(|m| m.wheel_accel_map())
             .map_err(|e| RobotError::new("body", Reason::Controller(e)))?;
-        consistent(
+        bounded(
             accel <= 0.5 * w[0][0].min(w[1][1]) * l.torque_nm,
             "encoders.counts_per_wheel_rev",
-            "limits.torque_nm, body and encoders.speed_window_ticks",
+            (accel, 0.5 * w[0][0].min(w[1][1]) * l.torque_nm, "rad/s²"),
+            "half the wheel acceleration limits.torque_nm gives (body, encoders.speed_window_ticks)",
             "too coarse for the direction check: 3 counts per speed window over its longest block \
-             are more than half the acceleration the torque limit gives a wheel",
+             resolve no finer than this; use a finer encoder, a longer speed_window_ticks or a \
+             higher limits.torque_nm",
         )?;
         let bp = self.bridge.params();
         for clock in SUPPORTED_TIMER_CLOCKS_HZ {

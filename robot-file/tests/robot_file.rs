@@ -901,3 +901,50 @@ fn friction_beyond_the_limit_and_an_unreachable_top_speed_are_refused() {
         "{text}"
     );
 }
+
+/// Issue 37: every refusal of a value against a bound computed from the
+/// file says the value, the computed bound with its unit, and what to do.
+/// The bounds here are computed by hand from the n20 file's own numbers.
+#[test]
+fn refusals_say_the_value_the_computed_limit_and_what_to_do() {
+    let base = read("n20-0p85kg.toml");
+    let refuse = |from: &str, to: &str| {
+        assert!(base.contains(from), "{from}");
+        robot_file::Robot::from_toml_str(&base.replacen(from, to, 1))
+            .unwrap_err()
+            .to_string()
+    };
+    // Coulomb friction above half the stall torque, η·N·k·V/R / 2 =
+    // 0.6·120·0.00191·7.4/4/2 = 0.12722 N·m.
+    let e = refuse(
+        "coulomb_friction_nm = [0.06, 0.06]",
+        "coulomb_friction_nm = [0.2, 0.06]",
+    );
+    assert!(
+        e.contains("motors.coulomb_friction_nm[0]: 0.2 N·m")
+            && e.contains("0.1272 N·m")
+            && e.contains("measure it again"),
+        "{e}"
+    );
+    // The torque limit above the stall torque 0.25441 N·m (the parameter
+    // table's range, its end computed for this robot).
+    let e = refuse("torque_nm = 0.12", "torque_nm = 1.0");
+    assert!(
+        e.contains("limits.torque_nm") && e.contains("1 N·m") && e.contains("0.2544"),
+        "{e}"
+    );
+    // d beyond half the track, 0.07 m.
+    let e = refuse("com_offset_m = 0.01", "com_offset_m = 0.09");
+    assert!(
+        e.contains("body.com_offset_m: 0.09 m")
+            && e.contains("0.0700 m")
+            && e.contains("measure d again"),
+        "{e}"
+    );
+    // The wheel inertia above m·r² = 0.85·0.03² = 0.000765 kg·m².
+    let e = refuse("wheel_inertia_kgm2 = ", "wheel_inertia_kgm2 = 0.01 # ");
+    assert!(
+        e.contains("body.wheel_inertia_kgm2: 0.01 kg·m²") && e.contains("0.0008 kg·m²"),
+        "{e}"
+    );
+}

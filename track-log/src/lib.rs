@@ -9,8 +9,10 @@
 
 pub mod csv;
 pub mod metrics;
+pub mod report;
 
 pub use metrics::{Metrics, MetricsAcc};
+pub use report::{log_report, HealthShare, LogReport};
 use serde::Serialize;
 
 /// One logged sample (decimated) for plots and CSV.

@@ -252,7 +252,18 @@ impl Selector {
             Mode::Trajectory => match self.waypoints.sample(t_ref_s) {
                 Some(r) => r,
                 None => {
-                    self.start_braking(running, link, policy, StopCode::TrajectoryEnd);
+                    // Past the last buffered waypoint: the trajectory's
+                    // end when every declared waypoint arrived; else a run
+                    // that ran out of streamed waypoints (a path longer than
+                    // the buffer armed without its stream, a stream that
+                    // fell behind): not an end a host may report as
+                    // success (issue 37, D195).
+                    let cause = if self.waypoints.complete() {
+                        StopCode::TrajectoryEnd
+                    } else {
+                        StopCode::Other
+                    };
+                    self.start_braking(running, link, policy, cause);
                     return self.select(running, t_ref_s, now_us, link, policy);
                 }
             },

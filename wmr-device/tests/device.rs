@@ -1602,3 +1602,52 @@ fn a_range_is_refused_identically_by_the_file_and_the_device() {
     }
     assert!(paper.limits.torque_nm < stall);
 }
+
+/// Runs the armed rig to hold, a status request every 100 ticks keeping
+/// the link alive; the stop's cause.
+fn run_to_hold(rig: &mut Rig, max_ticks: usize) -> Option<StopCode> {
+    let mut seq = 100;
+    for k in 0..max_ticks {
+        if k % 100 == 0 {
+            seq += 1;
+            rig.send(&Request::GetStatus, seq);
+        }
+        rig.tick();
+        if rig.dev.state() == RunStateMsg::Hold {
+            return rig.replies.iter().rev().find_map(|r| match r {
+                Reply::Event(Event::StateChanged {
+                    state: RunStateMsg::Hold,
+                    cause,
+                }) => *cause,
+                _ => None,
+            });
+        }
+    }
+    panic!("still {:?} after {max_ticks} ticks", rig.dev.state());
+}
+
+/// Issue 37 (D195): a trajectory longer than the buffer, armed with only
+/// its first 64 waypoints and never streamed (the README's `upload` then
+/// `record --arm`), runs them and stops as `Other`, not `TrajectoryEnd`:
+/// a host must not take the truncated run for the path's end. The
+/// complete trajectory still ends as `TrajectoryEnd`.
+#[test]
+fn a_trajectory_that_runs_out_of_streamed_waypoints_is_not_its_end() {
+    let mut rig = Rig::new();
+    rig.request(&Request::TrajectoryBegin { total_points: 100 }, 1);
+    for s in 0..8 {
+        let r = rig.request(&line_seg(8 * s, 8), 2);
+        assert!(matches!(r, Reply::TrajectoryAck { .. }), "{r:?}");
+    }
+    assert_eq!(rig.request(&Request::Arm, 3), Reply::Ack { seq: 3 });
+    // 64 waypoints, 0.1 s apart: 6.3 s, then the brake.
+    assert_eq!(run_to_hold(&mut rig, 12_000), Some(StopCode::Other));
+
+    let mut rig = Rig::new();
+    rig.request(&Request::TrajectoryBegin { total_points: 20 }, 1);
+    for (first, n) in [(0, 8), (8, 8), (16, 4)] {
+        rig.request(&line_seg(first, n), 2);
+    }
+    assert_eq!(rig.request(&Request::Arm, 3), Reply::Ack { seq: 3 });
+    assert_eq!(run_to_hold(&mut rig, 6_000), Some(StopCode::TrajectoryEnd));
+}

@@ -539,11 +539,13 @@ pub enum StopCode {
     LinkSilence,
     /// The velocity command expired.
     VelocityTimeout,
-    /// The uploaded trajectory ended or ran out of streamed waypoints.
+    /// The uploaded trajectory ended (every declared waypoint driven).
     TrajectoryEnd,
     /// Disarmed by the host or the button.
     Disarmed,
-    /// Any other runtime stop.
+    /// Any other runtime stop: a reference beyond the robot's limits, or
+    /// a trajectory that ran out of streamed waypoints before its declared
+    /// end (issue 37, D195).
     Other,
     /// A wheel accelerated against its commanded torque for the direction
     /// check's window: a motor or encoder wired backwards (version 4).

@@ -297,6 +297,7 @@ fn circle(
             file: traj.clone(),
             arm: false,
             robot: Some(robot_file.to_path_buf()),
+            scale_time: 1.0,
         },
         link,
         &mut sink,

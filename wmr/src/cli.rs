@@ -157,6 +157,9 @@ pub fn dispatch(cli: &Cli, out: &mut dyn Write) -> Result<(), CliError> {
         }) => Ok(crate::identify::fit(a, out)?), // a log, no robot
         Command::Metrics(a) => {
             let m = crate::record::metrics_of_file(&a.file)?;
+            if let Some(r) = &m.report {
+                eprintln!("{r}");
+            }
             let json = serde_json::to_string(&m).map_err(|e| CliError::Output(e.to_string()))?;
             writeln!(out, "{json}").map_err(|e| CliError::Output(e.to_string()))
         }
@@ -248,17 +251,62 @@ mod tests {
     #[test]
     fn one_line_errors() {
         let e = LinkError::Nack("Arm".into(), ErrorCode::NoReference);
-        assert_eq!(
-            e.to_string(),
-            "the robot refused Arm: no reference, trajectory or velocity command loaded"
-        );
+        // The refusal, then the command that gets out of it.
+        assert!(e.to_string().starts_with(
+            "the robot refused Arm: no reference, trajectory or velocity command loaded; \
+             load one first: `wmr upload FILE`"
+        ));
         let e = Link::open("/dev/no-such-port", Duration::from_millis(10))
             .err()
             .unwrap();
-        assert_eq!(e.to_string(), "no such port: /dev/no-such-port");
-        assert!(!LinkError::NoAnswer("Hello".into())
-            .to_string()
-            .contains('\n'));
+        // What happened, the port, what to do.
+        let s = e.to_string();
+        assert!(
+            s.starts_with("no such port: /dev/no-such-port: ") && s.contains("--port PATH"),
+            "{s}"
+        );
+        // Not a terminal: /dev/null exists everywhere and is no tty.
+        let e = Link::open("/dev/null", Duration::from_millis(10))
+            .err()
+            .unwrap();
+        assert!(
+            matches!(
+                e,
+                LinkError::Open {
+                    kind: crate::OpenFailure::NotATerminal,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+        assert!(e.to_string().contains("not a serial port"), "{e}");
+        for e in [
+            LinkError::NoAnswer("Hello".into()),
+            LinkError::Silent {
+                port: "/dev/pts/9".into(),
+                request: "Hello".into(),
+                tries: 3,
+                each_ms: 100,
+            },
+            LinkError::Lost {
+                port: "/dev/pts/9".into(),
+                detail: "Broken pipe".into(),
+            },
+        ] {
+            let s = e.to_string();
+            assert!(!s.contains('\n') && !s.contains("link error"), "{s}");
+        }
+        let s = LinkError::Silent {
+            port: "/dev/pts/9".into(),
+            request: "Hello".into(),
+            tries: 3,
+            each_ms: 100,
+        }
+        .to_string();
+        assert!(
+            s.contains("/dev/pts/9 to Hello (sent 3 times, 100 ms apart)"),
+            "{s}"
+        );
     }
 
     /// Every subcommand parses to the variant `run` or `dispatch` handles

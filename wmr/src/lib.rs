@@ -35,6 +35,7 @@ pub mod params;
 pub mod pose_feed;
 pub mod record;
 pub mod reference;
+pub mod refusal;
 pub mod robot;
 pub mod serve;
 pub mod session;
@@ -43,4 +44,4 @@ pub mod timing;
 pub mod upload;
 pub mod watch;
 
-pub use link::{HelloInfo, Link, LinkError};
+pub use link::{HelloInfo, Link, LinkError, OpenFailure};

@@ -18,9 +18,34 @@ pub enum LinkError {
     /// The port does not exist.
     NoSuchPort(String),
     /// The port exists but cannot be opened or configured.
-    Open(String, String),
-    /// No answer within the timeout.
+    Open {
+        /// The port.
+        port: String,
+        /// Why, as far as wmr can tell.
+        kind: OpenFailure,
+        /// The operating system's words.
+        detail: String,
+    },
+    /// No answer within the timeout (what was waited for).
     NoAnswer(String),
+    /// No answer to a request after every re-send: the robot is silent.
+    Silent {
+        /// The port (or the `wmr serve` socket).
+        port: String,
+        /// The request.
+        request: String,
+        /// How many times it was sent.
+        tries: u32,
+        /// How long wmr waited after each [ms].
+        each_ms: u64,
+    },
+    /// Reading or writing the port failed: the link is gone.
+    Lost {
+        /// The port (or the `wmr serve` socket).
+        port: String,
+        /// The operating system's words.
+        detail: String,
+    },
     /// The robot speaks another protocol version.
     VersionMismatch {
         /// The robot's version.
@@ -30,34 +55,154 @@ pub enum LinkError {
     Nack(String, ErrorCode),
     /// An unexpected answer.
     Unexpected(String),
-    /// Reading or writing the port failed.
+    /// A local failure with its message (a file, an argument, an output):
+    /// not the link's (that is [`LinkError::Lost`]).
     Io(String),
     /// The robot stopped when the host did not expect it (what and when).
     UnexpectedStop(String),
     /// No `wmr serve` at this socket (the socket, why).
     NoServer(String, String),
+    /// `wmr upload` refused the file (what, by how much, what to do).
+    Upload(Box<crate::refusal::UploadError>),
+}
+
+impl From<crate::refusal::UploadError> for LinkError {
+    fn from(e: crate::refusal::UploadError) -> Self {
+        Self::Upload(Box::new(e))
+    }
 }
 
 impl std::fmt::Display for LinkError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Self::NoSuchPort(p) => write!(f, "no such port: {p}"),
-            Self::Open(p, e) => write!(f, "cannot open {p}: {e}"),
+            Self::NoSuchPort(p) => write!(
+                f,
+                "no such port: {p}: is the robot plugged in and powered (`ls /dev/ttyACM* \
+                 /dev/ttyUSB*` lists the ports)? The simulated robot prints its port as its first \
+                 line (`hil-sim device --pty`) and the port goes when it exits; give it with \
+                 --port PATH or WMR_PORT"
+            ),
+            Self::Open { port, kind, detail } => {
+                write!(f, "cannot open {port} ({detail}): ")?;
+                match kind {
+                    OpenFailure::Permission => write!(
+                        f,
+                        "no permission: add yourself to the port's group (`ls -l {port}` names it, \
+                         usually dialout: `sudo usermod -aG dialout $USER`, then log in again)"
+                    ),
+                    OpenFailure::NotATerminal => write!(
+                        f,
+                        "it is not a serial port or terminal: give the robot's port (a USB robot: \
+                         /dev/ttyACM*; the simulated robot prints its pty as its first line)"
+                    ),
+                    OpenFailure::Busy => write!(
+                        f,
+                        "another process has it: if it is `wmr serve`, give --serve SOCKET (or run \
+                         the command with the same --port: it finds the server); else stop that \
+                         process (`fuser {port}` names it)"
+                    ),
+                    OpenFailure::Other => write!(f, "check that it is the robot's port"),
+                }
+            }
             Self::NoAnswer(what) => write!(f, "no answer from the robot to {what}"),
+            Self::Silent {
+                port,
+                request,
+                tries,
+                each_ms,
+            } => write!(
+                f,
+                "no answer from the robot on {port} to {request} (sent {tries} times, {each_ms} ms \
+                 apart): is it powered and running its firmware, and is {port} its port (a USB \
+                 robot is /dev/ttyACM*, the simulated robot prints its port)? On a slow link raise \
+                 --timeout-ms"
+            ),
+            Self::Lost { port, detail } => write!(
+                f,
+                "lost the link on {port} ({detail}): the robot was unplugged, reset or powered \
+                 off, or the simulated robot exited (its port changes when it restarts); \
+                 reconnect it and run the command again (`wmr status` checks the link)"
+            ),
             Self::VersionMismatch { robot } => write!(
                 f,
                 "version mismatch: the robot speaks protocol {robot}, wmr speaks {PROTOCOL_VERSION}"
             ),
-            Self::Nack(what, e) => write!(f, "the robot refused {what}: {}", e.reason()),
+            Self::Nack(what, e) => {
+                write!(f, "the robot refused {what}: {}", e.reason())?;
+                match nack_advice(what, *e) {
+                    Some(a) => write!(f, "; {a}"),
+                    None => Ok(()),
+                }
+            }
             Self::Unexpected(what) => write!(f, "unexpected answer: {what}"),
-            Self::Io(e) => write!(f, "link error: {e}"),
+            Self::Io(e) => write!(f, "{e}"),
             Self::UnexpectedStop(s) => write!(f, "the robot stopped unexpectedly: {s}"),
             Self::NoServer(p, e) => write!(f, "cannot connect to wmr serve at {p}: {e}"),
+            Self::Upload(e) => write!(f, "{e}"),
         }
     }
 }
 
 impl std::error::Error for LinkError {}
+
+/// The command that gets out of a refusal, where there is one.
+pub fn nack_advice(request: &str, e: ErrorCode) -> Option<&'static str> {
+    Some(match e {
+        ErrorCode::Latched => {
+            "`wmr status` shows why it stopped; fix that, then `wmr clear` releases the stop"
+        }
+        ErrorCode::Busy => "`wmr disarm` stops it first (or wait for the run to end)",
+        ErrorCode::NoReference => {
+            "load one first: `wmr upload FILE` (a trajectory or scenario file), or drive with \
+             `wmr drive`"
+        }
+        ErrorCode::UploadIncomplete => {
+            "upload it again (`wmr upload FILE`); a path longer than the robot's buffer runs \
+             with `wmr upload FILE --arm`, which streams the rest"
+        }
+        ErrorCode::InvalidValue if request == "SetParam" => {
+            "`wmr params get` lists every parameter with its range"
+        }
+        ErrorCode::ReadOnly => "`wmr params get` marks the writable parameters",
+        ErrorCode::WrongMode => "`wmr status` shows the mode loaded",
+        ErrorCode::NoStore => {
+            "this firmware has no robot store: its robot file is compiled in (firmware/README.md)"
+        }
+        ErrorCode::BufferFull => "send it again once the robot has passed some waypoints",
+        ErrorCode::VersionMismatch => "update wmr or the firmware so that both speak one protocol",
+        _ => return None,
+    })
+}
+
+/// Why a port could not be opened, as far as wmr can tell.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OpenFailure {
+    /// The user may not open it.
+    Permission,
+    /// Not a serial port or terminal (a file, `/dev/null`).
+    NotATerminal,
+    /// Another process holds it (locked or busy).
+    Busy,
+    /// Anything else.
+    Other,
+}
+
+impl OpenFailure {
+    /// Classifies a serialport error.
+    pub fn of(e: &serialport::Error) -> Self {
+        let d = e.description.to_ascii_lowercase();
+        match e.kind {
+            serialport::ErrorKind::Io(std::io::ErrorKind::PermissionDenied) => Self::Permission,
+            serialport::ErrorKind::NoDevice => Self::Busy,
+            _ if d.contains("permission") => Self::Permission,
+            _ if d.contains("lock") || d.contains("busy") => Self::Busy,
+            _ if d.contains("typewriter") || d.contains("inappropriate ioctl") => {
+                Self::NotATerminal
+            }
+            _ => Self::Other,
+        }
+    }
+}
 
 /// A byte stream to the robot (a serial port, a pseudo-terminal).
 pub trait Port: Read + Write + Send {}
@@ -90,6 +235,8 @@ pub struct Link {
     /// The last successful handshake.
     pub last_hello: Option<HelloInfo>,
     buf: Vec<u8>,
+    /// The port's path (or the server's socket) for error messages.
+    name: String,
 }
 
 /// A short name of a request for error messages.
@@ -116,11 +263,15 @@ impl Link {
         let port = serialport::new(path, 115_200)
             .timeout(Duration::from_millis(5))
             .open_native()
-            .map_err(|e| LinkError::Open(path.into(), e.to_string()))?;
+            .map_err(|e| LinkError::Open {
+                port: path.into(),
+                kind: OpenFailure::of(&e),
+                detail: e.to_string(),
+            })?;
         use serialport::SerialPort;
         // Stale bytes from before we opened (telemetry to nobody) go.
         let _ = port.clear(serialport::ClearBuffer::Input);
-        Ok(Self::from_port_timed(Box::new(port), timeout))
+        Ok(Self::from_port_timed(Box::new(port), timeout).named(path))
     }
 
     /// A link over any byte stream with a fixed answer timeout (see
@@ -148,6 +299,25 @@ impl Link {
             stream: VecDeque::new(),
             last_hello: None,
             buf: Vec::new(),
+            name: "the robot's port".into(),
+        }
+    }
+
+    /// The link named `name` in its errors (the port's path).
+    pub fn named(mut self, name: &str) -> Self {
+        self.name = name.into();
+        self
+    }
+
+    /// The port's path (or the server's socket), as errors name it.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn lost(&self, e: std::io::Error) -> LinkError {
+        LinkError::Lost {
+            port: self.name.clone(),
+            detail: e.to_string(),
         }
     }
 
@@ -189,15 +359,13 @@ impl Link {
         self.port
             .write_all(&buf[..n + 1])
             .and_then(|_| self.port.flush())
-            .map_err(|e| LinkError::Io(e.to_string()))?;
+            .map_err(|e| self.lost(e))?;
         Ok(self.seq)
     }
 
     /// Writes raw bytes (tests: garbage on the wire).
     pub fn write_raw(&mut self, bytes: &[u8]) -> Result<(), LinkError> {
-        self.port
-            .write_all(bytes)
-            .map_err(|e| LinkError::Io(e.to_string()))
+        self.port.write_all(bytes).map_err(|e| self.lost(e))
     }
 
     /// Reads what the port has (waiting at most its read timeout) and
@@ -216,7 +384,7 @@ impl Link {
             {
                 std::thread::sleep(Duration::from_millis(1));
             }
-            Err(e) => return Err(LinkError::Io(e.to_string())),
+            Err(e) => return Err(self.lost(e)),
         }
         let mut answers = Vec::new();
         let bytes = std::mem::take(&mut self.buf);
@@ -310,7 +478,12 @@ impl Link {
                 }
             }
         }
-        Err(LinkError::NoAnswer(request_name(req)))
+        Err(LinkError::Silent {
+            port: self.name.clone(),
+            request: request_name(req),
+            tries: self.timing.attempts.max(1),
+            each_ms: self.timing.answer_timeout.as_millis() as u64,
+        })
     }
 
     /// Sends `req`; `Ok` on an ack, the reason on a nack.

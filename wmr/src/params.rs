@@ -37,6 +37,14 @@ pub enum ParamsError {
         /// The robot's code.
         code: ErrorCode,
     },
+    /// The robot refused a value beyond its own range, computed from the
+    /// robot file it runs (read from its store).
+    RefusedRange {
+        /// The robot's name.
+        robot: String,
+        /// The value, the limit and the range.
+        error: RangeError,
+    },
     /// The link failed.
     Link(LinkError),
 }
@@ -65,6 +73,12 @@ impl std::fmt::Display for ParamsError {
                 }
                 Ok(())
             }
+            Self::RefusedRange { robot, error } => write!(
+                f,
+                "the robot refused {}: {} (robot {robot}'s file on the link)",
+                error.field,
+                error.reason()
+            ),
             Self::Link(e) => write!(f, "{e}"),
         }
     }
@@ -180,7 +194,21 @@ pub fn set(
     }
     match link.command(&Request::SetParam { id, value }) {
         Ok(_) => {}
-        Err(LinkError::Nack(_, code)) => return Err(ParamsError::Refused { id, value, code }),
+        Err(LinkError::Nack(_, code)) => {
+            // The link carries only the code: the robot's own range, with
+            // its computed ends, from the robot file it runs.
+            if code == ErrorCode::InvalidValue {
+                if let Ok(Ok(robot)) = crate::session::robot_in_force(link) {
+                    if let Err(error) = id.param().check(value, &robot.bounds()) {
+                        return Err(ParamsError::RefusedRange {
+                            robot: robot.name.to_string(),
+                            error,
+                        });
+                    }
+                }
+            }
+            return Err(ParamsError::Refused { id, value, code });
+        }
         Err(e) => return Err(e.into()),
     }
     writeln!(out, "{} = {value}", id.name()).map_err(|e| LinkError::Io(e.to_string()))?;

@@ -136,7 +136,7 @@ pub fn feed_lines(
                         tally.refused(e);
                         eprintln!("line {n}: refused: {}", e.reason());
                     }
-                    Err(LinkError::NoAnswer(what)) => {
+                    Err(LinkError::NoAnswer(what) | LinkError::Silent { request: what, .. }) => {
                         let silent = tally.lost(Instant::now());
                         eprintln!("line {n}: lost (no answer to {what})");
                         if silent >= POSE_FEED_GIVE_UP {

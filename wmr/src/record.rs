@@ -59,8 +59,11 @@ pub struct RecordSummary {
     /// The MCAP file, with `--mcap`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub mcap: Option<String>,
-    /// The simulator's metrics of the log (no perturbation window).
-    pub metrics: Option<track_log::Metrics>,
+    /// The log's report (`None` under two rows): `metrics` with a window
+    /// that fits the path that ran (`window_s`, the log's span), the lag
+    /// at the end (`end_lag_s`, `end_offset_m`) and the `health` shares.
+    #[serde(flatten)]
+    pub report: Option<track_log::LogReport>,
 }
 
 /// `metrics` options.
@@ -78,8 +81,9 @@ pub struct MetricsSummary {
     pub rows: usize,
     /// Reference time covered [s].
     pub duration_s: f64,
-    /// The metrics (no perturbation window), as `record` prints them.
-    pub metrics: Option<track_log::Metrics>,
+    /// The log's report, as `record` prints it.
+    #[serde(flatten)]
+    pub report: Option<track_log::LogReport>,
 }
 
 /// The metrics of a log file, CSV or MCAP.
@@ -91,7 +95,7 @@ pub fn metrics_of_file(path: &std::path::Path) -> Result<MetricsSummary, ros_mca
             (Some(a), Some(b)) => b.t_s - a.t_s,
             _ => 0.0,
         },
-        metrics: track_log::metrics_from_trace(&rows, [0.0, 0.0], false),
+        report: track_log::log_report(&rows),
     })
 }
 
@@ -243,8 +247,11 @@ pub fn record(a: &RecordArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
         },
         csv: a.out.display().to_string(),
         mcap: a.mcap.as_ref().map(|p| p.display().to_string()),
-        metrics: track_log::metrics_from_trace(&rows, [0.0, 0.0], false),
+        report: track_log::log_report(&rows),
     };
+    if let Some(r) = &summary.report {
+        eprintln!("{r}");
+    }
     let json = serde_json::to_string(&summary).map_err(|e| LinkError::Io(e.to_string()))?;
     writeln!(out, "{json}").map_err(session::io)?;
     // With --arm the run is ours: only its end or a disarm is a success (the

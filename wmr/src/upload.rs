@@ -24,11 +24,15 @@
 //! ```
 
 use crate::link::{Link, LinkError};
-use crate::session::{expect_cause, io, until_rest, Motion, Pump, SegmentStream, Watch};
+pub use crate::refusal::{UploadError, WaypointError, MAX_SCALE_TIME};
+use crate::session::{
+    expect_cause, io, until_rest, Motion, Pump, SegmentStream, StreamError, Watch,
+};
 use clap::Args;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
+use wmr_device::reference::WAYPOINT_CAPACITY;
 use wmr_protocol::{named_shape, BuiltinReference, PoseMsg, Request, StopCode, Waypoint};
 
 /// What a file asks the robot to drive.
@@ -178,18 +182,18 @@ pub fn parse_upload(text: &str, origin: &str) -> Result<(Upload, Vec<String>), S
     }
 }
 
-/// Checks every waypoint and the curve between each two against the
-/// limits of `robot` (its no-load speed and yaw rate, the acceleration its
-/// stall torque gives) with the device's own check
-/// (`wmr_device::reference::check_segment`, issue 31 item 1), so that a
-/// refusal names the segment, the value and the limit before anything is
-/// sent.
-pub fn check_waypoints(points: &[Waypoint], robot: &robot_file::Robot) -> Result<(), String> {
+/// The first waypoint or segment of `points` beyond the limits of `robot`
+/// (without the scale hint).
+fn first_beyond(points: &[Waypoint], robot: &robot_file::Robot) -> Result<(), WaypointError> {
     use controller_core::trajectory::{Line, Reference};
     use wmr_device::limits::RobotLimits;
     // The reference and the timer clock do not enter the limits.
-    let board = robot_file::BoardFacts::of_timer(robot, 96_000_000)
-        .map_err(|e| format!("robot {}: {e}", robot.name))?;
+    let board = robot_file::BoardFacts::of_timer(robot, 96_000_000).map_err(|error| {
+        WaypointError::Robot {
+            robot: robot.name.to_string(),
+            error,
+        }
+    })?;
     let rt = robot
         .derive(
             &board,
@@ -204,35 +208,102 @@ pub fn check_waypoints(points: &[Waypoint], robot: &robot_file::Robot) -> Result
         let (v, om) = (w.v_mps.abs(), w.omega_radps.abs());
         let within = v <= lim.top_speed_mps && om <= lim.top_yaw_rate_radps;
         if !within {
-            return Err(format!(
-                "waypoint {i} (t {:.3} s): v {} m/s, ω {} rad/s; robot {} goes at most {:.3} m/s \
-                 and {:.3} rad/s (its no-load speed): give it a slower waypoint",
-                w.t_s,
-                w.v_mps,
-                w.omega_radps,
-                robot.name,
-                lim.top_speed_mps,
-                lim.top_yaw_rate_radps
-            ));
+            return Err(WaypointError::Waypoint {
+                index: i,
+                t_s: w.t_s,
+                v_mps: w.v_mps,
+                omega_radps: w.omega_radps,
+                robot: robot.name.to_string(),
+                top_speed_mps: lim.top_speed_mps,
+                top_yaw_rate_radps: lim.top_yaw_rate_radps,
+                scale: None,
+            });
         }
     }
     for (i, pair) in points.windows(2).enumerate() {
         if let Err(e) = wmr_device::reference::check_segment(&pair[0], &pair[1], &lim) {
-            let (name, unit) = e.quantity.describe();
-            return Err(format!(
-                "segment {i} (waypoints {i} to {}, t {:.3} to {:.3} s): the curve between them \
-                 reaches a {name} of {:.3} {unit}, above robot {}'s {:.3} {unit}: give the \
-                 waypoints more time between them, or more of them along the path",
-                i + 1,
-                pair[0].t_s,
-                pair[1].t_s,
-                e.value,
-                robot.name,
-                e.limit
-            ));
+            let (quantity, unit) = e.quantity.describe();
+            return Err(WaypointError::Segment {
+                index: i,
+                t0_s: pair[0].t_s,
+                t1_s: pair[1].t_s,
+                quantity,
+                unit,
+                value: e.value,
+                limit: e.limit,
+                robot: robot.name.to_string(),
+                scale: None,
+            });
         }
     }
     Ok(())
+}
+
+/// `points` run `k` times slower: times ×k, speeds and yaw rates ÷k (the
+/// same curve in space; accelerations ÷k²).
+pub fn scale_time(points: &[Waypoint], k: f32) -> Vec<Waypoint> {
+    points
+        .iter()
+        .map(|w| Waypoint {
+            t_s: w.t_s * k,
+            pose: w.pose,
+            v_mps: w.v_mps / k,
+            omega_radps: w.omega_radps / k,
+        })
+        .collect()
+}
+
+/// The least time scale (rounded up to 0.01, at most
+/// [`MAX_SCALE_TIME`]) with which `points` fit `robot`; `None` when none
+/// does. Speeds fall as 1/k and accelerations as 1/k², so a path that fits
+/// at k fits at every larger k: bisection.
+pub fn least_scale(points: &[Waypoint], robot: &robot_file::Robot) -> Option<f32> {
+    let fits = |k: f32| first_beyond(&scale_time(points, k), robot).is_ok();
+    if fits(1.0) {
+        return Some(1.0);
+    }
+    if !fits(MAX_SCALE_TIME) {
+        return None;
+    }
+    let (mut lo, mut hi) = (1.0f32, MAX_SCALE_TIME);
+    while hi - lo > 1e-3 {
+        let mid = 0.5 * (lo + hi);
+        if fits(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    let k = (hi * 100.0).ceil() / 100.0;
+    fits(k).then_some(k)
+}
+
+/// Checks every waypoint and the curve between each two against the
+/// limits of `robot` (its no-load speed and yaw rate, the acceleration its
+/// stall torque gives) with the device's own check
+/// (`wmr_device::reference::check_segment`, issue 31 item 1), so that a
+/// refusal names the segment, the value and the limit before anything is
+/// sent, and the `--scale-time` that makes the whole path fit.
+pub fn check_waypoints(
+    points: &[Waypoint],
+    robot: &robot_file::Robot,
+) -> Result<(), WaypointError> {
+    first_beyond(points, robot).map_err(|mut e| {
+        let k = least_scale(points, robot);
+        if let WaypointError::Waypoint { scale, .. } | WaypointError::Segment { scale, .. } = &mut e
+        {
+            *scale = k;
+        }
+        e
+    })
+}
+
+/// `--port PATH` or `--serve SOCKET` for the link, as commands to suggest.
+fn link_flag(link: &Link) -> String {
+    match link.name().strip_prefix("wmr serve at ") {
+        Some(sock) => format!("--serve {sock}"),
+        None => format!("--port {}", link.name()),
+    }
 }
 
 /// `upload` options.
@@ -248,9 +319,14 @@ pub struct UploadArgs {
     pub arm: bool,
     /// The robot's file: check every waypoint and the curve between each
     /// two against its limits before sending (the robot checks them too,
-    /// but its refusal cannot say which limit).
+    /// but its refusal cannot say which limit; without it wmr reads the
+    /// robot's own file from its store when the robot refuses).
     #[arg(long, value_name = "ROBOT.toml")]
     pub robot: Option<PathBuf>,
+    /// Run the path K times slower: waypoint times ×K, speeds and yaw
+    /// rates ÷K (accelerations ÷K²), a built-in reference's speed_scale ÷K.
+    #[arg(long, value_name = "K", default_value_t = 1.0)]
+    pub scale_time: f32,
 }
 
 /// `upload`: loads a built-in reference or streams waypoints (with
@@ -268,8 +344,14 @@ pub fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
             ignored.join(", ")
         );
     }
+    let k = a.scale_time;
+    if !(k.is_finite() && k > 0.0 && k <= MAX_SCALE_TIME) {
+        return Err(UploadError::BadScale(k).into());
+    }
+    let file = a.file.display().to_string();
     match up {
-        Upload::Builtin(r) => {
+        Upload::Builtin(mut r) => {
+            r.speed_scale /= k;
             link.command(&Request::SetReference(r))?;
             writeln!(out, "reference loaded: {:?}", r.shape).map_err(io)?;
             if a.arm {
@@ -283,13 +365,32 @@ pub fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
             }
         }
         Upload::Waypoints(pts) => {
+            let pts = if k == 1.0 { pts } else { scale_time(&pts, k) };
             if let Some(path) = &a.robot {
                 let robot = crate::robot::read_file(path)?;
-                crate::upload::check_waypoints(&pts, &robot)
-                    .map_err(|e| LinkError::Io(format!("{}: {e}", a.file.display())))?;
+                check_waypoints(&pts, &robot).map_err(|error| UploadError::Waypoints {
+                    file: file.clone(),
+                    error: error.times(k),
+                })?;
+            }
+            let duration_s = pts.last().map_or(0.0, |w| w.t_s) - pts[0].t_s;
+            if pts.len() > WAYPOINT_CAPACITY && !a.arm {
+                // Refused before anything is sent: a part of it loaded
+                // would run truncated under a later `arm`.
+                return Err(UploadError::BeyondBuffer {
+                    file,
+                    points: pts.len(),
+                    duration_s,
+                    capacity: WAYPOINT_CAPACITY,
+                    link: link_flag(link),
+                    record_s: (duration_s + 5.0).ceil(),
+                }
+                .into());
             }
             let mut stream = SegmentStream::begin(link, &pts)?;
-            stream.pump(link)?;
+            if let Err(e) = stream.pump(link) {
+                return Err(explain_refusal(e, &pts, k, link, &file));
+            }
             writeln!(
                 out,
                 "{} of {} waypoints loaded",
@@ -298,9 +399,15 @@ pub fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
             )
             .map_err(io)?;
             if !stream.done() && !a.arm {
-                return Err(LinkError::Io(
-                    "the trajectory is longer than the robot's buffer: use --arm to stream the rest while running".into(),
-                ));
+                return Err(UploadError::BeyondBuffer {
+                    file,
+                    points: pts.len(),
+                    duration_s,
+                    capacity: stream.points_sent(),
+                    link: link_flag(link),
+                    record_s: (duration_s + 5.0).ceil(),
+                }
+                .into());
             }
             if a.arm {
                 Motion::Arm.send(link)?;
@@ -320,6 +427,40 @@ pub fn upload(a: &UploadArgs, link: &mut Link, out: &mut dyn Write) -> Result<()
         }
     }
     Ok(())
+}
+
+/// A segment the robot refused as beyond its limits, explained by the
+/// robot's own file (read from its store) when it can tell.
+fn explain_refusal(
+    e: StreamError,
+    pts: &[Waypoint],
+    k: f32,
+    link: &mut Link,
+    file: &str,
+) -> LinkError {
+    if !matches!(e, StreamError::BeyondLimits { .. }) {
+        return e.into();
+    }
+    let why = match crate::session::robot_in_force(link) {
+        Ok(Ok(robot)) => match check_waypoints(pts, &robot) {
+            Err(error) => {
+                return UploadError::Waypoints {
+                    file: file.into(),
+                    error: error.times(k),
+                }
+                .into()
+            }
+            Ok(()) => format!("robot {}'s file passes the path", robot.name),
+        },
+        Ok(Err(why)) => why.to_string(),
+        Err(l) => l.to_string(),
+    };
+    UploadError::Unexplained {
+        file: file.into(),
+        error: e.to_string(),
+        why,
+    }
+    .into()
 }
 
 /// Pumps `stream` until every segment is acknowledged, waiting (up to
@@ -436,13 +577,87 @@ mod tests {
                 omega_radps: 0.0,
             })
             .collect();
-        let e = check_waypoints(&slalom, &robot).unwrap_err();
+        let e = check_waypoints(&slalom, &robot).unwrap_err().to_string();
         assert!(
             e.contains("segment 0 (waypoints 0 to 1")
                 && e.contains("yaw rate")
                 && e.contains("20.000 rad/s"),
             "{e}"
         );
+    }
+
+    /// Issue 37: the project's square on the n20 robot (no-load speed
+    /// 0.969 m/s, below the square's 1 m/s) is refused naming waypoint 4,
+    /// its speed and the limit, with the least `--scale-time`: the square
+    /// run that much slower fits, 2 % less does not (feasibility is
+    /// monotone in the scale: speeds ÷k, accelerations ÷k²).
+    #[test]
+    fn a_too_fast_path_says_how_much_slower_fits() {
+        let read = |rel: &str| {
+            std::fs::read_to_string(format!("{}/../{rel}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+        };
+        let (u, _) = parse_upload(&read("trajectories/square.toml"), "square.toml").unwrap();
+        let Upload::Waypoints(square) = u else {
+            panic!()
+        };
+        let robot = robot_file::Robot::from_toml_str(&read("robots/n20-0p85kg.toml")).unwrap();
+        let e = check_waypoints(&square, &robot).unwrap_err();
+        let WaypointError::Waypoint {
+            index,
+            scale: Some(k),
+            top_speed_mps,
+            ..
+        } = e
+        else {
+            panic!("{e}")
+        };
+        assert_eq!(index, 4);
+        // V/(k·N)·r = 7.4/(0.00191·120)·0.03 m/s.
+        assert!((top_speed_mps - 7.4 / (0.00191 * 120.0) * 0.03).abs() < 1e-3);
+        assert!(k >= 1.0 / top_speed_mps, "{k}");
+        let s = e.to_string();
+        assert!(
+            s.contains("waypoint 4") && s.contains("0.969 m/s") && s.contains("--scale-time"),
+            "{s}"
+        );
+        assert!(check_waypoints(&scale_time(&square, k), &robot).is_ok());
+        assert!(check_waypoints(&scale_time(&square, k - 0.02), &robot).is_err());
+        // Counted from the file as written when already scaled (rounded
+        // up twice: at most 0.01 more).
+        let e = check_waypoints(&scale_time(&square, 1.01), &robot)
+            .unwrap_err()
+            .times(1.01);
+        let WaypointError::Waypoint {
+            scale: Some(k2), ..
+        } = e
+        else {
+            panic!("{e}")
+        };
+        assert!(k2 >= k && k2 <= k + 0.0101, "{k2} vs {k}");
+    }
+
+    /// A path beyond the buffer without `--arm`: the commands that stream
+    /// it, with the port.
+    #[test]
+    fn beyond_the_buffer_says_how_to_stream_it() {
+        let s = UploadError::BeyondBuffer {
+            file: "long.toml".into(),
+            points: 133,
+            duration_s: 33.0,
+            capacity: 64,
+            link: "--port /dev/pts/3".into(),
+            record_s: 38.0,
+        }
+        .to_string();
+        for want in [
+            "133 waypoints (33.0 s)",
+            "buffer of 64",
+            "wmr --port /dev/pts/3 upload long.toml --arm",
+            "wmr --port /dev/pts/3 serve &",
+            "wmr --port /dev/pts/3 record --seconds 38 --out run.csv &",
+        ] {
+            assert!(s.contains(want), "{want}: {s}");
+        }
     }
 
     #[test]

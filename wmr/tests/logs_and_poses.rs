@@ -98,7 +98,7 @@ fn record_mcap_and_csv_give_the_same_metrics() {
     assert_eq!(j(&from_csv), j(&from_mcap));
     assert_eq!(from_csv.rows as u64, rows);
     assert_eq!(j(&from_csv)["metrics"], summary["metrics"]);
-    assert!(from_csv.metrics.unwrap().rms_pos_err_m > 0.0);
+    assert!(from_csv.report.unwrap().metrics.rms_pos_err_m > 0.0);
     let a = ros_mcap::read_log(&csv).unwrap();
     let b = ros_mcap::read_log(&mcap).unwrap();
     assert_eq!(a.len(), b.len());

@@ -94,7 +94,10 @@ pub fn device_scenario(
 /// `hil-sim device --pty`.
 pub fn device(a: &DeviceArgs, out: &mut dyn Write) -> Result<(), String> {
     if !(a.speed.is_finite() && a.speed > 0.0 && a.speed <= 1000.0) {
-        return Err("--speed must be in (0, 1000]".into());
+        return Err(format!(
+            "--speed {} must be in (0, 1000] (times real time; 1 runs at real time)",
+            a.speed
+        ));
     }
     let (scn, kind) = device_scenario(a)?;
     if let Some(t) = a.for_s {

@@ -38,7 +38,8 @@ fn argument_errors_are_rejected_by_the_parser() {
 #[test]
 fn invalid_values_give_errors_not_panics() {
     let e = run_to_string(&["run", "--eps", "1.5", "--json"]).unwrap_err();
-    assert!(e.contains("eps must be"), "{e}");
+    // The value and the range (issue 37).
+    assert!(e.contains("eps = 1.5 must be in [0, 1)"), "{e}");
     let e = run_to_string(&["run", "--duration=-1"]).unwrap_err();
     assert!(e.contains("duration"), "{e}");
     let e = run_to_string(&["run", "--torque-limit", "NaN"]).unwrap_err();

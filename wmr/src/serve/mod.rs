@@ -240,14 +240,10 @@ impl Endpoint {
 /// replaces the answer timeout), as every `wmr` command starts.
 pub fn open_link(ep: &Endpoint, timeout: Option<Duration>) -> Result<Link, LinkError> {
     let mut link = match ep {
-        Endpoint::Port(p) => Link::open_timed(p, timeout).map_err(|e| match e {
-            LinkError::Open(p, e) if e.contains("lock") || e.contains("busy") => LinkError::Open(
-                p,
-                format!("{e} (another process has it: if it is `wmr serve`, give --serve SOCKET)"),
-            ),
-            e => e,
-        })?,
-        Endpoint::Server(s) => Link::connect_timed(s, timeout)?,
+        Endpoint::Port(p) => Link::open_timed(p, timeout)?,
+        Endpoint::Server(s) => {
+            Link::connect_timed(s, timeout)?.named(&format!("wmr serve at {}", s.display()))
+        }
     };
     link.hello()?;
     if let Ok(wmr_protocol::Reply::Param { value, .. }) = link.command(

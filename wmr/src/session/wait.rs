@@ -168,13 +168,50 @@ impl Watch {
     }
 }
 
+/// What a stop's cause means and what to do about it.
+pub fn stop_advice(cause: Option<StopCode>) -> &'static str {
+    match cause {
+        None => "the robot did not say why: `wmr status` shows its last stop",
+        Some(StopCode::TrajectoryEnd) => "the trajectory ended",
+        Some(StopCode::Disarmed) => "disarmed by a host or the button",
+        Some(StopCode::VelocityTimeout) => {
+            "the velocity command expired: `wmr drive` refreshes it for --for seconds"
+        }
+        Some(StopCode::LinkSilence) => {
+            "no frame from the host for link_timeout_ms: keep a command talking to the robot \
+             while it moves (`wmr record`, `pose-feed`, `upload --arm`; several at once through \
+             `wmr serve`)"
+        }
+        Some(StopCode::Other) => {
+            "a reference beyond the robot's limits, or a trajectory that ran out of streamed \
+             waypoints before its end (one longer than the robot's buffer runs only with \
+             `wmr upload FILE --arm`, which streams the rest); `wmr upload FILE --robot \
+             ROBOT.toml` checks a path against the limits"
+        }
+        Some(StopCode::Commanded) => "an emergency stop: `wmr clear` releases it",
+        Some(StopCode::EncoderJump | StopCode::EncoderStalled | StopCode::DirectionMismatch) => {
+            "a wheel or encoder misbehaved (latched): check the wiring with `wmr commission`, \
+             then `wmr clear`"
+        }
+        Some(StopCode::LoopOverrun) => {
+            "the control loop overran its period (latched): `wmr status` shows the loop time; \
+             `wmr clear` releases it"
+        }
+        Some(StopCode::ControllerInput) => {
+            "the controller refused its input (latched): `wmr status` shows the counters; \
+             `wmr clear` releases it"
+        }
+    }
+}
+
 /// `Ok` when `stop` has one of the `expected` causes, else the unexpected
 /// stop (what ended `what`).
 pub fn expect_cause(stop: Stop, expected: &[StopCode], what: &str) -> Result<(), LinkError> {
     match stop.cause {
         Some(c) if expected.contains(&c) => Ok(()),
-        _ => Err(LinkError::UnexpectedStop(format!(
-            "{stop} during {what} (expected {expected:?})"
+        c => Err(LinkError::UnexpectedStop(format!(
+            "{stop} during {what} (expected {expected:?}): {}",
+            stop_advice(c)
         ))),
     }
 }
