@@ -87,6 +87,8 @@ struct Outcome {
     before: Vec<f64>,
     after: Vec<f64>,
     kept_tuned: bool,
+    /// The bring-up stopped before the push (the error).
+    stopped: Option<String>,
     wall_s: f64,
 }
 
@@ -145,10 +147,29 @@ fn guided(file: &Robot, plant: &Robot, runs: &Runs) -> Outcome {
     let mut out = Vec::new();
     let r = wmr::cli::execute(&cli, &mut out);
     let text = String::from_utf8_lossy(&out).to_string();
-    assert!(r.is_ok(), "{}: {r:?}\n{text}", file.name);
-    let st: wmr::bringup::State =
-        toml::from_str(&std::fs::read_to_string(wmr::bringup::state_path(&path)).unwrap()).unwrap();
+    let st: wmr::bringup::State = toml::from_str(
+        &std::fs::read_to_string(wmr::bringup::state_path(&path)).unwrap_or_default(),
+    )
+    .unwrap();
     let sim = robot.finish().unwrap();
+    if let Err(e) = r {
+        // A step refused before anything was pushed (the sweep's heaviest
+        // friction can leave an identification run that did not
+        // accelerate the robot): the robot still runs its file.
+        assert!(
+            !st.done.iter().any(|d| d == "push") && sim.reboots() == 0,
+            "{}: {e}\n{text}",
+            file.name
+        );
+        return Outcome {
+            name: file.name.to_string(),
+            before: vec![],
+            after: vec![],
+            kept_tuned: false,
+            stopped: Some(e.to_string()),
+            wall_s: t0.elapsed().as_secs_f64(),
+        };
+    }
     let kept_tuned = st.running.as_deref() == st.tuned.as_deref();
     assert!(
         kept_tuned || st.running.as_deref() == Some(path.as_path()),
@@ -169,6 +190,7 @@ fn guided(file: &Robot, plant: &Robot, runs: &Runs) -> Outcome {
         before: st.before_runs_m,
         after: st.after_runs_m,
         kept_tuned,
+        stopped: None,
         wall_s: t0.elapsed().as_secs_f64(),
     }
 }
@@ -180,11 +202,19 @@ fn mean(x: &[f64]) -> f64 {
 /// Runs the guided path on each robot and checks the line: the tracking the
 /// robot ends with (the kept file's mean circle error) is at most the
 /// datasheet file's, measured in the same verification.
-fn check(robots: &[(Robot, u64, Runs)]) {
+fn check(robots: &[(Robot, u64, Runs)], may_stop: bool) {
     let mut worst_margin = f64::INFINITY;
     for (file, seed, runs) in robots {
         let plant = plant_of(file, *seed);
         let o = guided(file, &plant, runs);
+        if let Some(e) = &o.stopped {
+            println!(
+                "{:28} seed {seed:3}: the bring-up stopped before the push, the robot runs its file: {e}",
+                o.name
+            );
+            assert!(may_stop, "{}: {e}", o.name);
+            continue;
+        }
         let (b, a) = (mean(&o.before), mean(&o.after));
         let kept = if o.kept_tuned { a } else { b };
         let margin = (b - kept) / b;
@@ -235,7 +265,7 @@ fn bringup_never_leaves_a_robot_tracking_worse() {
         5,
         Runs { w_amp: "1", ..ci() },
     ));
-    check(&robots);
+    check(&robots, false);
 }
 
 /// More random light robots, two circles per file (about 15 s of wall
@@ -256,5 +286,5 @@ fn bringup_never_worse_sweep() {
             (light_robot(&base, &mut st).0, 100 + i, runs)
         })
         .collect();
-    check(&robots);
+    check(&robots, true);
 }

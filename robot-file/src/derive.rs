@@ -275,7 +275,9 @@ impl Robot {
     /// - the start pose `control.initial_*`, the encoders, motors (at the
     ///   board's PWM resolution), motor directions, the safety limits for
     ///   the period ([`Self::safety_limits`]) and pacing
-    ///   (`control.governor`);
+    ///   (`control.governor`; the health machine's position-error
+    ///   thresholds at the robot's `limits.max_speed_mps`,
+    ///   `HealthParams::for_speed`);
     /// - the pose estimator's tuning: controller-core's example with the
     ///   file's `[estimator]` noises and the board's gyro saturation.
     ///
@@ -304,9 +306,13 @@ impl Robot {
             motor: self.motor_params(board.pwm_full_scale),
             motor_inverted: self.bridge.motor_inverted,
             safety: self.safety_limits(board.control_period_s),
-            pacing: match self.control.governor {
-                true => PacingConfig::on(),
-                false => PacingConfig::off(),
+            pacing: {
+                let mut p = match self.control.governor {
+                    true => PacingConfig::on(),
+                    false => PacingConfig::off(),
+                };
+                p.health = p.health.for_speed(self.limits.max_speed_mps);
+                p
             },
         };
         let mut estimator = EstimatorConfig::EXAMPLE;

@@ -12,7 +12,9 @@
 //!   same robot without friction (lateness from friction alone).
 
 use controller_core::friction::FrictionModel;
+use controller_core::health::{ACQUIRED_S, ERROR_DEGRADED_S, LOST_PATH_S};
 use controller_core::ControllerKind;
+use hil_sim::random_robot::draw;
 use hil_sim::scenario::{PerturbationPart, Robot, Scenario, Sensing, TrajectoryKind};
 use hil_sim::sim::{controller_config, run_with};
 
@@ -78,8 +80,9 @@ fn run(scn: &Scenario, kind: ControllerKind, friction: Option<FrictionModel>) ->
 
 /// Property over 16 random light robots (friction 30-60 % of the torque
 /// limit) and the four example robots, each controller: the delivered
-/// torque never exceeds the limit, the run is nominal at least 90 % of the
-/// time, nothing stops, and the lateness the friction adds (the same robot
+/// torque never exceeds the limit, the health machine's position-error
+/// thresholds are the robot's own (its speed limit times fixed times), the
+/// run is nominal at least 90 % of the time against them, nothing stops, and the lateness the friction adds (the same robot
 /// without friction, paired) is below 10 % of the path time.
 #[test]
 fn within_limits_runs_are_nominal_on_time_and_within_the_torque_limit() {
@@ -96,6 +99,25 @@ fn within_limits_runs_are_nominal_on_time_and_within_the_torque_limit() {
     let mut worst_late = (0.0f64, String::new());
     for (i, (r, friction_fraction)) in robots.iter().enumerate() {
         let smooth = without_friction(r);
+        // The position-error thresholds are the robot's (issue 34): the
+        // distance it covers at its speed limit in fixed times, derived
+        // once with the runtime configuration.
+        let health = scenario(r, None, 1).pacing().health;
+        let v = r.limits.max_speed_mps;
+        assert_eq!(
+            [
+                health.error_degraded_m,
+                health.acquired_m,
+                health.lost_path_m
+            ],
+            [ERROR_DEGRADED_S * v, ACQUIRED_S * v, LOST_PATH_S * v],
+            "{}",
+            r.name
+        );
+        println!(
+            "{:24} thresholds: degraded {:.3} m, acquired {:.3} m, lost {:.2} m (speed limit {v} m/s)",
+            r.name, health.error_degraded_m, health.acquired_m, health.lost_path_m
+        );
         for kind in ControllerKind::ALL {
             let seed = 1 + i as u64;
             let with = run(&scenario(r, None, seed), kind, None);
