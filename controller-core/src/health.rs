@@ -1,6 +1,6 @@
 //! Health state machine: nominal, degraded (reference slowed through the
 //! governor's speed cap, reason published) or safe stop (hard faults only).
-//! Not in the paper (docs/DECISIONS.md, D24).
+//! Not in the paper (book/src/explanation/decisions.md, D24).
 //!
 //! Inputs, each low-pass filtered with `filter_s` (one multiply-add each):
 //!
@@ -151,18 +151,6 @@ pub struct HealthParams {
 /// [`HealthParams::adaptation_degraded`] that turns the ρ̂ check off.
 pub const ADAPTATION_CHECK_OFF: f32 = 2.0;
 
-/// The speed the default position-error thresholds are for \[m/s\]: the
-/// paper robot's `limits.max_speed_mps`. A robot's thresholds are the
-/// times below at its own speed limit ([`HealthParams::for_speed`], issue 34).
-pub const DEFAULT_SPEED_MPS: f32 = 1.0;
-/// [`HealthParams::error_degraded_m`] as the time the robot needs at its
-/// speed limit to cover it \[s\].
-pub const ERROR_DEGRADED_S: f32 = 0.3;
-/// [`HealthParams::acquired_m`] as a time at the speed limit \[s\].
-pub const ACQUIRED_S: f32 = 0.2;
-/// [`HealthParams::lost_path_m`] as a time at the speed limit \[s\].
-pub const LOST_PATH_S: f32 = 2.0;
-
 impl HealthParams {
     /// The defaults (also [`Default::default`]); a constant so that
     /// configurations built from it are data, not code.
@@ -174,31 +162,14 @@ impl HealthParams {
         disturbance_degraded: 0.5,
         adaptation_degraded: ADAPTATION_CHECK_OFF,
         saturation_degraded: 0.3,
-        error_degraded_m: ERROR_DEGRADED_S * DEFAULT_SPEED_MPS,
-        acquired_m: ACQUIRED_S * DEFAULT_SPEED_MPS,
-        lost_path_m: LOST_PATH_S * DEFAULT_SPEED_MPS,
+        error_degraded_m: 0.3,
+        acquired_m: 0.2,
+        lost_path_m: 2.0,
         exit_fraction: 0.7,
         min_dwell_s: 1.0,
         hard_dwell_s: 0.5,
         degraded_speed_scale: 0.6,
     };
-
-    /// These parameters with the position-error thresholds of a robot
-    /// whose speed limit is `max_speed_mps`: the distance it covers at that
-    /// speed in [`ERROR_DEGRADED_S`], [`ACQUIRED_S`] and [`LOST_PATH_S`]
-    /// (issue 34: a robot tracking within its limits is nominal; the
-    /// paper's absolute 0.3/0.2/2 m are these times at 1 m/s, and let a
-    /// slow robot lag its reference by seconds before any check noticed).
-    /// Computed once when the configuration is derived: the monitor squares
-    /// them at configuration time, the tick is unchanged.
-    pub const fn for_speed(self, max_speed_mps: f32) -> Self {
-        Self {
-            error_degraded_m: ERROR_DEGRADED_S * max_speed_mps,
-            acquired_m: ACQUIRED_S * max_speed_mps,
-            lost_path_m: LOST_PATH_S * max_speed_mps,
-            ..self
-        }
-    }
 }
 
 impl Default for HealthParams {
@@ -494,25 +465,6 @@ impl HealthMonitor {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The default thresholds are the paper robot's speed limit's, and a
-    /// robot's scale with its own (issue 34): half the speed, half the
-    /// distance, still a valid configuration.
-    #[test]
-    fn position_thresholds_scale_with_the_speed_limit() {
-        assert_eq!(
-            HealthParams::DEFAULT.for_speed(DEFAULT_SPEED_MPS),
-            HealthParams::DEFAULT
-        );
-        let slow = HealthParams::DEFAULT.for_speed(0.5).validate().unwrap();
-        assert_eq!(slow.error_degraded_m, 0.15);
-        assert_eq!(slow.acquired_m, 0.1);
-        assert_eq!(slow.lost_path_m, 1.0);
-        assert_eq!(
-            slow.saturation_degraded,
-            HealthParams::DEFAULT.saturation_degraded
-        );
-    }
 
     fn mon() -> HealthMonitor {
         HealthMonitor::new(HealthParams::default(), 1e-3).unwrap()

@@ -12,7 +12,7 @@
 //!   same robot without friction (lateness from friction alone).
 
 use controller_core::friction::FrictionModel;
-use controller_core::health::{ACQUIRED_S, ERROR_DEGRADED_S, LOST_PATH_S};
+use controller_core::health::HealthParams;
 use controller_core::ControllerKind;
 use hil_sim::random_robot::draw;
 use hil_sim::scenario::{PerturbationPart, Robot, Scenario, Sensing, TrajectoryKind};
@@ -110,7 +110,15 @@ fn within_limits_runs_are_nominal_on_time_and_within_the_torque_limit() {
                 health.acquired_m,
                 health.lost_path_m
             ],
-            [ERROR_DEGRADED_S * v, ACQUIRED_S * v, LOST_PATH_S * v],
+            {
+                let d = HealthParams::DEFAULT;
+                let scale = v / robot_file::HEALTH_DEFAULT_SPEED_MPS;
+                [
+                    d.error_degraded_m * scale,
+                    d.acquired_m * scale,
+                    d.lost_path_m * scale,
+                ]
+            },
             "{}",
             r.name
         );

@@ -170,6 +170,15 @@ pub enum BringupError {
     /// The tuner.
     #[error("tune: {0}")]
     Tune(String),
+    /// Every try of a circle ended with nothing recorded after 5 s.
+    #[error(
+        "{CIRCLE_TRIES} circles with {} recorded nothing after 5 s (the run ended at once, or the link lost it): \
+         check the robot and the link (`wmr status`), then `wmr bringup` again", file.display()
+    )]
+    NotMeasured {
+        /// The file the robot ran.
+        file: PathBuf,
+    },
     /// Bad options.
     #[error("{0}")]
     Option(String),
@@ -277,7 +286,7 @@ fn circle(
     dir_file: &Path,
     seconds: f64,
     out: &mut dyn Write,
-) -> Result<f64, BringupError> {
+) -> Result<Option<f64>, BringupError> {
     link.command(&wmr_protocol::Request::SetTelemetry {
         selection: wmr_protocol::TELEMETRY_ALL,
         rate_hz: 50,
@@ -336,9 +345,18 @@ fn circle(
         .rev()
         .find_map(|l| serde_json::from_str(l).ok())
         .ok_or_else(|| BringupError::Output(format!("no recording summary in: {text}")))?;
-    let rms = json["metrics"]["rms_pos_err_after5_m"]
-        .as_f64()
-        .ok_or_else(|| BringupError::Output(format!("no rms_pos_err_after5_m in: {json}")))?;
+    let Some(rms) = json["metrics"]["rms_pos_err_after5_m"].as_f64() else {
+        // No row after the first 5 s: the telemetry reached the host only
+        // after the circle's recorded time (seen right after a push's
+        // reboot on a loaded host), a measurement lost, not a result.
+        writeln!(
+            out,
+            "  circle for {seconds:.0} s: the recording holds no row after 5 s ({} row(s)): not measured",
+            json["rows"]
+        )
+        .map_err(out_err)?;
+        return Ok(None);
+    };
     writeln!(
         out,
         "  circle for {seconds:.0} s: RMS position error after 5 s {rms:.4} m, final {:.4} m, torque saturated {:.1} % ({})",
@@ -347,7 +365,7 @@ fn circle(
         csv.display()
     )
     .map_err(out_err)?;
-    Ok(rms)
+    Ok(Some(rms))
 }
 
 /// "0.0042 m (1 circle)", "0.0042 m ± 0.0003 (mean of 2 circles)".
@@ -384,18 +402,25 @@ fn circles(
     a: &BringupArgs,
     out: &mut dyn Write,
 ) -> Result<Vec<f64>, BringupError> {
-    (1..=a.verify_runs)
-        .map(|n| {
-            circle(
-                link,
-                robot_file,
-                &beside(&a.robot, &format!("{tag}-{n}")),
-                a.verify_s,
-                out,
-            )
-        })
-        .collect()
+    let mut runs = Vec::new();
+    for n in 1..=a.verify_runs {
+        let file = beside(&a.robot, &format!("{tag}-{n}"));
+        let mut rms = None;
+        for _ in 0..CIRCLE_TRIES {
+            rms = circle(link, robot_file, &file, a.verify_s, out)?;
+            if rms.is_some() {
+                break;
+            }
+        }
+        runs.push(rms.ok_or_else(|| BringupError::NotMeasured {
+            file: robot_file.to_path_buf(),
+        })?);
+    }
+    Ok(runs)
 }
+
+/// Circles tried for one measurement whose recording missed it.
+const CIRCLE_TRIES: usize = 3;
 
 /// `wmr bringup` reading answers from stdin: see [`bringup_with`].
 pub fn bringup(a: &BringupArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), BringupError> {
@@ -622,7 +647,15 @@ pub fn bringup_with(
                     // the tuned one back: the tuned file goes on again.
                     crate::robot::push(link, &tuned, true, false, out)?;
                 }
-                st.after_runs_m = circles(link, &tuned, "after", a, out)?;
+                // A tuned file whose circles record nothing (its run ends
+                // at once) loses to the file before it.
+                st.after_runs_m = match circles(link, &tuned, "after", a, out) {
+                    Err(BringupError::NotMeasured { .. }) if !st.before_runs_m.is_empty() => {
+                        writeln!(out, "  no circle with the tuned file recorded anything after 5 s: it counts as worse").map_err(out_err)?;
+                        vec![f64::INFINITY]
+                    }
+                    r => r?,
+                };
                 let after = mean_se(&st.after_runs_m).0;
                 st.after_rms_m = Some(after);
                 if st.before_runs_m.is_empty() {
