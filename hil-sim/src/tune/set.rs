@@ -123,7 +123,7 @@ impl TuneSet {
             ));
         }
         let least_s = WINDOW_S[0] + MIN_WINDOW_S;
-        if !(self.duration_s >= least_s) {
+        if self.duration_s.is_nan() || self.duration_s < least_s {
             return Err(format!(
                 "tuning set: --duration {} s: the cost is the tracking error in the perturbation window from {} s on, \
                  so a run must last at least {least_s} s ({MIN_WINDOW_S} s of window; the default is 35 s)",
