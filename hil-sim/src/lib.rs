@@ -20,6 +20,7 @@ pub mod metrics;
 pub mod montecarlo;
 pub mod plot;
 pub mod progress;
+pub mod random_robot;
 pub mod report;
 pub mod rng;
 pub mod scenario;

@@ -32,7 +32,8 @@ mod validate;
 
 pub use binary::{DecodeError, EncodeError, BINARY_VERSION, HEADER_LEN, MAGIC, MAX_ENCODED_LEN};
 pub use derive::{
-    BoardFacts, Derived, CONTROL_PERIOD_S, JUMP_SPEED_FACTOR, STALL_TIME_S, STALL_TORQUE_FRACTION,
+    health_for_speed, BoardFacts, Derived, CONTROL_PERIOD_S, HEALTH_DEFAULT_SPEED_MPS,
+    JUMP_SPEED_FACTOR, STALL_TIME_S, STALL_TORQUE_FRACTION,
 };
 pub use error::{Reason, RobotError};
 pub use sections::{

@@ -947,4 +947,36 @@ fn refusals_say_the_value_the_computed_limit_and_what_to_do() {
         e.contains("body.wheel_inertia_kgm2: 0.01 kg·m²") && e.contains("0.0008 kg·m²"),
         "{e}"
     );
+
+/// The health machine's position-error thresholds are the robot's (issue
+/// 34, D206): the paper robot (1 m/s) keeps controller-core's defaults, a
+/// robot of half that speed limit gets half the distances, and the derived
+/// configuration carries them.
+#[test]
+fn health_thresholds_scale_with_the_speed_limit() {
+    use controller_core::health::HealthParams;
+    use robot_file::{health_for_speed, HEALTH_DEFAULT_SPEED_MPS};
+    let d = HealthParams::DEFAULT;
+    assert_eq!(health_for_speed(d, HEALTH_DEFAULT_SPEED_MPS), d);
+    let slow = health_for_speed(d, 0.5 * HEALTH_DEFAULT_SPEED_MPS)
+        .validate()
+        .unwrap();
+    assert_eq!(
+        [slow.error_degraded_m, slow.acquired_m, slow.lost_path_m],
+        [
+            0.5 * d.error_degraded_m,
+            0.5 * d.acquired_m,
+            0.5 * d.lost_path_m
+        ]
+    );
+    assert_eq!(slow.saturation_degraded, d.saturation_degraded);
+    let mut r = Robot::paper();
+    r.limits.max_speed_mps = 0.6;
+    let board = robot_file::BoardFacts::of_timer(&r, 96_000_000).unwrap();
+    let derived = r.derive(
+        &board,
+        controller_core::runtime::RuntimeConfig::example(controller_core::ControllerKind::Proposed)
+            .reference,
+    );
+    assert_eq!(derived.runtime.pacing.health, health_for_speed(d, 0.6));
 }

@@ -87,6 +87,15 @@ pub struct TuneSet {
     pub figure8: usize,
 }
 
+/// The perturbation window of every scenario of the set \[s\]: the cost
+/// is the tracking error inside it (D92).
+pub const WINDOW_S: [f64; 2] = [10.0, 35.0];
+/// Least length of the window a run must reach \[s\] (`--duration` at
+/// least `WINDOW_S[0]` + this): a shorter run leaves the cost a few
+/// samples, or none (issue 34: a 10 s job tuned to nothing and its gains
+/// tracked worse on the device).
+pub const MIN_WINDOW_S: f64 = 5.0;
+
 /// Default number of figure-8 validation runs (`--validate-figure8`).
 pub const DEFAULT_FIGURE8: usize = 4;
 
@@ -111,6 +120,14 @@ impl TuneSet {
             return Err(format!(
                 "tuning set: --disturbance-max must be in ({lo}, 1] (a fraction of the torque limit), got {}",
                 self.disturbance_max_fraction
+            ));
+        }
+        let least_s = WINDOW_S[0] + MIN_WINDOW_S;
+        if self.duration_s.is_nan() || self.duration_s < least_s {
+            return Err(format!(
+                "tuning set: --duration {} s: the cost is the tracking error in the perturbation window from {} s on, \
+                 so a run must last at least {least_s} s ({MIN_WINDOW_S} s of window; the default is 35 s)",
+                self.duration_s, WINDOW_S[0]
             ));
         }
         let s = self.scenario(Part::Training, 0);
@@ -162,7 +179,7 @@ impl TuneSet {
         let mut r = Rng::new(seed ^ 0x7475_6e65);
         let mut within = |(lo, hi): (f64, f64)| lo + (hi - lo) * r.uniform();
         s.perturbations = PerturbationPart {
-            window_s: [10.0, 35.0],
+            window_s: WINDOW_S,
             beta: within(BETA_RANGE),
             eps: within(EPS_RANGE),
             skid_scale: within(SKID_SCALE),
@@ -198,6 +215,21 @@ impl TuneSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A run that ends before the cost window has enough of it is refused
+    /// with the option, the value and the least length (issue 34).
+    #[test]
+    fn a_run_shorter_than_the_cost_window_is_refused() {
+        let mut set = set(Robot::paper());
+        set.duration_s = 10.0;
+        let e = set.validate().unwrap_err();
+        assert!(
+            e.contains("--duration 10 s") && e.contains("at least 15 s"),
+            "{e}"
+        );
+        set.duration_s = 15.0;
+        set.validate().unwrap();
+    }
 
     fn set(robot: Robot) -> TuneSet {
         TuneSet {
