@@ -947,6 +947,7 @@ fn refusals_say_the_value_the_computed_limit_and_what_to_do() {
         e.contains("body.wheel_inertia_kgm2: 0.01 kg·m²") && e.contains("0.0008 kg·m²"),
         "{e}"
     );
+}
 
 /// The health machine's position-error thresholds are the robot's (issue
 /// 34, D206): the paper robot (1 m/s) keeps controller-core's defaults, a
