@@ -4,20 +4,22 @@
 //! rewrites it.
 
 use clap::CommandFactory;
-use std::path::Path;
+use wmr::reference::ToolReference;
 
-const PAGE: &str = "book/src/reference/cli/hil-sim.md";
-const COMMAND: &str = "WMR_WRITE_REFERENCE=1 cargo test --release -p hil-sim --test reference";
+const TOOL: ToolReference = ToolReference {
+    manifest_dir: env!("CARGO_MANIFEST_DIR"),
+    generator: "hil-sim/tests/reference.rs",
+    rewrite: "WMR_WRITE_REFERENCE=1 cargo test --release -p hil-sim --test reference",
+};
 
 #[test]
 fn the_cli_reference_is_the_help() {
-    let md = wmr::reference::cli_markdown(
+    let intro = "The simulator's commands, each with its `--help`.";
+    if let Err(e) = TOOL.check_cli(
+        "book/src/reference/cli/hil-sim.md",
         hil_sim::cli::Cli::command(),
-        "hil-sim/tests/reference.rs",
-        "The simulator's commands, each with its `--help`.",
-    );
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(PAGE);
-    if let Err(e) = wmr::reference::check_or_write(&path, PAGE, &md, COMMAND) {
+        intro,
+    ) {
         panic!("{e}");
     }
 }
@@ -26,20 +28,11 @@ fn the_cli_reference_is_the_help() {
 /// declares (hil_sim::cli::EXIT_CODES) and clap's for a command line it cannot parse.
 #[test]
 fn the_exit_codes_are_the_declared_ones() {
-    const ERRORS: &str = "book/src/reference/errors.md";
     let usage =
         <hil_sim::cli::Cli as clap::Parser>::try_parse_from(["hil-sim", "--no-such-option"])
             .expect_err("an unknown option is refused")
             .exit_code();
-    let table = wmr::reference::exit_codes_markdown(&hil_sim::cli::EXIT_CODES, usage);
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join(ERRORS);
-    let doc = std::fs::read_to_string(&path).expect(ERRORS);
-    let want =
-        wmr::reference::fill_section(&doc, "hil-sim-exit", "hil-sim/tests/reference.rs", &table)
-            .unwrap_or_else(|| panic!("{ERRORS}: the hil-sim-exit markers are missing"));
-    if let Err(e) = wmr::reference::check_or_write(&path, ERRORS, &want, COMMAND) {
+    if let Err(e) = TOOL.check_exit_codes("hil-sim", &hil_sim::cli::EXIT_CODES, usage) {
         panic!("{e}");
     }
 }

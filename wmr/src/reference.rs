@@ -127,3 +127,65 @@ pub fn fill_section(doc: &str, name: &str, generator: &str, body: &str) -> Optio
     let (_, tail) = rest.split_once(&end)?;
     Some(format!("{head}{begin}{body}{end}{tail}"))
 }
+
+/// The page of the exit statuses of every tool.
+pub const EXIT_CODES_PAGE: &str = "book/src/reference/errors.md";
+
+/// A tool's `--help` page and its section of [`EXIT_CODES_PAGE`], checked
+/// (or rewritten under [`WRITE_ENV`]) by the test `generator` of the crate
+/// owning the command line: the one body of the `reference` tests of wmr,
+/// hil-sim and wmr-ros2.
+pub struct ToolReference<'a> {
+    /// The crate's `CARGO_MANIFEST_DIR` (one level below the repository).
+    pub manifest_dir: &'a str,
+    /// The test that generates the pages (`wmr/tests/reference.rs`).
+    pub generator: &'a str,
+    /// The command that rewrites them, for the message.
+    pub rewrite: &'a str,
+}
+
+impl ToolReference<'_> {
+    fn path(&self, page: &str) -> std::path::PathBuf {
+        std::path::Path::new(self.manifest_dir)
+            .join("..")
+            .join(page)
+    }
+
+    /// Checks `page` (`book/src/reference/cli/TOOL.md`) against
+    /// [`cli_markdown`] of `cmd` with `intro`.
+    pub fn check_cli(
+        &self,
+        page: &str,
+        cmd: clap::Command,
+        intro: &str,
+    ) -> Result<(), ReferenceError> {
+        let md = cli_markdown(cmd, self.generator, intro);
+        check_or_write(&self.path(page), page, &md, self.rewrite)
+    }
+
+    /// Checks the section `TOOL-exit` of [`EXIT_CODES_PAGE`] against the
+    /// tool's declared `codes` and clap's status for a command line it
+    /// cannot parse, `usage_code`.
+    pub fn check_exit_codes(
+        &self,
+        tool: &str,
+        codes: &[(i32, &str)],
+        usage_code: i32,
+    ) -> Result<(), ReferenceError> {
+        let path = self.path(EXIT_CODES_PAGE);
+        let io = |error| ReferenceError::Io {
+            page: EXIT_CODES_PAGE.to_string(),
+            error,
+        };
+        let doc = std::fs::read_to_string(&path).map_err(io)?;
+        let section = format!("{tool}-exit");
+        let table = exit_codes_markdown(codes, usage_code);
+        let want = fill_section(&doc, &section, self.generator, &table).ok_or_else(|| {
+            io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("the {section} begin/end markers are missing"),
+            ))
+        })?;
+        check_or_write(&path, EXIT_CODES_PAGE, &want, self.rewrite)
+    }
+}

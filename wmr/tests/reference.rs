@@ -3,21 +3,23 @@
 //! cargo test --release -p wmr --test reference` rewrites it.
 
 use clap::CommandFactory;
-use std::path::Path;
+use wmr::reference::ToolReference;
 
-const PAGE: &str = "book/src/reference/cli/wmr.md";
-const COMMAND: &str = "WMR_WRITE_REFERENCE=1 cargo test --release -p wmr --test reference";
+const TOOL: ToolReference = ToolReference {
+    manifest_dir: env!("CARGO_MANIFEST_DIR"),
+    generator: "wmr/tests/reference.rs",
+    rewrite: "WMR_WRITE_REFERENCE=1 cargo test --release -p wmr --test reference",
+};
 
 #[test]
 fn the_cli_reference_is_the_help() {
-    let md = wmr::reference::cli_markdown(
+    let intro = "The host tool's commands, each with its `--help`. The options before the \
+         command (`--port`, `--serve`, `--timeout-ms`) apply to every command.";
+    if let Err(e) = TOOL.check_cli(
+        "book/src/reference/cli/wmr.md",
         wmr::cli::Cli::command(),
-        "wmr/tests/reference.rs",
-        "The host tool's commands, each with its `--help`. The options before the \
-         command (`--port`, `--serve`, `--timeout-ms`) apply to every command.",
-    );
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(PAGE);
-    if let Err(e) = wmr::reference::check_or_write(&path, PAGE, &md, COMMAND) {
+        intro,
+    ) {
         panic!("{e}");
     }
 }
@@ -26,18 +28,10 @@ fn the_cli_reference_is_the_help() {
 /// declares (wmr::cli::EXIT_CODES) and clap's for a command line it cannot parse.
 #[test]
 fn the_exit_codes_are_the_declared_ones() {
-    const ERRORS: &str = "book/src/reference/errors.md";
     let usage = <wmr::cli::Cli as clap::Parser>::try_parse_from(["wmr", "--no-such-option"])
         .expect_err("an unknown option is refused")
         .exit_code();
-    let table = wmr::reference::exit_codes_markdown(&wmr::cli::EXIT_CODES, usage);
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("..")
-        .join(ERRORS);
-    let doc = std::fs::read_to_string(&path).expect(ERRORS);
-    let want = wmr::reference::fill_section(&doc, "wmr-exit", "wmr/tests/reference.rs", &table)
-        .unwrap_or_else(|| panic!("{ERRORS}: the wmr-exit markers are missing"));
-    if let Err(e) = wmr::reference::check_or_write(&path, ERRORS, &want, COMMAND) {
+    if let Err(e) = TOOL.check_exit_codes("wmr", &wmr::cli::EXIT_CODES, usage) {
         panic!("{e}");
     }
 }
