@@ -218,7 +218,7 @@ def test_montecarlo_blocks_give_the_whole_sweeps_statistics():
 @pytest.fixture(scope="module")
 def tune_set():
     return wmrsim.TuneSet(
-        wmrsim.Robot.paper(), sensing=["mocap"], train=2, validate=1, figure8=0, duration_s=3.0
+        wmrsim.Robot.paper(), sensing=["mocap"], train=2, validate=1, figure8=0, duration_s=15.0
     )
 
 

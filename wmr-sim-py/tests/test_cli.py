@@ -73,7 +73,7 @@ def test_compare_equals_cli(hil_sim, tmp_path):
 def test_tune_costs_equal_cli(hil_sim, root, tmp_path):
     out = hil_sim(
         "tune", "--robot", str(root / "robots" / "paper.toml"), "--sensing", "mocap,ideal",
-        "--train", "2", "--validate", "1", "--duration", "3", "--optimizer", "nelder-mead",
+        "--train", "2", "--validate", "1", "--duration", "15", "--optimizer", "nelder-mead",
         "--evaluations", "7", "--controllers", "asmc", "--seed", "5", "--json", "--quiet",
         "--write", str(tmp_path / "tuned.toml"),
     )
@@ -81,7 +81,7 @@ def test_tune_costs_equal_cli(hil_sim, root, tmp_path):
     (name, start, best), = cli["controllers"]
     assert name == "asmc"
     ts = wmrsim.TuneSet(wmrsim.Robot.paper(), sensing=["mocap", "ideal"], seed=5, train=2,
-                        validate=1, duration_s=3.0)
+                        validate=1, duration_s=15.0)
 
     def same(py, cli_eval):
         assert {k: py[k] for k in cli_eval} == cli_eval

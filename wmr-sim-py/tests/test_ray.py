@@ -53,7 +53,7 @@ def test_montecarlo_over_ray_equals_one_process(cluster):
 
 def test_tuning_generation_over_ray_equals_one_process(cluster):
     ts = wmrsim.TuneSet(wmrsim.Robot.paper(), sensing=["mocap"], train=2, validate=1,
-                        duration_s=3.0, seed=4)
+                        duration_s=15.0, seed=4)
     d = len(wmrsim.TuneSet.dims("proposed"))
     pop = np.random.default_rng(7).uniform(-0.1, 1.1, size=(4, d))
     remote = tune_generation(ts, "proposed", pop)
