@@ -73,7 +73,7 @@ fn bringup_walks_every_step_resumes_and_verifies() {
         "--identify-w-amp",
         "2",
         "--rate",
-        "250",
+        "100",
         "--tune-evaluations",
         "6",
         "--tune-args",
