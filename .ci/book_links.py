@@ -51,6 +51,14 @@ class Page(html.parser.HTMLParser):
                 self.links.append(value)
 
 
+def relative(link):
+    """A relative link's (path, fragment), unquoted; None for an external one."""
+    parts = urllib.parse.urlsplit(link)
+    if parts.scheme or parts.netloc or link.startswith("//"):
+        return None
+    return urllib.parse.unquote(parts.path), urllib.parse.unquote(parts.fragment)
+
+
 def parse(path):
     page = Page()
     with open(path, encoding="utf-8") as f:
@@ -95,12 +103,11 @@ def check(repo, book_dir, out_dir):
         page = pages[page_path] or parse(page_path)
         pages[page_path] = page
         for link in page.links:
-            parts = urllib.parse.urlsplit(link)
-            if parts.scheme or parts.netloc or link.startswith("//"):
+            rel = relative(link)
+            if rel is None:
                 continue
             checked += 1
-            target_rel = urllib.parse.unquote(parts.path)
-            fragment = urllib.parse.unquote(parts.fragment)
+            target_rel, fragment = rel
             where = f"{rel_page}: link {link!r}"
             if target_rel == "":
                 target = page_path
@@ -220,12 +227,11 @@ def check_sources(repo, book_dir):
     for path, (links, _ids) in sorted(pages.items()):
         rel_page = os.path.relpath(path, src_dir)
         for link in links:
-            parts = urllib.parse.urlsplit(link)
-            if parts.scheme or parts.netloc or link.startswith("//"):
+            rel = relative(link)
+            if rel is None:
                 continue
             checked += 1
-            target_rel = urllib.parse.unquote(parts.path)
-            fragment = urllib.parse.unquote(parts.fragment)
+            target_rel, fragment = rel
             where = f"{rel_page}: link {link!r}"
             target = path if target_rel == "" else os.path.normpath(os.path.join(os.path.dirname(path), target_rel))
             in_src = os.path.commonpath([os.path.abspath(target), os.path.abspath(src_dir)]) == os.path.abspath(src_dir)
