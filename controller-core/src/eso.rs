@@ -19,7 +19,7 @@
 //! saturation), so the observer models the real input and does not wind up.
 
 use crate::error::ConfigError;
-use crate::math::all_positive;
+use crate::math::{all_non_negative, all_positive};
 use crate::math::{clamp_abs, powf};
 
 /// fal(e, ζ, α), eq. (19): linear with slope ζ^(α−1) inside |e| <= ζ,
@@ -56,7 +56,9 @@ pub struct EsoParams {
     pub zeta: f32,
     /// α in (0, 1).
     pub alpha: f32,
-    /// Bound on |x̂3| per channel \[m/s², rad/s²\].
+    /// Bound on |x̂3| per channel \[m/s², rad/s²\]; 0 switches the
+    /// compensation off (D̂ ≡ 0: the proposed controller's dynamic loop is
+    /// then ASMC's, issue 34).
     pub max_disturbance: [f32; 2],
 }
 
@@ -82,7 +84,7 @@ impl EsoParams {
     pub fn validate(self) -> Result<Self, ConfigError> {
         let [l1, l2, l3] = self.lambda;
         let [d0, d1] = self.max_disturbance;
-        if !all_positive(&[l1, l2, l3, d0, d1]) {
+        if !all_positive(&[l1, l2, l3]) || !all_non_negative(&[d0, d1]) {
             return Err(ConfigError::NonPositiveGain);
         }
         // 0 < α < 1 as two positive values.
@@ -223,6 +225,17 @@ mod tests {
         assert_eq!(p.validate(), Err(ConfigError::InvalidFal));
         let p = EsoParams {
             lambda: [1.0, -1.0, 1.0],
+            ..Default::default()
+        };
+        assert_eq!(p.validate(), Err(ConfigError::NonPositiveGain));
+        // A zero clamp is the ESO switched off; a negative one is refused.
+        let off = EsoParams {
+            max_disturbance: [0.0, 0.0],
+            ..Default::default()
+        };
+        assert!(off.validate().is_ok());
+        let p = EsoParams {
+            max_disturbance: [-1.0, 0.0],
             ..Default::default()
         };
         assert_eq!(p.validate(), Err(ConfigError::NonPositiveGain));

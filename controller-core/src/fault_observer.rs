@@ -19,7 +19,7 @@
 //! with u = \[v − v_s cos e_θ, ω_s − ω\] (eq. 12, g1 row 1 sign corrected: D6).
 
 use crate::error::ConfigError;
-use crate::math::all_positive;
+use crate::math::{all_non_negative, all_positive};
 use crate::math::{clamp_abs, wrap_angle};
 use crate::tracking::TrackingError;
 
@@ -31,7 +31,8 @@ pub struct FaultObserverGains {
     pub l_v: f32,
     /// l_ω \[1/s\]: convergence rate of Δω̂.
     pub l_omega: f32,
-    /// Bound on |F̂| \[m/s, rad/s\]: the estimate is clamped to it.
+    /// Bound on |F̂| \[m/s, rad/s\]: the estimate is clamped to it; 0
+    /// switches the observer's correction off (F̂ ≡ 0, issue 34).
     pub max_estimate: [f32; 2],
 }
 
@@ -55,7 +56,7 @@ impl FaultObserverGains {
     /// Validates the gains.
     pub fn validate(self) -> Result<Self, ConfigError> {
         let [m0, m1] = self.max_estimate;
-        if all_positive(&[self.l_v, self.l_omega, m0, m1]) {
+        if all_positive(&[self.l_v, self.l_omega]) && all_non_negative(&[m0, m1]) {
             Ok(self)
         } else {
             Err(ConfigError::NonPositiveGain)
@@ -183,6 +184,16 @@ mod tests {
     fn rejects_bad_gains() {
         let g = FaultObserverGains {
             l_v: 0.0,
+            ..Default::default()
+        };
+        assert_eq!(g.validate(), Err(ConfigError::NonPositiveGain));
+        let off = FaultObserverGains {
+            max_estimate: [0.0, 0.0],
+            ..Default::default()
+        };
+        assert!(off.validate().is_ok());
+        let g = FaultObserverGains {
+            max_estimate: [0.0, f32::NAN],
             ..Default::default()
         };
         assert_eq!(g.validate(), Err(ConfigError::NonPositiveGain));

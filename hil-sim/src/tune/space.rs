@@ -44,11 +44,19 @@ const KINEMATIC: [Dim; 3] = [
 const K_S: Dim = dim("sliding.k_s", 0.5, 100.0);
 /// Plain SMC's fixed switching gain K.
 const K_FIXED: Dim = dim("sliding.switching.fixed.k", 0.05, 20.0);
-/// Eqs. (22)-(24): adaptation rate γ and the bound ρ_max.
-const ADAPTIVE: [Dim; 2] = [
+/// Eqs. (22)-(24): adaptation rate γ, the bound ρ_max and ρ0 (the
+/// initial ρ̂ and the leakage's target) as a fraction of ρ_max. At
+/// ρ0 = ρ_max, ρ̂ stays at ρ_max whatever s does (adaptation is clipped
+/// at ρ_max, leakage pulls back to it): the law is plain SMC with
+/// K = ρ_max, so the ASMC's and the proposed controller's boxes hold the
+/// SMC's exactly ([`embed_smc`], issue 34).
+const ADAPTIVE: [Dim; 3] = [
     dim("sliding.switching.adaptive.gamma", 0.005, 5.0),
     dim("sliding.switching.adaptive.rho_max", 0.5, 30.0),
+    dim(RHO0_FRACTION, 1e-3, 1.0),
 ];
+/// Name of ρ0 as a fraction of ρ_max.
+pub const RHO0_FRACTION: &str = "sliding.switching.adaptive.rho0 (fraction of rho_max)";
 /// Eq. (18): λ1, λ2, λ3.
 const ESO: [Dim; 3] = [
     dim("eso.lambda[0]", 2.0, 50.0),
@@ -60,11 +68,12 @@ const OBSERVER: [Dim; 2] = [
     dim("observer.l_v", 0.5, 50.0),
     dim("observer.l_omega", 0.5, 50.0),
 ];
-/// The authority of the ESO and of the fault observer (D166): the scale
-/// of their clamps (`eso.max_disturbance`, `observer.max_estimate`)
-/// against the robot file's, floored at the parameter table's 1e-6. At the
-/// low end the estimates D̂ and F̂ are bounded by a few 1e-6 (m/s², m/s):
-/// the proposed controller is then ASMC, so the proposed controller's box
+/// The authority of the ESO and of the fault observer (D166, D212): the
+/// scale of their clamps (`eso.max_disturbance`, `observer.max_estimate`)
+/// against the robot file's, log-scaled from [`AUTHORITY_MIN`] to 1, and
+/// exactly 0 at the low end of the box (the coordinate 0, where every
+/// point outside the box is clamped to): the clamps are then 0, D̂ and F̂
+/// are 0 and the proposed controller is ASMC term for term, so its box
 /// holds the ASMC's (issue 34: the baselines are special cases).
 const AUTHORITY: [Dim; 2] = [
     dim(ESO_AUTHORITY, AUTHORITY_MIN, 1.0),
@@ -75,11 +84,12 @@ pub const ESO_AUTHORITY: &str = "eso.max_disturbance (scale)";
 /// Name of the fault observer's authority (the scale of
 /// `observer.max_estimate`).
 pub const OBSERVER_AUTHORITY: &str = "observer.max_estimate (scale)";
-/// Smallest authority scale: the paper's clamps (20, 40 m/s²; 1.5, 2 m/s)
-/// become at most 4e-6.
-pub const AUTHORITY_MIN: f64 = 1e-7;
-/// Smallest clamp the robot file takes (book/src/reference/parameters.md).
-const CLAMP_MIN: f32 = 1e-6;
+/// Smallest authority scale above off: the paper's clamps (20, 40 m/s²;
+/// 1.5, 2 m/s) become 0.2, 0.4 m/s² and 0.015, 0.02 m/s, estimates that
+/// still act, so a search at the off end sees the cost change as soon as
+/// it steps inside the box (with D166's 1e-7 floor, needed while a clamp
+/// could not be 0, 70 % of the range was a flat plateau).
+pub const AUTHORITY_MIN: f64 = 1e-2;
 
 /// The tuned gains of `kind`, in the order of the optimiser's vector.
 pub fn dims(kind: ControllerKind) -> Vec<Dim> {
@@ -102,6 +112,20 @@ pub fn dims(kind: ControllerKind) -> Vec<Dim> {
 /// gain: SMC's K, or ASMC's and the proposed controller's γ).
 const SWITCHING: usize = 4;
 
+/// True when an authority coordinate `u` switches its estimate off: the
+/// box's low end and below (a NaN decodes as the box's middle, as every
+/// gain does).
+pub fn authority_off(u: f64) -> bool {
+    u <= 0.0
+}
+
+/// True for a gain given relative to another one or to the robot file's
+/// (the authorities, ρ0's fraction): its top is the reference itself,
+/// not a limit worth flagging.
+pub fn is_relative(d: &Dim) -> bool {
+    d.name.ends_with(')')
+}
+
 /// The ASMC point `asmc` (unit box of [`dims`]`(Asmc)`) embedded in the
 /// proposed controller's box: the same kinematic and sliding gains, the
 /// ESO's and the fault observer's gains of `proposed` (a point of the
@@ -118,20 +142,30 @@ pub fn embed_asmc(asmc: &[f64], proposed: &[f64]) -> Vec<f64> {
     x
 }
 
-/// The SMC point `smc` near the proposed controller's box: its kinematic
-/// gains and k_s, the slowest adaptation (γ at its low end) with ρ_max at
-/// SMC's K (ρ0 is lowered to it), the estimates off. Not SMC exactly (ρ̂
-/// still adapts, slowly, and starts at min(ρ0, K)): a warm start only.
-pub fn embed_smc(smc: &[f64], proposed: &[f64]) -> Vec<f64> {
-    let n = dims(ControllerKind::Proposed).len();
+/// The SMC point `smc` embedded in the box of `into` (a point of the
+/// ASMC's or of the proposed controller's box): the same kinematic gains
+/// and k_s, ρ_max = K and ρ0 = ρ_max, so ρ̂ ≡ K (the law is SMC's, up to
+/// K's f32 rounding through the two ranges); γ at its low end; in the
+/// proposed controller's box, its other gains from `into` and both
+/// authorities at their low end (the estimates off).
+pub fn embed_smc(smc: &[f64], into: &[f64]) -> Vec<f64> {
     assert_eq!(smc.len(), dims(ControllerKind::Smc).len(), "SMC point");
-    let mut x = proposed.to_vec();
+    let n = into.len();
+    let proposed = n == dims(ControllerKind::Proposed).len();
+    assert!(
+        proposed || n == dims(ControllerKind::Asmc).len(),
+        "an ASMC or proposed point"
+    );
+    let mut x = into.to_vec();
     x[..SWITCHING].copy_from_slice(&smc[..SWITCHING]);
     let k = f64::from(from_u(&K_FIXED, smc[SWITCHING]));
     x[SWITCHING] = 0.0;
     x[SWITCHING + 1] = to_u(&ADAPTIVE[1], k);
-    x[n - 2] = 0.0;
-    x[n - 1] = 0.0;
+    x[SWITCHING + 2] = 1.0;
+    if proposed {
+        x[n - 2] = 0.0;
+        x[n - 1] = 0.0;
+    }
     x
 }
 
@@ -149,7 +183,8 @@ fn from_u(d: &Dim, u: f64) -> f32 {
 }
 
 /// The gains of `c` as a point of the unit box (each clamped to its range;
-/// the authorities are relative to `c`'s own clamps: 1).
+/// the authorities are relative to `c`'s own clamps: 1; ρ0 as its
+/// fraction of ρ_max).
 pub fn encode(c: &ControllerConfig) -> Vec<f64> {
     let g = gains_of(c);
     dims(c.kind)
@@ -175,7 +210,7 @@ pub fn gains_of(c: &ControllerConfig) -> Vec<f32> {
     ];
     match c.sliding.switching {
         Switching::Fixed(k) => v.push(k),
-        Switching::Adaptive(a) => v.extend([a.gamma, a.rho_max]),
+        Switching::Adaptive(a) => v.extend([a.gamma, a.rho_max, a.rho0 / a.rho_max]),
     }
     if c.kind == ControllerKind::Proposed {
         v.extend(c.eso.lambda);
@@ -186,7 +221,8 @@ pub fn gains_of(c: &ControllerConfig) -> Vec<f32> {
 }
 
 /// `base` with the tuned gains set from `u` (clamped into the unit box;
-/// ρ0 lowered to ρ_max when above it, so ρ_min ≤ ρ0 ≤ ρ_max holds).
+/// ρ0 = fraction·ρ_max, never above ρ_max, and ρ_min lowered to ρ0 when
+/// above it, so ρ_min ≤ ρ0 ≤ ρ_max holds).
 /// `u.len()` must be `dims(base.kind).len()`.
 pub fn decode(base: &ControllerConfig, u: &[f64]) -> ControllerConfig {
     let d = dims(base.kind);
@@ -202,18 +238,20 @@ pub fn decode(base: &ControllerConfig, u: &[f64]) -> ControllerConfig {
         Switching::Adaptive(mut a) => {
             a.gamma = g[4];
             a.rho_max = g[5];
-            a.rho0 = a.rho0.min(a.rho_max);
+            a.rho0 = (g[5] * g[6]).min(a.rho_max);
             a.rho_min = a.rho_min.min(a.rho0);
             Switching::Adaptive(a)
         }
     };
     if c.kind == ControllerKind::Proposed {
-        c.eso.lambda = [g[6], g[7], g[8]];
-        c.fault_observer.l_v = g[9];
-        c.fault_observer.l_omega = g[10];
-        let scaled = |m: [f32; 2], s: f32| m.map(|x| (x * s).max(CLAMP_MIN));
-        c.eso.max_disturbance = scaled(c.eso.max_disturbance, g[11]);
-        c.fault_observer.max_estimate = scaled(c.fault_observer.max_estimate, g[12]);
+        c.eso.lambda = [g[7], g[8], g[9]];
+        c.fault_observer.l_v = g[10];
+        c.fault_observer.l_omega = g[11];
+        // The box's low end is off (module doc of AUTHORITY).
+        let off = |i: usize| authority_off(u[i]);
+        let scaled = |m: [f32; 2], i: usize| m.map(|x| if off(i) { 0.0 } else { x * g[i] });
+        c.eso.max_disturbance = scaled(c.eso.max_disturbance, 12);
+        c.fault_observer.max_estimate = scaled(c.fault_observer.max_estimate, 13);
     }
     c
 }
@@ -275,7 +313,7 @@ mod tests {
             ControllerConfig::paper(ControllerKind::Asmc),
             ControllerConfig::paper(ControllerKind::Proposed),
         );
-        let xa = vec![0.3, 0.6, 0.2, 0.7, 0.4, 0.55];
+        let xa = vec![0.3, 0.6, 0.2, 0.7, 0.4, 0.55, 0.5];
         let e = decode(&p, &embed_asmc(&xa, &encode(&p)));
         let da = decode(&a, &xa);
         assert_eq!(e.kinematic, da.kinematic);
@@ -288,17 +326,59 @@ mod tests {
             .into_iter()
             .chain(e.fault_observer.max_estimate)
         {
-            assert!((CLAMP_MIN..=4e-6).contains(&m), "{m}");
+            assert_eq!(m, 0.0, "the estimates are off");
         }
         e.validate().unwrap();
-        // The SMC warm start: K becomes ρ_max (ρ0 lowered to it), γ slowest.
+        // The SMC point: K becomes ρ_max and ρ0 = ρ_max, γ slowest.
         let xs = vec![0.3, 0.6, 0.2, 0.7, to_u(&K_FIXED, 3.0)];
         let es = decode(&p, &embed_smc(&xs, &encode(&p)));
         let Switching::Adaptive(ad) = es.sliding.switching else {
             panic!("adaptive")
         };
-        assert!((ad.rho_max - 3.0).abs() < 1e-4 && ad.rho0 <= ad.rho_max);
+        assert!((ad.rho_max - 3.0).abs() < 1e-4 && ad.rho0 == ad.rho_max);
         assert_eq!(ad.gamma as f64, ADAPTIVE[0].lo as f32 as f64);
+        es.validate().unwrap();
+    }
+
+    /// SMC is a special case of ASMC and of the proposed controller
+    /// (issue 34): the tuned SMC point embedded in their boxes runs the
+    /// same closed loop as SMC itself, under the paper's Case 2 (slip,
+    /// fault, disturbance, saturation) behind the firmware runtime. An
+    /// independent reason: ρ̂ clipped at ρ_max and leaking to ρ0 = ρ_max
+    /// never leaves K, so eq. (24) is term for term SMC's.
+    #[test]
+    fn smc_embedded_in_the_adaptive_boxes_runs_as_smc() {
+        use crate::scenario::{Scenario, Sensing};
+        let mut s = Scenario::paper_case(2, 3, None, None).with_sensing(Sensing::Imu);
+        s.duration_s = 20.0;
+        s.plant.torque_limit_nm = Some(2.0);
+        let xs = vec![0.55, 0.4, 0.6, 0.5, to_u(&K_FIXED, 4.0)];
+        let smc = decode(&s.controller_config(ControllerKind::Smc), &xs);
+        let run = |c: ControllerConfig| crate::sim::run_with(&s, c, 0).unwrap().metrics;
+        let m0 = run(smc);
+        assert!(m0.saturated_fraction > 0.0, "the case saturates");
+        for kind in [ControllerKind::Asmc, ControllerKind::Proposed] {
+            let base = s.controller_config(kind);
+            let c = decode(&base, &embed_smc(&xs, &encode(&base)));
+            let m = run(c);
+            let rel = (m.rms_pos_err_window_m / m0.rms_pos_err_window_m - 1.0).abs();
+            // K's f32 rounding through the two ranges only.
+            assert!(
+                rel < 1e-4,
+                "{kind:?}: window RMS {} vs SMC {} ({rel:.2e})",
+                m.rms_pos_err_window_m,
+                m0.rms_pos_err_window_m
+            );
+            assert!((m.saturated_fraction - m0.saturated_fraction).abs() < 1e-3);
+        }
+        // ASMC in the proposed controller's box: the same f32 gains, D̂
+        // and F̂ clamped to 0, so the very same run.
+        let xa = vec![0.5, 0.45, 0.55, 0.5, 0.6, 0.5, 0.3];
+        let asmc = run(decode(&s.controller_config(ControllerKind::Asmc), &xa));
+        let base = s.controller_config(ControllerKind::Proposed);
+        let prop = run(decode(&base, &embed_asmc(&xa, &encode(&base))));
+        assert_eq!(asmc.rms_pos_err_window_m, prop.rms_pos_err_window_m);
+        assert_eq!(asmc.saturated_fraction, prop.saturated_fraction);
     }
 
     #[test]
