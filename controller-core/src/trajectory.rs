@@ -2,7 +2,7 @@
 //! time derivatives (which the analytic η̇_c of the dynamic loop needs).
 
 use crate::error::ConfigError;
-use crate::math::{all_positive, atan2, sin_cos, sqrt};
+use crate::math::{all_positive, atan2, floor, sin_cos, sqrt, wrap_angle};
 use crate::types::Pose;
 
 /// One sample of the reference (virtual vehicle) at time t.
@@ -246,6 +246,94 @@ impl Trajectory for FigureEight {
     }
 }
 
+/// Peak of the minimum-jerk profile's slope, p'(1/2) = 30/16: a move of
+/// length D in time T peaks at 1.875·D/T.
+const MIN_JERK_PEAK: f32 = 1.875;
+
+/// The minimum-jerk (quintic) rest-to-rest profile at τ ∈ \[0, 1\]:
+/// (p, p', p'') with p = 10τ³ − 15τ⁴ + 6τ⁵ (zero slope and curvature at
+/// both ends, so a chain of them has continuous speed and acceleration).
+fn min_jerk(tau: f32) -> [f32; 3] {
+    let t2 = tau * tau;
+    let u = 1.0 - tau;
+    [
+        t2 * tau * (10.0 - 15.0 * tau + 6.0 * t2),
+        30.0 * t2 * u * u,
+        60.0 * tau * u * (1.0 - 2.0 * tau),
+    ]
+}
+
+/// A square driven side by side with quarter turns on the spot (issue 34:
+/// a validation path unlike the training one, where v and ω are never
+/// both non-zero and each starts from rest). From the origin along +x,
+/// counter-clockwise: each side of `side_m` a minimum-jerk move peaking at
+/// `speed_mps`, then a quarter turn peaking at `yaw_rate_radps`; the four
+/// sides repeat.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Square {
+    /// Side length \[m\].
+    pub side_m: f32,
+    /// Peak speed on a side \[m/s\].
+    pub speed_mps: f32,
+    /// Peak yaw rate of a turn \[rad/s\].
+    pub yaw_rate_radps: f32,
+}
+
+impl Square {
+    /// Durations of a side and of a turn \[s\].
+    pub fn durations_s(&self) -> [f32; 2] {
+        [
+            MIN_JERK_PEAK * self.side_m / self.speed_mps,
+            MIN_JERK_PEAK * core::f32::consts::FRAC_PI_2 / self.yaw_rate_radps,
+        ]
+    }
+}
+
+impl Trajectory for Square {
+    fn sample(&self, t_s: f32) -> RefSample {
+        let [ts, tt] = self.durations_s();
+        let t = if t_s > 0.0 { t_s } else { 0.0 };
+        let k = floor(t / (ts + tt));
+        let u = t - k * (ts + tt);
+        // Side j of 4 starts at corner j with heading j·π/2.
+        let j = k - 4.0 * floor(0.25 * k);
+        let theta0 = j * core::f32::consts::FRAC_PI_2;
+        let (sn, cs) = sin_cos(theta0);
+        let l = self.side_m;
+        // Corner j: (0,0), (L,0), (L,L), (0,L).
+        let corner = |j: f32| -> (f32, f32) {
+            let j = j - 4.0 * floor(0.25 * j);
+            let x = if j > 0.5 && j < 2.5 { l } else { 0.0 };
+            let y = if j > 1.5 { l } else { 0.0 };
+            (x, y)
+        };
+        let (x0, y0) = corner(j);
+        if u < ts {
+            let [p, dp, ddp] = min_jerk(u / ts);
+            let d = l * p;
+            RefSample {
+                pose: Pose::new(x0 + d * cs, y0 + d * sn, wrap_angle(theta0)),
+                v_mps: l * dp / ts,
+                omega_radps: 0.0,
+                v_dot_mps2: l * ddp / (ts * ts),
+                omega_dot_radps2: 0.0,
+            }
+        } else {
+            let [p, dp, ddp] = min_jerk((u - ts) / tt);
+            let q = core::f32::consts::FRAC_PI_2;
+            let (x1, y1) = corner(j + 1.0);
+            RefSample {
+                pose: Pose::new(x1, y1, wrap_angle(theta0 + q * p)),
+                v_mps: 0.0,
+                omega_radps: q * dp / tt,
+                v_dot_mps2: 0.0,
+                omega_dot_radps2: q * ddp / (tt * tt),
+            }
+        }
+    }
+}
+
 /// Straight line from a start point at constant speed and heading.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -478,6 +566,8 @@ pub enum Reference {
     FigureEight(FigureEight),
     /// A straight line.
     Line(Line),
+    /// A square with turns on the spot.
+    Square(Square),
 }
 
 impl Reference {
@@ -488,6 +578,7 @@ impl Reference {
             Self::Circle(c) => all_positive(&[c.radius_m, c.speed_mps]),
             Self::FigureEight(f) => all_positive(&[f.amplitude_m, f.w_radps]),
             Self::Line(l) => l.start.is_finite() && l.speed_mps.is_finite(),
+            Self::Square(q) => all_positive(&[q.side_m, q.speed_mps, q.yaw_rate_radps]),
         };
         if valid {
             Ok(self)
@@ -504,6 +595,7 @@ impl Trajectory for Reference {
             Self::Circle(c) => c.sample(t_s),
             Self::FigureEight(f) => f.sample(t_s),
             Self::Line(l) => l.sample(t_s),
+            Self::Square(q) => q.sample(t_s),
         }
     }
 }
@@ -735,6 +827,35 @@ mod tests {
             speed_mps: 0.4,
         };
         check_fd(&l, 0.0, 30.0, true, |_| false);
+        // The square: unicycle-consistent everywhere (v and ω never both
+        // non-zero), continuous through the joints of sides and turns.
+        let q = Square {
+            side_m: 2.0,
+            speed_mps: 0.5,
+            yaw_rate_radps: 1.0,
+        };
+        check_fd(&q, 0.0, 90.0, true, |_| false);
+        let [ts, tt] = q.durations_s();
+        // Corners at the ends of the sides, headings after the turns, the
+        // loop closed after four sides; peaks at the given speed and rate.
+        for (k, (x, y)) in [(2.0, 0.0), (2.0, 2.0), (0.0, 2.0), (0.0, 0.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let end = (k as f32 + 1.0) * (ts + tt);
+            let at = q.sample(end - tt - 1e-4).pose;
+            assert!(
+                (at.x_m - x).abs() < 1e-3 && (at.y_m - y).abs() < 1e-3,
+                "{k}: {at:?}"
+            );
+            let after = q.sample(end).pose.theta_rad;
+            let want = wrap_angle((k as f32 + 1.0) * core::f32::consts::FRAC_PI_2);
+            assert!(wrap_angle(after - want).abs() < 1e-3, "{k}: {after}");
+            let mid = q.sample(end - (ts + tt) + 0.5 * ts);
+            assert!((mid.v_mps - 0.5).abs() < 1e-5 && mid.omega_radps == 0.0);
+            let turn = q.sample(end - 0.5 * tt);
+            assert!((turn.omega_radps - 1.0).abs() < 1e-5 && turn.v_mps == 0.0);
+        }
         // Circle stays on its radius.
         let c = Circle {
             radius_m: 2.0,

@@ -39,6 +39,9 @@ pub enum TrajectoryKind {
     Figure8,
     /// Straight line along +x at 0.5 m/s from the origin.
     Line,
+    /// Square, 2 m sides from the origin along +x at up to 0.5 m/s, quarter
+    /// turns on the spot at up to 1 rad/s (each from rest).
+    Square,
 }
 
 impl TrajectoryKind {
@@ -60,6 +63,11 @@ impl TrajectoryKind {
             Self::Line => Reference::Line(Line {
                 start: controller_core::Pose::new(0.0, 0.0, 0.0),
                 speed_mps: 0.5,
+            }),
+            Self::Square => Reference::Square(Square {
+                side_m: 2.0,
+                speed_mps: 0.5,
+                yaw_rate_radps: 1.0,
             }),
         }
     }

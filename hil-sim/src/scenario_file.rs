@@ -336,6 +336,7 @@ mod tests {
             "circle",
             "figure8",
             "line",
+            "square",
         ] {
             assert!(
                 doc.contains(&format!("`\"{t}\"`")),

@@ -387,6 +387,7 @@ fn small_job(restarts: u64) -> TuneJob {
             duration_s: 20.0,
             disturbance_max_fraction: hil_sim::tune::set::DISTURBANCE_FRACTION.1,
             figure8: 0,
+            square: 0,
         },
         optimizer: Optimizer::Cmaes,
         evaluations: 20,
@@ -513,6 +514,7 @@ fn issue34_set(r: &Robot) -> TuneSet {
         duration_s: 35.0,
         disturbance_max_fraction: hil_sim::tune::set::DISTURBANCE_FRACTION.1,
         figure8: 4,
+        square: 0,
     }
 }
 

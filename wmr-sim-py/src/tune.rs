@@ -97,7 +97,7 @@ impl TuneSet {
     /// --disturbance-max F --preset-mean P --chatter-weight W`, checked
     /// as the CLI checks it.
     #[new]
-    #[pyo3(signature = (robot, *, sensing=vec!["mocap".to_string(), "imu".to_string()], seed=1, train=hil_sim::cli::tune::DEFAULT_TRAIN, validate=hil_sim::cli::tune::DEFAULT_VALIDATE, figure8=hil_sim::tune::set::DEFAULT_FIGURE8, torque_scale_min=1.0, duration_s=hil_sim::cli::tune::DEFAULT_DURATION_S, disturbance_max=hil_sim::tune::set::DISTURBANCE_FRACTION.1, preset_mean="geometric", chatter_weight=hil_sim::tune::cost::CHATTER_WEIGHT_M_S))]
+    #[pyo3(signature = (robot, *, sensing=vec!["mocap".to_string(), "imu".to_string()], seed=1, train=hil_sim::cli::tune::DEFAULT_TRAIN, validate=hil_sim::cli::tune::DEFAULT_VALIDATE, figure8=hil_sim::tune::set::DEFAULT_FIGURE8, square=hil_sim::tune::set::DEFAULT_SQUARE, torque_scale_min=1.0, duration_s=hil_sim::cli::tune::DEFAULT_DURATION_S, disturbance_max=hil_sim::tune::set::DISTURBANCE_FRACTION.1, preset_mean="geometric", chatter_weight=hil_sim::tune::cost::CHATTER_WEIGHT_M_S))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         robot: Robot,
@@ -106,6 +106,7 @@ impl TuneSet {
         train: usize,
         validate: usize,
         figure8: usize,
+        square: usize,
         torque_scale_min: f64,
         duration_s: f64,
         disturbance_max: f64,
@@ -129,6 +130,7 @@ impl TuneSet {
             training: train,
             validation: validate,
             figure8,
+            square,
             torque_scale_min,
             duration_s,
             disturbance_max_fraction: disturbance_max,

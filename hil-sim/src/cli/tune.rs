@@ -45,6 +45,11 @@ pub struct TuneArgs {
     /// one), after the --validate ones (D167).
     #[arg(long, default_value_t = crate::tune::set::DEFAULT_FIGURE8)]
     pub validate_figure8: usize,
+    /// Validation scenarios on the square with quarter turns on the spot (a
+    /// path where v and ω are never both non-zero), after the figure-8 ones
+    /// (D213; none by default).
+    #[arg(long, default_value_t = crate::tune::set::DEFAULT_SQUARE)]
+    pub validate_square: usize,
     /// Skip the mismatch sweep of the written gains (their margins, D167).
     #[arg(long)]
     pub no_margins: bool,
@@ -210,6 +215,7 @@ pub fn tune_status(a: &TuneArgs, out: &mut dyn Write) -> Result<i32, String> {
             duration_s: a.duration,
             disturbance_max_fraction: a.disturbance_max,
             figure8: a.validate_figure8,
+            square: a.validate_square,
         },
         optimizer: a.optimizer,
         evaluations: a.evaluations,

@@ -487,11 +487,7 @@ fn choose(job: &TuneJob, name: &str, start: &Scored, best: &RestartResult) -> Ch
         let scn = job.set.scenario(Part::Validation, i as u64);
         flags.push(format!(
             "validation run {i} ({}, {}, seed {}) stopped or diverged",
-            if job.set.is_figure8(i) {
-                "figure-8"
-            } else {
-                "training path"
-            },
+            job.set.path_of(i).name(),
             scn.sensing.preset.name(),
             scn.seed
         ));
@@ -908,6 +904,7 @@ mod tests {
                 duration_s: 35.0,
                 disturbance_max_fraction: set::DISTURBANCE_FRACTION.1,
                 figure8: 2,
+                square: 0,
             },
             optimizer: Optimizer::Cmaes,
             evaluations: 10,

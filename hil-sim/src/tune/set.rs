@@ -21,7 +21,9 @@
 //! - the sensing preset: the set's presets in turn (i mod n);
 //! - the validation part ends with [`TuneSet::figure8`] runs of the same
 //!   draws on the figure-8 (issue 34, D167): a path unlike the training
-//!   one (both turning directions, curvature through zero).
+//!   one (both turning directions, curvature through zero), then
+//!   [`TuneSet::square`] runs on the square with quarter turns on the spot
+//!   (D213: v and ω never both non-zero, each from rest).
 
 use crate::montecarlo::run_seed;
 use crate::rng::Rng;
@@ -85,6 +87,10 @@ pub struct TuneSet {
     /// training path (D167; shard files without it have none).
     #[serde(default)]
     pub figure8: usize,
+    /// Validation runs on the square with turns on the spot after the
+    /// figure-8 runs (D213; shard files without it have none).
+    #[serde(default)]
+    pub square: usize,
 }
 
 /// The perturbation window of every scenario of the set \[s\]: the cost
@@ -98,6 +104,33 @@ pub const MIN_WINDOW_S: f64 = 5.0;
 
 /// Default number of figure-8 validation runs (`--validate-figure8`).
 pub const DEFAULT_FIGURE8: usize = 4;
+/// Default number of validation runs on the square with turns on the spot
+/// (`--validate-square`): none, so far (D213: every controller and gain set
+/// measured tracks it at 0.16-1.0 m, which would decide the validation
+/// cost alone).
+pub const DEFAULT_SQUARE: usize = 0;
+
+/// The path of a validation run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ValidationPath {
+    /// The training path (the paper's curve or the circle).
+    Training,
+    /// The figure-8.
+    Figure8,
+    /// The square with turns on the spot.
+    Square,
+}
+
+impl ValidationPath {
+    /// Name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Training => "training path",
+            Self::Figure8 => "figure-8",
+            Self::Square => "square",
+        }
+    }
+}
 
 impl TuneSet {
     /// Refuses sets no scenario could be built from (no sensing preset,
@@ -147,7 +180,7 @@ impl TuneSet {
     pub fn len(&self, part: Part) -> usize {
         match part {
             Part::Training => self.training,
-            Part::Validation => self.validation + self.figure8,
+            Part::Validation => self.validation + self.figure8 + self.square,
         }
     }
 
@@ -191,17 +224,38 @@ impl TuneSet {
         let scale = within((self.torque_scale_min, 1.0));
         s.plant.torque_limit_nm = (self.torque_scale_min < 1.0).then_some(tau * scale);
         s.sensing.preset = self.sensing[i as usize % self.sensing.len()];
-        if part == Part::Validation && i >= self.validation as u64 {
-            s.trajectory = crate::scenario::TrajectoryKind::Figure8;
-            s.initial_pose = [0.0, 0.0, std::f64::consts::FRAC_PI_4];
-            s.name = format!("{}-figure8", s.name);
+        if part == Part::Validation {
+            match self.path_of(i as usize) {
+                ValidationPath::Training => {}
+                ValidationPath::Figure8 => {
+                    s.trajectory = crate::scenario::TrajectoryKind::Figure8;
+                    s.initial_pose = [0.0, 0.0, std::f64::consts::FRAC_PI_4];
+                    s.name = format!("{}-figure8", s.name);
+                }
+                ValidationPath::Square => {
+                    s.trajectory = crate::scenario::TrajectoryKind::Square;
+                    s.initial_pose = [0.0, 0.0, 0.0];
+                    s.name = format!("{}-square", s.name);
+                }
+            }
         }
         s
     }
 
+    /// The path of validation run `i`.
+    pub fn path_of(&self, i: usize) -> ValidationPath {
+        if i < self.validation {
+            ValidationPath::Training
+        } else if i < self.validation + self.figure8 {
+            ValidationPath::Figure8
+        } else {
+            ValidationPath::Square
+        }
+    }
+
     /// True when validation run `i` is on the figure-8.
     pub fn is_figure8(&self, i: usize) -> bool {
-        i >= self.validation
+        self.path_of(i) == ValidationPath::Figure8
     }
 
     /// Every scenario of `part`, in index order.
@@ -242,6 +296,7 @@ mod tests {
             duration_s: 40.0,
             disturbance_max_fraction: DISTURBANCE_FRACTION.1,
             figure8: 2,
+            square: 0,
         }
     }
 
@@ -299,6 +354,30 @@ mod tests {
             assert_eq!(c.sensing.preset, want);
             assert_eq!(c, s.scenario(Part::Validation, i));
             c.validate().unwrap();
+        }
+    }
+
+    #[test]
+    fn validation_ends_with_the_square_after_the_figure8() {
+        let s = TuneSet {
+            square: 3,
+            ..set(Robot::paper())
+        };
+        assert_eq!(s.len(Part::Validation), 55);
+        let v = s.scenarios(Part::Validation);
+        for (i, c) in v.iter().enumerate() {
+            let want = if i < 50 {
+                ValidationPath::Training
+            } else if i < 52 {
+                ValidationPath::Figure8
+            } else {
+                ValidationPath::Square
+            };
+            assert_eq!(s.path_of(i), want, "{i}");
+            let square = c.trajectory == crate::scenario::TrajectoryKind::Square;
+            assert_eq!(square, want == ValidationPath::Square, "{i}");
+            c.validate().unwrap();
+            crate::limits::check_scenario(c).unwrap();
         }
     }
 

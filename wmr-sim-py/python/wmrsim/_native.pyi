@@ -167,6 +167,7 @@ class TuneSet:
         train: int = 10,
         validate: int = 16,
         figure8: int = 4,
+        square: int = 0,
         torque_scale_min: float = 1.0,
         duration_s: float = 35.0,
         disturbance_max: float = 0.15,
