@@ -2,7 +2,9 @@
 //! time derivatives (which the analytic η̇_c of the dynamic loop needs).
 
 use crate::error::ConfigError;
-use crate::math::{all_positive, atan2, floor, sin_cos, sqrt, wrap_angle};
+use crate::math::{all_positive, atan2, sin_cos, sqrt};
+#[cfg(feature = "square")]
+use crate::math::{floor, wrap_angle};
 use crate::types::Pose;
 
 /// One sample of the reference (virtual vehicle) at time t.
@@ -246,10 +248,12 @@ impl Trajectory for FigureEight {
     }
 }
 
+#[cfg(feature = "square")]
 /// Peak of the minimum-jerk profile's slope, p'(1/2) = 30/16: a move of
 /// length D in time T peaks at 1.875·D/T.
 const MIN_JERK_PEAK: f32 = 1.875;
 
+#[cfg(feature = "square")]
 /// The minimum-jerk (quintic) rest-to-rest profile at τ ∈ \[0, 1\]:
 /// (p, p', p'') with p = 10τ³ − 15τ⁴ + 6τ⁵ (zero slope and curvature at
 /// both ends, so a chain of them has continuous speed and acceleration).
@@ -263,6 +267,7 @@ fn min_jerk(tau: f32) -> [f32; 3] {
     ]
 }
 
+#[cfg(feature = "square")]
 /// A square driven side by side with quarter turns on the spot (issue 34:
 /// a validation path unlike the training one, where v and ω are never
 /// both non-zero and each starts from rest). From the origin along +x,
@@ -280,6 +285,7 @@ pub struct Square {
     pub yaw_rate_radps: f32,
 }
 
+#[cfg(feature = "square")]
 impl Square {
     /// Durations of a side and of a turn \[s\].
     pub fn durations_s(&self) -> [f32; 2] {
@@ -290,6 +296,7 @@ impl Square {
     }
 }
 
+#[cfg(feature = "square")]
 impl Trajectory for Square {
     fn sample(&self, t_s: f32) -> RefSample {
         let [ts, tt] = self.durations_s();
@@ -566,7 +573,8 @@ pub enum Reference {
     FigureEight(FigureEight),
     /// A straight line.
     Line(Line),
-    /// A square with turns on the spot.
+    /// A square with turns on the spot (feature `square`: host only).
+    #[cfg(feature = "square")]
     Square(Square),
 }
 
@@ -578,6 +586,7 @@ impl Reference {
             Self::Circle(c) => all_positive(&[c.radius_m, c.speed_mps]),
             Self::FigureEight(f) => all_positive(&[f.amplitude_m, f.w_radps]),
             Self::Line(l) => l.start.is_finite() && l.speed_mps.is_finite(),
+            #[cfg(feature = "square")]
             Self::Square(q) => all_positive(&[q.side_m, q.speed_mps, q.yaw_rate_radps]),
         };
         if valid {
@@ -595,6 +604,7 @@ impl Trajectory for Reference {
             Self::Circle(c) => c.sample(t_s),
             Self::FigureEight(f) => f.sample(t_s),
             Self::Line(l) => l.sample(t_s),
+            #[cfg(feature = "square")]
             Self::Square(q) => q.sample(t_s),
         }
     }
@@ -827,35 +837,6 @@ mod tests {
             speed_mps: 0.4,
         };
         check_fd(&l, 0.0, 30.0, true, |_| false);
-        // The square: unicycle-consistent everywhere (v and ω never both
-        // non-zero), continuous through the joints of sides and turns.
-        let q = Square {
-            side_m: 2.0,
-            speed_mps: 0.5,
-            yaw_rate_radps: 1.0,
-        };
-        check_fd(&q, 0.0, 90.0, true, |_| false);
-        let [ts, tt] = q.durations_s();
-        // Corners at the ends of the sides, headings after the turns, the
-        // loop closed after four sides; peaks at the given speed and rate.
-        for (k, (x, y)) in [(2.0, 0.0), (2.0, 2.0), (0.0, 2.0), (0.0, 0.0)]
-            .into_iter()
-            .enumerate()
-        {
-            let end = (k as f32 + 1.0) * (ts + tt);
-            let at = q.sample(end - tt - 1e-4).pose;
-            assert!(
-                (at.x_m - x).abs() < 1e-3 && (at.y_m - y).abs() < 1e-3,
-                "{k}: {at:?}"
-            );
-            let after = q.sample(end).pose.theta_rad;
-            let want = wrap_angle((k as f32 + 1.0) * core::f32::consts::FRAC_PI_2);
-            assert!(wrap_angle(after - want).abs() < 1e-3, "{k}: {after}");
-            let mid = q.sample(end - (ts + tt) + 0.5 * ts);
-            assert!((mid.v_mps - 0.5).abs() < 1e-5 && mid.omega_radps == 0.0);
-            let turn = q.sample(end - 0.5 * tt);
-            assert!((turn.omega_radps - 1.0).abs() < 1e-5 && turn.v_mps == 0.0);
-        }
         // Circle stays on its radius.
         let c = Circle {
             radius_m: 2.0,
@@ -930,5 +911,39 @@ mod tests {
             ..PaperCurve::paper(PaperHeading::Tangent)
         };
         assert_eq!(bad.validate(), Err(ConfigError::InvalidTrajectory));
+    }
+
+    #[cfg(feature = "square")]
+    #[test]
+    fn square_is_a_unicycle_path_through_its_corners() {
+        // The square: unicycle-consistent everywhere (v and ω never both
+        // non-zero), continuous through the joints of sides and turns.
+        let q = Square {
+            side_m: 2.0,
+            speed_mps: 0.5,
+            yaw_rate_radps: 1.0,
+        };
+        check_fd(&q, 0.0, 90.0, true, |_| false);
+        let [ts, tt] = q.durations_s();
+        // Corners at the ends of the sides, headings after the turns, the
+        // loop closed after four sides; peaks at the given speed and rate.
+        for (k, (x, y)) in [(2.0, 0.0), (2.0, 2.0), (0.0, 2.0), (0.0, 0.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let end = (k as f32 + 1.0) * (ts + tt);
+            let at = q.sample(end - tt - 1e-4).pose;
+            assert!(
+                (at.x_m - x).abs() < 1e-3 && (at.y_m - y).abs() < 1e-3,
+                "{k}: {at:?}"
+            );
+            let after = q.sample(end).pose.theta_rad;
+            let want = wrap_angle((k as f32 + 1.0) * core::f32::consts::FRAC_PI_2);
+            assert!(wrap_angle(after - want).abs() < 1e-3, "{k}: {after}");
+            let mid = q.sample(end - (ts + tt) + 0.5 * ts);
+            assert!((mid.v_mps - 0.5).abs() < 1e-5 && mid.omega_radps == 0.0);
+            let turn = q.sample(end - 0.5 * tt);
+            assert!((turn.omega_radps - 1.0).abs() < 1e-5 && turn.v_mps == 0.0);
+        }
     }
 }
