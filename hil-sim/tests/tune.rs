@@ -37,6 +37,7 @@ fn validation(r: &Robot, sensing: Sensing) -> Vec<Scenario> {
         duration_s: 40.0,
         disturbance_max_fraction: hil_sim::tune::set::DISTURBANCE_FRACTION.1,
         figure8: 0,
+        square: 0,
     }
     .scenarios(Part::Validation)
 }
