@@ -371,17 +371,6 @@ pub fn analyse(
             (true, false) => {}
         }
     }
-    // Both wheels' counts with the encoder fixes applied.
-    let enc_sign = |w: usize| {
-        if f.contains(&Finding::EncoderInverted(w)) {
-            -1
-        } else {
-            1
-        }
-    };
-    for t in tests {
-        corrected.push([t.counts[0] * enc_sign(0), t.counts[1] * enc_sign(1)]);
-    }
     if gyro_disagrees == [true, true]
         && !f
             .iter()
@@ -396,6 +385,21 @@ pub fn analyse(
                 f.push(Finding::MotorInverted(w));
             }
         }
+    }
+    // Both wheels' counts with every encoder fix applied, those the gyro
+    // decided above included (a wheel with both its motor and its encoder
+    // inverted counts forward while it turns backwards: without its fix
+    // here its tests cancel the other wheel's in the least squares below,
+    // which then proposed a counts per revolution near 0).
+    let enc_sign = |w: usize| {
+        if f.contains(&Finding::EncoderInverted(w)) {
+            -1
+        } else {
+            1
+        }
+    };
+    for t in tests {
+        corrected.push([t.counts[0] * enc_sign(0), t.counts[1] * enc_sign(1)]);
     }
     // Counts per revolution against an independent reference.
     let estimate = if f.contains(&Finding::Swapped) {
@@ -842,6 +846,54 @@ mod tests {
 
     /// The advice doubles the torque (rounded up to 0.01 N·m) within the
     /// cap, the cap itself past it, and at the cap says what else to check.
+    /// A wheel with both its motor and its encoder inverted, on the floor
+    /// with a gyro, synthesised from eq. (3) (ψ = r·(φ_R − φ_L)/track): both
+    /// flags are found, and the counts per revolution are checked against
+    /// the gyro with that wheel's counts fixed (a file 20 % off is
+    /// corrected to the true value; a right file gets no finding).
+    #[test]
+    fn a_wheel_with_motor_and_encoder_inverted_keeps_the_counts_check() {
+        let robot = Robot::paper();
+        let true_cpr = robot.encoders.counts_per_wheel_rev;
+        let (r, track) = (robot.mean_wheel_radius_m(), robot.body.track_m);
+        let half_turn = (0.5 * true_cpr) as i32;
+        // [right+, right−, left+, left−]: the physical half-turns, the right
+        // wheel driven backwards by its inverted motor.
+        let physical = [[-1, 0], [1, 0], [0, 1], [0, -1]];
+        let tests: [WheelTestResult; 4] = core::array::from_fn(|i| {
+            let p = physical[i];
+            let yaw = r * (p[0] - p[1]) as f32 * core::f32::consts::PI / track;
+            WheelTestResult {
+                wheel: (i / 2) as u8,
+                torque_nm: if i % 2 == 0 { 1.0 } else { -1.0 },
+                duty: 0,
+                ticks: 1000,
+                end: WheelTestEnd::Completed,
+                // The right encoder inverted: it counts the opposite.
+                counts: [-p[0] * half_turn, p[1] * half_turn],
+                gyro_yaw_rad: Some(yaw),
+            }
+        });
+        let f = analyse(&robot, &tests, None, 2.0, false).unwrap();
+        assert!(f.contains(&Finding::EncoderInverted(0)), "{f:?}");
+        assert!(f.contains(&Finding::MotorInverted(0)), "{f:?}");
+        assert!(
+            !f.iter().any(|x| matches!(x, Finding::CountsPerRev(_))),
+            "{f:?}"
+        );
+        let mut off = robot.clone();
+        off.encoders.counts_per_wheel_rev = 1.2 * true_cpr;
+        let f = analyse(&off, &tests, None, 2.0, false).unwrap();
+        let c = f
+            .iter()
+            .find_map(|x| match x {
+                Finding::CountsPerRev(c) => Some(*c),
+                _ => None,
+            })
+            .expect("the 20 % error is found");
+        assert!((c / true_cpr - 1.0).abs() < 1e-3, "{c} vs {true_cpr}");
+    }
+
     #[test]
     fn the_advice_names_the_torque_to_try() {
         assert!(advice(0.029, 0.12, true).starts_with("try --torque-nm 0.06"));

@@ -95,6 +95,12 @@ pub struct ServeArgs {
     /// Telemetry rate the live view asks for [Hz].
     #[arg(long, value_name = "HZ", default_value_t = 50, value_parser = clap::value_parser!(u16).range(1..=1000))]
     pub live_rate_hz: u16,
+    /// d, G ahead of the axle midpoint, for the live view's base_link [m]
+    /// [default: body.com_offset_m of the robot file the robot runs, read
+    /// from its store; the paper robot's 0.05 when it cannot tell, with
+    /// the reason logged].
+    #[arg(long, value_name = "M")]
+    pub com_offset_m: Option<f64>,
 }
 
 /// The user's runtime directory for sockets: `$XDG_RUNTIME_DIR/wmr`, else

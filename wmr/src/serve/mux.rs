@@ -49,6 +49,8 @@ pub enum Own {
     LinkTimeout,
     /// The telemetry setting (after a client left, after a reset).
     Telemetry,
+    /// A chunk of the robot's record (the live view's d).
+    RobotRead,
 }
 
 /// Who gets the answer.

@@ -285,7 +285,7 @@ pub fn serve_until(
         stop,
         live: a
             .live
-            .then(|| super::live::ServeLive::new(a.live_at.clone())),
+            .then(|| super::live::ServeLive::new(a.live_at.clone(), a.com_offset_m)),
     };
     if a.live {
         server.mux.set_own_telemetry(super::mux::TelemetrySub {
@@ -647,6 +647,15 @@ impl Server<'_> {
         }
     }
 
+    /// What the live view asked for.
+    fn live_step(&mut self, step: super::live::LiveStep) {
+        match step {
+            super::live::LiveStep::None => {}
+            super::live::LiveStep::Ask(req) => self.own(Own::RobotRead, req),
+            super::live::LiveStep::Log(line) => self.log(&line),
+        }
+    }
+
     fn own(&mut self, own: Own, req: Request) {
         let o = self.mux.own(own, req, Instant::now());
         self.dispatch(vec![o]);
@@ -774,6 +783,13 @@ impl Server<'_> {
             }
             Reply::ClockSync { robot_time_us, .. } => self.observe_clock(*robot_time_us),
             Reply::Status { status, .. } => {
+                if let Some(step) = self
+                    .live
+                    .as_mut()
+                    .map(|l| l.on_status(status.robot.active_crc32))
+                {
+                    self.live_step(step);
+                }
                 let ticks = status.counters.ticks;
                 if let Some(why) = self.resets.status(status.t_robot_us, ticks, Instant::now()) {
                     self.reset(why);
@@ -858,8 +874,8 @@ impl Server<'_> {
                     "connected to the robot on {} ({chip}, protocol {version})",
                     self.port_path
                 ));
-                if let Some(line) = self.live.as_mut().and_then(|l| l.on_hello(&h)) {
-                    self.log(&line);
+                if let Some(step) = self.live.as_mut().map(|l| l.on_hello(&h, Instant::now())) {
+                    self.live_step(step);
                 }
                 self.hello = Some(h);
                 self.link = LinkState::Up;
@@ -893,6 +909,11 @@ impl Server<'_> {
                 ));
             }
             (Own::LinkTimeout, Reply::Param { value, .. }) => self.set_link_timeout(value),
+            (Own::RobotRead, r) => {
+                if let Some(step) = self.live.as_mut().map(|l| l.on_record(r)) {
+                    self.live_step(step);
+                }
+            }
             (
                 Own::KeepAlive,
                 Reply::ClockSync {
@@ -931,6 +952,9 @@ impl Server<'_> {
 
     fn timers(&mut self, give_up: Option<Duration>) {
         let now = Instant::now();
+        if let Some(step) = self.live.as_mut().map(|l| l.poll(now)) {
+            self.live_step(step);
+        }
         if matches!(self.link, LinkState::Up) {
             let every = RESEND_EVERY
                 .max(4 * Duration::from_micros(self.clock.best().map_or(0, |c| c.rtt_us)));

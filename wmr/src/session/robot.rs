@@ -116,7 +116,8 @@ pub struct ComOffset {
 impl std::fmt::Display for ComOffset {
     /// `d = 0.005 m (robot "x"'s body.com_offset_m)` and the like.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let d = self.com_offset_m;
+        // As the f32 the robot file holds (0.02, not 0.019999999552965164).
+        let d = self.com_offset_m as f32;
         match &self.source {
             ComOffsetSource::Given => write!(f, "d = {d} m (--com-offset-m)"),
             ComOffsetSource::Robot(n) => {
