@@ -223,7 +223,8 @@ impl ServeLive {
     }
 
     /// The d the view started with, and its source.
-    pub fn com_offset(&self) -> Option<&ComOffset> {
+    #[cfg(test)]
+    fn com_offset(&self) -> Option<&ComOffset> {
         self.started_with.as_ref()
     }
 
