@@ -1,11 +1,12 @@
 //! The one hardware-dependent piece: a free-running counter.
 //!
 //! * [`SysTickCounter`] (default): SysTick clocked by the core clock. Under
-//!   QEMU with `-icount shift=0` virtual time advances 1 ns per guest
-//!   instruction and `mps2-an386` clocks SysTick at 25 MHz, so one tick is
-//!   40 instructions: deterministic but coarse. The benchmark calibrates the
-//!   ratio with a loop of known length ([`calibrate`]) and averages over many
-//!   steps, so the quantisation (uniform phase) averages out.
+//!   QEMU with `-icount shift=5` (bench-m4/run.sh) virtual time advances
+//!   32 ns per guest instruction and `mps2-an386` clocks SysTick at 25 MHz,
+//!   so one tick is 1.25 instructions: deterministic, and fine enough for a
+//!   maximum against a budget (with `shift=0` a tick was 40 instructions,
+//!   and a maximum read 2,996 that was 3,007-3,012: D215). The benchmark
+//!   calibrates the ratio with a loop of known length ([`calibrate`]).
 //! * [`DwtCounter`] (feature `dwt`): DWT CYCCNT, 32-bit core cycles. It reads
 //!   0 under QEMU; on a real Cortex-M4F/M7F board it gives cycles (flash wait
 //!   states and pipeline stalls included), with a resolution of one cycle.

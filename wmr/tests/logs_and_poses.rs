@@ -338,7 +338,7 @@ fn innovation_of_an_80ms_old_pose(with_capture_time: bool) -> ([f32; 3], f64, u6
     }
     drop(link);
     let mut sim = robot.finish();
-    let st = *sim.device().control().estimator_status();
+    let st = sim.device().control().estimator_status();
     assert_eq!(st.accepted, 1, "{st:?}");
     (st.last_innovation, a.2 as f64, clock.arrival_margin_us)
 }

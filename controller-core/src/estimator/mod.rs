@@ -301,9 +301,41 @@ impl<const H: usize> PoseEstimator<H> {
         self.status.standstill_updates = old.standstill_updates;
     }
 
-    /// Status for logs and telemetry.
-    pub fn status(&self) -> &EstimatorStatus {
-        &self.status
+    /// Status for logs and telemetry. Its counters are kept as they
+    /// happen; the covariance diagonal, the bias, the speed scale and the
+    /// time since the last accepted pose are read from the filter here,
+    /// when asked, not copied on every tick (the typical tick's budget,
+    /// BENCHMARKS.md).
+    pub fn status(&self) -> EstimatorStatus {
+        let mut s = self.status;
+        let p = &self.filter.p;
+        s.covariance_diag = [
+            p[ix(0, 0)],
+            p[ix(1, 1)],
+            p[ix(2, 2)],
+            p[ix(3, 3)],
+            p[ix(4, 4)],
+        ];
+        s.gyro_bias_radps = self.filter.x[3];
+        s.speed_scale = self.filter.x[4];
+        s.since_accepted_us = self.since_accepted_us();
+        s
+    }
+
+    /// The gyro on the latest tick (without the rest of [`Self::status`]).
+    #[inline]
+    pub fn gyro_state(&self) -> GyroState {
+        self.status.gyro
+    }
+
+    /// Time from the latest accepted measurement's stamp to the latest
+    /// tick \[µs\] (`u32::MAX` until the first).
+    #[inline]
+    fn since_accepted_us(&self) -> u32 {
+        match self.last_accepted_stamp_us {
+            Some(t) => self.now_us.wrapping_sub(t),
+            None => u32::MAX,
+        }
     }
 
     /// Health for the health machine ([`crate::health`]), from the latest
@@ -316,7 +348,7 @@ impl<const H: usize> PoseEstimator<H> {
     /// controller's input check (a controller fault, a hard stop).
     #[inline]
     pub fn health(&self) -> EstimatorHealth {
-        if self.status.accepted > 0 && self.status.since_accepted_us > POSE_STALE_US {
+        if self.status.accepted > 0 && self.since_accepted_us() > POSE_STALE_US {
             EstimatorHealth::Degraded
         } else {
             EstimatorHealth::Ok
@@ -713,20 +745,6 @@ impl<const H: usize> PoseEstimator<H> {
             filter_pose: g,
             v_mps: input.ds_m * inv_dt,
             yaw_rate_radps: yaw,
-        };
-        let p = &self.filter.p;
-        self.status.covariance_diag = [
-            p[ix(0, 0)],
-            p[ix(1, 1)],
-            p[ix(2, 2)],
-            p[ix(3, 3)],
-            p[ix(4, 4)],
-        ];
-        self.status.gyro_bias_radps = self.filter.x[3];
-        self.status.speed_scale = self.filter.x[4];
-        self.status.since_accepted_us = match self.last_accepted_stamp_us {
-            Some(t) => self.now_us.wrapping_sub(t),
-            None => u32::MAX,
         };
     }
 }

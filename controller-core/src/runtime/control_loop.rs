@@ -159,7 +159,7 @@ impl<const H: usize> ControlLoop<H> {
         if self.running() {
             return Err(ReconfigureError::Running);
         }
-        let counters = *self.estimator.status();
+        let counters = self.estimator.status();
         self.estimator = PoseEstimator::with_history(
             *self.estimator.config(),
             self.cfg.controller.robot.com_offset_m,
@@ -190,7 +190,7 @@ impl<const H: usize> ControlLoop<H> {
 
     /// The estimator's status: covariance, innovations, accepted and
     /// rejected measurements, gyro state and bias.
-    pub fn estimator_status(&self) -> &EstimatorStatus {
+    pub fn estimator_status(&self) -> EstimatorStatus {
         self.estimator.status()
     }
 
@@ -402,7 +402,7 @@ impl<const H: usize> ControlLoop<H> {
             pose,
             external_pose,
             estimate: *self.estimator.estimate(),
-            gyro: self.estimator.status().gyro,
+            gyro: self.estimator.gyro_state(),
             counts: sample,
             eta,
             reference: input.reference,

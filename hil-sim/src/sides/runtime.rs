@@ -65,7 +65,7 @@ impl RuntimeSide {
 
     /// The estimator's status now.
     pub fn estimator_status(&self) -> EstimatorStatus {
-        *self.control.estimator_status()
+        self.control.estimator_status()
     }
 }
 
