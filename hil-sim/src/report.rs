@@ -22,6 +22,11 @@ pub struct RunReport {
     pub scenario: Scenario,
     /// Control steps the controller rejected (bad input); 0 in a healthy run.
     pub rejected_steps: u32,
+    /// The firmware runtime's latched stop, when it stopped the run (a
+    /// safe stop of the runtime's own checks: the direction check, a stall,
+    /// an encoder jump, ...); `null` otherwise. `safe_stop` is the health
+    /// machine's alone.
+    pub runtime_stop: Option<RuntimeStop>,
     /// The metrics (flattened into the object).
     #[serde(flatten)]
     pub metrics: Metrics,
@@ -34,6 +39,10 @@ impl RunReport {
             controller: kind.name(),
             scenario: scenario.clone(),
             rejected_steps: out.rejected_steps,
+            runtime_stop: out.stop.map(|(step, reason)| RuntimeStop {
+                t_s: step as f64 * scenario.control_period_s,
+                reason: format!("{reason:?}"),
+            }),
             metrics: out.metrics.clone(),
         }
     }
@@ -42,6 +51,15 @@ impl RunReport {
     pub fn to_json(&self) -> String {
         serde_json::to_string(self).expect("RunReport serialises")
     }
+}
+
+/// The runtime's latched stop in a [`RunReport`].
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RuntimeStop {
+    /// When it latched \[s\].
+    pub t_s: f64,
+    /// Why (the runtime's `StopReason`, e.g. `DirectionMismatch { wheel: Right }`).
+    pub reason: String,
 }
 
 /// The metric columns of [`metrics_table`]: header, unit, value.

@@ -45,7 +45,7 @@ impl RunResult {
     }
 
     /// The whole object `hil-sim run --json` prints: the metrics plus
-    /// `controller`, `scenario` and `rejected_steps`.
+    /// `controller`, `scenario`, `rejected_steps` and `runtime_stop`.
     #[getter]
     fn report<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         to_py(

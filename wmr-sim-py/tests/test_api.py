@@ -130,6 +130,7 @@ def test_run_metrics_keys_and_trace():
     rep = res.report
     assert rep["controller"] == "proposed"
     assert rep["rejected_steps"] == 0
+    assert rep["runtime_stop"] is None
     assert {k: rep[k] for k in m} == m
     tr = res.trace
     # 3 s at one row per 10 ms, the first at t = 0.

@@ -43,7 +43,7 @@ pub struct RunArgs {
     /// --mcap log) until the clients have left.
     #[arg(long, requires = "live")]
     pub live_wait: bool,
-    /// Print exactly one JSON object (the metrics plus "controller", "scenario", "rejected_steps").
+    /// Print exactly one JSON object (the metrics plus "controller", "scenario", "rejected_steps", "runtime_stop": the runtime's latched stop, {"t_s", "reason"} or null).
     #[arg(long)]
     pub json: bool,
     /// Write a --csv estimated beyond 1 GB (the trace is held in memory: at

@@ -494,6 +494,20 @@ fn a_safe_stop_is_named_in_the_run_text() {
     assert!(text.contains("SAFE STOP at t = "), "{text}");
     assert!(text.contains("DirectionMismatch"), "{text}");
     assert!(text.contains("after the safe stop above"), "{text}");
+    // The JSON says so too (it reported no stop at all before: `safe_stop`
+    // is the health machine's).
+    let json = run_to_string(&["run", "--scenario", f.to_str().unwrap(), "--json"]).unwrap();
+    let v: serde_json::Value = serde_json::from_str(json.trim()).unwrap();
+    let stop = &v["runtime_stop"];
+    assert!(
+        stop["reason"]
+            .as_str()
+            .unwrap()
+            .starts_with("DirectionMismatch"),
+        "{json}"
+    );
+    let t = stop["t_s"].as_f64().unwrap();
+    assert!(t > 0.0 && t < 2.0, "{json}");
 }
 
 /// `hil-sim device --robot FILE` serves the file's robot from the file's
