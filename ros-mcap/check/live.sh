@@ -35,7 +35,7 @@ trap 'for p in "${PIDS[@]}"; do stop_pid "$p"; done' EXIT
 live_url() {
     local log=$1 pid=$2 url=""
     for _ in $(seq 600); do
-        url=$(sed -n 's/.*live view: \(ws:[^ ]*\)$/\1/p' "$log" | head -1)
+        url=$(sed -n 's/.*live view: \(ws:[^ ]*\).*/\1/p' "$log" | head -1)
         [ -n "$url" ] && break
         kill -0 "$pid" 2>/dev/null || fail "the server exited: $(cat "$log")"
         sleep 0.1
