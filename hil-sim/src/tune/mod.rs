@@ -143,14 +143,15 @@ impl TuneJob {
             self.set.training as u64,
             self.set.len(Part::Validation) as u64,
         );
-        // The baselines tuned before k (the paper's order) that are its
-        // special cases: SMC for ASMC, both for the proposed controller.
+        // The tuned baselines k's search may start from (its special
+        // cases, run_shard): SMC for ASMC, both for the proposed controller.
+        let has = |b: ControllerKind| u64::from(self.controllers.contains(&b));
         let warm = |k: ControllerKind| -> u64 {
-            self.controllers
-                .iter()
-                .filter(|&&b| b != k && (b == ControllerKind::Smc || k == ControllerKind::Proposed))
-                .filter(|&&b| b != ControllerKind::Proposed && k != ControllerKind::Smc)
-                .count() as u64
+            match k {
+                ControllerKind::Smc => 0,
+                ControllerKind::Asmc => has(ControllerKind::Smc),
+                ControllerKind::Proposed => has(ControllerKind::Smc) + has(ControllerKind::Asmc),
+            }
         };
         // The search, the start candidates (D166), the result on both parts.
         let per: u64 = self

@@ -253,11 +253,6 @@ impl TuneSet {
         }
     }
 
-    /// True when validation run `i` is on the figure-8.
-    pub fn is_figure8(&self, i: usize) -> bool {
-        self.path_of(i) == ValidationPath::Figure8
-    }
-
     /// Every scenario of `part`, in index order.
     pub fn scenarios(&self, part: Part) -> Vec<Scenario> {
         (0..self.len(part) as u64)
@@ -388,7 +383,7 @@ mod tests {
         let v = s.scenarios(Part::Validation);
         for (i, c) in v.iter().enumerate() {
             let f8 = c.trajectory == crate::scenario::TrajectoryKind::Figure8;
-            assert_eq!(f8, s.is_figure8(i), "{i}");
+            assert_eq!(f8, s.path_of(i) == ValidationPath::Figure8, "{i}");
             c.validate().unwrap();
             crate::limits::check_scenario(c).unwrap();
         }

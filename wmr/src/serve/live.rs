@@ -8,12 +8,11 @@
 //! the reason logged. Stamps are host Unix time mapped from the first
 //! frame's arrival.
 
-use crate::session::{record_crc32, ComOffset, ComOffsetSource, NotKnown};
-use robot_file::Robot;
+use crate::session::{robot_of_record, ComOffset, NotKnown, RecordRead, RecordStep};
 use ros_mcap::live::{LiveArgs, LiveView};
 use ros_mcap::{Geometry, LogFrame, TimeMap};
 use std::time::{Duration, Instant};
-use wmr_protocol::{Reply, Request, RobotInfo, Telemetry, CAP_ROBOT_STORE, ROBOT_BLOB_MAX};
+use wmr_protocol::{Reply, Request, RobotInfo, Telemetry, CAP_ROBOT_STORE};
 
 /// How long the view waits for the robot's record before it starts with
 /// the paper robot's d (the server's own requests are re-sent 3 times at
@@ -36,10 +35,10 @@ struct Reading {
     /// r and h from the hello.
     wheel_radius_m: f64,
     half_track_m: f64,
-    /// The record so far.
-    record: Vec<u8>,
-    /// Its length once the robot said it.
-    total_len: Option<usize>,
+    /// The chunks so far.
+    read: RecordRead,
+    /// The whole record, once read.
+    record: Option<Vec<u8>>,
     /// The record in force (a status's `active_crc32`).
     active_crc32: Option<u32>,
     /// Start with the paper robot's d after this.
@@ -93,27 +92,20 @@ impl ServeLive {
         } = *robot;
         let (r, h) = (wheel_radius_m as f64, half_track_m as f64);
         if let Some(d) = self.given_com_offset_m {
-            return self.start(
-                r,
-                h,
-                ComOffset {
-                    com_offset_m: d,
-                    source: ComOffsetSource::Given,
-                },
-            );
+            return self.start(r, h, ComOffset::given(d));
         }
         if capabilities & CAP_ROBOT_STORE == 0 {
-            return self.start(r, h, paper(NotKnown::NoStore));
+            return self.start(r, h, ComOffset::of_robot(Err(NotKnown::NoStore)));
         }
         self.reading = Some(Reading {
             wheel_radius_m: r,
             half_track_m: h,
-            record: Vec::new(),
-            total_len: None,
+            read: RecordRead::default(),
+            record: None,
             active_crc32: None,
             deadline: now + RECORD_WAIT,
         });
-        LiveStep::Ask(Request::RobotRead { offset: 0 })
+        LiveStep::Ask(RecordRead::first())
     }
 
     /// A status from the robot: the record in force.
@@ -132,35 +124,21 @@ impl ServeLive {
         let Some(rd) = &mut self.reading else {
             return LiveStep::None;
         };
-        match reply {
-            Reply::RobotData {
-                total_len,
-                offset,
-                data,
-                ..
-            } if offset as usize == rd.record.len() && (total_len as usize) <= ROBOT_BLOB_MAX => {
-                rd.record.extend_from_slice(&data);
-                rd.total_len = Some(total_len as usize);
-                if rd.record.len() < total_len as usize && !data.is_empty() {
-                    return LiveStep::Ask(Request::RobotRead {
-                        offset: rd.record.len() as u16,
-                    });
-                }
-                rd.record.truncate(total_len as usize);
+        match rd.read.accept(reply) {
+            Ok(RecordStep::Ask(req)) => LiveStep::Ask(req),
+            Ok(RecordStep::Done(rec)) => {
+                rd.record = Some(rec);
                 self.finish()
             }
-            other => {
-                let why = NotKnown::Undecodable(format!("its record could not be read: {other:?}"));
-                self.give_up(why)
-            }
+            Err(e) => self.give_up(NotKnown::Unread(e.to_string())),
         }
     }
 
     /// The wait for the record ran out: the paper robot's d.
     pub fn poll(&mut self, now: Instant) -> LiveStep {
         match &self.reading {
-            Some(rd) if now >= rd.deadline => self.give_up(NotKnown::Undecodable(format!(
-                "its record did not arrive within {} s",
+            Some(rd) if now >= rd.deadline => self.give_up(NotKnown::Unread(format!(
+                "no answer within {} s",
                 RECORD_WAIT.as_secs_f64()
             ))),
             _ => LiveStep::None,
@@ -173,24 +151,10 @@ impl ServeLive {
         let Some(rd) = &self.reading else {
             return LiveStep::None;
         };
-        let (Some(total), Some(active)) = (rd.total_len, rd.active_crc32) else {
+        let (Some(rec), Some(active)) = (&rd.record, rd.active_crc32) else {
             return LiveStep::None;
         };
-        if rd.record.len() < total {
-            return LiveStep::None;
-        }
-        let stored = record_crc32(&rd.record);
-        let d = if stored != active {
-            paper(NotKnown::NotInForce { stored, active })
-        } else {
-            match Robot::decode(&rd.record) {
-                Ok(r) => ComOffset {
-                    com_offset_m: r.body.com_offset_m as f64,
-                    source: ComOffsetSource::Robot(r.name.as_str().to_string()),
-                },
-                Err(e) => paper(NotKnown::Undecodable(e.to_string())),
-            }
-        };
+        let d = ComOffset::of_robot(robot_of_record(rec, active));
         let (r, h) = (rd.wheel_radius_m, rd.half_track_m);
         self.start(r, h, d)
     }
@@ -199,7 +163,7 @@ impl ServeLive {
         match self.reading.as_ref() {
             Some(rd) => {
                 let (r, h) = (rd.wheel_radius_m, rd.half_track_m);
-                self.start(r, h, paper(why))
+                self.start(r, h, ComOffset::of_robot(Err(why)))
             }
             None => LiveStep::None,
         }
@@ -245,17 +209,11 @@ impl ServeLive {
     }
 }
 
-/// The paper robot's d, and why.
-fn paper(why: NotKnown) -> ComOffset {
-    ComOffset {
-        com_offset_m: ros_mcap::default_com_offset_m(),
-        source: ComOffsetSource::PaperDefault(why),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::session::{record_crc32, ComOffsetSource};
+    use robot_file::Robot;
     use wmr_protocol::ROBOT_CHUNK;
 
     fn hello(capabilities: u16) -> Reply {

@@ -30,8 +30,8 @@ mod wait;
 pub use clock::{clock_sync, host_us, Capture, ClockSample, ClockTracker, PoseClock};
 pub use pose::PoseTally;
 pub use robot::{
-    com_offset_m, has_store, read_record, record_crc32, robot_in_force, timer_clock_of_chip,
-    ComOffset, ComOffsetSource, NotKnown,
+    com_offset_m, has_store, read_record, record_crc32, robot_in_force, robot_of_record,
+    timer_clock_of_chip, ComOffset, ComOffsetSource, NotKnown, RecordRead, RecordStep,
 };
 pub use stream::{segments, Pump, SegmentStream, StreamError, SEGMENT_RETRY};
 pub use wait::{expect_cause, until_rest, Step, Stop, Watch};

@@ -21,6 +21,71 @@ pub fn has_store(link: &mut Link) -> Result<bool, LinkError> {
     Ok(super::hello(link)?.capabilities & CAP_ROBOT_STORE != 0)
 }
 
+/// The stored record read chunk by chunk (`Request::RobotRead`): the one
+/// place that checks the robot's `RobotData` answers, for
+/// [`read_record`] over a link and for `wmr serve`'s own requests.
+#[derive(Debug, Default)]
+pub struct RecordRead {
+    record: Vec<u8>,
+}
+
+/// What [`RecordRead::accept`] leaves to do.
+#[derive(Debug, PartialEq)]
+pub enum RecordStep {
+    /// Ask for the next chunk.
+    Ask(Request),
+    /// The whole record.
+    Done(Vec<u8>),
+}
+
+/// Why a record could not be read.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum RecordReadError {
+    /// The answer was not the chunk asked for (or a record longer than
+    /// `ROBOT_BLOB_MAX`).
+    #[error("the robot answered {0} to a RobotRead")]
+    Unexpected(String),
+    /// A chunk came back empty before the record's end.
+    #[error("the robot's record did not end")]
+    NoEnd,
+}
+
+impl RecordRead {
+    /// The first request.
+    pub fn first() -> Request {
+        Request::RobotRead { offset: 0 }
+    }
+
+    /// Takes the answer to the last request: the next request or the
+    /// whole record. Every chunk but the last is non-empty, so a record of
+    /// at most `ROBOT_BLOB_MAX` bytes ends within that many answers.
+    pub fn accept(&mut self, reply: Reply) -> Result<RecordStep, RecordReadError> {
+        let rec = &mut self.record;
+        match reply {
+            Reply::RobotData {
+                total_len,
+                offset,
+                data,
+                ..
+            } if offset as usize == rec.len() && total_len as usize <= ROBOT_BLOB_MAX => {
+                rec.extend_from_slice(&data);
+                let total = total_len as usize;
+                if rec.len() >= total {
+                    rec.truncate(total);
+                    Ok(RecordStep::Done(std::mem::take(rec)))
+                } else if data.is_empty() {
+                    Err(RecordReadError::NoEnd)
+                } else {
+                    Ok(RecordStep::Ask(Request::RobotRead {
+                        offset: rec.len() as u16,
+                    }))
+                }
+            }
+            r => Err(RecordReadError::Unexpected(format!("{r:?}"))),
+        }
+    }
+}
+
 /// Reads the stored record.
 pub fn read_record(link: &mut Link) -> Result<Vec<u8>, LinkError> {
     if !has_store(link)? {
@@ -28,31 +93,17 @@ pub fn read_record(link: &mut Link) -> Result<Vec<u8>, LinkError> {
             "this robot has no robot store (protocol 4 CAP_ROBOT_STORE)".into(),
         ));
     }
-    let mut rec = Vec::new();
+    let mut read = RecordRead::default();
+    let mut req = RecordRead::first();
     for _ in 0..=ROBOT_BLOB_MAX / ROBOT_CHUNK + 1 {
-        let req = Request::RobotRead {
-            offset: rec.len() as u16,
-        };
-        match link.command(&req)? {
-            Reply::RobotData {
-                total_len,
-                offset,
-                data,
-                ..
-            } if offset as usize == rec.len() => {
-                rec.extend_from_slice(&data);
-                if rec.len() >= total_len as usize {
-                    rec.truncate(total_len as usize);
-                    return Ok(rec);
-                }
-                if data.is_empty() {
-                    break;
-                }
-            }
-            r => return Err(LinkError::Unexpected(format!("{r:?}"))),
+        match read.accept(link.command(&req)?) {
+            Ok(RecordStep::Ask(next)) => req = next,
+            Ok(RecordStep::Done(rec)) => return Ok(rec),
+            Err(RecordReadError::Unexpected(r)) => return Err(LinkError::Unexpected(r)),
+            Err(e @ RecordReadError::NoEnd) => return Err(LinkError::Io(e.to_string())),
         }
     }
-    Err(LinkError::Io("the robot's record did not end".into()))
+    Err(LinkError::Io(RecordReadError::NoEnd.to_string()))
 }
 
 /// Why the robot in force is not known.
@@ -75,6 +126,9 @@ pub enum NotKnown {
     /// The stored record does not decode.
     #[error("the robot's record does not decode: {0}")]
     Undecodable(String),
+    /// The stored record could not be read (a refusal, no answer).
+    #[error("the robot's record could not be read: {0}")]
+    Unread(String),
 }
 
 /// The robot file the robot runs: its stored record when that is the
@@ -86,11 +140,20 @@ pub fn robot_in_force(link: &mut Link) -> Result<Result<Robot, NotKnown>, LinkEr
     }
     let active = super::status(link)?.robot.active_crc32;
     let rec = read_record(link)?;
-    let stored = record_crc32(&rec);
-    if stored != active {
-        return Ok(Err(NotKnown::NotInForce { stored, active }));
+    Ok(robot_of_record(&rec, active))
+}
+
+/// The robot file a stored record holds when it is the record in force
+/// (`active_crc32`, a status's).
+pub fn robot_of_record(rec: &[u8], active_crc32: u32) -> Result<Robot, NotKnown> {
+    let stored = record_crc32(rec);
+    if stored != active_crc32 {
+        return Err(NotKnown::NotInForce {
+            stored,
+            active: active_crc32,
+        });
     }
-    Ok(Robot::decode(&rec).map_err(|e| NotKnown::Undecodable(e.to_string())))
+    Robot::decode(rec).map_err(|e| NotKnown::Undecodable(e.to_string()))
 }
 
 /// Where the d in use came from.
@@ -139,21 +202,33 @@ impl std::fmt::Display for ComOffset {
 /// (the reason in the source).
 pub fn com_offset_m(link: &mut Link, given: Option<f64>) -> Result<ComOffset, LinkError> {
     if let Some(d) = given {
-        return Ok(ComOffset {
+        return Ok(ComOffset::given(d));
+    }
+    Ok(ComOffset::of_robot(robot_in_force(link)?))
+}
+
+impl ComOffset {
+    /// d as the user gave it (`--com-offset-m`).
+    pub fn given(d: f64) -> Self {
+        Self {
             com_offset_m: d,
             source: ComOffsetSource::Given,
-        });
+        }
     }
-    Ok(match robot_in_force(link)? {
-        Ok(r) => ComOffset {
-            com_offset_m: r.body.com_offset_m as f64,
-            source: ComOffsetSource::Robot(r.name.as_str().to_string()),
-        },
-        Err(why) => ComOffset {
-            com_offset_m: ros_mcap::default_com_offset_m(),
-            source: ComOffsetSource::PaperDefault(why),
-        },
-    })
+
+    /// d of the robot in force, else the paper robot's with the reason.
+    pub fn of_robot(robot: Result<Robot, NotKnown>) -> Self {
+        match robot {
+            Ok(r) => Self {
+                com_offset_m: r.body.com_offset_m as f64,
+                source: ComOffsetSource::Robot(r.name.as_str().to_string()),
+            },
+            Err(why) => Self {
+                com_offset_m: ros_mcap::default_com_offset_m(),
+                source: ComOffsetSource::PaperDefault(why),
+            },
+        }
+    }
 }
 
 /// The PWM timer clock \[Hz\] of the board a handshake names (`chip`):
