@@ -419,7 +419,7 @@ class Ros:
             if cond():
                 return
         o = self.odom[-1] if self.odom else None
-        last = f"; last /odom twist ({o.twist.twist.linear.x:.5f}, {o.twist.twist.angular.z:.5f})" if o else ""
+        last = f"; last /odom pose {self.pose()}, twist ({o.twist.twist.linear.x:.5f}, {o.twist.twist.angular.z:.5f})" if o else ""
         state = ""
         if self.diag:
             d = self.diag[-1][1]
@@ -596,6 +596,12 @@ def main(mcap_path):
     if r.success or "planar" not in r.message:
         fail(f"set_odometry with roll 0.3: {r.success} {r.message!r} (want refused: planar)")
     log(f"/initialpose in map refused; set_odometry {want}: /odom reports {ros.pose()}; roll refused ({r.message!r})")
+    # the robot holds at rest, so its heading stays: a re-anchor keeps the
+    # learned gyro bias (0.01 rad/s in the imu preset; forgotten, /odom's
+    # yaw drifted at it until standstill updates learned it again)
+    ros.spin(1.0)
+    if not at_want():
+        fail(f"holding after set_odometry {want}: /odom moved to {ros.pose()} within 1 s (want within 1e-4)")
 
     # 3b. ROS parameters: the robot's, read and written through the link
     params_check(ros, limits)

@@ -301,6 +301,23 @@ impl<const H: usize> PoseEstimator<H> {
         self.status.standstill_updates = old.standstill_updates;
     }
 
+    /// Carries what `old` learned of the sensors, the gyro bias and the
+    /// speed scale with their covariance block, into this estimator, built
+    /// at a pose the user gave (`SetPose`: `/initialpose`, `set_odometry`).
+    /// A given pose says nothing of the gyro or the wheels: forgetting them
+    /// let the heading drift at the full gyro bias (0.01 rad/s in the
+    /// `imu` preset) until standstill updates learned it again. The given
+    /// pose is independent of them, so its cross-covariance is 0.
+    pub(crate) fn keep_calibration(&mut self, old: &Self) {
+        for i in 3..N {
+            self.filter.x[i] = old.filter.x[i];
+            for j in i..N {
+                self.filter.p[ix(i, j)] = old.filter.p[ix(i, j)];
+            }
+        }
+        self.refresh(&Input::default());
+    }
+
     /// Status for logs and telemetry. Its counters are kept as they
     /// happen; the covariance diagonal, the bias, the speed scale and the
     /// time since the last accepted pose are read from the filter here,

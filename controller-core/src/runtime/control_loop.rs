@@ -152,21 +152,23 @@ impl<const H: usize> ControlLoop<H> {
     }
 
     /// Re-anchors the pose: the estimator restarts at `pose` with its
-    /// configured initial uncertainty (history and gyro bias estimate
-    /// dropped; its counters kept). Refused while running or for a
-    /// non-finite pose.
+    /// configured initial pose uncertainty (history dropped; its counters,
+    /// and the gyro bias and speed scale it learned, kept). Refused while
+    /// running or for a non-finite pose.
     pub fn set_pose(&mut self, pose: Pose) -> Result<(), ReconfigureError> {
         if self.running() {
             return Err(ReconfigureError::Running);
         }
         let counters = self.estimator.status();
-        self.estimator = PoseEstimator::with_history(
+        let mut anchored = PoseEstimator::with_history(
             *self.estimator.config(),
             self.cfg.controller.robot.com_offset_m,
             pose,
         )
         .map_err(|e| ReconfigureError::Invalid(e.into()))?;
-        self.estimator.keep_counters(&counters);
+        anchored.keep_counters(&counters);
+        anchored.keep_calibration(&self.estimator);
+        self.estimator = anchored;
         Ok(())
     }
 
