@@ -58,6 +58,11 @@ fn identify_run_then_fit_over_the_pty() {
     let r = wmr::identify::run(&run, &mut link, &mut text);
     let text = String::from_utf8_lossy(&text).to_string();
     r.unwrap_or_else(|e| panic!("{e}\n{text}"));
+    // No --robot: the robot's own file, from its store (D216).
+    assert!(
+        text.contains("(the file the robot runs, read from its store)"),
+        "{text}"
+    );
     drop(link);
     stop.store(true, Ordering::Relaxed);
     handle.join().unwrap().unwrap();
@@ -74,6 +79,10 @@ fn identify_run_then_fit_over_the_pty() {
     let mut report = Vec::new();
     wmr::identify::fit(&fit, &mut report).unwrap();
     let report = String::from_utf8_lossy(&report).to_string();
+    assert!(
+        report.contains("the robot file the log carries"),
+        "{report}"
+    );
     let toml_text = std::fs::read_to_string(&out_toml).unwrap();
     // A robot file (the paper robot's, identified values in place; `fit`
     // validated it before writing).
@@ -148,19 +157,25 @@ fn the_weighed_mass_identifies_the_motor_and_without_it_the_report_says_so() {
         duration: 30.0,
         area: 2.5,
         rate: Some(250),
-        robot: Some(file_path.clone().into()),
+        // The device's store holds the file: neither run nor fit is
+        // given it (D216).
+        robot: None,
     };
     let mut text = Vec::new();
     let r = wmr::identify::run(&run, &mut link, &mut text);
     let text = String::from_utf8_lossy(&text).to_string();
     r.unwrap_or_else(|e| panic!("{e}\n{text}"));
+    assert!(
+        text.contains("robot: \"tb6612-2kg\" (the file the robot runs, read from its store)"),
+        "{text}"
+    );
     drop(link);
     stop.store(true, Ordering::Relaxed);
     handle.join().unwrap().unwrap();
     let fit = |mass_kg: Option<f64>, out: &std::path::Path| {
         let args = wmr::identify::FitArgs {
             log: log.clone(),
-            robot: Some(file_path.clone().into()),
+            robot: None,
             timer_clock_hz: None,
             out: Some(out.to_path_buf()),
             filter_window: 0.15,
@@ -170,6 +185,10 @@ fn the_weighed_mass_identifies_the_motor_and_without_it_the_report_says_so() {
         let mut report = Vec::new();
         wmr::identify::fit(&args, &mut report).unwrap();
         let report = String::from_utf8_lossy(&report).to_string();
+        assert!(
+            report.contains("prior: robot \"tb6612-2kg\", the robot file the log carries"),
+            "{report}"
+        );
         let r = robot_file::Robot::from_toml_str(&std::fs::read_to_string(out).unwrap()).unwrap();
         (report, r)
     };

@@ -62,9 +62,11 @@ pub struct RunArgs {
     #[arg(long)]
     pub rate: Option<u16>,
     /// The robot file of the robot (book/src/how-to/robot-file.md): its mass, inertia,
-    /// wheel inertia and d enter the torque check of the excitation
-    /// [default: the handshake's r, h and mass with the paper robot's
-    /// inertias, which overstate a small robot's torque many times].
+    /// wheel inertia and d enter the torque check of the excitation, and
+    /// the log carries it for `identify fit` [default: the file the robot
+    /// runs, read from its store; a robot that cannot tell gets a body of
+    /// the handshake's mass, r and h (a uniform disc of radius h + r, said
+    /// on the output) and a log without a robot file].
     #[arg(long, value_name = "FILE.toml")]
     pub robot: Option<PathBuf>,
 }
@@ -78,7 +80,9 @@ pub struct FitArgs {
     /// The robot as configured when the log was recorded: a robot file
     /// (book/src/how-to/robot-file.md), or a flat TOML of `RobotParams` and `MotorParams`
     /// keys (`mass_kg`, ..., `duty_full_scale`, `control_period_s`,
-    /// `speed_window_ticks`) [default: robots/paper.toml's robot].
+    /// `speed_window_ticks`) [default: the robot file the log carries,
+    /// which `wmr identify run` writes when it knows the robot; a log
+    /// without one is refused].
     #[arg(long, value_name = "PRIOR.toml")]
     pub robot: Option<PathBuf>,
     /// PWM timer clock of the robot's board [Hz] (with a robot file: the
@@ -186,6 +190,16 @@ pub enum FitError {
         /// The clocks of the boards wmr knows.
         known: String,
     },
+    /// Neither `--robot` nor a robot file in the log.
+    #[error(
+        "{log}: which robot? the log carries no robot file (`wmr identify run` writes the one \
+         it used when it knows it: --robot, or the robot's own store): give --robot FILE.toml, \
+         the robot as configured when the log was recorded (robots/paper.toml for the paper's)"
+    )]
+    NoRobot {
+        /// The log.
+        log: String,
+    },
     /// Writing the report.
     #[error("cannot write the report: {0}")]
     Output(String),
@@ -193,6 +207,62 @@ pub enum FitError {
 
 /// The comment key of the timer clock in an identification log.
 const TIMER_CLOCK_KEY: &str = "timer_clock_hz = ";
+
+/// The prefix of the comment lines that carry the robot file in an
+/// identification log (after the comment's `# `).
+const ROBOT_LINE: &str = "robot| ";
+
+/// The comment lines that carry `robot` in an identification log (its
+/// robot file, a line each, after [`ROBOT_LINE`]), with a first line
+/// saying where it came from.
+fn robot_comments(robot: &robot_file::Robot, origin: &str) -> Vec<String> {
+    let mut c = vec![format!(
+        "robot file ({origin}): `wmr identify fit` takes it when not given --robot"
+    )];
+    c.extend(
+        robot
+            .to_toml_string()
+            .lines()
+            .map(|l| format!("{ROBOT_LINE}{l}")),
+    );
+    c
+}
+
+/// The robot file a log carries ([`robot_comments`]): `None` when it
+/// carries none, the robot file's own error when it does not read.
+pub fn robot_of_log(text: &str) -> Option<Result<robot_file::Robot, String>> {
+    let prefix = format!("# {ROBOT_LINE}");
+    let lines: Vec<&str> = text
+        .lines()
+        .take_while(|l| l.starts_with('#') || l.trim().is_empty())
+        .filter_map(|l| l.strip_prefix(prefix.as_str()))
+        .collect();
+    if lines.is_empty() {
+        return None;
+    }
+    Some(
+        robot_file::Robot::from_toml_str(&(lines.join("\n") + "\n"))
+            .map_err(|e| format!("the robot file the log carries: {e}")),
+    )
+}
+
+/// A body of mass `mass_kg` on wheels of radius `r_m` at half track
+/// `h_m`, for a robot whose robot file is not known: a uniform disc of
+/// radius h + r (I = m·(h + r)²/2), wheels of 5 % of the mass each as
+/// discs (I_w = 0.05·m·r²/2), G a quarter of h ahead of the axle (the
+/// paper robot's d/h). The excitation's torque check only; the paper
+/// robot's absolute inertias (I = 2.5 kg·m², I_w = 0.001 kg·m²) overstated
+/// a 1 kg robot's torque 10-40 times.
+pub fn body_of_size(mass_kg: f32, r_m: f32, h_m: f32) -> controller_core::RobotParams {
+    controller_core::RobotParams {
+        mass_kg,
+        inertia_kgm2: 0.5 * mass_kg * (h_m + r_m) * (h_m + r_m),
+        wheel_inertia_kgm2: 0.05 * mass_kg * r_m * r_m * 0.5,
+        wheel_radius_m: r_m,
+        half_track_m: h_m,
+        com_offset_m: 0.25 * h_m,
+    }
+}
 
 /// The timer clock a log's comment lines give (`# ... timer_clock_hz = N`).
 pub fn timer_clock_of_log(text: &str) -> Option<u32> {
@@ -257,13 +327,21 @@ pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), FitError> {
                 )
             }
         }
-        None => {
-            let robot = robot_file::Robot::paper();
-            (
-                Prior::from_robot(&robot, clock()?).map_err(FitError::Input)?,
-                Some(robot),
-            )
-        }
+        None => match robot_of_log(&text) {
+            Some(r) => {
+                let robot = r.map_err(|e| FitError::Input(format!("{origin}: {e}")))?;
+                let p = Prior::from_robot(&robot, clock()?)
+                    .map_err(|e| FitError::Input(format!("{origin}: {e}")))?;
+                writeln!(
+                    out,
+                    "prior: robot \"{}\", the robot file the log carries",
+                    robot.name.as_str()
+                )
+                .map_err(|e| FitError::Output(e.to_string()))?;
+                (p, Some(robot))
+            }
+            None => return Err(FitError::NoRobot { log: origin }),
+        },
     };
     let w = |e: std::io::Error| FitError::Output(e.to_string());
     let rows = if is_trace {
@@ -397,25 +475,47 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
         duration_s: a.duration,
         ramp_s: 3.0f32.min(0.25 * a.duration),
     };
-    // The model of the check: the file's body when given, with the r and h
-    // the robot announces (what the waypoints become wheel rates with).
+    // The model of the check: the file's body (given, else the one the
+    // robot runs), with the r and h the robot announces (what the
+    // waypoints become wheel rates with).
     let file_robot = match &a.robot {
         Some(path) => {
             let text = std::fs::read_to_string(path)
                 .map_err(|e| LinkError::Io(format!("cannot read {}: {e}", path.display())))?;
-            Some(
-                robot_file::Robot::from_toml_str(&text)
-                    .map_err(|e| LinkError::Io(format!("{}: {e}", path.display())))?,
-            )
+            let r = robot_file::Robot::from_toml_str(&text)
+                .map_err(|e| LinkError::Io(format!("{}: {e}", path.display())))?;
+            Some((r, format!("--robot {}", path.display())))
         }
-        None => None,
+        None => {
+            let known = match crate::session::robot_in_force(link) {
+                Ok(k) => k,
+                Err(e) => Err(crate::session::NotKnown::Unread(e.to_string())),
+            };
+            match known {
+                Ok(r) => Some((
+                    r,
+                    "the file the robot runs, read from its store".to_string(),
+                )),
+                Err(why) => {
+                    writeln!(
+                        out,
+                        "robot file: not known ({why}): the torque check takes a uniform disc of \
+                         the handshake's {} kg, r {} m, h {} m, and the log carries no robot file \
+                         (give --robot FILE.toml here or to `identify fit`)",
+                        info.mass_kg, info.wheel_radius_m, info.half_track_m
+                    )
+                    .map_err(io)?;
+                    None
+                }
+            }
+        }
     };
     let body = match &file_robot {
-        Some(r) => r.robot_params(),
-        None => controller_core::RobotParams {
-            mass_kg: info.mass_kg,
-            ..controller_core::RobotParams::paper()
-        },
+        Some((r, origin)) => {
+            writeln!(out, "robot: \"{}\" ({origin})", r.name.as_str()).map_err(io)?;
+            r.robot_params()
+        }
+        None => body_of_size(info.mass_kg, info.wheel_radius_m, info.half_track_m),
     };
     let robot = controller_core::RobotParams {
         wheel_radius_m: info.wheel_radius_m,
@@ -449,7 +549,7 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
     let pts = waypoints(&ex, start);
     // The robot checks every segment against its limits too (issue 31);
     // with its file, say which before anything is sent.
-    if let Some(r) = &file_robot {
+    if let Some((r, _)) = &file_robot {
         crate::upload::check_waypoints(&pts, r)
             .map_err(|e| LinkError::Io(format!("excitation: {e}")))?;
     }
@@ -549,6 +649,10 @@ pub fn run(a: &RunArgs, link: &mut Link, out: &mut dyn Write) -> Result<(), Link
             ex.v_amp_mps, ex.omega_amp_radps, ex.w_radps, ex.duration_s, rate
         ),
     ];
+    // The robot file, for `identify fit` without --robot.
+    if let Some((r, origin)) = &file_robot {
+        comments.extend(robot_comments(r, origin));
+    }
     // The board's timer clock (the duty's full scale) for `identify fit`.
     match crate::session::timer_clock_of_chip(&hello.chip) {
         Some(hz) => comments.push(format!("board \"{}\": {TIMER_CLOCK_KEY}{hz}", hello.chip)),
@@ -608,11 +712,80 @@ mod tests {
         assert!(e.contains("must be a number"), "{e}");
     }
 
+    fn paper_file() -> PathBuf {
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../robots/paper.toml").into()
+    }
+
+    /// The robot file `identify run` writes into the log reads back as the
+    /// same robot (the fit's prior without --robot), past the other
+    /// comments; a log without one is refused by `fit`, naming --robot,
+    /// and a damaged one with the robot file's own error.
+    #[test]
+    fn the_log_carries_the_robot_file_to_the_fit() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+        let text = std::fs::read_to_string(format!("{root}/robots/tb6612-2kg.toml")).unwrap();
+        let robot = robot_file::Robot::from_toml_str(&text).unwrap();
+        let mut comments = vec!["wmr identify run: robot r = 0.035 m".to_string()];
+        comments.extend(robot_comments(&robot, "--robot tb6612-2kg.toml"));
+        comments.push("board \"stm32f411ce\": timer_clock_hz = 96000000".into());
+        let mut log = Vec::new();
+        write_id_csv(&mut log, &comments, &[]).unwrap();
+        let log = String::from_utf8(log).unwrap();
+        assert_eq!(robot_of_log(&log), Some(Ok(robot.clone())), "{log}");
+        assert_eq!(timer_clock_of_log(&log), Some(96_000_000));
+        let bare = format!("{}\n", robot_identify::log::ID_CSV_HEADER);
+        assert_eq!(robot_of_log(&bare), None);
+        let damaged = log.replace("mass_kg = ", "mass_kg = -");
+        let e = robot_of_log(&damaged).unwrap().unwrap_err();
+        assert!(e.contains("mass_kg"), "{e}");
+        let dir = std::env::temp_dir().join(format!("wmr-identify-robot-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("id.csv");
+        std::fs::write(&f, &bare).unwrap();
+        let a = FitArgs {
+            log: f.clone(),
+            robot: None,
+            timer_clock_hz: Some(96_000_000),
+            out: None,
+            filter_window: 0.15,
+            mass_kg: None,
+            pose_measured: false,
+        };
+        let e = fit(&a, &mut Vec::new()).unwrap_err();
+        assert!(matches!(e, FitError::NoRobot { .. }), "{e}");
+        assert!(e.to_string().contains("give --robot FILE.toml"), "{e}");
+        // With it: past the prior, to the log's own (empty) contents.
+        std::fs::write(&f, &log).unwrap();
+        let mut report = Vec::new();
+        let e = fit(&a, &mut report).unwrap_err().to_string();
+        assert!(e.contains("at least 100"), "{e}");
+        let report = String::from_utf8(report).unwrap();
+        assert!(
+            report.contains("robot \"tb6612-2kg\", the robot file the log carries"),
+            "{report}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// The body of a robot of unknown file: a uniform disc of radius
+    /// h + r has I = m(h + r)²/2 (its second moment), and the wheels'
+    /// inertia is that of discs of 5 % of the mass each.
+    #[test]
+    fn a_body_of_size_is_a_uniform_disc() {
+        let b = body_of_size(0.85, 0.03, 0.08);
+        assert_eq!(b.mass_kg, 0.85);
+        assert!((b.inertia_kgm2 - 0.85 * 0.11 * 0.11 / 2.0).abs() < 1e-7);
+        assert!((b.wheel_inertia_kgm2 - 0.0425 * 0.03 * 0.03 / 2.0).abs() < 1e-9);
+        assert!(b.validate().is_ok());
+        // The paper robot's I = 2.5 kg·m² for a 0.85 kg robot: ~240 times.
+        assert!(controller_core::RobotParams::paper().inertia_kgm2 / b.inertia_kgm2 > 200.0);
+    }
+
     #[test]
     fn fit_of_a_missing_or_foreign_file_is_a_clear_error() {
         let args = |log: PathBuf| FitArgs {
             log,
-            robot: None,
+            robot: Some(paper_file()),
             timer_clock_hz: Some(96_000_000),
             out: None,
             filter_window: 0.15,
@@ -668,7 +841,7 @@ mod tests {
         std::fs::write(&f, &bare).unwrap();
         let mut a = FitArgs {
             log: f.clone(),
-            robot: None,
+            robot: Some(paper_file()),
             timer_clock_hz: None,
             out: None,
             filter_window: 0.15,
