@@ -121,6 +121,21 @@ impl std::fmt::Display for LogError {
 
 impl std::error::Error for LogError {}
 
+/// A `--com-offset-m` flag's value (clap's `value_parser`): d \[m\]
+/// within `body.com_offset_m`'s range in the parameter table, refused
+/// naming the field, the value, the limit and what to set.
+pub fn parse_com_offset_m(s: &str) -> Result<f64, String> {
+    use controller_core::runtime::param_table::{RobotBounds, BODY_COM_OFFSET_M};
+    let d: f64 = s
+        .trim()
+        .parse()
+        .map_err(|e| format!("body.com_offset_m: {s:?} is not a number ({e}): give d in metres"))?;
+    BODY_COM_OFFSET_M
+        .check(d as f32, &RobotBounds::ABSOLUTE)
+        .map_err(|e| e.to_string())?;
+    Ok(d)
+}
+
 /// The robot's geometry the messages need.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Geometry {
@@ -133,31 +148,25 @@ pub struct Geometry {
 }
 
 impl Geometry {
-    /// Checked: r in (0, 2] m, h in (0, 5] m, d in [0, 5] m (a wheel, a
-    /// track or an offset beyond these is a unit mistake, not a robot).
+    /// Checked against the robot file's parameter table (one place for each
+    /// range): r as `body.wheel_radius_m`, 2h as `body.track_m`, d as
+    /// `body.com_offset_m`; the error names the field, the value, the
+    /// limit and what to set.
     pub fn new(
         wheel_radius_m: f64,
         half_track_m: f64,
         com_offset_m: f64,
     ) -> Result<Self, LogError> {
-        let within = |v: f64, lo_open: bool, hi: f64| {
-            v.is_finite() && (if lo_open { v > 0.0 } else { v >= 0.0 }) && v <= hi
+        use controller_core::runtime::param_table::{
+            Param, RobotBounds, BODY_COM_OFFSET_M, BODY_TRACK_M, BODY_WHEEL_RADIUS_M,
         };
-        if !within(wheel_radius_m, true, 2.0) {
-            return Err(LogError::Geometry(format!(
-                "wheel radius {wheel_radius_m} m is not in (0, 2] m"
-            )));
-        }
-        if !within(half_track_m, true, 5.0) {
-            return Err(LogError::Geometry(format!(
-                "half track {half_track_m} m is not in (0, 5] m"
-            )));
-        }
-        if !within(com_offset_m, false, 5.0) {
-            return Err(LogError::Geometry(format!(
-                "offset d of G ahead of the axle {com_offset_m} m is not in [0, 5] m"
-            )));
-        }
+        let check = |p: &Param, v: f64| {
+            p.check(v as f32, &RobotBounds::ABSOLUTE)
+                .map_err(|e| LogError::Geometry(e.to_string()))
+        };
+        check(&BODY_WHEEL_RADIUS_M, wheel_radius_m)?;
+        check(&BODY_TRACK_M, 2.0 * half_track_m)?;
+        check(&BODY_COM_OFFSET_M, com_offset_m)?;
         Ok(Self {
             wheel_radius_m,
             half_track_m,

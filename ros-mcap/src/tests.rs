@@ -221,20 +221,34 @@ fn time_map_unwraps_the_robot_clock() {
     assert_eq!(m.host_ns(2000), 5_000_000_000 + 3_000_000);
 }
 
+/// The geometry's ranges are the robot file's (the parameter table's):
+/// each refusal names the field, the value, the limit and what to set,
+/// and so does a `--com-offset-m` flag's value.
 #[test]
 fn bad_geometry_and_bad_files_are_clear_errors() {
-    assert!(Geometry::new(0.0, 0.2, 0.05)
-        .unwrap_err()
-        .to_string()
-        .contains("wheel radius"));
-    assert!(Geometry::new(0.1, f64::NAN, 0.05)
-        .unwrap_err()
-        .to_string()
-        .contains("half track"));
-    assert!(Geometry::new(0.1, 0.2, -0.1)
-        .unwrap_err()
-        .to_string()
-        .contains("ahead of the axle"));
+    let e = Geometry::new(0.0, 0.2, 0.05).unwrap_err().to_string();
+    assert!(
+        e.contains("body.wheel_radius_m: 0 m is below its limit 0.005 m"),
+        "{e}"
+    );
+    let e = Geometry::new(0.1, f64::NAN, 0.05).unwrap_err().to_string();
+    assert!(e.contains("body.track_m"), "{e}");
+    let e = Geometry::new(0.1, 0.2, -0.1).unwrap_err().to_string();
+    assert!(
+        e.contains("body.com_offset_m: -0.1 m is below its limit 0 m"),
+        "{e}"
+    );
+    let e = Geometry::new(0.1, 0.2, 3.0).unwrap_err().to_string();
+    assert!(e.contains("above its limit 2 m"), "{e}");
+    assert_eq!(parse_com_offset_m("0.02"), Ok(0.02));
+    let e = parse_com_offset_m("3").unwrap_err();
+    assert!(
+        e.contains("body.com_offset_m: 3 m is above its limit 2 m: set a value in [0, 2] m"),
+        "{e}"
+    );
+    let e = parse_com_offset_m("two").unwrap_err();
+    assert!(e.contains("not a number"), "{e}");
+    assert!(parse_com_offset_m("NaN").is_err());
     assert!(read_trace(b"t_s,x\n")
         .unwrap_err()
         .to_string()

@@ -105,7 +105,7 @@ pub struct Args {
     #[arg(long, default_value = topics::DEFAULT_LOCALISER)]
     pub localiser_topic: String,
     /// d, G ahead of the axle midpoint [m] [default: body.com_offset_m of the robot file the robot runs, read from its store; the bridge does not start when the robot cannot tell].
-    #[arg(long)]
+    #[arg(long, value_name = "M", value_parser = ros_mcap::parse_com_offset_m)]
     pub com_offset_m: Option<f64>,
     /// Fraction of the robot's speed and acceleration limits a path's profile uses.
     #[arg(long, default_value_t = bridge::DEFAULT_PATH_LIMIT_FRACTION)]

@@ -41,7 +41,7 @@ pub struct RecordArgs {
     /// d, G ahead of the axle midpoint, for the MCAP's base_link [m]
     /// [default: body.com_offset_m of the robot file the robot runs, read
     /// from its store; the paper robot's 0.05 when it cannot tell].
-    #[arg(long, value_name = "M")]
+    #[arg(long, value_name = "M", value_parser = ros_mcap::parse_com_offset_m)]
     pub com_offset_m: Option<f64>,
 }
 
