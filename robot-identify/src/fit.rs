@@ -220,6 +220,23 @@ pub struct Dynamics {
     pub torque_per_volt: Estimate,
     /// The scale came from the weighed mass ([`FitOptions::mass_kg`]).
     pub mass_given: bool,
+    /// The weighed mass \[kg\] when one was given (voltage form), whether or
+    /// not the run let it fix the scale ([`Self::mass_given`]).
+    pub weighed_mass_kg: Option<f64>,
+    /// Instants left out of the fit for a torque-limited tick within a
+    /// filter window of them (each would give two rows).
+    pub saturated_rows: usize,
+    /// The fitted translational term M_v/a (voltage form; M_v in the
+    /// torque form): the weighed mass fixes the scale through it, so only
+    /// when its interval excludes 0.
+    pub scale_term: Estimate,
+    /// |M_v/a|·RMS(its regressor) over the residual RMS: how much of the
+    /// duty the translational term explains against what nothing does.
+    /// Below 1 the term is not determined whatever its interval (a spin
+    /// on the spot gave M_v/a 1695 ± 226 for a true 15: its regressor,
+    /// v̇ ≈ 0, picks up model error), and neither the scale nor the mass
+    /// is taken from it (D218).
+    pub scale_snr: f64,
     /// The least-squares fit (parameters in the order of [`Self::names`]).
     pub lsq: LsqFit,
     /// The fitted quantities, in the regressor's column order.
@@ -259,6 +276,18 @@ pub struct Identification {
     pub torque_check: Option<Dynamics>,
     /// Why parameters are not identified, and other findings.
     pub notes: Vec<String>,
+}
+
+impl Dynamics {
+    /// The run determined the translational term M_v/a: its interval
+    /// excludes 0 and it explains at least as much as the residual
+    /// ([`Self::scale_snr`] ≥ 1). Only then does a weighed mass fix the
+    /// scale, and only then is a mass identified without one.
+    pub fn translation_determined(&self) -> bool {
+        !self.scale_term.consistent_with_zero()
+            && self.scale_term.ci95.is_finite()
+            && self.scale_snr >= 1.0
+    }
 }
 
 /// Why a log cannot be fitted.
@@ -575,6 +604,7 @@ pub fn identify(
     let h = half_track_m.value;
     let dyn_fit = |form: Form| -> Result<Dynamics, FitError> {
         let mut phi_rows: Vec<[f64; 7]> = Vec::new();
+        let mut saturated_rows = 0usize;
         let mut ys: Vec<f64> = Vec::new();
         for s in &segs {
             if s.rates[0].len() < 2 * m + 1 {
@@ -611,6 +641,7 @@ pub fn identify(
                 // paper robot (seed 1): inertia −3.7 % with these rows,
                 // +0.35 % without (D82).
                 if s.saturated[k..=k + 2 * m].iter().any(|&b| b) {
+                    saturated_rows += 1;
                     continue;
                 }
                 for i in 0..2 {
@@ -635,22 +666,36 @@ pub fn identify(
         };
         // Two rows per instant: the correlation spans twice the window.
         let f = solve(&phi, &y, 2 * lags).map_err(|e| FitError::Lsq(name, e))?;
+        // What the translational term explains of the right-hand side,
+        // against what nothing explains (see `Dynamics::scale_snr`).
+        let rms0 = (phi.column(0).iter().map(|x| x * x).sum::<f64>() / n.max(1) as f64).sqrt();
+        let scale_snr = f.theta[0].abs() * rms0 / f.residual_rms;
         let iw = prior.robot.wheel_inertia_kgm2 as f64;
         let inv_r2 = 1.0 / (r[0] * r[0]) + 1.0 / (r[1] * r[1]);
         // The scale a: the prior motor's, or (voltage form, mass weighed)
         // the one that makes M_v = m + I_w·Σ1/r² of the weighed m. The
         // physical parameters are p = a·θ; with a = M_v/θ₀ their
         // covariance is J·C·Jᵀ, J = a·(1 − θ e₀ᵀ/θ₀) (p₀ = M_v exactly).
-        let given = match (form, opts.mass_kg) {
-            (Form::Voltage, Some(m)) => Some(m + iw * inv_r2),
+        let weighed = match (form, opts.mass_kg) {
+            (Form::Voltage, Some(m)) => Some(m),
             _ => None,
+        };
+        // The weighed mass fixes the scale only when the run determined
+        // M_v/a: an interval that contains 0 (a run that barely
+        // accelerated the robot, most rows saturated against friction)
+        // leaves a as the prior's, said in the notes (D218); a value
+        // below 0 beyond its interval is a log no robot makes.
+        let t0 = Estimate::new(f.theta[0], f.std_err[0]);
+        let determined = !t0.consistent_with_zero() && t0.ci95.is_finite() && scale_snr >= 1.0;
+        let given = match weighed {
+            Some(_) if !determined => None,
+            Some(_) if t0.value <= 0.0 => return Err(FitError::NoScale(t0.value)),
+            Some(m) => Some(m + iw * inv_r2),
+            None => None,
         };
         let (scale, jac) = match given {
             Some(mv) => {
                 let t0 = f.theta[0];
-                if t0 <= 0.0 {
-                    return Err(FitError::NoScale(t0));
-                }
                 let a = mv / t0;
                 let j = DMatrix::from_fn(7, 7, |i, k| {
                     (if i == k { a } else { 0.0 }) - if k == 0 { a * f.theta[i] / t0 } else { 0.0 }
@@ -718,6 +763,10 @@ pub fn identify(
             duty_sign,
             torque_per_volt,
             mass_given: given.is_some(),
+            weighed_mass_kg: weighed,
+            saturated_rows,
+            scale_term: t0,
+            scale_snr,
             names: match form {
                 Form::Voltage => [
                     "M_v/a", "M_w/a", "md/a", "kappa_R", "kappa_L", "gamma_R", "gamma_L",
@@ -791,6 +840,21 @@ fn scale_note(d: &Dynamics, prior: &Prior) -> String {
             100.0 * (a.value / a0 - 1.0)
         );
     }
+    if let Some(m) = d.weighed_mass_kg {
+        return format!(
+            "scale NOT identified although the robot was weighed: the run's translational term M_v/a = {:.4} \
+             (explaining {:.2} of the residual's RMS) is not determined, so the weighed m = {m:.4} kg cannot fix the motor's torque per volt \
+             a = η_g·N·k/R: a is the prior's ({a0:.5} N·m/V), the weighed mass is written, and every value the run \
+             did not determine keeps the prior's. The run barely accelerated the robot along its heading ({} of {} \
+             rows fitted: rows at the torque limit are left out); a robot whose friction takes most of its torque \
+             limit needs a slower excitation (`wmr identify run --v-amp`, `--w-amp` lower) or a higher \
+             limits.torque_nm if its driver allows",
+            d.scale_term,
+            d.scale_snr,
+            d.lsq.rows / 2,
+            d.lsq.rows / 2 + d.saturated_rows,
+        );
+    }
     // Ratios the log determines whatever a is.
     let th = &d.lsq.theta;
     let se = &d.lsq.std_err;
@@ -823,6 +887,18 @@ fn scale_note(d: &Dynamics, prior: &Prior) -> String {
 /// determine, and the least-determined combination.
 fn richness_notes(d: &Dynamics, opts: &FitOptions, notes: &mut Vec<String>) {
     let f = &d.lsq;
+    if !d.translation_determined() {
+        notes.push(format!(
+            "the translational term {} = {} is not determined (it explains {:.2} of the residual's RMS; \
+             at least 1 is needed): the run barely accelerated the robot along its heading ({} instants \
+             fitted, {} left out at the torque limit), so the mass and d keep the prior's (D218)",
+            d.names[0],
+            d.scale_term,
+            d.scale_snr,
+            f.rows / 2,
+            d.saturated_rows
+        ));
+    }
     if f.condition > 1e3 {
         let combo: Vec<String> = f
             .weakest

@@ -247,21 +247,131 @@ pub fn robot_toml(id: &Identification, prior: &Prior) -> String {
     out
 }
 
+/// Lowers each motion limit of `r` that its (identified) motors cannot
+/// give to what they can, rounded down to 3 significant digits, and says
+/// so: a gearbox 20 % weaker than the datasheet holds less speed against
+/// its friction (the N20 robot's 0.6 m/s above its identified 0.598), and
+/// a robot file the validator refuses is of no use to its user (D218).
+/// The limits that bound others (`limits.torque_nm`) are never raised or
+/// lowered here.
+pub fn lower_limits_to_bounds(r: &mut robot_file::Robot) -> Vec<String> {
+    let mut said = Vec::new();
+    for _ in 0..4 {
+        let Err(e) = r.validate() else { break };
+        let robot_file::Reason::Exceeds {
+            value,
+            limit,
+            unit,
+            with,
+            ..
+        } = e.reason
+        else {
+            break;
+        };
+        let l = &mut r.limits;
+        let slot = match e.field {
+            "limits.max_speed_mps" => &mut l.max_speed_mps,
+            "limits.max_yaw_rate_radps" => &mut l.max_yaw_rate_radps,
+            "limits.max_accel_mps2" => &mut l.max_accel_mps2,
+            _ => break,
+        };
+        if !(limit.is_finite() && limit > 0.0) {
+            break;
+        }
+        let scale = 10f32.powi(2 - limit.log10().floor() as i32);
+        let new = (limit * scale).floor() / scale;
+        *slot = new;
+        said.push(format!(
+            "{} lowered from {value} to {new} {unit}: the identified robot's bound is {limit:.4} {unit} ({with})",
+            e.field
+        ));
+    }
+    said
+}
+
+/// Puts back the prior's (`base`'s) value of an identified field the
+/// robot file refuses, and says so: the first refusal of `r.validate()`
+/// when it names a field the fit writes (a Coulomb friction identified
+/// above half the stall torque from a run whose rows mostly saturated
+/// against it). Nothing when `r` is valid or the refusal is another
+/// field's (D218).
+pub fn keep_refused_at_prior(r: &mut robot_file::Robot, base: &robot_file::Robot) -> Vec<String> {
+    let Err(e) = r.validate() else {
+        return Vec::new();
+    };
+    let (b, m, bb, bm) = (&mut r.body, &mut r.motors, &base.body, &base.motors);
+    let (slot, prior) = match e.field {
+        "body.mass_kg" => (&mut b.mass_kg, bb.mass_kg),
+        "body.inertia_kgm2" => (&mut b.inertia_kgm2, bb.inertia_kgm2),
+        "body.com_offset_m" => (&mut b.com_offset_m, bb.com_offset_m),
+        "body.track_m" => (&mut b.track_m, bb.track_m),
+        "body.wheel_radius_m[0]" => (&mut b.wheel_radius_m[0], bb.wheel_radius_m[0]),
+        "body.wheel_radius_m[1]" => (&mut b.wheel_radius_m[1], bb.wheel_radius_m[1]),
+        "motors.coulomb_friction_nm[0]" => {
+            (&mut m.coulomb_friction_nm[0], bm.coulomb_friction_nm[0])
+        }
+        "motors.coulomb_friction_nm[1]" => {
+            (&mut m.coulomb_friction_nm[1], bm.coulomb_friction_nm[1])
+        }
+        "motors.viscous_friction_nms_per_rad[0]" => (
+            &mut m.viscous_friction_nms_per_rad[0],
+            bm.viscous_friction_nms_per_rad[0],
+        ),
+        "motors.viscous_friction_nms_per_rad[1]" => (
+            &mut m.viscous_friction_nms_per_rad[1],
+            bm.viscous_friction_nms_per_rad[1],
+        ),
+        "motors.gear_efficiency" => (&mut m.gear_efficiency, bm.gear_efficiency),
+        "motors.resistance_ohm" => (&mut m.resistance_ohm, bm.resistance_ohm),
+        _ => return Vec::new(),
+    };
+    if *slot == prior {
+        return Vec::new();
+    }
+    let was = *slot;
+    *slot = prior;
+    vec![format!(
+        "{} identified as {was} is refused by the robot file ({e}): the prior's {prior} is written",
+        e.field
+    )]
+}
+
+/// The friction written for an estimate `e` of a friction whose prior
+/// value is `prior`: the estimate when the run identified it (at least 0);
+/// one the run cannot tell from zero is 0 when its interval excludes the
+/// prior's value (the run says it is smaller), and the prior's when the
+/// interval holds both (the run says nothing: an excitation that
+/// saturated against friction wrote 0 for a gearbox that eats 75 % of the
+/// torque limit, D218).
+pub fn written_friction(e: &Estimate, prior: f32) -> f32 {
+    if e.ci95.is_finite() && !e.consistent_with_zero() {
+        e.value.max(0.0) as f32
+    } else if (e.value - prior as f64).abs() <= e.ci95 {
+        prior
+    } else {
+        0.0
+    }
+}
+
 /// The identified robot as a robot file: `base` (the prior's file) with
 /// the body's mass, inertia, centre-of-mass offset, both wheel radii and
 /// the track, and each wheel's friction, replaced where the run identified
-/// them (a friction whose interval contains zero, or below zero, is written
-/// as 0); with a weighed mass, the mass and the identified torque per volt
+/// them (a friction whose interval contains zero but not the prior's value
+/// is written as 0, one whose interval holds both keeps the prior's, one
+/// identified below zero is 0); with a weighed mass, the mass and the identified torque per volt
 /// a = η_g·N·k/R (as `motors.gear_efficiency`, or `motors.resistance_ohm`
 /// when that efficiency would leave 0.1..=1); everything else (the other
 /// motor constants, encoders, bridge, limits, gains) kept. The header comment is the report (every value with its
-/// interval). Fails when the result is not a valid robot file (the error
-/// names the field).
+/// interval). An identified value the file refuses keeps the prior's, a
+/// motion limit the identified motors cannot give is lowered to their
+/// bound ([`keep_refused_at_prior`], [`lower_limits_to_bounds`]): each
+/// said in the header and returned with the text. Fails when the result
+/// is still not a valid robot file (the error names the field).
 pub fn robot_file(
     id: &Identification,
     prior: &Prior,
     base: &robot_file::Robot,
-) -> Result<String, String> {
+) -> Result<(String, Vec<String>), String> {
     let mut r = base.clone();
     let ok = |e: &Estimate| e.ci95.is_finite() && !e.consistent_with_zero();
     if let Some(d) = &id.dynamics {
@@ -279,19 +389,25 @@ pub fn robot_file(
                 m.resistance_ohm =
                     m.gear_efficiency * m.gear_ratio * m.torque_constant_nm_per_a / a;
             }
-        } else if ok(&d.mass_kg) {
+        } else if let Some(m) = d.weighed_mass_kg {
+            // Weighed, but the run could not fix the scale with it (D218):
+            // the mass is the scale's, a the prior's.
+            r.body.mass_kg = m as f32;
+        } else if ok(&d.mass_kg) && d.translation_determined() {
             r.body.mass_kg = d.mass_kg.value as f32;
         }
         if ok(&d.inertia_kgm2) {
             r.body.inertia_kgm2 = d.inertia_kgm2.value as f32;
         }
-        if ok(&d.com_offset_m) && d.com_offset_m.value >= 0.0 {
+        if ok(&d.com_offset_m) && d.com_offset_m.value >= 0.0 && d.translation_determined() {
             r.body.com_offset_m = d.com_offset_m.value as f32;
         }
-        let f = |e: &Estimate| if ok(e) { e.value.max(0.0) as f32 } else { 0.0 };
+        let f = written_friction;
+        let m = &mut r.motors;
         for i in 0..2 {
-            r.motors.coulomb_friction_nm[i] = f(&d.coulomb_nm[i]);
-            r.motors.viscous_friction_nms_per_rad[i] = f(&d.viscous_nms_per_rad[i]);
+            m.coulomb_friction_nm[i] = f(&d.coulomb_nm[i], m.coulomb_friction_nm[i]);
+            m.viscous_friction_nms_per_rad[i] =
+                f(&d.viscous_nms_per_rad[i], m.viscous_friction_nms_per_rad[i]);
         }
     }
     for i in 0..2 {
@@ -301,6 +417,15 @@ pub fn robot_file(
     }
     if !id.track_from_prior && ok(&id.half_track_m) {
         r.body.track_m = 2.0 * id.half_track_m.value as f32;
+    }
+    let mut lowered = Vec::new();
+    for _ in 0..8 {
+        let mut said = lower_limits_to_bounds(&mut r);
+        said.extend(keep_refused_at_prior(&mut r, base));
+        if said.is_empty() {
+            break;
+        }
+        lowered.extend(said);
     }
     r.validate()
         .map_err(|e| format!("the identified robot is not a valid robot file: {e}"))?;
@@ -317,6 +442,75 @@ pub fn robot_file(
     for l in text(id, prior).lines() {
         let _ = writeln!(out, "#   {l}");
     }
+    for l in &lowered {
+        let _ = writeln!(out, "# {l}");
+    }
     out.push_str(&r.to_toml_string());
-    Ok(out)
+    Ok((out, lowered))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn e(value: f64, ci95: f64) -> Estimate {
+        Estimate { value, ci95 }
+    }
+
+    /// Identified: written (a negative one as 0); not told from zero: 0
+    /// when the interval excludes the prior, the prior when it holds it;
+    /// not identified at all (∞): the prior.
+    #[test]
+    fn a_friction_changes_only_where_the_run_says_so() {
+        assert_eq!(written_friction(&e(0.05, 0.01), 0.03), 0.05);
+        assert_eq!(written_friction(&e(-0.05, 0.01), 0.03), 0.0);
+        assert_eq!(written_friction(&e(0.002, 0.004), 0.03), 0.0);
+        assert_eq!(written_friction(&e(0.31, 1.63), 0.069), 0.069);
+        assert_eq!(written_friction(&e(0.0, f64::INFINITY), 0.069), 0.069);
+        assert_eq!(written_friction(&e(0.0, 0.0), 0.0), 0.0);
+    }
+
+    /// An identified friction the file refuses (above half the stall
+    /// torque) goes back to the prior's, said; a valid file is untouched.
+    #[test]
+    fn a_refused_identified_value_goes_back_to_the_prior() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+        let text = std::fs::read_to_string(format!("{root}/robots/n20-0p85kg.toml")).unwrap();
+        let base = robot_file::Robot::from_toml_str(&text).unwrap();
+        let mut r = base.clone();
+        assert!(keep_refused_at_prior(&mut r, &base).is_empty());
+        r.motors.coulomb_friction_nm[1] = 0.9 * r.limits.torque_nm + 1.0;
+        let said = keep_refused_at_prior(&mut r, &base);
+        assert_eq!(r, base);
+        assert!(
+            said[0].starts_with("motors.coulomb_friction_nm[1] identified as"),
+            "{said:?}"
+        );
+    }
+
+    /// A file whose speed limit its motors cannot hold against their
+    /// friction (the validator's bound) gets the bound, rounded down to 3
+    /// digits, and validates; a valid file is left as it is.
+    #[test]
+    fn a_limit_beyond_the_identified_motors_is_lowered_to_their_bound() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+        let text = std::fs::read_to_string(format!("{root}/robots/n20-0p85kg.toml")).unwrap();
+        let mut r = robot_file::Robot::from_toml_str(&text).unwrap();
+        assert!(lower_limits_to_bounds(&mut r.clone()).is_empty());
+        r.motors.gear_efficiency *= 0.7;
+        let before = r.limits.max_speed_mps;
+        assert!(r.validate().is_err());
+        let said = lower_limits_to_bounds(&mut r);
+        r.validate().unwrap();
+        let top = r.friction_limited_speed_mps();
+        assert!(
+            r.limits.max_speed_mps <= top && r.limits.max_speed_mps > 0.99 * top,
+            "{said:?}"
+        );
+        assert!(r.limits.max_speed_mps < before);
+        assert!(
+            said[0].starts_with("limits.max_speed_mps lowered from 0.6 to"),
+            "{said:?}"
+        );
+    }
 }

@@ -265,7 +265,7 @@ fn example_robots_are_identified_and_written_back() {
                 );
             }
         }
-        let out = robot_identify::report::robot_file(&id, &prior, &file).unwrap();
+        let (out, _) = robot_identify::report::robot_file(&id, &prior, &file).unwrap();
         let back = robot_file::Robot::from_toml_str(&out).unwrap();
         assert!((back.body.mass_kg as f64 - d.mass_kg.value).abs() < 1e-4 * t.m);
         assert_eq!(back.bridge, file.bridge);

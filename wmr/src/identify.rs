@@ -370,7 +370,12 @@ pub fn fit(a: &FitArgs, out: &mut dyn Write) -> Result<(), FitError> {
     if let Some(path) = &a.out {
         let text = match &base {
             Some(robot) => {
-                robot_identify::report::robot_file(&id, &prior, robot).map_err(FitError::Input)?
+                let (text, said) = robot_identify::report::robot_file(&id, &prior, robot)
+                    .map_err(FitError::Input)?;
+                for l in said {
+                    writeln!(out, "{l}").map_err(w)?;
+                }
+                text
             }
             None => robot_identify::report::robot_toml(&id, &prior),
         };
