@@ -307,8 +307,14 @@ impl<const H: usize> PoseEstimator<H> {
     /// A given pose says nothing of the gyro or the wheels: forgetting them
     /// let the heading drift at the full gyro bias (0.01 rad/s in the
     /// `imu` preset) until standstill updates learned it again. The given
-    /// pose is independent of them, so its cross-covariance is 0.
+    /// pose is independent of them, so its cross-covariance is 0. How
+    /// long the wheels have stood still is kept too.
     pub(crate) fn keep_calibration(&mut self, old: &Self) {
+        // Nor does it move the robot: one standing still stays still, and
+        // its zero-rate updates go on from the first tick after the set
+        // (reset, 200 ticks integrated the unlearned part of the bias and
+        // the gyro's noise: 1e-4 rad in the interop check's hold).
+        self.still_ticks = old.still_ticks;
         for i in 3..N {
             self.filter.x[i] = old.filter.x[i];
             for j in i..N {
