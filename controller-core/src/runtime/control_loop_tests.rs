@@ -748,4 +748,3 @@ fn a_re_anchored_pose_keeps_the_learned_gyro_bias() {
         "the heading of a robot at rest moved {worst} rad within 2 s of the re-anchor"
     );
 }
-
