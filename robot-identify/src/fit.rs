@@ -228,12 +228,12 @@ pub struct Dynamics {
     pub saturated_rows: usize,
     /// The fitted translational term M_v/a (voltage form; M_v in the
     /// torque form): the weighed mass fixes the scale through it, so only
-    /// when its interval excludes 0.
+    /// when the run determined it ([`Dynamics::translation_determined`]).
     pub scale_term: Estimate,
     /// |M_v/a|·RMS(its regressor) over the residual RMS: how much of the
     /// duty the translational term explains against what nothing does.
     /// Below 1 the term is not determined whatever its interval (a spin
-    /// on the spot gave M_v/a 1695 ± 226 for a true 15: its regressor,
+    /// on the spot gave M_v/a 1695 ± 226 for a true 14.9: its regressor,
     /// v̇ ≈ 0, picks up model error), and neither the scale nor the mass
     /// is taken from it (D218).
     pub scale_snr: f64,
@@ -284,10 +284,13 @@ impl Dynamics {
     /// ([`Self::scale_snr`] ≥ 1). Only then does a weighed mass fix the
     /// scale, and only then is a mass identified without one.
     pub fn translation_determined(&self) -> bool {
-        !self.scale_term.consistent_with_zero()
-            && self.scale_term.ci95.is_finite()
-            && self.scale_snr >= 1.0
+        determined(&self.scale_term, self.scale_snr)
     }
+}
+
+/// See [`Dynamics::translation_determined`].
+fn determined(term: &Estimate, snr: f64) -> bool {
+    !term.consistent_with_zero() && term.ci95.is_finite() && snr >= 1.0
 }
 
 /// Why a log cannot be fitted.
@@ -686,9 +689,8 @@ pub fn identify(
         // leaves a as the prior's, said in the notes (D218); a value
         // below 0 beyond its interval is a log no robot makes.
         let t0 = Estimate::new(f.theta[0], f.std_err[0]);
-        let determined = !t0.consistent_with_zero() && t0.ci95.is_finite() && scale_snr >= 1.0;
         let given = match weighed {
-            Some(_) if !determined => None,
+            Some(_) if !determined(&t0, scale_snr) => None,
             Some(_) if t0.value <= 0.0 => return Err(FitError::NoScale(t0.value)),
             Some(m) => Some(m + iw * inv_r2),
             None => None,
