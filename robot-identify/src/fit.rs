@@ -218,8 +218,6 @@ pub struct Dynamics {
     /// that scales the fit: identified from the weighed mass, else the
     /// prior's (interval ∞: not identified). Torque form: 1.
     pub torque_per_volt: Estimate,
-    /// The scale came from the weighed mass ([`FitOptions::mass_kg`]).
-    pub mass_given: bool,
     /// The weighed mass \[kg\] when one was given (voltage form), whether or
     /// not the run let it fix the scale ([`Self::mass_given`]).
     pub weighed_mass_kg: Option<f64>,
@@ -285,6 +283,12 @@ impl Dynamics {
     /// scale, and only then is a mass identified without one.
     pub fn translation_determined(&self) -> bool {
         determined(&self.scale_term, self.scale_snr)
+    }
+
+    /// The scale came from the weighed mass ([`FitOptions::mass_kg`]): one
+    /// was given and the run determined the term it scales.
+    pub fn mass_given(&self) -> bool {
+        self.weighed_mass_kg.is_some() && self.translation_determined()
     }
 }
 
@@ -764,7 +768,6 @@ pub fn identify(
             emf_vs_per_rad: emf,
             duty_sign,
             torque_per_volt,
-            mass_given: given.is_some(),
             weighed_mass_kg: weighed,
             saturated_rows,
             scale_term: t0,
@@ -831,7 +834,7 @@ pub fn identify(
 fn scale_note(d: &Dynamics, prior: &Prior) -> String {
     let a = d.torque_per_volt;
     let a0 = prior.torque_per_volt();
-    if d.mass_given {
+    if d.mass_given() {
         return format!(
             "scale: the weighed mass m = {:.4} kg (--mass-kg, taken as exact) fixes the scale the log cannot see: \
              the motor's torque per volt a = η_g·N·k/R is identified, {:.5} ± {:.5} N·m/V ({:+.1} % from the prior's {a0:.5}); \

@@ -20,7 +20,7 @@ fn line(out: &mut String, name: &str, unit: &str, e: &Estimate, prior: Option<f6
 
 fn dynamics(out: &mut String, d: &Dynamics, prior: &Prior) {
     let p = &prior.robot;
-    if d.mass_given {
+    if d.mass_given() {
         let _ = writeln!(
             out,
             "  {:<22} {:>12.5} {:<12} {:<10}    given (--mass-kg)   (prior {:.5})",
@@ -29,7 +29,7 @@ fn dynamics(out: &mut String, d: &Dynamics, prior: &Prior) {
     } else {
         line(out, "mass m", "kg", &d.mass_kg, Some(p.mass_kg as f64));
     }
-    if d.form == crate::fit::Form::Voltage && d.mass_given {
+    if d.form == crate::fit::Form::Voltage && d.mass_given() {
         line(
             out,
             "torque/volt a=ηNk/R",
@@ -375,7 +375,7 @@ pub fn robot_file(
     let mut r = base.clone();
     let ok = |e: &Estimate| e.ci95.is_finite() && !e.consistent_with_zero();
     if let Some(d) = &id.dynamics {
-        if d.mass_given {
+        if d.mass_given() {
             r.body.mass_kg = d.mass_kg.value as f32;
             // The identified a = η_g·N·k/R: in the gear efficiency (the
             // number a datasheet knows least; N, k and the back-EMF N·k

@@ -492,7 +492,7 @@ fn a_weighed_mass_fixes_the_scale_only_when_the_run_determines_it() {
     let text = robot_identify::report::text(&id, &prior);
     println!("M_v/a {} (spin)\n{text}", d.scale_term);
     assert!(!d.translation_determined() && d.scale_snr < 1.0, "{text}");
-    assert!(!d.mass_given && d.weighed_mass_kg == Some(15.0), "{text}");
+    assert!(!d.mass_given() && d.weighed_mass_kg == Some(15.0), "{text}");
     assert_eq!(d.torque_per_volt.value, prior.torque_per_volt());
     assert!(d.torque_per_volt.ci95.is_infinite());
     assert!(
@@ -508,6 +508,6 @@ fn a_weighed_mass_fixes_the_scale_only_when_the_run_determines_it() {
     let rich = identify(&run(&scn, &excitation()).rows, &prior, &opts).unwrap();
     let d = rich.dynamics.as_ref().unwrap();
     println!("M_v/a {} (rich), a {}", d.scale_term, d.torque_per_volt);
-    assert!(d.mass_given && d.translation_determined() && d.scale_snr > 1.0);
+    assert!(d.mass_given() && d.translation_determined() && d.scale_snr > 1.0);
     assert!(rel(d.torque_per_volt.value, prior.torque_per_volt()) < 0.05);
 }

@@ -208,6 +208,12 @@ pub enum FitError {
 /// The comment key of the timer clock in an identification log.
 const TIMER_CLOCK_KEY: &str = "timer_clock_hz = ";
 
+/// The comment (and blank) lines a log starts with.
+fn header_lines(text: &str) -> impl Iterator<Item = &str> {
+    text.lines()
+        .take_while(|l| l.starts_with('#') || l.trim().is_empty())
+}
+
 /// The prefix of the comment lines that carry the robot file in an
 /// identification log (after the comment's `# `).
 const ROBOT_LINE: &str = "robot| ";
@@ -232,9 +238,7 @@ fn robot_comments(robot: &robot_file::Robot, origin: &str) -> Vec<String> {
 /// carries none, the robot file's own error when it does not read.
 pub fn robot_of_log(text: &str) -> Option<Result<robot_file::Robot, String>> {
     let prefix = format!("# {ROBOT_LINE}");
-    let lines: Vec<&str> = text
-        .lines()
-        .take_while(|l| l.starts_with('#') || l.trim().is_empty())
+    let lines: Vec<&str> = header_lines(text)
         .filter_map(|l| l.strip_prefix(prefix.as_str()))
         .collect();
     if lines.is_empty() {
@@ -266,15 +270,13 @@ pub fn body_of_size(mass_kg: f32, r_m: f32, h_m: f32) -> controller_core::RobotP
 
 /// The timer clock a log's comment lines give (`# ... timer_clock_hz = N`).
 pub fn timer_clock_of_log(text: &str) -> Option<u32> {
-    text.lines()
-        .take_while(|l| l.starts_with('#') || l.trim().is_empty())
-        .find_map(|l| {
-            let rest = &l[l.find(TIMER_CLOCK_KEY)? + TIMER_CLOCK_KEY.len()..];
-            rest.split(|c: char| !c.is_ascii_digit())
-                .next()?
-                .parse()
-                .ok()
-        })
+    header_lines(text).find_map(|l| {
+        let rest = &l[l.find(TIMER_CLOCK_KEY)? + TIMER_CLOCK_KEY.len()..];
+        rest.split(|c: char| !c.is_ascii_digit())
+            .next()?
+            .parse()
+            .ok()
+    })
 }
 
 /// `identify fit`: the report on `out`, the robot file with `-o`.
